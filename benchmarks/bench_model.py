@@ -1,0 +1,38 @@
+"""Time to build the PUMA 560 model (all CasADi Functions); target <= 1 s.
+
+Run: python benchmarks/bench_model.py
+Prints the median build time and its ratio to a plain reference run in the same
+process (building just forward kinematics with CasADi), so the number can be
+compared across machines.
+"""
+import statistics
+import time
+
+import casadi as ca
+
+from tmtcontrol import Puma560
+from tmtcontrol.robot import PUMA560_LINKS, _dh
+
+
+def reference():
+    q = ca.SX.sym("q", 3)
+    T = ca.SX.eye(4)
+    for i, link in enumerate(PUMA560_LINKS):
+        T = T @ _dh(q[i], link)
+    return ca.Function("fk", [q], [T[:3, 3]])
+
+
+def timed(fn, repeat=7):
+    out = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return statistics.median(out)
+
+
+if __name__ == "__main__":
+    t_model = timed(lambda: Puma560(armature=True, friction=True))
+    t_ref = timed(reference)
+    print(f"Puma560() build: {t_model * 1e3:.1f} ms (target <= 1000 ms)")
+    print(f"reference (fk only): {t_ref * 1e3:.2f} ms; ratio {t_model / t_ref:.0f}x")
