@@ -134,7 +134,11 @@ class Puma560:
     friction, smooth_friction : casadi.Function
         ``["dq"] -> ["tau_f"]``, joint friction torque (zeros when disabled).
     inverse_dynamics, forward_dynamics : casadi.Function
-        ``["q","dq","ddq"] -> ["tau"]`` and ``["q","dq","tau"] -> ["ddq"]``.
+        ``["q","dq","ddq"] -> ["tau"]`` (Lagrangian M, C, g) and
+        ``["q","dq","tau"] -> ["ddq"]`` (Lagrangian M; the bias ``C dq + g``
+        from the Newton-Euler recursion, which is ~15x cheaper).
+    bias : casadi.Function
+        ``["q","dq"] -> ["n"]``, ``C dq + g`` by Newton-Euler.
     rnea : casadi.Function
         Recursive Newton-Euler inverse dynamics (independent check).
     cartesian_inertia, cartesian_bias, cartesian_friction : casadi.Function
@@ -177,14 +181,19 @@ class Puma560:
         if friction is False:
             tau_f_smooth = ca.SX.zeros(3)
         Cdq = C @ dq
+        # The bias n(q, dq) = C dq + g from the Newton-Euler recursion with
+        # ddq = 0: equal to the Christoffel form (tests: 1e-12) and ~15x
+        # fewer operations, so forward dynamics and h* use it.
+        bias = self._rnea_expr(q, dq, ca.SX.zeros(3), frames, armature=False)
 
         # Cartesian form, eq. (1): D* Xdd + h* + F_f* = F - F_e
         Jinv = ca.inv(J)
         D = Jinv.T @ M @ Jinv
         Jdot_dq = ca.jacobian(J @ dq, q) @ dq
-        h = Jinv.T @ (Cdq + g) - D @ Jdot_dq
+        h = Jinv.T @ bias - D @ Jdot_dq
 
         self.expr = {"p": p, "J": J, "M": M, "C": C, "Cdq": Cdq, "g": g, "tau_f": tau_f,
+                     "bias": bias,
                      "D": D, "h": h, "Jdot_dq": Jdot_dq, "V": V}
         self.fk = ca.Function("fk", [q], [p], ["q"], ["p"])
         self.jacobian = ca.Function("jacobian", [q], [J], ["q"], ["J"])
@@ -194,13 +203,14 @@ class Puma560:
         self.coriolis = ca.Function("coriolis", [q, dq], [Cdq], ["q", "dq"], ["Cdq"])
         self.coriolis_matrix = ca.Function("coriolis_matrix", [q, dq], [C], ["q", "dq"], ["C"])
         self.gravity = ca.Function("gravity", [q], [g], ["q"], ["g"])
+        self.bias = ca.Function("bias", [q, dq], [bias], ["q", "dq"], ["n"])
         self.friction = ca.Function("friction", [dq], [tau_f], ["dq"], ["tau_f"])
         self.smooth_friction = ca.Function("smooth_friction", [dq], [tau_f_smooth],
                                            ["dq"], ["tau_f"])
         tau_id = M @ ddq + Cdq + g + tau_f
         self.inverse_dynamics = ca.Function("inverse_dynamics", [q, dq, ddq], [tau_id],
                                             ["q", "dq", "ddq"], ["tau"])
-        ddq_fd = ca.solve(M, tau - Cdq - g - tau_f)
+        ddq_fd = ca.solve(M, tau - bias - tau_f)
         self.forward_dynamics = ca.Function("forward_dynamics", [q, dq, tau], [ddq_fd],
                                             ["q", "dq", "tau"], ["ddq"])
         self.rnea = ca.Function("rnea", [q, dq, ddq],
@@ -216,6 +226,26 @@ class Puma560:
                                           ["q"], ["w"])
         self.energy = ca.Function("energy", [q, dq], [0.5 * ca.dot(dq, M @ dq), V],
                                   ["q", "dq"], ["T", "V"])
+
+    def inverse_kinematics(self, p, q0=(0.0, -0.6, 0.4), tol: float = 1e-12,
+                           max_iter: int = 100):
+        """Joint angles placing the wrist centre at ``p`` (m), by damped Newton
+        iterations from ``q0`` (rad; the default is elbow-up, in front of the
+        base). Raises ``ValueError`` when ``p`` is not reached to ``tol``."""
+        import numpy as np
+
+        target = np.asarray(p, dtype=float).ravel()
+        q = np.asarray(q0, dtype=float).ravel().copy()
+        for _ in range(max_iter):
+            err = target - np.asarray(self.fk(q)).ravel()
+            if np.linalg.norm(err) < tol:
+                return q
+            J = np.asarray(self.jacobian(q))
+            # Levenberg-Marquardt step: well defined near singularities
+            lam = 1e-9 + 1e-3 * min(np.linalg.norm(err), 1.0)
+            q = q + np.linalg.solve(J.T @ J + lam * np.eye(3), J.T @ err)
+        raise ValueError(f"inverse kinematics: point {target.tolist()} not reached "
+                         f"(residual {np.linalg.norm(err):.3g} m); is it outside the workspace?")
 
     # -- derivation helpers ------------------------------------------------
     def _frames(self, q):
@@ -278,7 +308,7 @@ class Puma560:
             out.append(abs(link.G) * (link.B * abs(link.G) * dq[i] + coulomb))
         return ca.vertcat(*out)
 
-    def _rnea_expr(self, q, dq, ddq, frames):
+    def _rnea_expr(self, q, dq, ddq, frames, armature=True):
         """Recursive Newton-Euler in the base frame (no friction).
 
         Forward pass: angular velocity/acceleration of each link, linear
@@ -316,6 +346,6 @@ class Puma560:
             f_next = f_next + F
             n_next = n_i
             tau[i] = ca.dot(z, n_i)
-            if self.armature:
+            if self.armature and armature:
                 tau[i] += link.G ** 2 * link.Jm * ddq[i]
         return ca.vertcat(*tau)

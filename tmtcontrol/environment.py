@@ -1,0 +1,92 @@
+"""Environment: the tilted plane of Fig. 2, its unilateral spring contact, and
+stiffness profiles k_e(t) such as Fig. 3.
+
+Task frame: origin at the circle centre on the plane; axis 0 ("normal") points
+*into* the surface, so that the normal coordinate x grows with penetration and
+the contact law reads, as in section III, ``f_e = k_e (x - x_e)`` with
+``x_e = 0`` the surface; axes 1 and 2 span the plane.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+
+import casadi as ca
+import numpy as np
+
+from .scenario import ScenarioError, StiffnessProfile
+
+__all__ = ["task_frame", "contact_force", "stiffness_samples", "read_stiffness_table"]
+
+
+def task_frame(tilt_deg: float) -> np.ndarray:
+    """Rotation R (3x3) whose columns are the task axes in the base frame.
+
+    The plane's outward normal is base z rotated by ``tilt_deg`` about base y:
+    ``n_out = (-sin t, 0, cos t)``. Columns: ``e_n = -n_out`` (into the
+    surface), ``e_1 = y`` (along the plane, horizontal), ``e_2 = e_n x e_1``.
+    """
+    t = math.radians(tilt_deg)
+    e_n = np.array([math.sin(t), 0.0, -math.cos(t)])
+    e_1 = np.array([0.0, 1.0, 0.0])
+    e_2 = np.cross(e_n, e_1)
+    return np.column_stack([e_n, e_1, e_2])
+
+
+def contact_force(x, dx, k_e, damping, x_e=0.0):
+    """Unilateral spring(-damper) normal force, N (section III, eq. 13).
+
+    ``f_e = max(0, k_e (x - x_e) + damping dx)`` while ``x > x_e``, else 0.
+    Works on floats, NumPy arrays and CasADi symbols.
+    """
+    pen = x - x_e
+    f = k_e * pen + damping * dx
+    if isinstance(pen, (ca.SX, ca.MX, ca.DM)):
+        return ca.if_else(pen > 0, ca.fmax(f, 0), 0)
+    return np.where(pen > 0, np.maximum(f, 0.0), 0.0)
+
+
+def read_stiffness_table(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a CSV table of ``t, k_e`` rows (s, N/m); a header row is allowed."""
+    key = "environment.stiffness.file"
+    try:
+        with open(path, newline="") as fh:
+            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    except FileNotFoundError:
+        raise ScenarioError(f"{key}: no such file {str(path)!r}") from None
+    data = []
+    for i, row in enumerate(rows):
+        try:
+            data.append([float(row[0]), float(row[1])])
+        except (ValueError, IndexError):
+            if i == 0:
+                continue  # header
+            raise ScenarioError(f"{key}: row {i + 1} is not 't, k_e': {row!r}") from None
+    if not data:
+        raise ScenarioError(f"{key}: empty profile in {str(path)!r}")
+    arr = np.array(data)
+    if not np.all(np.isfinite(arr)):
+        raise ScenarioError(f"{key}: non-finite value in {str(path)!r}")
+    if np.any(arr[:, 1] <= 0):
+        raise ScenarioError(f"{key}: stiffness must be > 0 in {str(path)!r}")
+    if np.any(np.diff(arr[:, 0]) <= 0):
+        raise ScenarioError(f"{key}: times must be strictly increasing in {str(path)!r}")
+    return arr[:, 0], arr[:, 1]
+
+
+def stiffness_samples(profile: StiffnessProfile, t: np.ndarray, default_segment: float) -> np.ndarray:
+    """k_e at times ``t`` (N/m). ``default_segment`` (s) is the piecewise-constant
+    segment length when the profile does not set one (the trajectory period)."""
+    t = np.asarray(t, dtype=float)
+    if profile.kind == "piecewise_constant":
+        seg = profile.segment or default_segment
+        idx = np.minimum(np.floor(t / seg + 1e-9).astype(int), len(profile.values) - 1)
+        return np.asarray(profile.values, dtype=float)[idx]
+    if profile.kind == "piecewise_linear":
+        return np.interp(t, profile.times, profile.values)
+    if profile.kind == "sinusoidal":
+        return profile.mean + profile.amplitude * np.sin(2 * np.pi * t / profile.period)
+    tt, kk = read_stiffness_table(profile.file)
+    return np.interp(t, tt, kk)
