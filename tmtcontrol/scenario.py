@@ -249,7 +249,7 @@ class SimulationSettings:
     """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period)
     or ``cvodes`` (adaptive, accuracy reference, tolerance ``tol``)."""
     integrator: str = "fixed"
-    substeps: int = 1
+    substeps: int = 4
     tol: float = 1e-10
 
     def __post_init__(self):

@@ -1,0 +1,26 @@
+"""Every script in analysis/ runs (smoke level, small sizes)."""
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+SCRIPTS = {
+    "paper_figures.py": ["--cycles", "0.5"],
+}
+
+
+def test_every_script_is_listed():
+    assert {p.name for p in (ROOT / "analysis").glob("*.py")} == set(SCRIPTS)
+
+
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
+def test_script_runs(name, tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, str(ROOT / "analysis" / name), "--out", str(out), *SCRIPTS[name]],
+                       capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr
+    produced = list(out.iterdir())
+    assert produced and all(p.stat().st_size > 0 for p in produced)

@@ -1,0 +1,117 @@
+"""The command line: outputs, exit codes, one-line errors, atomic output."""
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from tmtcontrol import dump_scenario, paper_scenario
+from tmtcontrol.cli import main
+
+CLI = [sys.executable, "-m", "tmtcontrol.cli"]
+
+
+def run(args, **kw):
+    return subprocess.run(CLI + args, capture_output=True, text=True, **kw)
+
+
+def test_version_and_help():
+    r = run(["--version"])
+    assert r.returncode == 0 and r.stdout.startswith("tmtcontrol ")
+    r = run(["--help"])
+    assert r.returncode == 0 and "simulate" in r.stdout
+
+
+def test_simulate_writes_outputs(tmp_path):
+    out = tmp_path / "res"
+    r = run(["simulate", "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    assert "segment" in r.stdout and "overshoot" in r.stdout
+    files = {p.name for p in out.iterdir()}
+    assert {"timeseries.csv", "summary.json", "fig3_stiffness.png", "fig4_force.png",
+            "fig5_position.png", "path3d.png"} <= files
+    with (out / "timeseries.csv").open() as fh:
+        header = next(csv.reader(fh))
+    for col in ("time", "contact_force", "desired_force", "stiffness", "x", "y", "z",
+                "x_ref", "y_ref", "z_ref"):
+        assert col in header
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scenario"]["controller"]["f_d"] == 10.0
+    assert summary["versions"]["casadi"]
+    segs = summary["segments"]
+    assert len(segs) == 4
+    for s in segs:
+        for key in ("stiffness", "steady_state_error", "peak_force", "overshoot_pct",
+                    "settling_time", "tangential_rms"):
+            assert key in s
+        assert abs(s["steady_state_error"]) < 0.01
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())   # no temp leftovers
+
+
+def test_scenario_command_round_trips(tmp_path):
+    r = run(["scenario", "paper"])
+    assert r.returncode == 0
+    assert r.stdout == dump_scenario(paper_scenario())
+    path = tmp_path / "s.toml"
+    path.write_text(r.stdout.replace("f_d = 10.0", "f_d = 4.0").replace("cycles = 4.0", "cycles = 0.5"))
+    out = tmp_path / "o"
+    assert main(["simulate", str(path), "--out", str(out), "--no-plots"]) == 0
+    assert json.loads((out / "summary.json").read_text())["scenario"]["controller"]["f_d"] == 4.0
+    assert not (out / "fig4_force.png").exists()
+
+
+@pytest.mark.parametrize("content,args,needle", [
+    ("[controller\n", [], "malformed TOML"),
+    ("[controller]\nbogus = 1\n", [], "controller.bogus: unknown key"),
+    ("[controller]\nf_d = \"x\"\n", [], "controller.f_d: expected a number"),
+    ("[controller]\nf_d = nan\n", [], "controller.f_d: must be finite"),
+    ("[impedance]\nm = [-1, 1, 1]\n", [], "impedance.m[0]: must be > 0"),
+    ("[environment.stiffness]\nvalues = [0]\n", [], "environment.stiffness.values[0]: must be > 0"),
+    ("[environment]\ndamping = -2\n", [], "environment.damping: must be >= 0"),
+    ("[controller]\nrate = 0\n", [], "controller.rate: must be > 0"),
+    ("[environment.stiffness]\nvalues = []\n", [], "empty profile"),
+    ("[trajectory]\ncenter = [3.0, 0.0, 0.5]\n", [], "unreachable"),
+    ("", ["--set", "controller.f_d=-3"], "controller.f_d: must be > 0"),
+    ("", ["--set", "nope.x=1"], "nope: unknown key"),
+    (None, [], "no such scenario file"),
+])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, content, args, needle):
+    path = tmp_path / "s.toml"
+    if content is not None:
+        path.write_text(content)
+    out = tmp_path / "out"
+    r = run(["simulate", str(path), "--out", str(out), "--no-plots", *args])
+    assert r.returncode == 2
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    assert "Traceback" not in r.stderr
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == (["s.toml"] if content is not None else [])
+
+
+def test_bad_option_is_one_line(tmp_path):
+    r = run(["simulate", "--integrator", "euler"])
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_diverging_simulation_exit_1_with_time(tmp_path):
+    out = tmp_path / "o"
+    r = run(["simulate", "--out", str(out), "--no-plots", "--set", "controller.rate=100",
+             "--set", "impedance.k=[1e6, 1e6, 1e6]", "--set", "trajectory.cycles=0.5"])
+    assert r.returncode == 1
+    assert "diverged at t =" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_existing_output_is_replaced_atomically(tmp_path):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "stale.txt").write_text("old")
+    assert main(["simulate", "--out", str(out), "--no-plots", "--set", "trajectory.cycles=0.25"]) == 0
+    assert not (out / "stale.txt").exists() and (out / "summary.json").exists()
+    # a failing run leaves the previous output untouched
+    assert main(["simulate", "--out", str(out), "--set", "controller.f_d=0"]) == 2
+    assert (out / "summary.json").exists()
