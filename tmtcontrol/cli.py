@@ -40,6 +40,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.set_defaults(func=_simulate)
 
+    p = sub.add_parser("analyze", help="stability and damping of the TMT error dynamics (eqs. 22, 25)")
+    p.add_argument("--scenario", help="take m, b, k, f_d, the k_e range and Ts from a scenario's normal axis")
+    p.add_argument("--m", type=float, help="impedance mass, kg")
+    p.add_argument("--b", type=float, help="impedance damping, N s/m")
+    p.add_argument("--k", type=float, help="impedance stiffness, N/m")
+    p.add_argument("--fd", type=float, default=None, help="desired force, N (default 10)")
+    p.add_argument("--ke", type=float, help="environment stiffness, N/m")
+    p.add_argument("--ke-min", type=float, help="lower end of the stiffness range, N/m")
+    p.add_argument("--ke-max", type=float, help="upper end of the stiffness range, N/m")
+    p.add_argument("--ts", type=float, help="control period, s: adds the sampled-data analysis")
+    p.add_argument("--mp", type=float, help="robot's effective mass along the normal, kg "
+                   "(default: smallest along the paper path)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures")
+    p.set_defaults(func=_analyze)
+
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
     p.set_defaults(func=_scenario)
@@ -70,6 +86,50 @@ def _simulate(args) -> int:
           f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
     print(format_table(segment_metrics(res)))
     print(f"wrote {args.out}/")
+    return 0
+
+
+def _analyze(args) -> int:
+    import json
+
+    from .output import _clean, atomic_folder
+    from .stability import analyze, format_analysis, scenario_parameters
+
+    if args.scenario:
+        from .scenario import load_scenario
+
+        for flag in ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp"):
+            if getattr(args, flag) is not None:
+                raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario")
+        p = scenario_parameters(load_scenario(args.scenario))
+        kw = dict(m=p["m"], b=p["b"], k=p["k"], f_d=p["f_d"], Ts=p["Ts"], kd=p["kd"], kp=p["kp"],
+                  alpha=p["alpha"], d_e=p["d_e"], law=p["law"], m_p=(p["m_p_min"], p["m_p_max"]))
+        if p["k_e_min"] == p["k_e_max"]:
+            kw["k_e"] = p["k_e_min"]
+        else:
+            kw.update(k_e_min=p["k_e_min"], k_e_max=p["k_e_max"])
+    else:
+        for flag in ("m", "b", "k"):
+            if getattr(args, flag) is None:
+                raise UsageError(f"--{flag}: required (or use --scenario)")
+        if args.ke is not None and (args.ke_min is not None or args.ke_max is not None):
+            raise UsageError("--ke: give either --ke or --ke-min/--ke-max, not both")
+        if args.ke is None and (args.ke_min is None or args.ke_max is None):
+            raise UsageError("--ke: required (or both --ke-min and --ke-max)")
+        kw = dict(m=args.m, b=args.b, k=args.k, f_d=10.0 if args.fd is None else args.fd,
+                  k_e=args.ke, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts, m_p=args.mp)
+        if args.ke is not None:
+            kw.pop("k_e_min"), kw.pop("k_e_max")
+        else:
+            kw.pop("k_e")
+    result = analyze(**kw)
+    if args.plot:
+        from .plots import save_analysis_figures
+
+        with atomic_folder(args.plot) as tmp:
+            save_analysis_figures(result, tmp)
+    result.pop("systems")
+    print(json.dumps(_clean(result), indent=2) if args.json else format_analysis(result))
     return 0
 
 

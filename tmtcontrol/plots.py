@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 from .simulate import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
-           "save_simulation_figures"]
+           "save_simulation_figures", "root_locus_figure", "damping_figure", "step_figure",
+           "stability_region_figure", "save_analysis_figures"]
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
@@ -88,5 +89,110 @@ def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -
                        ("fig5_position", position_figure), ("path3d", path_figure)):
         path = folder / f"{name}.png"
         make(res).savefig(path, dpi=120)
+        out.append(path)
+    return out
+
+
+# -- stability analysis figures ----------------------------------------------------
+
+def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
+    """Poles of eq. (22) as k_e sweeps [k_e_min, k_e_max] (python-control root_locus_map)."""
+    from .stability import stiffness_sweep
+
+    sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
+    fig = Figure(figsize=(6, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    loci = sw["loci"]
+    for j in range(loci.shape[1]):
+        ax.plot(loci[:, j].real, loci[:, j].imag, "-", lw=1.5)
+    ax.plot(loci[0].real, loci[0].imag, "o", label=f"k_e = {k_e_min:.3g} N/m")
+    ax.plot(loci[-1].real, loci[-1].imag, "x", ms=9, label=f"k_e = {k_e_max:.3g} N/m")
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set(xlabel="Re (1/s)", ylabel="Im (rad/s)", title="Root locus of eq. (22) in k_e")
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
+    """Damping ratio and natural frequency of eq. (22) against k_e."""
+    from .stability import stiffness_sweep
+
+    sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
+    fig = Figure(figsize=(6.5, 4.5), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.semilogx(sw["k_e"], sw["damping_ratio"])
+    ax1.axhline(1.0, color="k", ls="--", lw=0.8, label="critical (eq. 25)")
+    ax1.set(ylabel="damping ratio", title="Damping and natural frequency versus k_e")
+    ax1.legend()
+    ax2.semilogx(sw["k_e"], sw["natural_frequency"])
+    ax2.set(xlabel="k_e (N/m)", ylabel="natural frequency (rad/s)")
+    for ax in (ax1, ax2):
+        ax.grid(True, which="both", alpha=0.3)
+    return fig
+
+
+def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
+    """Force step responses of eq. (22) for several stiffnesses."""
+    import control as ct
+
+    from .stability import tmt_error_tf
+
+    fig = Figure(figsize=(6.5, 4), layout="constrained")
+    ax = fig.add_subplot()
+    for ke in stiffnesses:
+        resp = ct.step_response(tmt_error_tf(m, b, k, ke) * f_d)
+        ax.plot(resp.time, np.squeeze(resp.outputs), label=f"k_e = {ke:.3g} N/m")
+    ax.axhline(f_d, color="k", ls="--", lw=0.8)
+    ax.set(xlabel="time (s)", ylabel="f_e (N)", title="Force step response, eq. (22)")
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) -> Figure:
+    """Sampled-data stability region: spectral radius over (Ts, k_e), the
+    rho = 1 boundary, and operating points ``[(Ts, k_e, label), ...]``."""
+    from .stability import stability_region
+
+    rho = stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw)
+    fig = Figure(figsize=(6.5, 4.8), layout="constrained")
+    ax = fig.add_subplot()
+    T, K = np.meshgrid(Ts_grid, k_e_grid)
+    from matplotlib.colors import TwoSlopeNorm
+
+    cs = ax.contourf(T, K, np.clip(rho, 0.9, 1.5), levels=np.r_[np.linspace(0.9, 1.0, 6), np.linspace(1.05, 1.5, 10)],
+                     cmap="RdYlGn_r", norm=TwoSlopeNorm(vmin=0.9, vcenter=1.0, vmax=1.5))
+    ax.contour(T, K, rho, levels=[1.0], colors="k", linewidths=2)
+    fig.colorbar(cs, ax=ax, label="spectral radius")
+    for Ts, ke, label in points:
+        ax.plot(Ts, ke, "o", color="tab:blue")
+        ax.annotate(label, (Ts, ke), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set(xscale="log", yscale="log", xlabel="Ts (s)", ylabel="k_e (N/m)",
+           title=f"Sampled-data stability (black: rho = 1), m_p = {m_p:.3g} kg")
+    return fig
+
+
+def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.Path]:
+    """Figures for an :func:`~tmtcontrol.stability.analyze` result: root locus,
+    damping versus k_e, step responses and (with Ts) the stability region."""
+    folder = pathlib.Path(folder)
+    m, b, k, f_d = d["m"], d["b"], d["k"], d["f_d"]
+    lo, hi = (d["k_e_min"], d["k_e_max"]) if "k_e_min" in d else (d["k_e"], d["k_e"])
+    span_lo, span_hi = lo / 10, hi * 10
+    figs = {"root_locus": root_locus_figure(m, b, k, span_lo, span_hi),
+            "damping_vs_stiffness": damping_figure(m, b, k, span_lo, span_hi),
+            "step_responses": step_figure(m, b, k, sorted({lo, np.sqrt(lo * hi), hi}), f_d)}
+    if "Ts" in d:
+        Ts = d["Ts"]
+        pts = [(Ts, ke, f"{ke:.3g}") for ke in sorted({lo, hi})]
+        figs["stability_region"] = stability_region_figure(
+            m, b, k, min(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 25),
+            np.geomspace(span_lo, max(span_hi, 10 * d["max_stable_stiffness"])
+                         if np.isfinite(d["max_stable_stiffness"]) else span_hi, 25), pts)
+    out = []
+    for name, fig in figs.items():
+        path = folder / f"{name}.png"
+        fig.savefig(path, dpi=110)
         out.append(path)
     return out

@@ -1,0 +1,206 @@
+"""Stability analysis: closed forms for eq. (22)/(25), BIBO verdicts, and the
+sampled-data model cross-validated against the simulator."""
+import json
+import math
+import subprocess
+import sys
+
+import control as ct
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
+from tmtcontrol.stability import (AnalysisError, analyze, analyze_continuous, analyze_range,
+                                  bibo_stable, critical_damping, damping_for_range,
+                                  internally_stable, max_stable_stiffness, minimal_realization,
+                                  sampled_closed_loop, scenario_parameters, stiffness_sweep,
+                                  switch_response, x_e_error_force)
+
+pos = st.floats(min_value=1e-2, max_value=1e3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(m=pos, b=st.floats(min_value=0.1, max_value=1e3), k=pos, k_e=st.floats(min_value=1.0, max_value=1e6))
+def test_eq22_poles_and_steady_state_closed_form(m, b, k, k_e):
+    a = analyze_continuous(m, b, k, k_e, f_d=10.0)
+    disc = complex(b * b - 4 * m * (k + k_e))
+    closed = np.sort_complex(np.array([(-b + disc ** 0.5) / (2 * m), (-b - disc ** 0.5) / (2 * m)]))
+    scale = max(1.0, np.abs(closed).max())
+    np.testing.assert_allclose(a.poles, closed, atol=1e-8 * scale)
+    assert a.bibo_stable                                   # b > 0, all coefficients positive
+    assert a.steady_state_force == pytest.approx(10.0, rel=1e-9)   # eqs. 23-24
+    assert a.natural_frequency == pytest.approx(math.sqrt((k + k_e) / m), rel=1e-12)
+    assert a.damping_ratio == pytest.approx(b / (2 * math.sqrt(m * (k + k_e))), rel=1e-12)
+    wn, zeta, _ = ct.damp(a.tf, doprint=False)
+    assert zeta[0] == pytest.approx(min(a.damping_ratio, 1.0), rel=1e-6, abs=1e-9)
+
+
+def test_zero_damping_is_not_bibo_stable():
+    a = analyze_continuous(1.0, 0.0, 100.0, 5e3)
+    assert not a.bibo_stable and math.isnan(a.settling_time)
+
+
+def test_eq25_critical_damping():
+    m, k, k_e = 1.0, 100.0, 5e3
+    b = critical_damping(m, k, k_e)
+    assert b == pytest.approx(2 * math.sqrt(m * (k + k_e)))
+    assert analyze_continuous(m, b, k, k_e).overshoot_pct < 1e-6          # no overshoot at b_crit
+    assert analyze_continuous(m, 0.9 * b, k, k_e).overshoot_pct > 0.1      # some below it
+    p = analyze_continuous(m, 1.0001 * b, k, k_e).poles
+    assert np.all(np.abs(p.imag) < 1e-9)
+
+
+def test_range_worst_case_and_design_rule():
+    r = analyze_range(1.0, 60.0, 100.0, 2e3, 2e4)
+    assert r.worst_damping_ratio == pytest.approx(60 / (2 * math.sqrt(20100)))
+    assert r.stable_for_all
+    b = damping_for_range(1.0, 100.0, 2e3, 2e4, zeta=0.7)
+    zetas = [analyze_continuous(1.0, b, 100.0, ke).damping_ratio for ke in np.geomspace(2e3, 2e4, 50)]
+    assert min(zetas) == pytest.approx(0.7, rel=1e-9)
+    # the cost: critical damping for the stiff end is slow at the soft end
+    assert r.slowest_settling_critical > analyze_continuous(1.0, 60.0, 100.0, 2e3).settling_time
+
+
+def test_bibo_uses_minimal_realization():
+    # unstable mode (+1) that the output cannot see: BIBO stable, not internally stable
+    A = np.diag([-1.0, 1.0])
+    sys = ct.ss(A, [[1.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    assert bibo_stable(sys) and not internally_stable(sys)
+    assert minimal_realization(sys).nstates == 1
+    # a near (not exact) cancellation must not hide the unstable mode
+    near = ct.tf([1.0, -1.0 - 1e-6], [1.0, 0.0, -1.0])   # (s - 1 - 1e-6)/((s - 1)(s + 1))
+    assert not bibo_stable(near)
+    assert bibo_stable(ct.tf([1.0], [1.0, 2.0, 1.0]))
+
+
+def test_root_locus_matches_closed_form_poles():
+    k_e = np.array([1e2, 1e3, 1e4])
+    sw = stiffness_sweep(1.0, 60.0, 100.0, k_e)
+    for i, ke in enumerate(k_e):
+        expected = np.sort_complex(np.roots([1.0, 60.0, 100.0 + ke]))
+        np.testing.assert_allclose(np.sort_complex(sw["loci"][i]), expected, atol=1e-6)
+
+
+def test_bad_inputs_name_the_parameter():
+    for args, match in [((0, 60, 100, 5e3), "m: must be > 0"), ((1, -1, 100, 5e3), "b: must be >= 0"),
+                        ((1, 60, 0, 5e3), "k: must be > 0"), ((1, 60, 100, -5), "k_e: must be > 0"),
+                        ((1, float("nan"), 100, 5e3), "b: must be finite")]:
+        with pytest.raises(AnalysisError, match=match):
+            analyze_continuous(*args)
+    with pytest.raises(AnalysisError, match="k_e_min: must be <= k_e_max"):
+        analyze(1, 60, 100, k_e_min=5e3, k_e_max=1e3)
+    with pytest.raises(AnalysisError, match="Ts: must be > 0"):
+        analyze(1, 60, 100, k_e=5e3, Ts=0.0, m_p=3.0)
+
+
+@pytest.fixture(scope="module")
+def xe_sim():
+    base = apply_overrides(paper_scenario(), ["trajectory.cycles=1", "environment.stiffness.values=[5e3]"])
+    return base, Simulator(base)
+
+
+@pytest.mark.parametrize("delta,law", [(-3e-3, "tmt"), (1e-3, "tmt"), (5e-3, "tmt"), (2e-2, "tmt"),
+                                       (-1e-3, "known"), (2e-3, "known")])
+def test_x_e_error_closed_form_matches_simulator(xe_sim, delta, law):
+    base, sim = xe_sim
+    r = sim.run(apply_overrides(base, [f"controller.x_e_error={delta}", f"controller.law=\"{law}\"",
+                                       "controller.assumed_stiffness=5e3"]))
+    predicted = x_e_error_force(10.0, 100.0, 5e3, delta, law, 5e3)
+    # residual tracking error of the moving circle is ~1e-4 N
+    assert r.contact_force[-200:].mean() == pytest.approx(predicted, abs=1e-3)
+
+
+def test_sampled_model_dc_gain_and_continuous_limit():
+    m = sampled_closed_loop(1.0, 60.0, 100.0, 5e3, 1e-3, 3.5)
+    assert float(ct.dcgain(m.sys)) == pytest.approx(1.0, rel=1e-9)     # f_e -> f_d
+    assert m.stable
+    # as Ts -> 0 the impedance poles tend to those of eq. (22): exp(p Ts)
+    Ts = 1e-5
+    eig = np.linalg.eigvals(sampled_closed_loop(1.0, 60.0, 100.0, 5e3, Ts, 3.5).sys.A)
+    s_eig = np.log(eig[np.abs(eig) > 1e-12].astype(complex)) / Ts
+    for p in analyze_continuous(1.0, 60.0, 100.0, 5e3).poles:
+        assert np.min(np.abs(s_eig - p)) < 0.5
+
+
+@pytest.fixture(scope="module")
+def limit_case():
+    base = apply_overrides(paper_scenario(), ["controller.rate=200", "trajectory.radius=0.0",
+                                              "trajectory.cycles=0.5", "environment.stiffness.values=[1e4]"])
+    p = scenario_parameters(base)
+    lim = max_stable_stiffness(1.0, 60.0, 100.0, 5e-3, p["m_p_min"])
+    return base, Simulator(base), lim
+
+
+@pytest.mark.parametrize("factor,decays", [(0.8, True), (0.95, True), (1.05, False), (1.25, False)])
+def test_sampled_limit_cross_validated_by_simulator(limit_case, factor, decays):
+    base, sim, lim = limit_case
+    assert 1e4 < lim < 1e5
+    r = sim.run(apply_overrides(base, [f"environment.stiffness.values=[{factor * lim}]"]))
+    t, e = r.time, np.abs(r.contact_force - 10.0)
+    early, late = e[(t > 0.3) & (t < 0.6)].max(), e[t > 1.6].max()
+    if decays:
+        assert late < 0.2 * early and np.all(r.contact_force[t > 1.6] > 0)
+        if factor <= 0.8:
+            assert late < 0.01
+    else:
+        # unstable: the oscillation does not decay; the unilateral contact turns
+        # the growth into a bouncing limit cycle (contact is lost)
+        assert late > 0.8 * early and late > 5.0
+        assert np.any(r.contact_force[t > 1.6] == 0.0)
+
+
+def test_switch_prediction_matches_simulation(paper_result):
+    p = scenario_parameters(paper_scenario())
+    segs = segment_metrics(paper_result)
+    m_p = p["m_p_min"]
+    for i, (k_old, k_new) in enumerate([(5e3, 2e4), (2e4, 2e3), (2e3, 1e4)], start=1):
+        pred = switch_response(1.0, 60.0, 100.0, k_old, k_new, 1e-3, m_p)
+        assert pred["settling_time"] == pytest.approx(segs[i].settling_time, rel=0.05)
+        assert pred["overshoot_pct"] == pytest.approx(segs[i].overshoot_pct, rel=0.05)
+    down = switch_response(1.0, 60.0, 100.0, 2e4, 2e3, 1e-3, m_p)
+    assert not down["contact_lost"] and down["overshoot_pct"] > 1.0
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "analyze", *args],
+                          capture_output=True, text=True)
+
+
+def test_cli_json_keys(tmp_path):
+    r = run_cli("--m", "1", "--b", "60", "--k", "100", "--fd", "10", "--ke-min", "2000", "--ke-max", "20000",
+                "--ts", "0.001", "--json", "--plot", str(tmp_path / "p"))
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    for key in ("poles", "natural_frequency", "damping_ratio", "bibo_stable", "steady_state_force",
+                "critical_damping", "worst_damping_ratio", "stable_for_all", "max_stable_stiffness"):
+        assert key in d
+    assert d["critical_damping"] == pytest.approx(2 * math.sqrt(20100))    # at k_e_max
+    assert d["poles"][0][0] == pytest.approx(-30.0)
+    assert {p.name for p in (tmp_path / "p").iterdir()} == {
+        "root_locus.png", "damping_vs_stiffness.png", "step_responses.png", "stability_region.png"}
+
+
+def test_cli_scenario_and_table():
+    r = run_cli("--scenario", "paper")
+    assert r.returncode == 0 and "max stable k_e" in r.stdout and "BIBO stable          yes" in r.stdout
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--m", "0", "--b", "60", "--k", "100", "--ke", "5e3"], "m: must be > 0"),
+    (["--m", "1", "--b", "-1", "--k", "100", "--ke", "5e3"], "b: must be >= 0"),
+    (["--m", "1", "--b", "60", "--k", "0", "--ke", "5e3"], "k: must be > 0"),
+    (["--m", "1", "--b", "60", "--k", "100", "--ke", "-1"], "k_e: must be > 0"),
+    (["--m", "1", "--b", "60", "--k", "100", "--ke-min", "5e3", "--ke-max", "1e3"], "k_e_min"),
+    (["--m", "1", "--b", "60", "--k", "100", "--ke", "5e3", "--ts", "0"], "Ts: must be > 0"),
+    (["--m", "1", "--b", "nan", "--k", "100", "--ke", "5e3"], "b: must be finite"),
+    (["--m", "1", "--b", "60", "--k", "100"], "--ke: required"),
+    (["--m", "1", "--b", "x", "--k", "100", "--ke", "1"], "invalid float"),
+])
+def test_cli_bad_input(args, needle, tmp_path):
+    r = run_cli(*args, "--plot", str(tmp_path / "p"))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    assert not (tmp_path / "p").exists()
