@@ -56,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures")
     p.set_defaults(func=_analyze)
 
+    p = sub.add_parser("check", help="symbolic checks of the paper's derivation on the implemented code")
+    p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
+    p.set_defaults(func=_check)
+
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
     p.set_defaults(func=_scenario)
@@ -131,6 +135,20 @@ def _analyze(args) -> int:
     result.pop("systems")
     print(json.dumps(_clean(result), indent=2) if args.json else format_analysis(result))
     return 0
+
+
+def _check(args) -> int:
+    import json
+
+    from .derivations import format_checks, run_checks
+    from .output import _clean
+
+    results = run_checks()
+    if args.json:
+        print(json.dumps(_clean([r.as_dict() for r in results]), indent=2))
+    else:
+        print(format_checks(results))
+    return 0 if all(r.passed for r in results) else 1
 
 
 def _scenario(args) -> int:
