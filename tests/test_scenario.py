@@ -70,6 +70,8 @@ def test_overrides():
     assert sc.controller.law == "known" and sc.impedance.b == (80.0, 20.0, 20.0)
     with pytest.raises(ScenarioError, match="controller.nope: unknown key"):
         apply_overrides(paper_scenario(), ["controller.nope=1"])
+    with pytest.raises(ScenarioError, match=r"impedance\.b: expected a list of numbers, got '\[1, x\]'"):
+        apply_overrides(paper_scenario(), ["impedance.b=[1, x]"])
     with pytest.raises(ScenarioError, match="expected dotted.key=value"):
         apply_overrides(paper_scenario(), ["controller.f_d"])
 

@@ -56,6 +56,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures")
     p.set_defaults(func=_analyze)
 
+    p = sub.add_parser("design", help="optimal normal-axis impedance over a stiffness range (IPOPT)")
+    p.add_argument("--m", type=float, required=True, help="impedance mass, kg")
+    p.add_argument("--k", type=float, required=True, help="impedance stiffness, N/m (initial guess with --optimize-k)")
+    p.add_argument("--ke-min", type=float, required=True, help="lower end of the stiffness range, N/m")
+    p.add_argument("--ke-max", type=float, required=True, help="upper end of the stiffness range, N/m")
+    p.add_argument("--ts", type=float, required=True, help="control period, s")
+    p.add_argument("--max-overshoot", type=float, required=True, help="first-contact force overshoot bound, percent")
+    p.add_argument("--optimize-k", action="store_true", help="optimise k as well as b")
+    p.add_argument("--fd", type=float, default=10.0, help="desired force, N (default 10)")
+    p.add_argument("--mp", type=float, default=None, help="robot's effective normal mass, kg "
+                   "(default: smallest along the paper path)")
+    p.add_argument("--margin", type=float, default=2.0,
+                   help="sampled stability required up to margin x k_e_max (default 2)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses")
+    p.set_defaults(func=_design)
+
     p = sub.add_parser("check", help="symbolic checks of the paper's derivation on the implemented code")
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
     p.set_defaults(func=_check)
@@ -134,6 +151,27 @@ def _analyze(args) -> int:
             save_analysis_figures(result, tmp)
     result.pop("systems")
     print(json.dumps(_clean(result), indent=2) if args.json else format_analysis(result))
+    return 0
+
+
+def _design(args) -> int:
+    import json
+
+    from .design import DesignSpec, design_impedance, format_design
+    from .output import _clean, atomic_folder
+    from .stability import paper_effective_mass
+
+    spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
+                      max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
+                      m_p=args.mp if args.mp is not None else paper_effective_mass(),
+                      stiffness_margin=args.margin)
+    result = design_impedance(spec)
+    if args.plot:
+        from .plots import save_design_figures
+
+        with atomic_folder(args.plot) as tmp:
+            save_design_figures(result, tmp)
+    print(json.dumps(_clean(result.as_dict()), indent=2) if args.json else format_design(result))
     return 0
 
 

@@ -28,7 +28,8 @@ from .impedance import command, control_force, impedance_acceleration, inner_loo
 from .reference import known_reference, tmt_reference
 from .robot import PUMA560_LINKS, Puma560
 
-__all__ = ["STATE", "INPUT", "PARAM", "LOG", "Layout", "controller_model", "build_step"]
+__all__ = ["STATE", "INPUT", "PARAM", "LOG", "Layout", "controller_model", "damping_schedule",
+           "build_step"]
 
 
 class Layout:
@@ -55,9 +56,9 @@ class Layout:
         return out
 
 
-STATE = Layout(("q", 3), ("dq", 3), ("xa", 3), ("dxa", 3), ("f_filt", 1))
+STATE = Layout(("q", 3), ("dq", 3), ("xa", 3), ("dxa", 3), ("f_filt", 1), ("b_n", 1))
 """Closed-loop state: joints (rad, rad/s), impedance adjustment X_a (m, m/s,
-task frame), force-sensor filter state (N)."""
+task frame), force-sensor filter state (N), scheduled normal damping (N s/m)."""
 
 INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1))
 """Per-sample inputs: tangential reference (task axes 1, 2), true stiffness
@@ -65,18 +66,38 @@ k_e (N/m), force-sensor noise sample (N)."""
 
 PARAM = Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("law", 1),
                ("k_assumed", 1), ("f_th", 1), ("k_min", 1), ("x_e_hat", 1), ("alpha", 1),
-               ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1))
+               ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1), ("sched", 1), ("zeta", 1),
+               ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1))
 """Constant parameters: impedance M, B, K and gains K_D, K_P (task frame);
 f_d (N); law (0 = TMT, 1 = known); assumed k_e (N/m); TMT force threshold (N)
 and minimum stiffness (N/m); controller's x_e (m); force filter pole alpha;
 environment damping (N s/m); task frame R (column-major) and origin c (m);
-control period Ts (s)."""
+control period Ts (s); damping schedule on/off, target damping ratio, bounds
+on b (N s/m), its rate limit (N s/m per s) and the largest stiffness estimate
+used (N/m)."""
 
 LOG = Layout(("q", 3), ("dq", 3), ("tau", 3), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
-             ("f_e", 1), ("f_m", 1))
+             ("f_e", 1), ("f_m", 1), ("b_n", 1))
 """Per-sample log at t_k: joints, torque (N m), wrist position (base, m), task
 position X, reference X_r, command X_c (task, m), true and measured normal
-force (N)."""
+force (N), normal impedance damping in use (N s/m)."""
+
+
+def damping_schedule(b_prev, f_m, depth, m, k, P):
+    """Stiffness-scheduled normal damping: eq. (25) used online.
+
+    ``b* = 2 zeta sqrt(m (k + k_hat))`` with the TMT estimate
+    ``k_hat = f_m/depth`` (eq. 14), clamped to [min_stiffness, k_hat_max];
+    while the force is below twice the TMT threshold (no usable estimate, or
+    noise) the target is the previous value (hold). The result is clamped to
+    [b_min, b_max] and rate-limited to ``b_rate`` N s/m per second.
+    """
+    ok = ca.logic_and(f_m > 2 * P["f_th"], depth > 0)
+    k_hat = ca.fmin(ca.fmax(f_m / ca.fmax(depth, 1e-12), P["k_min"]), P["k_hat_max"])
+    target = ca.if_else(ok, 2 * P["zeta"] * ca.sqrt(m * (k + k_hat)), b_prev)
+    target = ca.fmin(ca.fmax(target, P["b_min"]), P["b_max"])
+    step = P["b_rate"] * P["Ts"]
+    return b_prev + ca.fmin(ca.fmax(target - b_prev, -step), step)
 
 
 def controller_model(mass_scale: float, compensate_friction: bool) -> Puma560:
@@ -136,6 +157,11 @@ def build_step(plant: Puma560, model: Puma560, integrator: str = "fixed", subste
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
     f_filt = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * (f_true + U_in["noise"])
     f_m = f_filt                                               # measured normal force
+    # normal damping: fixed, or scheduled from the stiffness estimate (K_D = B/M kept, eq. 9)
+    b_sched = damping_schedule(S["b_n"], f_m, X[0] - P["x_e_hat"], P["m"][0], P["k"][0], P)
+    b_n = ca.if_else(P["sched"] > 0, b_sched, P["b"][0])
+    b_vec = ca.vertcat(b_n, P["b"][1:])
+    kd_vec = ca.vertcat(ca.if_else(P["sched"] > 0, b_n / P["m"][0], P["kd"][0]), P["kd"][1:])
     x_r_tmt = tmt_reference(X[0], f_m, P["x_e_hat"], P["f_d"], P["k"][0], P["f_th"], P["k_min"])
     x_r_known = known_reference(P["x_e_hat"], P["f_d"], P["k"][0], P["k_assumed"])
     x_r = ca.if_else(P["law"] == 0, x_r_tmt, x_r_known)
@@ -143,18 +169,18 @@ def build_step(plant: Puma560, model: Puma560, integrator: str = "fixed", subste
     dX_r = ca.vertcat(0, U_in["vel_t"])                        # x_r'' = x_e'' = 0 (section IV)
     ddX_r = ca.vertcat(0, U_in["acc_t"])
     F_e = ca.vertcat(f_m, 0, 0)
-    ddxa = impedance_acceleration(F_e, S["xa"], S["dxa"], P["m"], P["b"], P["k"])    # eq. (2)
+    ddxa = impedance_acceleration(F_e, S["xa"], S["dxa"], P["m"], b_vec, P["k"])     # eq. (2)
     X_c, dX_c, ddX_c = (command(X_r, S["xa"]), command(dX_r, S["dxa"]),
                         command(ddX_r, ddxa))                                          # eq. (4)
-    U = inner_loop(ddX_c, dX_c, X_c, dX, X, P["kd"], P["kp"])                          # eq. (6)
+    U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
     F = control_force(model.cartesian_inertia(q), model.cartesian_bias(q, dq),
                       ca.mtimes(R, U), ca.mtimes(R, F_e))                              # eq. (5)
     tau = ca.mtimes(J.T, F) + model.friction(dq)
 
-    pz_val = ca.vertcat(tau, f_m, U_in["k_e"], P["d_e"], P["m"], P["b"], P["k"], P["R"],
+    pz_val = ca.vertcat(tau, f_m, U_in["k_e"], P["d_e"], P["m"], b_vec, P["k"], P["R"],
                         P["c"], P["Ts"])
     zf = plant_flow(x0=ca.vertcat(q, dq, S["xa"], S["dxa"]), p=pz_val)["xf"]
-    s_next = ca.vertcat(zf, f_filt)
-    log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m)
+    s_next = ca.vertcat(zf, f_filt, b_n)
+    log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n)
     step = ca.Function("tmt_step", [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
     return step.expand() if integrator == "fixed" else step

@@ -16,7 +16,8 @@ from .simulate import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
            "save_simulation_figures", "root_locus_figure", "damping_figure", "step_figure",
-           "stability_region_figure", "save_analysis_figures"]
+           "stability_region_figure", "save_analysis_figures", "design_cost_figure",
+           "design_response_figure", "save_design_figures"]
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
@@ -194,5 +195,55 @@ def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.P
     for name, fig in figs.items():
         path = folder / f"{name}.png"
         fig.savefig(path, dpi=110)
+        out.append(path)
+    return out
+
+
+# -- design figures ------------------------------------------------------------------------
+
+def design_cost_figure(result) -> Figure:
+    """Worst-case cost J against b (fixed k), with the optimum and the eq. (25) baseline."""
+    from .design import _objective
+
+    spec = result.spec
+    bs = np.geomspace(max(spec.b_bounds[0], result.b / 20), min(spec.b_bounds[1], result.b * 20), 120)
+    J = [_objective(spec, b, result.k) for b in bs]
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    ax.loglog(bs, J, label=f"worst-case J (k = {result.k:.4g} N/m)")
+    ax.plot(result.b, result.objective, "o", label=f"optimal b = {result.b:.4g}")
+    ax.plot(result.baseline_b, result.baseline_objective, "s", label=f"eq. (25) b = {result.baseline_b:.4g}")
+    ax.set(xlabel="b (N s/m)", ylabel="J (N² s)", title="Robust damping design")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    return fig
+
+
+def design_response_figure(result) -> Figure:
+    """First-contact force responses (eq. 22) at k_e_min and k_e_max, optimal vs baseline."""
+    import control as ct
+
+    from .stability import tmt_error_tf
+
+    s = result.spec
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    for b, k, name, ls in ((result.b, result.k, "optimal", "-"), (result.baseline_b, s.k, "eq. (25)", "--")):
+        for ke in (s.k_e_min, s.k_e_max):
+            r = ct.step_response(tmt_error_tf(s.m, b, k, ke) * s.f_d)
+            ax.plot(r.time, np.squeeze(r.outputs), ls, label=f"{name}, k_e = {ke:.3g}")
+    ax.axhline(s.f_d * (1 + s.max_overshoot / 100), color="k", lw=0.8, ls=":", label="overshoot bound")
+    ax.set(xlabel="time (s)", ylabel="f_e (N)", title="First-contact force response, eq. (22)")
+    ax.legend(fontsize=8)
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def save_design_figures(result, folder) -> list[pathlib.Path]:
+    folder = pathlib.Path(folder)
+    out = []
+    for name, make in (("design_cost", design_cost_figure), ("design_responses", design_response_figure)):
+        path = folder / f"{name}.png"
+        make(result).savefig(path, dpi=110)
         out.append(path)
     return out

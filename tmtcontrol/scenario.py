@@ -49,6 +49,13 @@ def _vec(key, value, n, **kw):
         _num(f"{key}[{i}]", v, **kw)
 
 
+def _as_tuple(key, value):
+    """A list/tuple field as a tuple; anything else (a string!) is an error."""
+    if not isinstance(value, (list, tuple)):
+        raise ScenarioError(f"{key}: expected a list of numbers, got {value!r}")
+    return tuple(value)
+
+
 def _choice(key, value, choices):
     if value not in choices:
         raise ScenarioError(f"{key}: expected one of {', '.join(map(repr, choices))}, got {value!r}")
@@ -104,8 +111,8 @@ class StiffnessProfile:
     def __post_init__(self):
         key = "environment.stiffness"
         _choice(f"{key}.kind", self.kind, ("piecewise_constant", "piecewise_linear", "sinusoidal", "table"))
-        object.__setattr__(self, "values", tuple(self.values))
-        object.__setattr__(self, "times", tuple(self.times))
+        object.__setattr__(self, "values", _as_tuple(f"{key}.values", self.values))
+        object.__setattr__(self, "times", _as_tuple(f"{key}.times", self.times))
         _num(f"{key}.segment", self.segment, lo=0)
         if self.kind in ("piecewise_constant", "piecewise_linear"):
             if len(self.values) == 0:
@@ -155,7 +162,7 @@ class TrajectorySettings:
     cycles: float = 4.0
 
     def __post_init__(self):
-        object.__setattr__(self, "center", tuple(self.center))
+        object.__setattr__(self, "center", _as_tuple("trajectory.center", self.center))
         _vec("trajectory.center", self.center, 3)
         _num("trajectory.radius", self.radius, lo=0)
         _num("trajectory.period", self.period, lo=0, lo_open=True)
@@ -178,7 +185,7 @@ class ImpedanceSettings:
 
     def __post_init__(self):
         for name in ("m", "b", "k", "kd", "kp"):
-            object.__setattr__(self, name, tuple(getattr(self, name)))
+            object.__setattr__(self, name, _as_tuple(f"impedance.{name}", getattr(self, name)))
         _vec("impedance.m", self.m, 3, lo=0, lo_open=True)
         _vec("impedance.b", self.b, 3, lo=0)
         _vec("impedance.k", self.k, 3, lo=0, lo_open=True)
@@ -206,6 +213,12 @@ class ControllerSettings:
     ``min_stiffness`` (N/m) bounds the stiffness estimate from below (its
     compliance from above). ``x_e_error`` (m) is the error of the controller's
     surface location along the normal (positive: believed deeper).
+
+    ``damping_schedule``: ``"off"`` (fixed B) or ``"zeta"``: the normal
+    damping follows eq. (25) online, ``b = 2 zeta sqrt(m (k + k_hat))`` with
+    the TMT stiffness estimate, clamped to [``schedule_b_min``,
+    ``schedule_b_max``] N s/m, rate-limited to ``schedule_rate`` N s/m per s,
+    held while the force is too small to estimate k_e; K_D = b/m follows.
     """
     rate: float = 1000.0
     law: str = "tmt"
@@ -214,6 +227,12 @@ class ControllerSettings:
     force_threshold: float = 0.5
     min_stiffness: float = 100.0
     x_e_error: float = 0.0
+    damping_schedule: str = "off"
+    schedule_zeta: float = 1.0
+    schedule_b_min: float = 1.0
+    schedule_b_max: float = 1000.0
+    schedule_rate: float = 1e4
+    schedule_k_max: float = 1e7
 
     def __post_init__(self):
         _num("controller.rate", self.rate, lo=0, lo_open=True, hi=1e6)
@@ -223,6 +242,15 @@ class ControllerSettings:
         _num("controller.force_threshold", self.force_threshold, lo=0, lo_open=True)
         _num("controller.min_stiffness", self.min_stiffness, lo=0, lo_open=True)
         _num("controller.x_e_error", self.x_e_error)
+        _choice("controller.damping_schedule", self.damping_schedule, ("off", "zeta"))
+        _num("controller.schedule_zeta", self.schedule_zeta, lo=0, lo_open=True)
+        _num("controller.schedule_b_min", self.schedule_b_min, lo=0)
+        _num("controller.schedule_b_max", self.schedule_b_max, lo=0, lo_open=True)
+        if self.schedule_b_min > self.schedule_b_max:
+            raise ScenarioError(f"controller.schedule_b_min: must be <= schedule_b_max "
+                                f"({self.schedule_b_max:g}), got {self.schedule_b_min:g}")
+        _num("controller.schedule_rate", self.schedule_rate, lo=0, lo_open=True)
+        _num("controller.schedule_k_max", self.schedule_k_max, lo=0, lo_open=True)
 
     @property
     def Ts(self) -> float:

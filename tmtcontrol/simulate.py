@@ -97,6 +97,7 @@ class SimulationResult:
     desired_force: np.ndarray        # (N,) f_d
     stiffness: np.ndarray            # (N,) true k_e(t)
     stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e) of eq. (14); NaN out of contact
+    damping: np.ndarray              # (N,) normal impedance damping in use, N s/m
     path: PathReport
     info: dict = field(default_factory=dict)
 
@@ -185,11 +186,15 @@ class Simulator:
                        f_d=ctl.f_d, law=0 if ctl.law == "tmt" else 1,
                        k_assumed=ctl.assumed_stiffness, f_th=ctl.force_threshold,
                        k_min=ctl.min_stiffness, x_e_hat=ctl.x_e_error, alpha=alpha,
-                       d_e=sc.environment.damping, R=R.ravel(order="F"), c=c, Ts=Ts)
+                       d_e=sc.environment.damping, R=R.ravel(order="F"), c=c, Ts=Ts,
+                       sched=1.0 if ctl.damping_schedule == "zeta" else 0.0, zeta=ctl.schedule_zeta,
+                       b_min=ctl.schedule_b_min, b_max=ctl.schedule_b_max, b_rate=ctl.schedule_rate,
+                       k_hat_max=ctl.schedule_k_max)
         # start on the surface (x = x_e, zero force), moving with the circle
         q0 = path.q[:, 0]
         dq0 = np.linalg.solve(np.asarray(self.plant.jacobian(q0)), R @ np.r_[0.0, ref.vel[:, 0]])
-        s0 = STATE.pack(q=q0, dq=dq0, xa=0.0, dxa=0.0, f_filt=0.0)
+        b0 = min(max(sc.impedance.b[0], ctl.schedule_b_min), ctl.schedule_b_max)
+        s0 = STATE.pack(q=q0, dq=dq0, xa=0.0, dxa=0.0, f_filt=0.0, b_n=b0)
         return U, P, s0, t
 
     @staticmethod
@@ -217,4 +222,4 @@ class Simulator:
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
             contact_force=lg["f_e"][0], measured_force=f_m,
             desired_force=np.full(t.size, sc.controller.f_d), stiffness=U[INPUT["k_e"]][0],
-            stiffness_estimate=k_hat, path=path, info=info)
+            stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path, info=info)

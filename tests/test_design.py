@@ -1,0 +1,158 @@
+"""Robust impedance design (IPOPT) and stiffness-scheduled damping."""
+import json
+import math
+import subprocess
+import sys
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
+from tmtcontrol.design import (DesignError, DesignSpec, _ise_function, _objective, design_impedance,
+                               ise_closed_form, overshoot_closed_form)
+
+SPEC = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0, m_p=3.3)
+
+
+@pytest.fixture(scope="module")
+def optimum():
+    return design_impedance(SPEC)
+
+
+@pytest.mark.parametrize("b,k_e", [(5.0, 2e3), (60.0, 5e3), (300.0, 2e4), (3000.0, 2e3)])
+def test_ise_matches_cvodes_quadrature(b, k_e):
+    # the NLP's exact (Lyapunov) ISE against an independent CasADi CVODES quadrature
+    x = ca.SX.sym("x", 2)
+    ode = ca.vertcat(x[1], -(b * x[1] + (100.0 + k_e) * x[0]))
+    T = 40 * (2 / b + b / (100.0 + k_e))       # 40 slowest time constants: tail < e^-40
+    F = ca.integrator("q", "cvodes", {"x": x, "ode": ode, "quad": x[0] ** 2}, 0, T,
+                      {"abstol": 1e-12, "reltol": 1e-12, "max_num_steps": 10 ** 7})
+    quad = float(F(x0=[1.0, 0.0])["qf"])
+    assert float(_ise_function()(b, 100.0, k_e, 1.0)) == pytest.approx(quad, rel=1e-7)
+    assert ise_closed_form(1.0, b, 100.0, k_e) == pytest.approx(quad, rel=1e-7)
+
+
+def test_optimum_is_constrained_and_beats_baseline(optimum):
+    r = optimum
+    assert r.status == "Solve_Succeeded"
+    # the overshoot bound is active at k_e_max: zeta = zeta(5 %) there
+    zeta_5 = -math.log(0.05) / math.sqrt(math.pi ** 2 + math.log(0.05) ** 2)
+    assert r.b == pytest.approx(2 * zeta_5 * math.sqrt(1.0 * (100 + 2e4)), rel=1e-3)
+    # verified between grid points with independent closed forms; sampling of
+    # the constrained response (0.05/omega_n) leaves < 0.01 %-points
+    assert r.worst_overshoot <= 5.0 + 1e-2
+    assert r.dense_objective <= r.objective * (1 + 1e-6)
+    assert r.objective < r.baseline_objective
+    assert r.baseline_b == pytest.approx(2 * math.sqrt(100 + 2e4))
+    # a neighbouring b is worse or infeasible (local optimality, scored by the same cost)
+    assert _objective(SPEC, r.b * 1.05, r.k) > r.objective
+    assert overshoot_closed_form(1.0, r.b * 0.95, 100.0, 2e4) > 5.0
+    assert r.sampled_limit > 2 * SPEC.k_e_max
+
+
+@pytest.mark.parametrize("b0", [10.0, 60.0, 1000.0, 4000.0])
+def test_same_optimum_from_several_starts(optimum, b0):
+    r = design_impedance(SPEC, b0=b0)
+    assert r.b == pytest.approx(optimum.b, rel=1e-6)
+    assert r.objective == pytest.approx(optimum.objective, rel=1e-6)
+
+
+def test_unconstrained_optimum_is_stationary():
+    # a loose overshoot bound: the optimum is interior, where dJ/db = 0 (checked by
+    # finite differences of the independent closed form on the design grid)
+    spec = DesignSpec(m=1.0, k=100.0, k_e_min=5e3, k_e_max=6e3, Ts=1e-3, max_overshoot=60.0, m_p=3.3, grid=2)
+    r = design_impedance(spec)
+    J = lambda b: max(w * ise_closed_form(1.0, b, 100.0, ke) for ke, w in
+                      zip(spec.stiffness_grid, spec.event_weights(spec.stiffness_grid)))
+    h = 1e-4 * r.b
+    assert J(r.b - h) >= J(r.b) and J(r.b + h) >= J(r.b)
+
+
+def test_optimize_k_not_worse(optimum):
+    r = design_impedance(DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0,
+                                    m_p=3.3, optimize_k=True))
+    assert r.objective <= optimum.objective + 1e-9
+    # within the bounds up to IPOPT's bound relaxation (1e-8 relative by default)
+    assert SPEC.k_bounds[0] * (1 - 1e-6) <= r.k <= SPEC.k_bounds[1] * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("kw,needle", [
+    (dict(Ts=5e-3, k_e_max=1e5), "Ts: no b"),
+    (dict(max_overshoot=1.0, b_bounds=(1.0, 100.0)), "max_overshoot"),
+    # at 5 ms sampled stability needs b <~ 400 (K_D Ts < 2), 0 % overshoot at 5e4 N/m needs b >= 448
+    (dict(Ts=5e-3, k_e_max=5e4, max_overshoot=0.0), "max_overshoot and Ts conflict"),
+])
+def test_infeasible_names_binding_constraint(kw, needle):
+    base = dict(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0, m_p=3.3)
+    base.update(kw)
+    with pytest.raises(DesignError, match=needle):
+        design_impedance(DesignSpec(**base))
+
+
+def test_bad_spec_rejected():
+    with pytest.raises(DesignError, match="k_e_min"):
+        DesignSpec(m=1, k=100, k_e_min=5e4, k_e_max=2e4, Ts=1e-3)
+    with pytest.raises(DesignError, match="Ts: must be > 0"):
+        DesignSpec(m=1, k=100, k_e_min=2e3, k_e_max=2e4, Ts=0)
+
+
+def test_cli_design_json_and_errors(tmp_path):
+    cmd = [sys.executable, "-m", "tmtcontrol.cli", "design", "--m", "1", "--k", "100", "--ke-min", "2000",
+           "--ke-max", "20000", "--ts", "0.001", "--max-overshoot", "5", "--mp", "3.3"]
+    r = subprocess.run(cmd + ["--json", "--plot", str(tmp_path / "p")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    for key in ("m", "b", "k", "objective", "baseline_b", "baseline_objective", "worst_overshoot", "status"):
+        assert key in d
+    assert d["objective"] < d["baseline_objective"]
+    assert {p.name for p in (tmp_path / "p").iterdir()} == {"design_cost.png", "design_responses.png"}
+    bad = subprocess.run(cmd[:-6] + ["--ts", "0.005", "--max-overshoot", "5", "--ke-max", "100000"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2
+    lines = bad.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Ts" in lines[0]
+
+
+# -- stiffness-scheduled damping -----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def scheduled(paper_sim):
+    return paper_sim.run(apply_overrides(paper_scenario(), ['controller.damping_schedule="zeta"']))
+
+
+def test_schedule_follows_eq25_online(scheduled):
+    r = scheduled
+    for a, k in zip((2.0, 6.0, 10.0, 14.0), (5e3, 2e4, 2e3, 1e4)):
+        m = (r.time >= a) & (r.time < a + 2.0)
+        np.testing.assert_allclose(r.damping[m], 2 * 1.0 * math.sqrt(1.0 * (100 + k)), rtol=1e-6)
+
+
+def test_schedule_is_rate_limited_and_clamped(paper_sim):
+    sc = apply_overrides(paper_scenario(), ['controller.damping_schedule="zeta"', "controller.schedule_rate=2000",
+                                            "controller.schedule_b_max=200", "trajectory.cycles=2"])
+    r = paper_sim.run(sc)
+    assert np.max(np.abs(np.diff(r.damping))) <= 2000 * 1e-3 * (1 + 1e-9)
+    assert r.damping.max() <= 200 + 1e-9
+    assert np.all(r.damping >= 1.0)
+
+
+def test_schedule_holds_without_contact_and_with_noise(paper_sim):
+    sc = apply_overrides(paper_scenario(), ['controller.damping_schedule="zeta"', "sensor.noise_std=0.3",
+                                            "sensor.filter_cutoff=100", "trajectory.cycles=1"])
+    r = paper_sim.run(sc)
+    assert r.damping[0] == pytest.approx(60.0)            # held at B until a force is measured
+    assert np.all(np.isfinite(r.damping))
+    tail = r.damping[r.time > 2.0]
+    assert np.std(tail) / np.mean(tail) < 0.02             # noisy estimate, steady schedule
+    assert abs(np.mean(r.contact_force[r.time > 2.0]) - 10.0) < 0.05
+
+
+def test_schedule_settles_faster_than_paper_b(paper_result, scheduled):
+    fixed, sched = segment_metrics(paper_result), segment_metrics(scheduled)
+    for f, s in zip(fixed, sched):
+        assert s.max_steady_error <= 0.01
+    # after the upward switches (segments 2 and 4) the scheduled loop settles faster
+    assert sched[1].settling_time < fixed[1].settling_time
+    assert sched[3].settling_time < fixed[3].settling_time
+    assert sched[0].overshoot_pct < fixed[0].overshoot_pct
