@@ -77,6 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
     p.set_defaults(func=_check)
 
+    p = sub.add_parser("report", help="stability report of a scenario: report.html and report.pdf")
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper'")
+    p.add_argument("--out", default="tmt-report", help="output folder (default ./tmt-report)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario value (repeatable)")
+    p.set_defaults(func=_report)
+
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
     p.set_defaults(func=_scenario)
@@ -187,6 +194,27 @@ def _check(args) -> int:
     else:
         print(format_checks(results))
     return 0 if all(r.passed for r in results) else 1
+
+
+def _report(args) -> int:
+    import time
+
+    from .output import atomic_folder
+    from .report import build_report, write_report
+
+    sc = _load(args)
+    t0 = time.perf_counter()
+
+    def progress(i, n, name):
+        print(f"[{i}/{n}] {name} ... ({time.perf_counter() - t0:.1f} s)", file=sys.stderr, flush=True)
+
+    rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]), progress=progress)
+    with atomic_folder(args.out) as tmp:
+        write_report(rep, tmp)
+    for v in rep.verdicts:
+        print(f"{'PASS' if v.passed else 'FAIL'}  {v.name}: {v.evidence}")
+    print(f"wrote {args.out}/report.html and report.pdf ({time.perf_counter() - t0:.1f} s)")
+    return 0
 
 
 def _scenario(args) -> int:

@@ -25,6 +25,9 @@ def atomic_folder(out: str | pathlib.Path):
         raise ValueError(f"--out: {out} exists and is not a folder")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)   # mkdtemp makes 0700; the result is an ordinary folder
     try:
         yield tmp
     except BaseException:
