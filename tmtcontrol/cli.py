@@ -120,7 +120,7 @@ def _simulate(args) -> int:
 def _analyze(args) -> int:
     import json
 
-    from .output import _clean, atomic_folder
+    from .output import atomic_folder, jsonable
     from .stability import analyze, format_analysis, scenario_parameters
 
     if args.scenario:
@@ -145,11 +145,8 @@ def _analyze(args) -> int:
         if args.ke is None and (args.ke_min is None or args.ke_max is None):
             raise UsageError("--ke: required (or both --ke-min and --ke-max)")
         kw = dict(m=args.m, b=args.b, k=args.k, f_d=10.0 if args.fd is None else args.fd,
-                  k_e=args.ke, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts, m_p=args.mp)
-        if args.ke is not None:
-            kw.pop("k_e_min"), kw.pop("k_e_max")
-        else:
-            kw.pop("k_e")
+                  Ts=args.ts, m_p=args.mp)
+        kw.update(dict(k_e=args.ke) if args.ke is not None else dict(k_e_min=args.ke_min, k_e_max=args.ke_max))
     result = analyze(**kw)
     if args.plot:
         from .plots import save_analysis_figures
@@ -157,7 +154,7 @@ def _analyze(args) -> int:
         with atomic_folder(args.plot) as tmp:
             save_analysis_figures(result, tmp)
     result.pop("systems")
-    print(json.dumps(_clean(result), indent=2) if args.json else format_analysis(result))
+    print(json.dumps(jsonable(result), indent=2) if args.json else format_analysis(result))
     return 0
 
 
@@ -165,7 +162,7 @@ def _design(args) -> int:
     import json
 
     from .design import DesignSpec, design_impedance, format_design
-    from .output import _clean, atomic_folder
+    from .output import atomic_folder, jsonable
     from .stability import paper_effective_mass
 
     spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
@@ -178,7 +175,7 @@ def _design(args) -> int:
 
         with atomic_folder(args.plot) as tmp:
             save_design_figures(result, tmp)
-    print(json.dumps(_clean(result.as_dict()), indent=2) if args.json else format_design(result))
+    print(json.dumps(jsonable(result.as_dict()), indent=2) if args.json else format_design(result))
     return 0
 
 
@@ -186,11 +183,11 @@ def _check(args) -> int:
     import json
 
     from .derivations import format_checks, run_checks
-    from .output import _clean
+    from .output import jsonable
 
     results = run_checks()
     if args.json:
-        print(json.dumps(_clean([r.as_dict() for r in results]), indent=2))
+        print(json.dumps(jsonable([r.as_dict() for r in results]), indent=2))
     else:
         print(format_checks(results))
     return 0 if all(r.passed for r in results) else 1

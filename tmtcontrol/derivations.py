@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import casadi as ca
+import control as ct
 import numpy as np
 
 from . import impedance, reference, stability
@@ -326,10 +327,7 @@ def check_eq23_24(impl: Implementation, rng) -> CheckResult:
         f_d, x_e = rng.uniform(1, 50), rng.normal() * 0.1
         e_ss = float(solve(-0.5 * f_d / k_e, [m, b, k, k_e, f_d, x_e]))
         res = max(res, _rel(-k_e * e_ss, f_d))                               # f_e = k_e (x - x_e)
-        ss = stability.tmt_error_ss(m, b, k, k_e)
-        import control as ct
-
-        res = max(res, _rel(float(np.real(ct.dcgain(ss))), 1.0))
+        res = max(res, _rel(float(np.real(ct.dcgain(stability.tmt_error_ss(m, b, k, k_e)))), 1.0))
     return _result("steady state f_e = f_d", "(23)-(24)",
                    "at rest, (k + k_e)(x_e - x) = -f_d (k + k_e)/k_e, so f_e = k_e (x - x_e) = f_d",
                    "CasADi Newton on the derived eq. (22) at rest; python-control DC gain of the "

@@ -75,8 +75,6 @@ class DesignSpec:
             lo, hi = getattr(self, name)
             if not (0 < lo < hi and math.isfinite(hi)):
                 raise DesignError(f"{name}: need 0 < lower < upper, got {(lo, hi)}")
-        if not self.optimize_k and not (self.k_bounds[0] <= self.k <= self.k_bounds[1]):
-            object.__setattr__(self, "k_bounds", (min(self.k, self.k_bounds[0]), max(self.k, self.k_bounds[1])))
         if self.grid < 2:
             raise DesignError(f"grid: need at least 2 stiffness points, got {self.grid}")
 

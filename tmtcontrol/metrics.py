@@ -13,7 +13,7 @@ import numpy as np
 
 from .simulate import SimulationResult
 
-__all__ = ["SegmentMetrics", "segments", "segment_metrics", "format_table"]
+__all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table"]
 
 STEADY_FRACTION = 0.25
 """The last quarter of a segment is its steady state."""
@@ -60,7 +60,9 @@ def segments(result: SimulationResult) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
-def _settling(err: np.ndarray, band: float, t: np.ndarray) -> float:
+def settling_time(err: np.ndarray, band: float, t: np.ndarray) -> float:
+    """Time from ``t[0]`` after which ``|err| <= band`` for good: 0 if always
+    inside, NaN if still outside at the last sample."""
     outside = np.flatnonzero(np.abs(err) > band)
     if outside.size == 0:
         return 0.0
@@ -86,8 +88,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             steady_state_error=float(np.mean(err[ss])),
             peak_force=peak, min_force=float(f.min()),
             overshoot_pct=max(0.0, (peak - f_d) / f_d * 100.0),
-            settling_time=_settling(err, 0.02 * f_d, t),
-            settling_time_10mN=_settling(err, 0.01, t),
+            settling_time=settling_time(err, 0.02 * f_d, t),
+            settling_time_10mN=settling_time(err, 0.01, t),
             max_steady_error=float(np.abs(err[ss]).max()),
             tangential_rms=float(tang),
             contact_lost_steady=bool(np.any(f[ss] <= 0.0)),

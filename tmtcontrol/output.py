@@ -13,7 +13,7 @@ import tempfile
 
 import numpy as np
 
-__all__ = ["atomic_folder", "versions", "write_json"]
+__all__ = ["atomic_folder", "versions", "jsonable", "write_json", "save_simulation"]
 
 
 @contextlib.contextmanager
@@ -58,11 +58,12 @@ def versions() -> dict:
     return out
 
 
-def _clean(obj):
+def jsonable(obj):
+    """``obj`` with NumPy types converted and NaN/inf as None, for ``json.dumps``."""
     if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
+        return {k: jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, (np.floating, float)):
         return float(obj) if np.isfinite(obj) else None
     if isinstance(obj, np.integer):
@@ -70,13 +71,13 @@ def _clean(obj):
     if isinstance(obj, np.bool_):
         return bool(obj)
     if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
+        return jsonable(obj.tolist())
     return obj
 
 
 def write_json(path: str | pathlib.Path, obj) -> None:
     """JSON with NaN/inf written as null and NumPy types converted."""
-    pathlib.Path(path).write_text(json.dumps(_clean(obj), indent=2) + "\n")
+    pathlib.Path(path).write_text(json.dumps(jsonable(obj), indent=2) + "\n")
 
 
 TIMESERIES_COLUMNS = (

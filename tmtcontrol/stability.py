@@ -432,12 +432,12 @@ def switch_response(m, b, k, k_old, k_new, Ts, m_p, f_d=10.0, duration=4.0, **kw
     for i in range(n):
         f[i] = f_d + float((C @ z)[0])
         z = A @ z
+    from .metrics import settling_time
+
     t = np.arange(n) * Ts
-    err = np.abs(f - f_d)
-    outside = np.flatnonzero(err > 0.02 * f_d)
-    settle = float(t[outside[-1] + 1]) if outside.size and outside[-1] + 1 < n else (0.0 if not outside.size else float("nan"))
     return {"time": t, "force": f, "overshoot_pct": max(0.0, (f.max() - f_d) / f_d * 100),
-            "settling_time": settle, "contact_lost": bool(f.min() < 0), "model": model}
+            "settling_time": settling_time(f - f_d, 0.02 * f_d, t), "contact_lost": bool(f.min() < 0),
+            "model": model}
 
 
 # -- one call for the CLI and the report ----------------------------------------
