@@ -93,3 +93,14 @@ def test_bad_input_exit_2_nothing_written(tmp_path):
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
     assert "controller.rate" in r.stderr and not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_smooth_profile_report(tmp_path):
+    out = tmp_path / "sin"
+    r = make_report(out, "paper", "--set", 'environment.stiffness.kind="sinusoidal"', "--set",
+                    "environment.stiffness.mean=6e3", "--set", "environment.stiffness.amplitude=3e3",
+                    "--set", "trajectory.cycles=1")
+    assert r.returncode == 0, r.stderr
+    html = (out / "report.html").read_text()
+    assert "no stiffness switch" in html
+    assert re.findall(r'<section id="(\w+)"', html) == SECTIONS

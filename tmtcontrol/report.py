@@ -139,8 +139,8 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
         rep.sections["simulation"] = {"result": None, "segments": [], "error": str(exc)}
     rep.verdicts.append(Verdict("Force tracking within tolerance (simulation)", ok, evidence))
     # predicted (sampled model) vs simulated switch metrics
-    pred = []
-    if res is not None and len(segs) > 1:
+    pred = []   # only piecewise-constant profiles have switches to predict
+    if res is not None and len(segs) > 1 and scenario.environment.stiffness.kind == "piecewise_constant":
         for i in range(1, len(segs)):
             k_old, k_new = segs[i - 1].stiffness, segs[i].stiffness
             if k_old == k_new:
