@@ -121,7 +121,7 @@ def _analyze(args) -> int:
     import json
 
     from .output import atomic_folder, jsonable
-    from .stability import analyze, format_analysis, scenario_parameters
+    from .stability import analysis_kwargs, analyze, format_analysis, scenario_parameters
 
     if args.scenario:
         from .scenario import load_scenario
@@ -129,13 +129,7 @@ def _analyze(args) -> int:
         for flag in ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp"):
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario")
-        p = scenario_parameters(load_scenario(args.scenario))
-        kw = dict(m=p["m"], b=p["b"], k=p["k"], f_d=p["f_d"], Ts=p["Ts"], kd=p["kd"], kp=p["kp"],
-                  alpha=p["alpha"], d_e=p["d_e"], law=p["law"], m_p=(p["m_p_min"], p["m_p_max"]))
-        if p["k_e_min"] == p["k_e_max"]:
-            kw["k_e"] = p["k_e_min"]
-        else:
-            kw.update(k_e_min=p["k_e_min"], k_e_max=p["k_e_max"])
+        kw = analysis_kwargs(scenario_parameters(load_scenario(args.scenario)))
     else:
         for flag in ("m", "b", "k"):
             if getattr(args, flag) is None:

@@ -39,7 +39,8 @@ __all__ = [
     "critical_damping", "damping_ratio", "damping_for_range", "RangeAnalysis", "analyze_range",
     "stiffness_sweep", "x_e_error_force", "SampledModel", "sampled_closed_loop",
     "spectral_radius", "max_stable_stiffness", "stability_region", "switch_response",
-    "effective_mass", "scenario_parameters", "paper_effective_mass", "analyze", "format_analysis",
+    "effective_mass", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
+    "format_analysis",
 ]
 
 
@@ -509,14 +510,25 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
             _pos("m_p", v)
         kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
         limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
-        rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in (lo, hi) for mp in masses)
-        grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])
-        rho_grid = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
+        grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
+        rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
         out.update({"Ts": Ts, "m_p": list(masses), "max_stable_stiffness": limit,
-                    "spectral_radius": max(rho, rho_grid),
-                    "sampled_stable": bool(max(rho, rho_grid) < 1.0 and hi < limit)})
+                    "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
         out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, min(masses), **kw).sys
     return out
+
+
+def analysis_kwargs(p: dict) -> dict:
+    """:func:`analyze` keywords for a scenario's :func:`scenario_parameters`:
+    its normal axis, stiffness range (a single k_e if constant), Ts, gains,
+    force filter and the path's effective masses."""
+    kw = dict(m=p["m"], b=p["b"], k=p["k"], f_d=p["f_d"], Ts=p["Ts"], kd=p["kd"], kp=p["kp"],
+              alpha=p["alpha"], d_e=p["d_e"], law=p["law"], m_p=(p["m_p_min"], p["m_p_max"]))
+    if p["k_e_min"] == p["k_e_max"]:
+        kw["k_e"] = p["k_e_min"]
+    else:
+        kw.update(k_e_min=p["k_e_min"], k_e_max=p["k_e_max"])
+    return kw
 
 
 def format_analysis(d: dict) -> str:
