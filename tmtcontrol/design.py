@@ -35,7 +35,7 @@ from scipy.linalg import solve_continuous_lyapunov
 from .stability import AnalysisError, _pos, spectral_radius
 
 __all__ = ["DesignError", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
-           "overshoot_closed_form", "format_design"]
+           "overshoot_closed_form", "damping_alternatives", "format_design"]
 
 
 class DesignError(ValueError):
@@ -286,6 +286,25 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
         sampled_limit=max_stable_stiffness(spec.m, b_opt, k_opt, spec.Ts, spec.m_p),
         info={"damping_ratio_at_k_e_max": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_max))),
               "damping_ratio_at_k_e_min": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_min)))})
+
+
+def damping_alternatives(scenario, result: DesignResult) -> dict:
+    """``{label: Scenario}`` for comparing normal-axis damping on ``scenario``:
+    its own b, the eq. (25) worst-case b and the optimal b (all fixed), and
+    the stiffness-scheduled damping with zeta = 1. Tangential damping is kept."""
+    from .scenario import apply_overrides
+
+    b = scenario.impedance.b
+
+    def fixed(b_n):
+        return apply_overrides(scenario, [f"impedance.b=[{float(b_n)!r}, {b[1]!r}, {b[2]!r}]",
+                                          'controller.damping_schedule="off"'])
+
+    return {f"scenario b = {b[0]:.4g}": fixed(b[0]),
+            f"eq. (25) worst case b = {result.baseline_b:.4g}": fixed(result.baseline_b),
+            f"optimal b = {result.b:.4g}": fixed(result.b),
+            "scheduled (zeta = 1)": apply_overrides(scenario, ['controller.damping_schedule="zeta"',
+                                                               "controller.schedule_zeta=1.0"])}
 
 
 def format_design(r: DesignResult) -> str:

@@ -30,10 +30,10 @@ from matplotlib.figure import Figure
 
 from . import plots
 from .derivations import run_checks
-from .design import DesignError, DesignSpec, design_impedance
+from .design import DesignError, DesignSpec, damping_alternatives, design_impedance
 from .metrics import segment_metrics
 from .output import versions
-from .scenario import Scenario, apply_overrides, dump_scenario, scenario_to_dict
+from .scenario import Scenario, dump_scenario, scenario_to_dict
 from .simulate import SimulationError, Simulator
 from .stability import (analysis_kwargs, analyze, analyze_continuous, analyze_range, scenario_parameters,
                         spectral_radius, switch_response)
@@ -164,13 +164,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
             design["result"] = d
             comp = {}
             if res is not None:
-                fixed = lambda bb: apply_overrides(scenario, [f"impedance.b=[{float(bb)!r}, "
-                                                              f"{scenario.impedance.b[1]!r}, {scenario.impedance.b[2]!r}]",
-                                                              'controller.damping_schedule="off"'])
-                cands = {f"scenario b = {b:.4g}": scenario, f"eq. (25) worst case b = {d.baseline_b:.4g}": fixed(d.baseline_b),
-                         f"optimal b = {d.b:.4g}": fixed(d.b),
-                         "scheduled (zeta = 1)": apply_overrides(scenario, ['controller.damping_schedule="zeta"'])}
-                for name, sc in cands.items():
+                for name, sc in damping_alternatives(scenario, d).items():
                     try:
                         comp[name] = segment_metrics(sim.run(sc))
                     except SimulationError as exc:
