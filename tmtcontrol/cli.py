@@ -216,7 +216,6 @@ def _scenario(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .scenario import ScenarioError
     from .simulate import SimulationError
 
     parser = build_parser()
@@ -226,10 +225,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 0
         return args.func(args)
-    except (UsageError, ScenarioError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except ValueError as exc:
+    except (UsageError, ValueError) as exc:   # ScenarioError, AnalysisError, DesignError are ValueErrors
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except SimulationError as exc:

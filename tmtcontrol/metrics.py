@@ -77,7 +77,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
-        err = f - f_d
+        err = result.force_error[i0:i1]
         ss = slice(int((i1 - i0) * (1 - STEADY_FRACTION)), i1 - i0)
         dt = result.position_task[1:, i0:i1] - result.reference_task[1:, i0:i1]
         tang = np.sqrt(np.mean(np.sum(dt[:, ss] ** 2, axis=0)))

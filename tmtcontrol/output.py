@@ -109,10 +109,9 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> d
                  "condition_number_max": r.path.max_condition},
         "segments": [s.as_dict() for s in segs],
     }
-    write_json(folder / "summary.json", summary)
     if plots:
         from .plots import save_simulation_figures
 
         summary["figures"] = [p.name for p in save_simulation_figures(result, folder)]
-        write_json(folder / "summary.json", summary)
+    write_json(folder / "summary.json", summary)
     return summary
