@@ -7,7 +7,7 @@ Four controllers, all with TMT, M = 1, K = 100 on the paper scenario
 
 * paper:     the paper's fixed B = 60 N s/m;
 * eq25:      eq. (25) for the worst case, b = 2 sqrt(m (k + k_e_max));
-* optimal:   the robust design of tmtcontrol.design (5 % overshoot bound, Ts = 1 ms);
+* optimal:   the robust design of tmtcontrol.stability.design (5 % overshoot bound, Ts = 1 ms);
 * scheduled: b follows eq. (25) online from the TMT estimate (zeta = 1).
 
 Writes comparison.csv / comparison.md (overshoot and 2 % settling time per
@@ -21,8 +21,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-from tmtcontrol.design import DesignSpec, damping_alternatives, design_impedance
-from tmtcontrol.output import atomic_folder
+from tmtcontrol.stability.design import DesignSpec, damping_alternatives, design_impedance
+from tmtcontrol.files import atomic_folder
 from tmtcontrol.stability import scenario_parameters
 
 

@@ -11,9 +11,9 @@ import argparse
 import pathlib
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-from tmtcontrol.metrics import format_table
-from tmtcontrol.output import atomic_folder
-from tmtcontrol.plots import save_simulation_figures
+from tmtcontrol.simulation.metrics import format_table
+from tmtcontrol.files import atomic_folder
+from tmtcontrol.simulation.figures import save_simulation_figures
 
 
 def main(argv=None):

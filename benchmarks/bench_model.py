@@ -11,7 +11,7 @@ import time
 import casadi as ca
 
 from tmtcontrol import Puma560
-from tmtcontrol.robot import PUMA560_LINKS, _dh
+from tmtcontrol.model.puma560 import PUMA560_LINKS, _dh
 
 
 def reference():

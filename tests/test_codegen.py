@@ -3,8 +3,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from tmtcontrol import codegen
-from tmtcontrol.codegen import Rollout
+from tmtcontrol.simulation import rollout as codegen
+from tmtcontrol.simulation.rollout import Rollout
 
 
 def toy_step():

@@ -8,9 +8,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from tmtcontrol import derivations, impedance, reference, stability
+from tmtcontrol import stability
+from tmtcontrol.checks import derivations
+from tmtcontrol.control import impedance, reference
 from tmtcontrol.cli import main
-from tmtcontrol.derivations import Implementation, run_checks
+from tmtcontrol.checks.derivations import Implementation, run_checks
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-from tmtcontrol.design import (DesignError, DesignSpec, _ise_function, _objective, design_impedance,
+from tmtcontrol.stability.design import (DesignError, DesignSpec, _ise_function, _objective, design_impedance,
                                ise_closed_form, overshoot_closed_form)
 
 SPEC = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0, m_p=3.3)

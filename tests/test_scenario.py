@@ -5,7 +5,7 @@ import math
 import pytest
 
 from tmtcontrol import ScenarioError, apply_overrides, dump_scenario, load_scenario, paper_scenario
-from tmtcontrol.scenario import ControllerSettings, scenario_from_dict, scenario_to_dict
+from tmtcontrol.simulation.scenario import ControllerSettings, scenario_from_dict, scenario_to_dict
 
 
 def test_paper_scenario_values():

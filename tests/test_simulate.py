@@ -4,7 +4,7 @@ import pytest
 
 from tmtcontrol import (ScenarioError, SimulationError, Simulator, apply_overrides,
                         paper_scenario, segment_metrics)
-from tmtcontrol.reference import k_eff, tmt_reference
+from tmtcontrol.control.reference import k_eff, tmt_reference
 
 
 def test_paper_force_tracking_every_segment(paper_result):
@@ -139,9 +139,9 @@ def test_mass_model_error_biases_force_as_eq7_predicts(paper_sim):
     # TMT is algebraic: it does not reject the robot dynamic uncertainty of
     # eq. (7). Quasi-static prediction: K_P e = R^T Dh^-1 ((D - Dh) Xdd + h - hh)
     # (normal component), and the force settles at f_d - k_eff e_n.
-    from tmtcontrol.closedloop import controller_model
-    from tmtcontrol.environment import task_frame
-    from tmtcontrol.trajectory import circle_reference
+    from tmtcontrol.simulation.closedloop import controller_model
+    from tmtcontrol.simulation.environment import task_frame
+    from tmtcontrol.simulation.trajectory import circle_reference
 
     sc = apply_overrides(paper_scenario(), ["robot.model_mass_scale=1.2", "trajectory.cycles=1"])
     r = Simulator(sc).run()

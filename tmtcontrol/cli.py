@@ -91,7 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _load(args):
-    from .scenario import apply_overrides, load_scenario
+    from .simulation.scenario import apply_overrides, load_scenario
 
     sc = load_scenario(args.scenario)
     sets = list(getattr(args, "set", []) or [])
@@ -101,9 +101,10 @@ def _load(args):
 
 
 def _simulate(args) -> int:
-    from .metrics import format_table, segment_metrics
-    from .output import atomic_folder, save_simulation
-    from .simulate import Simulator
+    from .simulation.metrics import format_table, segment_metrics
+    from .files import atomic_folder
+    from .simulation.output import save_simulation
+    from .simulation.simulator import Simulator
 
     sc = _load(args)
     res = Simulator(sc).run()
@@ -120,11 +121,11 @@ def _simulate(args) -> int:
 def _analyze(args) -> int:
     import json
 
-    from .output import atomic_folder, jsonable
+    from .files import atomic_folder, jsonable
     from .stability import analysis_kwargs, analyze, format_analysis, scenario_parameters
 
     if args.scenario:
-        from .scenario import load_scenario
+        from .simulation.scenario import load_scenario
 
         for flag in ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp"):
             if getattr(args, flag) is not None:
@@ -143,7 +144,7 @@ def _analyze(args) -> int:
         kw.update(dict(k_e=args.ke) if args.ke is not None else dict(k_e_min=args.ke_min, k_e_max=args.ke_max))
     result = analyze(**kw)
     if args.plot:
-        from .plots import save_analysis_figures
+        from .stability.figures import save_analysis_figures
 
         with atomic_folder(args.plot) as tmp:
             save_analysis_figures(result, tmp)
@@ -155,8 +156,8 @@ def _analyze(args) -> int:
 def _design(args) -> int:
     import json
 
-    from .design import DesignSpec, design_impedance, format_design
-    from .output import atomic_folder, jsonable
+    from .stability.design import DesignSpec, design_impedance, format_design
+    from .files import atomic_folder, jsonable
     from .stability import paper_effective_mass
 
     spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
@@ -165,7 +166,7 @@ def _design(args) -> int:
                       stiffness_margin=args.margin)
     result = design_impedance(spec)
     if args.plot:
-        from .plots import save_design_figures
+        from .stability.figures import save_design_figures
 
         with atomic_folder(args.plot) as tmp:
             save_design_figures(result, tmp)
@@ -176,8 +177,8 @@ def _design(args) -> int:
 def _check(args) -> int:
     import json
 
-    from .derivations import format_checks, run_checks
-    from .output import jsonable
+    from .checks.derivations import format_checks, run_checks
+    from .files import jsonable
 
     results = run_checks()
     if args.json:
@@ -190,7 +191,7 @@ def _check(args) -> int:
 def _report(args) -> int:
     import time
 
-    from .output import atomic_folder
+    from .files import atomic_folder
     from .report import build_report, write_report
 
     sc = _load(args)
@@ -209,14 +210,14 @@ def _report(args) -> int:
 
 
 def _scenario(args) -> int:
-    from .scenario import dump_scenario, paper_scenario
+    from .simulation.scenario import dump_scenario, paper_scenario
 
     sys.stdout.write(dump_scenario(paper_scenario()))
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .simulate import SimulationError
+    from .simulation.simulator import SimulationError
 
     parser = build_parser()
     try:

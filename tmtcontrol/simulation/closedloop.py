@@ -24,9 +24,9 @@ import casadi as ca
 import numpy as np
 
 from .environment import contact_force
-from .impedance import command, control_force, impedance_acceleration, inner_loop
-from .reference import known_reference, tmt_reference
-from .robot import PUMA560_LINKS, Puma560
+from ..control.impedance import command, control_force, impedance_acceleration, inner_loop
+from ..control.reference import known_reference, tmt_reference
+from ..model.puma560 import PUMA560_LINKS, Puma560
 
 __all__ = ["STATE", "INPUT", "PARAM", "LOG", "Layout", "controller_model", "damping_schedule",
            "build_step"]

@@ -32,7 +32,8 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import solve_continuous_lyapunov
 
-from .stability import AnalysisError, _pos, spectral_radius
+from .continuous import AnalysisError, _pos
+from .sampled import spectral_radius
 
 __all__ = ["DesignError", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
            "overshoot_closed_form", "damping_alternatives", "format_design"]
@@ -277,7 +278,7 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
     dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
                     for ke, w in zip(dense, spec.event_weights(dense)))
     worst_os = max(overshoot_closed_form(spec.m, b_opt, k_opt, ke) for ke in dense)
-    from .stability import max_stable_stiffness
+    from .sampled import max_stable_stiffness
 
     return DesignResult(
         spec=spec, b=b_opt, k=k_opt, objective=_objective(spec, b_opt, k_opt),
@@ -292,7 +293,7 @@ def damping_alternatives(scenario, result: DesignResult) -> dict:
     """``{label: Scenario}`` for comparing normal-axis damping on ``scenario``:
     its own b, the eq. (25) worst-case b and the optimal b (all fixed), and
     the stiffness-scheduled damping with zeta = 1. Tangential damping is kept."""
-    from .scenario import apply_overrides
+    from ..simulation.scenario import apply_overrides
 
     b = scenario.impedance.b
 

@@ -2,8 +2,8 @@
 
 One named check per step of the derivation (eqs. 7-25) plus the robot-model
 identities behind eq. (1). Each check builds the claim from the expressions
-the simulator uses — ``reference.py`` (eqs. 11-18), ``impedance.py``
-(eqs. 2-6), ``stability.py`` (eqs. 22, 25) and ``robot.py`` (eq. 1) —
+the simulator uses — ``control/laws`` (eqs. 11-18), ``control/impedance.py``
+(eqs. 2-6), ``stability/continuous.py`` (eqs. 22, 25) and ``model/puma560.py`` (eq. 1) —
 never from formulas retyped here, with CasADi symbols evaluated at seeded
 random points (relative tolerance stated per check), and SymPy where an
 exact limit is needed (eq. 18). The implementations are injected through
@@ -25,7 +25,8 @@ import casadi as ca
 import control as ct
 import numpy as np
 
-from . import impedance, reference, stability
+from .. import stability
+from ..control import impedance, reference
 
 __all__ = ["CheckResult", "Implementation", "run_checks", "format_checks", "CHECKS"]
 
@@ -53,13 +54,13 @@ class CheckResult:
 
 
 def _default_robot():
-    from .robot import Puma560
+    from ..model import Puma560
 
     return Puma560(armature=True, friction=True)
 
 
 def _default_model():
-    from .closedloop import controller_model
+    from ..simulation.closedloop import controller_model
 
     return controller_model(1.2, True)
 
@@ -85,7 +86,7 @@ class Implementation:
         """(K_D, K_P) the simulator derives from (M, B, K)."""
         if self.impedance_gains is not None:
             return self.impedance_gains(m, b, k)
-        from .scenario import ImpedanceSettings
+        from ..simulation.scenario import ImpedanceSettings
 
         return ImpedanceSettings(m=tuple(m), b=tuple(b), k=tuple(k)).gains
 

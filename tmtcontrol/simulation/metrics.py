@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .simulate import SimulationResult
+from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table"]
 

@@ -28,14 +28,15 @@ from typing import Callable
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import plots
-from .derivations import run_checks
-from .design import DesignError, DesignSpec, damping_alternatives, design_impedance
-from .metrics import segment_metrics
-from .output import versions
-from .scenario import Scenario, dump_scenario, scenario_to_dict
-from .simulate import SimulationError, Simulator
-from .stability import (analysis_kwargs, analyze, analyze_continuous, analyze_range, scenario_parameters,
+from ..checks.derivations import run_checks
+from ..files import versions
+from ..simulation import figures as sim_figures
+from ..simulation.metrics import segment_metrics
+from ..simulation.scenario import Scenario, dump_scenario, scenario_to_dict
+from ..simulation.simulator import SimulationError, Simulator
+from ..stability import figures as stab_figures
+from ..stability.design import DesignError, DesignSpec, damping_alternatives, design_impedance
+from ..stability import (analysis_kwargs, analyze, analyze_continuous, analyze_range, scenario_parameters,
                         spectral_radius, switch_response)
 
 __all__ = ["Verdict", "Report", "build_report", "write_report", "FORCE_TOLERANCE"]
@@ -180,22 +181,22 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     # 6. figures
     t0 = stage(5)
     lo, hi = p["k_e_min"], p["k_e_max"]
-    rep.figures["root_locus"] = ("Root locus of eq. (22) in k_e", plots.root_locus_figure(m, b, k, lo / 10, hi * 10))
+    rep.figures["root_locus"] = ("Root locus of eq. (22) in k_e", stab_figures.root_locus_figure(m, b, k, lo / 10, hi * 10))
     rep.figures["damping"] = ("Damping ratio and natural frequency versus k_e",
-                              plots.damping_figure(m, b, k, lo / 10, hi * 10))
-    rep.figures["steps"] = ("Force step responses of eq. (22)", plots.step_figure(m, b, k, points, f_d))
+                              stab_figures.damping_figure(m, b, k, lo / 10, hi * 10))
+    rep.figures["steps"] = ("Force step responses of eq. (22)", stab_figures.step_figure(m, b, k, points, f_d))
     top = max(10 * hi, 2 * limit) if math.isfinite(limit) and limit > 0 else 100 * hi
     rep.figures["region"] = ("Sampled-data stability region with the scenario's operating points",
-                             plots.stability_region_figure(m, b, k, masses[0], np.geomspace(Ts / 10, Ts * 10, 21),
+                             stab_figures.stability_region_figure(m, b, k, masses[0], np.geomspace(Ts / 10, Ts * 10, 21),
                                                            np.geomspace(lo / 10, top, 21),
                                                            [(Ts, ke, f"{ke:.3g}") for ke in points], **kw))
     if res is not None:
-        rep.figures["fig3"] = ("Environment stiffness and TMT estimate (Fig. 3)", plots.stiffness_figure(res))
-        rep.figures["fig4"] = ("Force tracking (Fig. 4)", plots.force_figure(res))
-        rep.figures["fig5"] = ("Position tracking (Fig. 5)", plots.position_figure(res))
-        rep.figures["path"] = ("Path on the tilted plane", plots.path_figure(res))
+        rep.figures["fig3"] = ("Environment stiffness and TMT estimate (Fig. 3)", sim_figures.stiffness_figure(res))
+        rep.figures["fig4"] = ("Force tracking (Fig. 4)", sim_figures.force_figure(res))
+        rep.figures["fig5"] = ("Position tracking (Fig. 5)", sim_figures.position_figure(res))
+        rep.figures["path"] = ("Path on the tilted plane", sim_figures.path_figure(res))
     if "result" in design:
-        rep.figures["design"] = ("Robust damping design: cost against b", plots.design_cost_figure(design["result"]))
+        rep.figures["design"] = ("Robust damping design: cost against b", stab_figures.design_cost_figure(design["result"]))
     rep.timings["figures"] = time.perf_counter() - t0
     rep.sections["parameters"] = p
     return rep

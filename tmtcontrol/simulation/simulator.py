@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .closedloop import INPUT, LOG, PARAM, STATE, build_step, controller_model
-from .codegen import Rollout
+from .rollout import Rollout
 from .environment import stiffness_samples, task_frame
-from .robot import Puma560
+from ..model.puma560 import Puma560
 from .scenario import Scenario, ScenarioError, paper_scenario
 from .trajectory import circle_reference
 

@@ -1,8 +1,7 @@
-"""Figures: reproductions of the paper's Figs. 3-5 and a 3-D view of the path.
+"""Figures of the stability analysis (root locus, damping, step responses,
+sampled stability region) and of the impedance design (cost curve, responses).
 
-Built on ``matplotlib.figure.Figure`` directly (no pyplot, no GUI backend),
-so they work headless and in tests. Each function returns the Figure;
-:func:`save_simulation_figures` writes all of them as PNG.
+Built on ``matplotlib.figure.Figure`` directly (no pyplot), so they work headless.
 """
 
 from __future__ import annotations
@@ -12,93 +11,16 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .simulate import SimulationResult
-
-__all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
-           "save_simulation_figures", "root_locus_figure", "damping_figure", "step_figure",
-           "stability_region_figure", "save_analysis_figures", "design_cost_figure",
-           "design_response_figure", "save_design_figures"]
-
-
-def stiffness_figure(res: SimulationResult) -> Figure:
-    """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
-    fig = Figure(figsize=(7, 3.2), layout="constrained")
-    ax = fig.add_subplot()
-    ax.plot(res.time, res.stiffness, label="true $k_e$")
-    ax.plot(res.time, res.stiffness_estimate, "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
-    ax.set(xlabel="time (s)", ylabel="stiffness (N/m)", title="Environment stiffness (Fig. 3)")
-    ax.set_yscale("log")
-    ax.legend()
-    ax.grid(True, which="both", alpha=0.3)
-    return fig
-
-
-def force_figure(res: SimulationResult) -> Figure:
-    """Fig. 4: contact force against the desired force."""
-    fig = Figure(figsize=(7, 3.2), layout="constrained")
-    ax = fig.add_subplot()
-    ax.plot(res.time, res.contact_force, label="$f_e$")
-    ax.plot(res.time, res.desired_force, "k--", lw=1, label="$f_d$")
-    ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
-    top = min(float(np.max(res.contact_force)), 6 * float(res.desired_force[0]))
-    ax.set_ylim(-0.05 * top, 1.1 * top)
-    ax.legend()
-    ax.grid(True, alpha=0.3)
-    return fig
-
-
-def position_figure(res: SimulationResult) -> Figure:
-    """Fig. 5: x, y, z of the wrist centre against the reference (base frame)."""
-    fig = Figure(figsize=(7, 5.5), layout="constrained")
-    axes = fig.subplots(3, 1, sharex=True)
-    for i, (ax, name) in enumerate(zip(axes, "xyz")):
-        ax.plot(res.time, res.position[i], label=name)
-        ax.plot(res.time, res.reference_position[i], "k--", lw=1, label=f"{name}$_r$")
-        ax.set_ylabel(f"{name} (m)")
-        ax.legend(loc="upper right")
-        ax.grid(True, alpha=0.3)
-    axes[0].set_title("Position tracking (Fig. 5)")
-    axes[-1].set_xlabel("time (s)")
-    return fig
-
-
-def path_figure(res: SimulationResult) -> Figure:
-    """3-D view of the wrist path on the tilted plane."""
-    fig = Figure(figsize=(6, 5.5), layout="constrained")
-    ax = fig.add_subplot(projection="3d")
-    sc = res.scenario
-    from .environment import task_frame
-
-    R = task_frame(sc.environment.tilt_deg)
-    c = np.asarray(sc.trajectory.center)
-    r = 1.4 * sc.trajectory.radius
-    u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
-    plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
-    ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
-    ax.plot(*res.position, lw=1.5, label="wrist centre")
-    ax.plot(*res.reference_position, "k--", lw=0.8, label="reference $X_r$")
-    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
-    ax.legend()
-    return fig
-
-
-def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -> list[pathlib.Path]:
-    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
-    folder = pathlib.Path(folder)
-    out = []
-    for name, make in (("fig3_stiffness", stiffness_figure), ("fig4_force", force_figure),
-                       ("fig5_position", position_figure), ("path3d", path_figure)):
-        path = folder / f"{name}.png"
-        make(res).savefig(path, dpi=120)
-        out.append(path)
-    return out
+__all__ = ["root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
+           "save_analysis_figures", "design_cost_figure", "design_response_figure",
+           "save_design_figures"]
 
 
 # -- stability analysis figures ----------------------------------------------------
 
 def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     """Poles of eq. (22) as k_e sweeps [k_e_min, k_e_max] (python-control root_locus_map)."""
-    from .stability import stiffness_sweep
+    from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
     fig = Figure(figsize=(6, 4.5), layout="constrained")
@@ -117,7 +39,7 @@ def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
 
 def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     """Damping ratio and natural frequency of eq. (22) against k_e."""
-    from .stability import stiffness_sweep
+    from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
     fig = Figure(figsize=(6.5, 4.5), layout="constrained")
@@ -137,7 +59,7 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
     """Force step responses of eq. (22) for several stiffnesses."""
     import control as ct
 
-    from .stability import tmt_error_tf
+    from .continuous import tmt_error_tf
 
     fig = Figure(figsize=(6.5, 4), layout="constrained")
     ax = fig.add_subplot()
@@ -154,7 +76,7 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
 def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) -> Figure:
     """Sampled-data stability region: spectral radius over (Ts, k_e), the
     rho = 1 boundary, and operating points ``[(Ts, k_e, label), ...]``."""
-    from .stability import stability_region
+    from .sampled import stability_region
 
     rho = stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw)
     fig = Figure(figsize=(6.5, 4.8), layout="constrained")
@@ -223,7 +145,7 @@ def design_response_figure(result) -> Figure:
     """First-contact force responses (eq. 22) at k_e_min and k_e_max, optimal vs baseline."""
     import control as ct
 
-    from .stability import tmt_error_tf
+    from .continuous import tmt_error_tf
 
     s = result.spec
     fig = Figure(figsize=(6.5, 4.2), layout="constrained")

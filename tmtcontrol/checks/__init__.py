@@ -1,0 +1,1 @@
+"""Derivation checks of the paper's equations on the running code."""

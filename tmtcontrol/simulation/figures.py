@@ -1,0 +1,92 @@
+"""Figures: reproductions of the paper's Figs. 3-5 and a 3-D view of the path.
+
+Built on ``matplotlib.figure.Figure`` directly (no pyplot, no GUI backend),
+so they work headless and in tests. Each function returns the Figure;
+:func:`save_simulation_figures` writes all of them as PNG.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .simulator import SimulationResult
+
+__all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
+           "save_simulation_figures"]
+
+
+def stiffness_figure(res: SimulationResult) -> Figure:
+    """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
+    fig = Figure(figsize=(7, 3.2), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(res.time, res.stiffness, label="true $k_e$")
+    ax.plot(res.time, res.stiffness_estimate, "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
+    ax.set(xlabel="time (s)", ylabel="stiffness (N/m)", title="Environment stiffness (Fig. 3)")
+    ax.set_yscale("log")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    return fig
+
+
+def force_figure(res: SimulationResult) -> Figure:
+    """Fig. 4: contact force against the desired force."""
+    fig = Figure(figsize=(7, 3.2), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(res.time, res.contact_force, label="$f_e$")
+    ax.plot(res.time, res.desired_force, "k--", lw=1, label="$f_d$")
+    ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
+    top = min(float(np.max(res.contact_force)), 6 * float(res.desired_force[0]))
+    ax.set_ylim(-0.05 * top, 1.1 * top)
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def position_figure(res: SimulationResult) -> Figure:
+    """Fig. 5: x, y, z of the wrist centre against the reference (base frame)."""
+    fig = Figure(figsize=(7, 5.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    for i, (ax, name) in enumerate(zip(axes, "xyz")):
+        ax.plot(res.time, res.position[i], label=name)
+        ax.plot(res.time, res.reference_position[i], "k--", lw=1, label=f"{name}$_r$")
+        ax.set_ylabel(f"{name} (m)")
+        ax.legend(loc="upper right")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title("Position tracking (Fig. 5)")
+    axes[-1].set_xlabel("time (s)")
+    return fig
+
+
+def path_figure(res: SimulationResult) -> Figure:
+    """3-D view of the wrist path on the tilted plane."""
+    fig = Figure(figsize=(6, 5.5), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    sc = res.scenario
+    from .environment import task_frame
+
+    R = task_frame(sc.environment.tilt_deg)
+    c = np.asarray(sc.trajectory.center)
+    r = 1.4 * sc.trajectory.radius
+    u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
+    plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
+    ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
+    ax.plot(*res.position, lw=1.5, label="wrist centre")
+    ax.plot(*res.reference_position, "k--", lw=0.8, label="reference $X_r$")
+    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
+    ax.legend()
+    return fig
+
+
+def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -> list[pathlib.Path]:
+    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
+    folder = pathlib.Path(folder)
+    out = []
+    for name, make in (("fig3_stiffness", stiffness_figure), ("fig4_force", force_figure),
+                       ("fig5_position", position_figure), ("path3d", path_figure)):
+        path = folder / f"{name}.png"
+        make(res).savefig(path, dpi=120)
+        out.append(path)
+    return out

@@ -1,0 +1,20 @@
+"""Stability analysis: continuous time (eqs. 19-25, :mod:`.continuous`), the
+sampled-data loop (:mod:`.sampled`), one-call analysis of a scenario
+(:mod:`.analysis`) and the robust impedance design (:mod:`.design`)."""
+
+from .analysis import analysis_kwargs, analyze, format_analysis, paper_effective_mass, scenario_parameters
+from .continuous import (AnalysisError, ContinuousAnalysis, RangeAnalysis, analyze_continuous, analyze_range,
+                         bibo_stable, critical_damping, damping_for_range, damping_ratio, internally_stable,
+                         minimal_realization, stiffness_sweep, tmt_error_ss, tmt_error_tf, x_e_error_force)
+from .sampled import (SampledModel, effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius,
+                      stability_region, switch_response)
+
+__all__ = [
+    "AnalysisError", "ContinuousAnalysis", "minimal_realization", "bibo_stable",
+    "internally_stable", "tmt_error_tf", "tmt_error_ss", "analyze_continuous",
+    "critical_damping", "damping_ratio", "damping_for_range", "RangeAnalysis", "analyze_range",
+    "stiffness_sweep", "x_e_error_force", "SampledModel", "sampled_closed_loop",
+    "spectral_radius", "max_stable_stiffness", "stability_region", "switch_response",
+    "effective_mass", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
+    "format_analysis",
+]

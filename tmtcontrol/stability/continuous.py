@@ -1,0 +1,272 @@
+"""Continuous-time stability and damping of the TMT error dynamics (eqs. 19-25).
+
+With the TMT reference the normal axis obeys eq. (22),
+``m e'' + b e' + (k + k_e) e = -f_d (k + k_e)/k_e``; the force
+``f_e = k_e (x - x_e) = -k_e e`` then responds to f_d through
+
+    G(s) = (k + k_e) / (m s^2 + b s + k + k_e)                          (22)
+
+whose DC gain is 1: f_e = f_d at steady state (eqs. 23-24). Critical damping
+is ``b = 2 sqrt(m (k + k_e))`` (eq. 25). Every public function returns
+python-control objects or plain numbers; units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import control as ct
+import numpy as np
+
+__all__ = [
+    "AnalysisError", "ContinuousAnalysis", "minimal_realization", "bibo_stable",
+    "internally_stable", "tmt_error_tf", "tmt_error_ss", "analyze_continuous",
+    "critical_damping", "damping_ratio", "damping_for_range", "RangeAnalysis", "analyze_range",
+    "stiffness_sweep", "x_e_error_force",
+]
+
+
+class AnalysisError(ValueError):
+    """Invalid analysis input; the message names the parameter."""
+
+
+def _pos(name, v, strict=True):
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+        raise AnalysisError(f"{name}: expected a number, got {v!r}")
+    if not math.isfinite(v):
+        raise AnalysisError(f"{name}: must be finite, got {v!r}")
+    if (v <= 0) if strict else (v < 0):
+        raise AnalysisError(f"{name}: must be {'>' if strict else '>='} 0, got {v!r}")
+
+
+def _check(m, b, k, k_e=None, f_d=None):
+    _pos("m", m)
+    _pos("b", b, strict=False)
+    _pos("k", k)   # the TMT law divides by k
+    if k_e is not None:
+        _pos("k_e", k_e)
+    if f_d is not None:
+        _pos("f_d", f_d)
+
+
+# -- continuous time -------------------------------------------------------------
+
+def tmt_error_tf(m, b, k, k_e) -> ct.TransferFunction:
+    """Eq. (22) as the transfer function f_d -> f_e, ``(k+k_e)/(m s^2 + b s + k + k_e)``."""
+    _check(m, b, k, k_e)
+    return ct.tf([k + k_e], [m, b, k + k_e], inputs="f_d", outputs="f_e")
+
+
+def tmt_error_ss(m, b, k, k_e) -> ct.StateSpace:
+    """Eq. (22) in state space: state (e, e'), input f_d, output f_e = -k_e e."""
+    _check(m, b, k, k_e)
+    A = [[0.0, 1.0], [-(k + k_e) / m, -b / m]]
+    B = [[0.0], [-(k + k_e) / (k_e * m)]]
+    C = [[-k_e, 0.0]]
+    return ct.ss(A, B, C, [[0.0]], inputs="f_d", outputs="f_e", states=["e", "de"])
+
+
+def critical_damping(m, k, k_e) -> float:
+    """Eq. (25): the smallest b giving a critically damped (or overdamped) loop."""
+    _check(m, 0.0, k, k_e)
+    return 2.0 * math.sqrt(m * (k + k_e))
+
+
+def damping_ratio(m, b, k, k_e) -> float:
+    """zeta = b / (2 sqrt(m (k + k_e)))."""
+    return b / critical_damping(m, k, k_e)
+
+
+@dataclass(frozen=True)
+class ContinuousAnalysis:
+    """Eq. (22) at one stiffness: systems, poles and verdicts."""
+    m: float
+    b: float
+    k: float
+    k_e: float
+    f_d: float
+    tf: ct.TransferFunction
+    ss: ct.StateSpace
+    poles: np.ndarray
+    natural_frequency: float      # rad/s
+    damping_ratio: float
+    bibo_stable: bool
+    steady_state_force: float     # N, f_d * DC gain (eqs. 23-24)
+    critical_damping: float       # N s/m, eq. (25)
+    overshoot_pct: float
+    settling_time: float          # s, 2 %
+
+    def as_dict(self) -> dict:
+        return {"m": self.m, "b": self.b, "k": self.k, "k_e": self.k_e, "f_d": self.f_d,
+                "poles": [[float(p.real), float(p.imag)] for p in self.poles],
+                "natural_frequency": self.natural_frequency, "damping_ratio": self.damping_ratio,
+                "bibo_stable": self.bibo_stable, "steady_state_force": self.steady_state_force,
+                "critical_damping": self.critical_damping, "overshoot_pct": self.overshoot_pct,
+                "settling_time": self.settling_time}
+
+
+def minimal_realization(sys: ct.LTI, tol: float = 1e-9) -> ct.StateSpace:
+    """Controllable and observable part of ``sys`` (Kalman decomposition).
+
+    python-control's ``minreal`` for state space needs slycot (a Fortran
+    build); this does the same with orthonormal bases from SVD rank tests
+    (singular values below ``tol`` times the largest count as zero): project
+    on the controllable subspace, then on the orthogonal complement of the
+    unobservable subspace (both are A-invariant, so the projections are
+    exact)."""
+    S = ct.ss(sys)
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (S.A, S.B, S.C, S.D))
+    n = A.shape[0]
+
+    def basis(M):
+        if M.size == 0:
+            return np.zeros((n, 0))
+        U, sv, _ = np.linalg.svd(M)
+        r = int(np.sum(sv > tol * max(sv.max(), 1e-300))) if sv.size else 0
+        return U[:, :r]
+
+    T = basis(np.hstack([np.linalg.matrix_power(A, i) @ B for i in range(n)]))
+    A1, B1, C1 = T.T @ A @ T, T.T @ B, C @ T
+    r1 = A1.shape[0]
+    O = np.vstack([C1 @ np.linalg.matrix_power(A1, i) for i in range(r1)]) if r1 else np.zeros((0, 0))
+    W = basis(O.T) if r1 else np.zeros((0, 0))
+    A2, B2, C2 = W.T @ A1 @ W, W.T @ B1, C1 @ W
+    return ct.ss(A2, B2, C2, D, S.dt)
+
+
+def _stable_eigs(eig, discrete) -> bool:
+    return bool(np.all(np.abs(eig) < 1.0)) if discrete else bool(np.all(eig.real < 0.0))
+
+
+def bibo_stable(sys: ct.LTI) -> bool:
+    """BIBO stability: every eigenvalue of the state matrix of a minimal
+    realisation strictly in the open left half plane (continuous) or inside
+    the unit circle (discrete).
+
+    Deciding on state-space eigenvalues after an exact (subspace) minimal
+    realisation, rather than on transfer-function poles after numerical
+    pole-zero cancellation, means a near-cancellation cannot hide an unstable
+    mode that the input reaches and the output sees. Modes that are exactly
+    uncontrollable or unobservable do not affect BIBO stability; see
+    :func:`internally_stable` for those."""
+    red = minimal_realization(sys)
+    return _stable_eigs(np.linalg.eigvals(red.A), ct.ss(sys).isdtime()) if red.nstates else True
+
+
+def internally_stable(sys: ct.LTI) -> bool:
+    """Every eigenvalue of the (non-reduced) state matrix is stable."""
+    S = ct.ss(sys)
+    return _stable_eigs(np.linalg.eigvals(S.A), S.isdtime()) if S.nstates else True
+
+
+def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
+    """Poles, natural frequency, damping, BIBO verdict, steady state and step
+    metrics of eq. (22) at one stiffness."""
+    _check(m, b, k, k_e, f_d)
+    G = tmt_error_tf(m, b, k, k_e)
+    S = tmt_error_ss(m, b, k, k_e)
+    poles = np.sort_complex(np.linalg.eigvals(S.A))
+    wn = math.sqrt((k + k_e) / m)
+    stable = bibo_stable(S)
+    if stable:
+        info = ct.step_info(G)
+        overshoot, settling = float(info["Overshoot"]), float(info["SettlingTime"])
+        ss_force = f_d * float(np.real(ct.dcgain(S)))
+    else:
+        overshoot = settling = float("nan")
+        ss_force = float("nan")
+    return ContinuousAnalysis(m, b, k, k_e, f_d, G, S, poles, wn, damping_ratio(m, b, k, k_e),
+                              stable, ss_force, critical_damping(m, k, k_e), overshoot, settling)
+
+
+def damping_for_range(m, k, k_e_min, k_e_max, zeta=1.0) -> float:
+    """The smallest b with damping ratio >= ``zeta`` for every k_e in
+    [k_e_min, k_e_max]: the ratio falls with k_e, so it is set at k_e_max."""
+    _check(m, 0.0, k, k_e_min)
+    _pos("k_e_max", k_e_max)
+    _pos("zeta", zeta)
+    if k_e_min > k_e_max:
+        raise AnalysisError(f"k_e_min: must be <= k_e_max ({k_e_max:g}), got {k_e_min:g}")
+    return zeta * critical_damping(m, k, k_e_max)
+
+
+@dataclass(frozen=True)
+class RangeAnalysis:
+    """Eq. (22) over an interval of stiffness."""
+    k_e_min: float
+    k_e_max: float
+    at_min: ContinuousAnalysis
+    at_max: ContinuousAnalysis
+    worst_damping_ratio: float
+    stable_for_all: bool
+    b_for_critical: float           # b giving zeta >= 1 over the whole interval (eq. 25 at k_e_max)
+    slowest_settling_critical: float   # s, 2 % settling at k_e_min with that b: the cost
+
+    def as_dict(self) -> dict:
+        d = self.at_max.as_dict()
+        d.update({"k_e_min": self.k_e_min, "k_e_max": self.k_e_max,
+                  "worst_damping_ratio": self.worst_damping_ratio,
+                  "stable_for_all": self.stable_for_all,
+                  "b_for_critical_damping_over_range": self.b_for_critical,
+                  "slowest_settling_with_that_b": self.slowest_settling_critical,
+                  "at_k_e_min": self.at_min.as_dict()})
+        return d
+
+
+def analyze_range(m, b, k, k_e_min, k_e_max, f_d=10.0) -> RangeAnalysis:
+    """Worst case of eq. (22) over [k_e_min, k_e_max]. Poles of
+    ``m s^2 + b s + (k + k_e)`` have negative real part for every k_e > 0 iff
+    b > 0 (the coefficients are positive), so ``stable_for_all`` is decided at
+    both ends and on a log grid in between."""
+    _check(m, b, k, k_e_min, f_d)
+    _pos("k_e_max", k_e_max)
+    if k_e_min > k_e_max:
+        raise AnalysisError(f"k_e_min: must be <= k_e_max ({k_e_max:g}), got {k_e_min:g}")
+    lo, hi = analyze_continuous(m, b, k, k_e_min, f_d), analyze_continuous(m, b, k, k_e_max, f_d)
+    grid = np.geomspace(k_e_min, k_e_max, 25)
+    stable = all(bibo_stable(tmt_error_ss(m, b, k, ke)) for ke in grid)
+    b_crit = damping_for_range(m, k, k_e_min, k_e_max, 1.0)
+    slow = analyze_continuous(m, b_crit, k, k_e_min, f_d).settling_time
+    return RangeAnalysis(k_e_min, k_e_max, lo, hi, min(lo.damping_ratio, hi.damping_ratio),
+                         stable, b_crit, slow)
+
+
+def stiffness_sweep(m, b, k, k_e: np.ndarray) -> dict:
+    """Root locus in k_e and damping ratio / natural frequency versus k_e.
+
+    The characteristic polynomial ``m s^2 + b s + k + k_e`` is
+    ``1 + k_e L(s)`` with ``L = 1/(m s^2 + b s + k)``, so python-control's
+    :func:`control.root_locus_map` of L gives the locus."""
+    _check(m, b, k)
+    k_e = np.asarray(k_e, dtype=float)
+    L = ct.tf([1.0], [m, b, k])
+    rl = ct.root_locus_map(L, gains=k_e)
+    return {"k_e": k_e, "root_locus": rl, "loci": rl.loci,
+            "damping_ratio": b / (2 * np.sqrt(m * (k + k_e))),
+            "natural_frequency": np.sqrt((k + k_e) / m)}
+
+
+def x_e_error_force(f_d, k, k_e, delta, law="tmt", assumed_stiffness=None) -> float:
+    """Steady-state force when the controller's surface location is off by
+    ``delta`` (m, positive: believed deeper than it is).
+
+    TMT: at f_e = f_d the reference ``x_e^ + f_d/k + f_d (x - x_e^)/f_e`` no
+    longer depends on x_e^, so f_e = f_d is an equilibrium for any delta. It
+    is the one reached while the compliance estimate stays non-negative,
+    i.e. ``delta < f_d/k_e``; beyond, the estimate is clipped at 0 (see
+    reference.py) and ``f_e = k_eff (delta + f_d/k)``. The linearised loop
+    stiffness is ``k + k_e/(1 - delta k_e/f_d)``: an error towards the
+    surface stiffens the loop (check sampled stability!).
+
+    Known law (eqs. 11-12): ``f_e = f_d k_eff(k_e)/k_eff(k_e^) + k_eff(k_e) delta``.
+    """
+    keff = k * k_e / (k + k_e)
+    if law == "tmt":
+        return f_d if delta < f_d / k_e else keff * (delta + f_d / k)
+    if assumed_stiffness is None:
+        raise AnalysisError("assumed_stiffness: required for law = 'known'")
+    keff_hat = k * assumed_stiffness / (k + assumed_stiffness)
+    return f_d * keff / keff_hat + keff * delta
+
+

@@ -1,0 +1,184 @@
+"""Sampled-data model of the implemented normal-axis loop (beyond the paper).
+
+The controller runs at Ts with zero-order hold. In the ideal case (exact
+model, no friction) the normal axis of the implemented loop is, between
+samples,
+
+    x'' = U_k + (f_k - k_e x - d_e x')/m_p,     x_a'' = (f_k - b x_a' - k x_a)/m
+
+with ``f_k`` the force measured at t_k (through the optional first-order
+filter), ``U_k`` eq. (6) with the eq. (4) command and the TMT reference
+linearised about its equilibrium (``dx_r = dx - df_m/k_e``), and ``m_p`` the
+robot's effective Cartesian mass along the normal, ``1/(n^T D*^-1 n)``. Its
+exact ZOH discretisation gives the discrete closed loop whose spectral radius
+decides stability at Ts. Units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import control as ct
+import numpy as np
+from scipy.linalg import expm
+
+from .continuous import _check, _pos
+
+__all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
+           "max_stable_stiffness", "stability_region", "switch_response"]
+
+
+
+def effective_mass(D: np.ndarray, n: np.ndarray) -> float:
+    """Effective Cartesian mass along unit vector n: ``1/(n^T D*^-1 n)``, kg."""
+    return float(1.0 / (n @ np.linalg.solve(D, n)))
+
+
+@dataclass(frozen=True)
+class SampledModel:
+    """Discrete-time closed loop of the normal axis at Ts.
+
+    State ``(x, x', x_a, x_a', f_m)`` as deviations from the equilibrium
+    (m, m/s, m, m/s, N); ``sys`` is a python-control discrete StateSpace with
+    input f_d (N) and output the contact force f_e (N)."""
+    Ts: float
+    k_e: float
+    sys: ct.StateSpace
+    spectral_radius: float
+    params: dict = field(default_factory=dict)
+
+    @property
+    def stable(self) -> bool:
+        return self.spectral_radius < 1.0
+
+
+def _zoh(A, B, Ts):
+    n, mi = A.shape[0], B.shape[1]
+    M = np.zeros((n + mi, n + mi))
+    M[:n, :n], M[:n, n:] = A, B
+    E = expm(M * Ts)
+    return E[:n, :n], E[:n, n:]
+
+
+def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0,
+                        d_e=0.0) -> SampledModel:
+    """The normal axis of the implemented sampled loop (see module docstring).
+
+    Parameters
+    ----------
+    m, b, k : float
+        Impedance (eq. 2), kg, N s/m, N/m.
+    k_e : float
+        Environment stiffness, N/m.
+    Ts : float
+        Control period, s.
+    m_p : float
+        Robot's effective Cartesian mass along the normal, kg.
+    kd, kp : float, optional
+        Inner-loop gains of eq. (6); default b/m, k/m (eq. 9).
+    law : {"tmt", "known"}
+        TMT (linearised: dx_r = dx - df_m/k_e) or a fixed reference.
+    alpha : float
+        Force-filter pole (0 = no filter), as in the simulator.
+    d_e : float
+        Contact damping, N s/m.
+    """
+    _check(m, b, k, k_e)
+    _pos("Ts", Ts)
+    _pos("m_p", m_p)
+    kd = b / m if kd is None else kd
+    kp = k / m if kp is None else kp
+    # continuous part within a period: z = (x, v, xa, va), held inputs (U, f)
+    A = np.array([[0, 1, 0, 0], [-k_e / m_p, -d_e / m_p, 0, 0], [0, 0, 0, 1], [0, 0, -k / m, -b / m]],
+                 dtype=float)
+    B = np.array([[0, 0], [1, 1 / m_p], [0, 0], [0, 1 / m]], dtype=float)
+    Phi, Gam = _zoh(A, B, Ts)
+    # sample: f_m = alpha f_prev + (1 - alpha)(k_e x + d_e v)  -> row over (x, v, xa, va, f_prev)
+    fm = np.array([(1 - alpha) * k_e, (1 - alpha) * d_e, 0, 0, alpha])
+    # reference deviation: TMT dx_r = dx - df_m/k_e ; known: 0 ; plus f_d input
+    e_x = np.array([1.0, 0, 0, 0, 0])
+    xr = (e_x - fm / k_e) if law == "tmt" else np.zeros(5)
+    # x_r sensitivity to f_d at the equilibrium: d/df_d [f_d/k + f_d x/f_m] = 1/k + 1/k_e
+    xr_fd = 1 / k + 1 / k_e
+    aa = (fm - b * np.array([0, 0, 0, 1.0, 0]) - k * np.array([0, 0, 1.0, 0, 0])) / m  # x_a''
+    xc = xr - np.array([0, 0, 1.0, 0, 0])
+    dxc = -np.array([0, 0, 0, 1.0, 0])
+    U = -aa + kd * (dxc - np.array([0, 1.0, 0, 0, 0])) + kp * (xc - e_x)
+    U_fd = kp * xr_fd
+    Ad = np.zeros((5, 5))
+    Bd = np.zeros((5, 1))
+    Ad[:4] = Phi @ np.vstack([np.eye(5)[:4]]) + Gam @ np.vstack([U, fm])
+    Bd[:4, 0] = Gam @ np.array([U_fd, 0.0])
+    Ad[4] = fm
+    C = np.array([[k_e, d_e, 0, 0, 0]])
+    sys = ct.ss(Ad, Bd, C, [[0.0]], Ts, inputs="f_d", outputs="f_e",
+                states=["x", "dx", "xa", "dxa", "f_m"])
+    rho = float(np.max(np.abs(np.linalg.eigvals(Ad))))
+    return SampledModel(Ts, k_e, sys, rho, {"m": m, "b": b, "k": k, "m_p": m_p, "kd": kd, "kp": kp,
+                                             "law": law, "alpha": alpha, "d_e": d_e})
+
+
+def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
+    """Largest eigenvalue magnitude of the sampled closed loop (< 1: stable)."""
+    return sampled_closed_loop(m, b, k, k_e, Ts, m_p, **kw).spectral_radius
+
+
+def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=1.0, k_hi=1e10, **kw) -> float:
+    """Largest k_e for which the sampled loop is stable at Ts (N/m).
+
+    Scans a log grid from ``k_lo`` for the first unstable stiffness, then
+    bisects (relative precision 1e-6). Returns ``inf`` if stable up to
+    ``k_hi`` and 0 if unstable already at ``k_lo``."""
+    grid = np.geomspace(k_lo, k_hi, 121)
+    rho = [spectral_radius(m, b, k, ke, Ts, m_p, **kw) for ke in grid]
+    unstable = [i for i, r in enumerate(rho) if r >= 1.0]
+    if not unstable:
+        return float("inf")
+    i = unstable[0]
+    if i == 0:
+        return 0.0
+    lo, hi = grid[i - 1], grid[i]
+    while hi / lo > 1 + 1e-6:
+        mid = math.sqrt(lo * hi)
+        if spectral_radius(m, b, k, mid, Ts, m_p, **kw) < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return float(lo)
+
+
+def stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> np.ndarray:
+    """Spectral radius on a grid: array (len(k_e_grid), len(Ts_grid))."""
+    return np.array([[spectral_radius(m, b, k, ke, Ts, m_p, **kw) for Ts in Ts_grid]
+                     for ke in k_e_grid])
+
+
+def switch_response(m, b, k, k_old, k_new, Ts, m_p, f_d=10.0, duration=4.0, **kw) -> dict:
+    """Predicted force after a stiffness switch k_old -> k_new at a sample.
+
+    Starts from the equilibrium for k_old (x = f_d/k_old, x_a = f_d/k, at
+    rest) and runs the linear sampled model for k_new. Returns time, force,
+    overshoot % (peak over f_d), 2 % settling time and ``contact_lost`` (the
+    linear prediction went below zero force, where the unilateral contact
+    makes it invalid)."""
+    model = sampled_closed_loop(m, b, k, k_new, Ts, m_p, **kw)
+    A, C = model.sys.A, model.sys.C
+    # equilibrium for k_new (deviation origin) and the old state
+    x_new, x_old = f_d / k_new, f_d / k_old
+    # deviations from the new equilibrium; the force filter had converged to
+    # the old force f_d, so its deviation is 0
+    z = np.array([x_old - x_new, 0.0, 0.0, 0.0, 0.0])
+    n = int(round(duration / Ts))
+    f = np.empty(n)
+    for i in range(n):
+        f[i] = f_d + float((C @ z)[0])
+        z = A @ z
+    from ..simulation.metrics import settling_time
+
+    t = np.arange(n) * Ts
+    return {"time": t, "force": f, "overshoot_pct": max(0.0, (f.max() - f_d) / f_d * 100),
+            "settling_time": settling_time(f - f_d, 0.02 * f_d, t), "contact_lost": bool(f.min() < 0),
+            "model": model}
+
+
