@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.stability.design import DesignSpec, damping_alternatives, design_impedance
-from tmtcontrol.files import atomic_folder
+from tmtcontrol.files import OutputFolder
 from tmtcontrol.stability import scenario_parameters
 
 
@@ -36,9 +36,11 @@ def strategies(cycles):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="damping-comparison")
+    ap.add_argument("--out", default="analysis-output/damping-comparison",
+                    help="output folder (default analysis-output/damping-comparison, ignored by git)")
     ap.add_argument("--cycles", type=float, default=4.0)
     args = ap.parse_args(argv)
+    out = OutputFolder(args.out, "--out")     # checked before the runs
     runs = {}
     sim = None
     for name, sc in strategies(args.cycles).items():
@@ -63,14 +65,15 @@ def main(argv=None):
     ax.axhline(10.0, color="k", ls="--", lw=0.8)
     ax.set(xlabel="time (s)", ylabel="f_e (N)", ylim=(-1, 25), title="Damping strategies on the paper profile")
     ax.legend(fontsize=8)
-    with atomic_folder(args.out) as tmp:
-        tmp = pathlib.Path(tmp)
+    with out:
+        tmp = out.path
         with (tmp / "comparison.csv").open("w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
             w.writeheader()
             w.writerows(rows)
         (tmp / "comparison.md").write_text("\n".join(md) + "\n")
         fig.savefig(tmp / "force_comparison.png", dpi=110)
+        out.commit()
     print("\n".join(md))
     print(f"wrote {args.out}/")
 

@@ -12,21 +12,23 @@ import pathlib
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.simulation.metrics import format_table
-from tmtcontrol.files import atomic_folder
+from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.figures import save_simulation_figures
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="paper-figures")
+    ap.add_argument("--out", default="analysis-output/paper-figures",
+                    help="output folder (default analysis-output/paper-figures, ignored by git)")
     ap.add_argument("--cycles", type=float, default=4.0, help="cycles of 4 s (default 4)")
     args = ap.parse_args(argv)
     sc = apply_overrides(paper_scenario(), [f"trajectory.cycles={args.cycles}"])
-    res = Simulator(sc).run()
-    table = format_table(segment_metrics(res))
-    with atomic_folder(args.out) as tmp:
-        save_simulation_figures(res, tmp)
-        (pathlib.Path(tmp) / "segments.txt").write_text(table + "\n")
+    with OutputFolder(args.out, "--out") as out:          # checked before the run
+        res = Simulator(sc).run()
+        table = format_table(segment_metrics(res))
+        save_simulation_figures(res, out.path)
+        (out.path / "segments.txt").write_text(table + "\n")
+        out.commit()
     print(table)
     print(f"wrote {args.out}/")
 

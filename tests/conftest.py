@@ -26,5 +26,13 @@ def paper_sim():
 
 
 @pytest.fixture(scope="session")
+def known_sim():
+    """The paper scenario with the known-stiffness law (its own compiled step)."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+
+    return Simulator(apply_overrides(paper_scenario(), ["controller.law=known"]))
+
+
+@pytest.fixture(scope="session")
 def paper_result(paper_sim):
     return paper_sim.run()

@@ -71,10 +71,11 @@ def test_scenario_command_round_trips(tmp_path):
     ("[environment.stiffness]\nvalues = [0]\n", [], "environment.stiffness.values[0]: must be > 0"),
     ("[environment]\ndamping = -2\n", [], "environment.damping: must be >= 0"),
     ("[controller]\nrate = 0\n", [], "controller.rate: must be > 0"),
-    ("[environment.stiffness]\nvalues = []\n", [], "empty profile"),
+    ("[environment.stiffness]\nvalues = []\n", [], "environment.stiffness.values: empty list"),
     ("[trajectory]\ncenter = [3.0, 0.0, 0.5]\n", [], "unreachable"),
-    ("", ["--set", "controller.f_d=-3"], "controller.f_d: must be > 0"),
-    ("", ["--set", "nope.x=1"], "nope: unknown key"),
+    ("name = 't'\n", ["--set", "controller.f_d=-3"], "controller.f_d: must be > 0, got -3 (in --set)"),
+    ("name = 't'\n", ["--set", "nope.x=1"], "nope: unknown key"),
+    ("", [], "empty scenario"),
     (None, [], "no such scenario file"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, content, args, needle):
@@ -104,14 +105,3 @@ def test_diverging_simulation_exit_1_with_time(tmp_path):
     assert r.returncode == 1
     assert "diverged at t =" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not out.exists()
-
-
-def test_existing_output_is_replaced_atomically(tmp_path):
-    out = tmp_path / "o"
-    out.mkdir()
-    (out / "stale.txt").write_text("old")
-    assert main(["simulate", "--out", str(out), "--no-plots", "--set", "trajectory.cycles=0.25"]) == 0
-    assert not (out / "stale.txt").exists() and (out / "summary.json").exists()
-    # a failing run leaves the previous output untouched
-    assert main(["simulate", "--out", str(out), "--set", "controller.f_d=0"]) == 2
-    assert (out / "summary.json").exists()

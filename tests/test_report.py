@@ -32,7 +32,7 @@ def unstable_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("rep") / "unstable"
     r = make_report(out, "paper", "--set", "controller.rate=200", "--set",
                     "environment.stiffness.values=[5e3, 5e4]", "--set", "trajectory.cycles=2")
-    assert r.returncode == 0, r.stderr
+    assert r.returncode == 1, r.stderr       # a report with a FAIL verdict exits 1
     return out, r
 
 
@@ -100,7 +100,9 @@ def test_smooth_profile_report(tmp_path):
     r = make_report(out, "paper", "--set", 'environment.stiffness.kind="sinusoidal"', "--set",
                     "environment.stiffness.mean=6e3", "--set", "environment.stiffness.amplitude=3e3",
                     "--set", "trajectory.cycles=1")
-    assert r.returncode == 0, r.stderr
+    # a moving stiffness leaves a lag k_eff (K_D/K_P) f_d |dk_e/dt| / k_e^2 > 0.01 N: tracking FAILs, exit 1
+    assert r.returncode == 1, r.stderr
+    assert "FAIL  Force tracking" in r.stdout and r.stdout.count("FAIL") == 1
     html = (out / "report.html").read_text()
     assert "no stiffness switch" in html
     assert re.findall(r'<section id="(\w+)"', html) == SECTIONS

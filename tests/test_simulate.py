@@ -4,7 +4,7 @@ import pytest
 
 from tmtcontrol import (ScenarioError, SimulationError, Simulator, apply_overrides,
                         paper_scenario, segment_metrics)
-from tmtcontrol.control.reference import k_eff, tmt_reference
+from tmtcontrol.control.laws.tmt import k_eff, tmt_reference
 
 
 def test_paper_force_tracking_every_segment(paper_result):
@@ -86,12 +86,12 @@ def test_rerun_with_new_numbers_needs_no_recompile(paper_sim):
 
 
 @pytest.mark.parametrize("ratio", [0.5, 1.5])
-def test_known_law_with_wrong_stiffness_misses_force(paper_sim, ratio):
+def test_known_law_with_wrong_stiffness_misses_force(known_sim, ratio):
     k_true = 5e3
     sc = apply_overrides(paper_scenario(), [
-        "controller.law=\"known\"", f"controller.assumed_stiffness={ratio * k_true}",
+        "controller.law=known", f"controller.law.assumed_stiffness={ratio * k_true}",
         "trajectory.cycles=1", f"environment.stiffness.values=[{k_true}]"])
-    r = paper_sim.run(sc)
+    r = known_sim.run(sc)
     f_ss = r.contact_force[-500:].mean()
     # eqs. (11)-(12): f_e = k_eff(true) * f_d / k_eff(assumed)
     predicted = k_eff(100.0, k_true) * 10.0 / k_eff(100.0, ratio * k_true)
@@ -99,11 +99,11 @@ def test_known_law_with_wrong_stiffness_misses_force(paper_sim, ratio):
     assert abs(f_ss - 10.0) > 0.03      # visibly off, unlike TMT (<= 0.01 N)
 
 
-def test_known_law_with_exact_stiffness_tracks(paper_sim):
-    sc = apply_overrides(paper_scenario(), ["controller.law=\"known\"",
-                                            "controller.assumed_stiffness=5e3", "trajectory.cycles=1",
+def test_known_law_with_exact_stiffness_tracks(known_sim):
+    sc = apply_overrides(paper_scenario(), ["controller.law=known",
+                                            "controller.law.assumed_stiffness=5e3", "trajectory.cycles=1",
                                             "environment.stiffness.values=[5e3]"])
-    assert abs(paper_sim.run(sc).contact_force[-500:].mean() - 10.0) < 1e-3
+    assert abs(known_sim.run(sc).contact_force[-500:].mean() - 10.0) < 1e-3
 
 
 def test_tmt_law_is_finite_near_zero_force():

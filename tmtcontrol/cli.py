@@ -1,19 +1,23 @@
 """The ``tmtcontrol`` command: argument parsing only; the work is in the library.
 
-Exit codes: 0 success, 1 a failed check or a diverged simulation, 2 bad input
-(one line on stderr naming the field and the problem, nothing written).
+Exit codes: 0 success; 1 a computed verdict failed (a check, an unstable
+analysis, an infeasible or unverified design, a diverged or non-converged
+simulation); 2 bad input (one line on stderr naming the key or flag and the
+problem, nothing written); 130 Ctrl-C, 143 SIGTERM (one line, nothing left
+behind).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 
 from . import __version__
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
 
 
-class UsageError(Exception):
+class UsageError(ValueError):
     """Bad command-line input (exit code 2)."""
 
 
@@ -22,70 +26,96 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: {message}")
 
 
+_RAW = argparse.RawDescriptionHelpFormatter
+
+
+def _add_scenario_args(p, out_default: str):
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper' (default)")
+    p.add_argument("--out", default=out_default,
+                   help=f"output folder (default ./{out_default}); an existing folder is replaced only "
+                        "if tmtcontrol wrote it")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario value, e.g. controller.f_d=5 (repeatable; TOML syntax)")
+    p.add_argument("--max-steps", type=int, default=None, metavar="N",
+                   help="refuse runs of more than N control steps (default 1,000,000)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="tmtcontrol",
         description="Force-tracking impedance control with the trajectory modification "
-                    "technique (TMT): simulation, stability analysis, checks and reports.")
+                    "technique (TMT): simulation, stability analysis, checks and reports. SI units.")
     parser.add_argument("--version", action="version", version=f"tmtcontrol {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
-    p = sub.add_parser("simulate", help="simulate a scenario (default: the paper's section V)")
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper'")
-    p.add_argument("--out", default="tmt-results", help="output folder (default ./tmt-results)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario value, e.g. controller.f_d=5 (repeatable)")
+    p = sub.add_parser("simulate", help="simulate a scenario (default: the paper's section V)",
+                       formatter_class=_RAW, epilog="example:\n  tmtcontrol simulate paper --set controller.f_d=5 --out run1")
+    _add_scenario_args(p, "tmt-results")
     p.add_argument("--integrator", choices=["fixed", "cvodes"],
                    help="fixed-step compiled RK4 (default) or adaptive CVODES reference")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.set_defaults(func=_simulate)
 
-    p = sub.add_parser("analyze", help="stability and damping of the TMT error dynamics (eqs. 22, 25)")
-    p.add_argument("--scenario", help="take m, b, k, f_d, the k_e range and Ts from a scenario's normal axis")
-    p.add_argument("--m", type=float, help="impedance mass, kg")
-    p.add_argument("--b", type=float, help="impedance damping, N s/m")
-    p.add_argument("--k", type=float, help="impedance stiffness, N/m")
+    p = sub.add_parser(
+        "analyze", help="stability and damping of the TMT error dynamics (eqs. 22, 25)",
+        formatter_class=_RAW,
+        description="Give either --scenario, or --m, --b, --k (required) with --ke or both --ke-min and --ke-max.\n"
+                    "--ts adds the sampled-data analysis. Exit 1 if any verdict is 'unstable'.",
+        epilog="examples:\n  tmtcontrol analyze --m 1 --b 60 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001\n"
+               "  tmtcontrol analyze --scenario paper --plot figs")
+    p.add_argument("--scenario", help="take m, b, k, f_d, the k_e range, Ts and the path's masses from a scenario")
+    p.add_argument("--m", type=float, help="impedance mass, kg (required without --scenario)")
+    p.add_argument("--b", type=float, help="impedance damping, N s/m (required without --scenario)")
+    p.add_argument("--k", type=float, help="impedance stiffness, N/m (required without --scenario)")
     p.add_argument("--fd", type=float, default=None, help="desired force, N (default 10)")
     p.add_argument("--ke", type=float, help="environment stiffness, N/m")
     p.add_argument("--ke-min", type=float, help="lower end of the stiffness range, N/m")
     p.add_argument("--ke-max", type=float, help="upper end of the stiffness range, N/m")
     p.add_argument("--ts", type=float, help="control period, s: adds the sampled-data analysis")
-    p.add_argument("--mp", type=float, help="robot's effective mass along the normal, kg "
-                   "(default: smallest along the paper path)")
+    p.add_argument("--mp", type=float, help="robot's effective mass along the normal, kg, with --ts "
+                   "(default: both extremes along the paper path)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
-    p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures")
+    p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures to DIR")
     p.set_defaults(func=_analyze)
 
-    p = sub.add_parser("design", help="optimal normal-axis impedance over a stiffness range (IPOPT)")
-    p.add_argument("--m", type=float, required=True, help="impedance mass, kg")
-    p.add_argument("--k", type=float, required=True, help="impedance stiffness, N/m (initial guess with --optimize-k)")
-    p.add_argument("--ke-min", type=float, required=True, help="lower end of the stiffness range, N/m")
-    p.add_argument("--ke-max", type=float, required=True, help="upper end of the stiffness range, N/m")
-    p.add_argument("--ts", type=float, required=True, help="control period, s")
-    p.add_argument("--max-overshoot", type=float, required=True, help="first-contact force overshoot bound, percent")
+    p = sub.add_parser(
+        "design", help="optimal normal-axis impedance over a stiffness range (IPOPT)", formatter_class=_RAW,
+        description="All of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot are required.\n"
+                    "Exit 1 if the specification is infeasible or the design fails its own verification.",
+        epilog="example:\n  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5")
+    p.add_argument("--m", type=float, required=True, help="impedance mass, kg (required)")
+    p.add_argument("--k", type=float, required=True,
+                   help="impedance stiffness, N/m (required; initial guess with --optimize-k)")
+    p.add_argument("--ke-min", type=float, required=True, help="lower end of the stiffness range, N/m (required)")
+    p.add_argument("--ke-max", type=float, required=True, help="upper end of the stiffness range, N/m (required)")
+    p.add_argument("--ts", type=float, required=True, help="control period, s (required)")
+    p.add_argument("--max-overshoot", type=float, required=True,
+                   help="first-contact force overshoot bound, percent (required)")
     p.add_argument("--optimize-k", action="store_true", help="optimise k as well as b")
     p.add_argument("--fd", type=float, default=10.0, help="desired force, N (default 10)")
     p.add_argument("--mp", type=float, default=None, help="robot's effective normal mass, kg "
-                   "(default: smallest along the paper path)")
+                   "(default: largest along the paper path, the worst case)")
     p.add_argument("--margin", type=float, default=2.0,
                    help="sampled stability required up to margin x k_e_max (default 2)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
-    p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses")
+    p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses to DIR")
     p.set_defaults(func=_design)
 
     p = sub.add_parser("check", help="symbolic checks of the paper's derivation on the implemented code")
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
     p.set_defaults(func=_check)
 
-    p = sub.add_parser("report", help="stability report of a scenario: report.html and report.pdf")
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper'")
-    p.add_argument("--out", default="tmt-report", help="output folder (default ./tmt-report)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario value (repeatable)")
+    p = sub.add_parser("report", help="stability report of a scenario: report.html and report.pdf",
+                       formatter_class=_RAW,
+                       description="Runs the checks, the analysis, the simulation and the design for one scenario.\n"
+                                   "Exit 1 if any verdict is FAIL.",
+                       epilog="example:\n  tmtcontrol report paper --out review")
+    _add_scenario_args(p, "tmt-report")
     p.set_defaults(func=_report)
 
-    p = sub.add_parser("scenario", help="print a built-in scenario as TOML")
+    p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
+    p.add_argument("--schema", action="store_true", help="print the JSON Schema of scenario files")
     p.set_defaults(func=_scenario)
     return parser
 
@@ -101,27 +131,29 @@ def _load(args):
 
 
 def _simulate(args) -> int:
+    from .files import OutputFolder
     from .simulation.metrics import format_table, segment_metrics
-    from .files import atomic_folder
     from .simulation.output import save_simulation
-    from .simulation.simulator import Simulator
+    from .simulation.simulator import Simulator, check_run_size
 
     sc = _load(args)
-    res = Simulator(sc).run()
-    with atomic_folder(args.out) as tmp:
-        save_simulation(res, tmp, plots=not args.no_plots)
+    check_run_size(sc, args.max_steps)
+    with OutputFolder(args.out, "--out") as out:
+        res = Simulator(sc).run(max_steps=args.max_steps)
+        save_simulation(res, out.path, plots=not args.no_plots)
+        out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           f"{sc.simulation.integrator} integrator ({res.info['code']}), "
           f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
     print(format_table(segment_metrics(res)))
-    print(f"wrote {args.out}/")
+    print(f"wrote {out.out}/")
     return 0
 
 
 def _analyze(args) -> int:
     import json
 
-    from .files import atomic_folder, jsonable
+    from .files import OutputFolder, jsonable
     from .stability import analysis_kwargs, analyze, format_analysis, scenario_parameters
 
     if args.scenario:
@@ -139,38 +171,50 @@ def _analyze(args) -> int:
             raise UsageError("--ke: give either --ke or --ke-min/--ke-max, not both")
         if args.ke is None and (args.ke_min is None or args.ke_max is None):
             raise UsageError("--ke: required (or both --ke-min and --ke-max)")
+        if args.mp is not None and args.ts is None:
+            raise UsageError("--mp: only used by the sampled-data analysis; give --ts too")
         kw = dict(m=args.m, b=args.b, k=args.k, f_d=10.0 if args.fd is None else args.fd,
                   Ts=args.ts, m_p=args.mp)
         kw.update(dict(k_e=args.ke) if args.ke is not None else dict(k_e_min=args.ke_min, k_e_max=args.ke_max))
-    result = analyze(**kw)
-    if args.plot:
-        from .stability.figures import save_analysis_figures
+    out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
+    with out if out is not None else contextlib.nullcontext():
+        result = analyze(**kw)
+        if out is not None:
+            from .stability.figures import save_analysis_figures
 
-        with atomic_folder(args.plot) as tmp:
-            save_analysis_figures(result, tmp)
+            save_analysis_figures(result, out.path)
+            out.commit()
     result.pop("systems")
     print(json.dumps(jsonable(result), indent=2) if args.json else format_analysis(result))
-    return 0
+    stable = result["bibo_stable"] and result.get("stable_for_all", True) and result.get("sampled_stable", True)
+    if not stable:
+        print("unstable: see the verdicts above", file=sys.stderr)
+    return 0 if stable else 1
 
 
 def _design(args) -> int:
     import json
 
-    from .stability.design import DesignSpec, design_impedance, format_design
-    from .files import atomic_folder, jsonable
+    from .files import OutputFolder, jsonable
     from .stability import paper_effective_mass
+    from .stability.design import DesignSpec, design_impedance, format_design
 
     spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
                       max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
-                      m_p=args.mp if args.mp is not None else paper_effective_mass(),
+                      m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),
                       stiffness_margin=args.margin)
-    result = design_impedance(spec)
-    if args.plot:
-        from .stability.figures import save_design_figures
+    out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
+    with out if out is not None else contextlib.nullcontext():
+        result = design_impedance(spec)
+        if out is not None:
+            from .stability.figures import save_design_figures
 
-        with atomic_folder(args.plot) as tmp:
-            save_design_figures(result, tmp)
+            save_design_figures(result, out.path)
+            out.commit()
     print(json.dumps(jsonable(result.as_dict()), indent=2) if args.json else format_design(result))
+    if not result.verified:
+        print(f"design failed its verification: {'; '.join(result.violations)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -191,47 +235,75 @@ def _check(args) -> int:
 def _report(args) -> int:
     import time
 
-    from .files import atomic_folder
+    from .files import OutputFolder
     from .report import build_report, write_report
+    from .simulation.simulator import check_run_size
 
     sc = _load(args)
+    check_run_size(sc, args.max_steps)
     t0 = time.perf_counter()
 
     def progress(i, n, name):
         print(f"[{i}/{n}] {name} ... ({time.perf_counter() - t0:.1f} s)", file=sys.stderr, flush=True)
 
-    rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]), progress=progress)
-    with atomic_folder(args.out) as tmp:
-        write_report(rep, tmp)
+    with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
+        rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]), progress=progress)
+        write_report(rep, out.path)
+        out.commit()
     for v in rep.verdicts:
         print(f"{'PASS' if v.passed else 'FAIL'}  {v.name}: {v.evidence}")
-    print(f"wrote {args.out}/report.html and report.pdf ({time.perf_counter() - t0:.1f} s)")
-    return 0
+    print(f"wrote {out.out}/report.html and report.pdf ({time.perf_counter() - t0:.1f} s)")
+    return 0 if rep.passed else 1
 
 
 def _scenario(args) -> int:
-    from .simulation.scenario import dump_scenario, paper_scenario
+    import json
 
-    sys.stdout.write(dump_scenario(paper_scenario()))
+    from .simulation.scenario import dump_scenario, paper_scenario, scenario_json_schema
+
+    if args.schema:
+        print(json.dumps(scenario_json_schema(), indent=2))
+    else:
+        sys.stdout.write(dump_scenario(paper_scenario()))
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    import signal
+    import threading
+
+    from .files import Interrupted, install_signal_handlers
     from .simulation.simulator import SimulationError
+    from .stability.design import DesignInfeasible
 
     parser = build_parser()
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+        install_signal_handlers()
     try:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help()
             return 0
         return args.func(args)
-    except (UsageError, ValueError) as exc:   # ScenarioError, AnalysisError, DesignError are ValueErrors
+    except ValueError as exc:   # UsageError, ScenarioError, AnalysisError, DesignError, OutputError
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except SimulationError as exc:
+    except Interrupted as exc:
+        print(f"interrupted ({'SIGTERM' if exc.exit_code == 143 else 'Ctrl-C'}): nothing was written",
+              file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)
+        return 130
+    except (SimulationError, DesignInfeasible) as exc:   # computed verdicts: exit 1
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous[0])
+            signal.signal(signal.SIGTERM, previous[1])
 
 
 if __name__ == "__main__":  # pragma: no cover

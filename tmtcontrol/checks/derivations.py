@@ -26,7 +26,8 @@ import control as ct
 import numpy as np
 
 from .. import stability
-from ..control import impedance, reference
+from ..control import impedance
+from ..control.laws import tmt as reference
 
 __all__ = ["CheckResult", "Implementation", "run_checks", "format_checks", "CHECKS"]
 

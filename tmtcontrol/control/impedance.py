@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["impedance_acceleration", "command", "inner_loop", "control_force"]
+__all__ = ["impedance_acceleration", "command", "inner_loop", "control_force", "impedance_filter_step",
+           "filtered_command"]
 
 
 def impedance_acceleration(F_e, X_a, dX_a, m, b, k):
@@ -31,3 +32,33 @@ def inner_loop(ddX_c, dX_c, X_c, dX, X, kd, kp):
 def control_force(D_hat, h_hat, U, F_e):
     """Eq. (5): F = D*^ U + h*^ + F_e (all in one frame)."""
     return ca.mtimes(D_hat, U) + h_hat + F_e
+
+
+def impedance_filter_step(x_a, dx_a, f, m, b, k, Ts, substeps: int = 4):
+    """Eq. (2) over one control period with the force ``f`` held (zero-order
+    hold): the controller's discretisation of the impedance filter, RK4 with
+    ``substeps`` steps. Returns ``(x_a, dx_a)`` at the next sample. For the
+    filter's poles p, |p| Ts / substeps < 0.3 keeps it within 1e-6 of the
+    exact ZOH discretisation."""
+    h = Ts / substeps
+
+    def rhs(xa, va):
+        return va, impedance_acceleration(f, xa, va, m, b, k)
+
+    for _ in range(substeps):
+        k1 = rhs(x_a, dx_a)
+        k2 = rhs(x_a + h / 2 * k1[0], dx_a + h / 2 * k1[1])
+        k3 = rhs(x_a + h / 2 * k2[0], dx_a + h / 2 * k2[1])
+        k4 = rhs(x_a + h * k3[0], dx_a + h * k3[1])
+        x_a, dx_a = (x_a + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+                     dx_a + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+    return x_a, dx_a
+
+
+def filtered_command(x_r, dx_r, ddx_r, f, x_a, dx_a, m, b, k, Ts):
+    """The impedance filter as a building block of a law: the command of
+    eq. (4) for reference (x_r, dx_r, ddx_r) and filter input ``f`` (N), and
+    the filter's next state. Returns ``(x_c, dx_c, ddx_c, x_a_next, dx_a_next)``."""
+    ddx_a = impedance_acceleration(f, x_a, dx_a, m, b, k)
+    x_a_next, dx_a_next = impedance_filter_step(x_a, dx_a, f, m, b, k, Ts)
+    return command(x_r, x_a), command(dx_r, dx_a), command(ddx_r, ddx_a), x_a_next, dx_a_next

@@ -35,7 +35,7 @@ from ..simulation.metrics import segment_metrics
 from ..simulation.scenario import Scenario, dump_scenario, scenario_to_dict
 from ..simulation.simulator import SimulationError, Simulator
 from ..stability import figures as stab_figures
-from ..stability.design import DesignError, DesignSpec, damping_alternatives, design_impedance
+from ..stability.design import DesignError, DesignInfeasible, DesignSpec, damping_alternatives, design_impedance
 from ..stability import (analysis_kwargs, analyze, analyze_continuous, analyze_range, scenario_parameters,
                         spectral_radius, switch_response)
 
@@ -171,7 +171,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
                     except SimulationError as exc:
                         comp[name] = str(exc)
             design["simulated"] = comp
-        except DesignError as exc:
+        except (DesignError, DesignInfeasible) as exc:
             design["error"] = str(exc)
     else:
         design["error"] = "single stiffness: no range to design over"

@@ -1,19 +1,21 @@
 """One control period of the sampled closed loop, assembled symbolically.
 
 At each sample t_k the controller reads the joint encoders (position through
-fk) and the force sensor, forms the reference (TMT eq. 18 or eqs. 11-12), the
-impedance adjustment (eqs. 2-3), the command (eq. 4), the inner loop (eq. 6)
-and the Cartesian control force (eq. 5), mapped to joint torques tau = J^T F.
-The torque and the measured force are then held (zero-order hold) while a
-CasADi integrator advances the continuous plant, eq. (1) in joint space with
-the unilateral contact, together with the impedance filter driven by the held
-force (its ZOH-equivalent discretisation).
+fk) and the force sensor, asks the force-tracking law (``control.laws``) for
+the normal-axis command of eq. (4) (the law owns its reference, eqs. 11-18 or
+a baseline, and its impedance filter, eqs. 2-3), forms the inner loop
+(eq. 6) and the Cartesian control force (eq. 5), mapped to joint torques
+tau = J^T F. The tangential axes carry no force, so their impedance
+adjustment is zero and their command is the circle itself. The torque is then
+held (zero-order hold) while a CasADi integrator advances the continuous
+plant, eq. (1) in joint space with the unilateral contact.
 
 :func:`build_step` returns ``step: ["s", "u", "p"] -> ["s_next", "log"]``,
-whose vectors are laid out by :data:`STATE`, :data:`INPUT`, :data:`PARAM` and
-:data:`LOG`. Numeric settings are entries of ``p``/``u``, so changing gains,
-f_d, stiffness or noise needs no new Function; only the robot options and the
-integrator (kind, sub-steps) change its structure.
+whose vectors are laid out by :func:`state_layout`, :data:`INPUT`,
+:func:`param_layout` and :data:`LOG`. Numeric settings (gains, f_d, law
+parameters, stiffness, noise) are entries of ``p``/``u``; only the robot
+options, the integrator and the law's structure change the Function. The
+closed loop never asks which law it runs.
 """
 
 from __future__ import annotations
@@ -23,13 +25,13 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from .environment import contact_force
-from ..control.impedance import command, control_force, impedance_acceleration, inner_loop
-from ..control.reference import known_reference, tmt_reference
+from ..control.impedance import control_force, inner_loop
+from ..control.laws import MEASUREMENTS, Law
 from ..model.puma560 import PUMA560_LINKS, Puma560
+from .environment import contact_force
 
-__all__ = ["STATE", "INPUT", "PARAM", "LOG", "Layout", "controller_model", "damping_schedule",
-           "build_step"]
+__all__ = ["INPUT", "LOG", "Layout", "state_layout", "param_layout", "controller_model",
+           "damping_schedule", "build_step"]
 
 
 class Layout:
@@ -56,25 +58,29 @@ class Layout:
         return out
 
 
-STATE = Layout(("q", 3), ("dq", 3), ("xa", 3), ("dxa", 3), ("f_filt", 1), ("b_n", 1))
-"""Closed-loop state: joints (rad, rad/s), impedance adjustment X_a (m, m/s,
-task frame), force-sensor filter state (N), scheduled normal damping (N s/m)."""
+def state_layout(law: Law) -> Layout:
+    """Closed-loop state: joints (rad, rad/s), force-sensor filter state (N),
+    scheduled normal damping (N s/m), then the law's own state."""
+    return Layout(("q", 3), ("dq", 3), ("f_filt", 1), ("b_n", 1), ("law", len(law.states)))
+
 
 INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1))
 """Per-sample inputs: tangential reference (task axes 1, 2), true stiffness
 k_e (N/m), force-sensor noise sample (N)."""
 
-PARAM = Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("law", 1),
-               ("k_assumed", 1), ("f_th", 1), ("k_min", 1), ("x_e_hat", 1), ("alpha", 1),
-               ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1), ("sched", 1), ("zeta", 1),
-               ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1))
-"""Constant parameters: impedance M, B, K and gains K_D, K_P (task frame);
-f_d (N); law (0 = TMT, 1 = known); assumed k_e (N/m); TMT force threshold (N)
-and minimum stiffness (N/m); controller's x_e (m); force filter pole alpha;
-environment damping (N s/m); task frame R (column-major) and origin c (m);
-control period Ts (s); damping schedule on/off, target damping ratio, bounds
-on b (N s/m), its rate limit (N s/m per s) and the largest stiffness estimate
-used (N/m)."""
+
+def param_layout(law: Law) -> Layout:
+    """Constant parameters: impedance M, B, K and gains K_D, K_P (task frame);
+    f_d (N); controller's x_e (m); force filter pole alpha; environment
+    damping (N s/m); task frame R (column-major) and origin c (m); control
+    period Ts (s); damping schedule on/off, target ratio, bounds on b
+    (N s/m), rate limit (N s/m per s), largest and smallest stiffness
+    estimate (N/m) and force threshold (N); then the law's parameters."""
+    return Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("x_e_hat", 1),
+                  ("alpha", 1), ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1), ("sched", 1), ("zeta", 1),
+                  ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1), ("k_hat_min", 1),
+                  ("sched_f_th", 1), ("law", len(law.parameter_names)))
+
 
 LOG = Layout(("q", 3), ("dq", 3), ("tau", 3), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
              ("f_e", 1), ("f_m", 1), ("b_n", 1))
@@ -87,19 +93,17 @@ def damping_schedule(b_prev, f_m, depth, m, k, P):
     """Stiffness-scheduled normal damping: eq. (25) used online.
 
     ``b* = 2 zeta sqrt(m (k + k_hat))`` with the TMT estimate
-    ``k_hat = f_m/depth`` (eq. 14), clamped to [min_stiffness, k_hat_max];
-    while the force is below twice the TMT threshold (no usable estimate, or
+    ``k_hat = f_m/depth`` (eq. 14), clamped to [k_hat_min, k_hat_max];
+    while the force is below twice the threshold (no usable estimate, or
     noise) the target is the previous value (hold). The result is clamped to
     [b_min, b_max] and rate-limited to ``b_rate`` N s/m per second.
     """
-    ok = ca.logic_and(f_m > 2 * P["f_th"], depth > 0)
-    k_hat = ca.fmin(ca.fmax(f_m / ca.fmax(depth, 1e-12), P["k_min"]), P["k_hat_max"])
+    ok = ca.logic_and(f_m > 2 * P["sched_f_th"], depth > 0)
+    k_hat = ca.fmin(ca.fmax(f_m / ca.fmax(depth, 1e-12), P["k_hat_min"]), P["k_hat_max"])
     target = ca.if_else(ok, 2 * P["zeta"] * ca.sqrt(m * (k + k_hat)), b_prev)
     target = ca.fmin(ca.fmax(target, P["b_min"]), P["b_max"])
     step = P["b_rate"] * P["Ts"]
     return b_prev + ca.fmin(ca.fmax(target - b_prev, -step), step)
-
-
 def controller_model(mass_scale: float, compensate_friction: bool) -> Puma560:
     """The controller's model of the robot (D*^, h*^ of eq. 5): every mass and
     inertia scaled by ``mass_scale``."""
@@ -114,9 +118,9 @@ def _task(robot: Puma560, q, dq, R, c):
     return p, J, ca.mtimes(R.T, p - c), ca.mtimes(R.T, ca.mtimes(J, dq))
 
 
-def build_step(plant: Puma560, model: Puma560, integrator: str = "fixed", substeps: int = 4,
+def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 4,
                tol: float = 1e-10) -> ca.Function:
-    """One control period ``["s","u","p"] -> ["s_next","log"]``.
+    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``.
 
     ``integrator="fixed"``: CasADi 'rk' (RK4, ``substeps`` per period,
     ``simplify``), the step expanded to SX so it can be compiled.
@@ -124,29 +128,28 @@ def build_step(plant: Puma560, model: Puma560, integrator: str = "fixed", subste
     compilable; the accuracy reference).
     """
     # -- plant over one period, time scaled to [0, 1] so Ts is a parameter ----
-    z = ca.SX.sym("z", 12)
-    q, dq, xa, dxa = z[0:3], z[3:6], z[6:9], z[9:12]
-    pz = ca.SX.sym("pz", 3 + 1 + 1 + 1 + 9 + 9 + 3 + 1)
-    tau, f_m, k_e, d_e = pz[0:3], pz[3], pz[4], pz[5]
-    m, b, k = pz[6:9], pz[9:12], pz[12:15]
-    R = ca.reshape(pz[15:24], 3, 3)
-    c, Ts = pz[24:27], pz[27]
+    z = ca.SX.sym("z", 6)
+    q, dq = z[0:3], z[3:6]
+    pz = ca.SX.sym("pz", 3 + 1 + 1 + 9 + 3 + 1)
+    tau, k_e, d_e = pz[0:3], pz[3], pz[4]
+    R = ca.reshape(pz[5:14], 3, 3)
+    c, Ts = pz[14:17], pz[17]
     _, J, X, dX = _task(plant, q, dq, R, c)
     f_env = contact_force(X[0], dX[0], k_e, d_e)
     F_env = R[:, 0] * f_env                                   # force on the environment, base frame
     ddq = plant.forward_dynamics(q, dq, tau - ca.mtimes(J.T, F_env))   # eq. (1) in joint space
-    ddxa = impedance_acceleration(ca.vertcat(f_m, 0, 0), xa, dxa, m, b, k)  # eq. (2)
-    dae = {"x": z, "p": pz, "ode": Ts * ca.vertcat(dq, ddq, dxa, ddxa)}
+    dae = {"x": z, "p": pz, "ode": Ts * ca.vertcat(dq, ddq)}
     if integrator == "fixed":
         plant_flow = ca.integrator("plant", "rk", dae, 0.0, 1.0,
-                          {"simplify": True, "number_of_finite_elements": int(substeps)})
+                                   {"simplify": True, "number_of_finite_elements": int(substeps)})
     elif integrator == "cvodes":
         plant_flow = ca.integrator("plant", "cvodes", dae, 0.0, 1.0,
-                          {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
+                                   {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
     else:
         raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
 
     # -- controller at t_k -------------------------------------------------------
+    STATE, PARAM = state_layout(law), param_layout(law)
     s = ca.MX.sym("s", STATE.size)
     u = ca.MX.sym("u", INPUT.size)
     p = ca.MX.sym("p", PARAM.size)
@@ -155,32 +158,27 @@ def build_step(plant: Puma560, model: Puma560, integrator: str = "fixed", subste
     q, dq = S["q"], S["dq"]
     pos, J, X, dX = _task(model, q, dq, R, P["c"])            # encoders through fk
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    f_filt = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * (f_true + U_in["noise"])
-    f_m = f_filt                                               # measured normal force
+    f_m = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * (f_true + U_in["noise"])   # measured normal force
     # normal damping: fixed, or scheduled from the stiffness estimate (K_D = B/M kept, eq. 9)
     b_sched = damping_schedule(S["b_n"], f_m, X[0] - P["x_e_hat"], P["m"][0], P["k"][0], P)
     b_n = ca.if_else(P["sched"] > 0, b_sched, P["b"][0])
-    b_vec = ca.vertcat(b_n, P["b"][1:])
     kd_vec = ca.vertcat(ca.if_else(P["sched"] > 0, b_n / P["m"][0], P["kd"][0]), P["kd"][1:])
-    x_r_tmt = tmt_reference(X[0], f_m, P["x_e_hat"], P["f_d"], P["k"][0], P["f_th"], P["k_min"])
-    x_r_known = known_reference(P["x_e_hat"], P["f_d"], P["k"][0], P["k_assumed"])
-    x_r = ca.if_else(P["law"] == 0, x_r_tmt, x_r_known)
+    y = {"x": X[0], "dx": dX[0], "f_m": f_m, "f_d": P["f_d"], "x_e_hat": P["x_e_hat"], "Ts": P["Ts"],
+         "m": P["m"][0], "b": b_n, "k": P["k"][0]}
+    x_r, x_c, dx_c, ddx_c, law_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
+                                                     P["law"], S["law"])
     X_r = ca.vertcat(x_r, U_in["pos_t"])
-    dX_r = ca.vertcat(0, U_in["vel_t"])                        # x_r'' = x_e'' = 0 (section IV)
-    ddX_r = ca.vertcat(0, U_in["acc_t"])
-    F_e = ca.vertcat(f_m, 0, 0)
-    ddxa = impedance_acceleration(F_e, S["xa"], S["dxa"], P["m"], b_vec, P["k"])     # eq. (2)
-    X_c, dX_c, ddX_c = (command(X_r, S["xa"]), command(dX_r, S["dxa"]),
-                        command(ddX_r, ddxa))                                          # eq. (4)
+    X_c, dX_c, ddX_c = (ca.vertcat(x_c, U_in["pos_t"]), ca.vertcat(dx_c, U_in["vel_t"]),
+                        ca.vertcat(ddx_c, U_in["acc_t"]))                              # eq. (4)
     U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
+    F_e = ca.vertcat(f_m, 0, 0)
     F = control_force(model.cartesian_inertia(q), model.cartesian_bias(q, dq),
                       ca.mtimes(R, U), ca.mtimes(R, F_e))                              # eq. (5)
     tau = ca.mtimes(J.T, F) + model.friction(dq)
 
-    pz_val = ca.vertcat(tau, f_m, U_in["k_e"], P["d_e"], P["m"], b_vec, P["k"], P["R"],
-                        P["c"], P["Ts"])
-    zf = plant_flow(x0=ca.vertcat(q, dq, S["xa"], S["dxa"]), p=pz_val)["xf"]
-    s_next = ca.vertcat(zf, f_filt, b_n)
+    pz_val = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], P["c"], P["Ts"])
+    zf = plant_flow(x0=ca.vertcat(q, dq), p=pz_val)["xf"]
+    s_next = ca.vertcat(zf, f_m, b_n, law_next)
     log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n)
-    step = ca.Function("tmt_step", [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
+    step = ca.Function(f"step_{law.name}", [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
     return step.expand() if integrator == "fixed" else step

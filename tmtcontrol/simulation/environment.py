@@ -9,16 +9,15 @@ the contact law reads, as in section III, ``f_e = k_e (x - x_e)`` with
 
 from __future__ import annotations
 
-import csv
 import math
 import pathlib
 
 import casadi as ca
 import numpy as np
 
-from .scenario import ScenarioError, StiffnessProfile
+from .scenario import read_stiffness_table
 
-__all__ = ["task_frame", "contact_force", "stiffness_samples", "read_stiffness_table"]
+__all__ = ["task_frame", "contact_force", "stiffness_samples"]
 
 
 def task_frame(tilt_deg: float) -> np.ndarray:
@@ -48,35 +47,7 @@ def contact_force(x, dx, k_e, damping, x_e=0.0):
     return np.where(pen > 0, np.maximum(f, 0.0), 0.0)
 
 
-def read_stiffness_table(path: str | pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a CSV table of ``t, k_e`` rows (s, N/m); a header row is allowed."""
-    key = "environment.stiffness.file"
-    try:
-        with open(path, newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
-    except FileNotFoundError:
-        raise ScenarioError(f"{key}: no such file {str(path)!r}") from None
-    data = []
-    for i, row in enumerate(rows):
-        try:
-            data.append([float(row[0]), float(row[1])])
-        except (ValueError, IndexError):
-            if i == 0:
-                continue  # header
-            raise ScenarioError(f"{key}: row {i + 1} is not 't, k_e': {row!r}") from None
-    if not data:
-        raise ScenarioError(f"{key}: empty profile in {str(path)!r}")
-    arr = np.array(data)
-    if not np.all(np.isfinite(arr)):
-        raise ScenarioError(f"{key}: non-finite value in {str(path)!r}")
-    if np.any(arr[:, 1] <= 0):
-        raise ScenarioError(f"{key}: stiffness must be > 0 in {str(path)!r}")
-    if np.any(np.diff(arr[:, 0]) <= 0):
-        raise ScenarioError(f"{key}: times must be strictly increasing in {str(path)!r}")
-    return arr[:, 0], arr[:, 1]
-
-
-def stiffness_samples(profile: StiffnessProfile, t: np.ndarray, default_segment: float) -> np.ndarray:
+def stiffness_samples(profile, t: np.ndarray, default_segment: float) -> np.ndarray:
     """k_e at times ``t`` (N/m). ``default_segment`` (s) is the piecewise-constant
     segment length when the profile does not set one (the trajectory period)."""
     t = np.asarray(t, dtype=float)

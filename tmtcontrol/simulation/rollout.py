@@ -10,9 +10,13 @@ compiled once, and the chunks are called directly on NumPy buffers through
 would cost more than the simulation itself).
 
 Cache: ``$TMTCONTROL_CACHE`` if set, else ``$XDG_CACHE_HOME/tmtcontrol``
-(``~/.cache/tmtcontrol``), keyed by the SHA-256 of the generated C, the
-flags and the CasADi version. Libraries are written under a temporary name
-and renamed into place. Without a compiler, or when ``compile=False``, or for
+(``~/.cache/tmtcontrol``), keyed by the SHA-256 of the Function's
+serialisation (its structure), the flags, the CasADi version and the CPU, so
+a warm run generates no C. Each library is written fsync'ed under a
+temporary name and renamed into place, with its size and SHA-256 in a
+sidecar; a library that does not match its sidecar (a crash or a full disk
+during a write) is rebuilt, never loaded. An unwritable cache compiles into a
+private temporary folder; with no compiler a valid cached library is still used. Without a compiler, or when ``compile=False``, or for
 Functions that cannot be code-generated (CVODES), the same rollout runs on
 CasADi's virtual machine — slower, identical in result.
 """
@@ -21,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import json
 import os
 import pathlib
 import platform
@@ -34,7 +39,7 @@ import numpy as np
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
-_FLAGS = ["-O3", "-fno-math-errno", "-march=native", "-fPIC", "-shared"]
+_FLAGS = ["-O2", "-fno-math-errno", "-march=native", "-fPIC", "-shared"]
 _CHUNK = 1000
 
 
@@ -66,6 +71,35 @@ def compiler() -> str | None:
     return None
 
 
+def _digest(path: pathlib.Path) -> dict:
+    data = path.read_bytes()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _verify(lib: pathlib.Path) -> bool:
+    """The library matches the size and checksum recorded when it was written."""
+    try:
+        recorded = json.loads(lib.with_suffix(".json").read_text())
+        return recorded == _digest(lib)
+    except (OSError, ValueError):
+        return False
+
+
+def _store(built: pathlib.Path, lib: pathlib.Path) -> None:
+    """Copy ``built`` into the cache as ``lib``: staged, fsync'ed, renamed, with
+    its size and checksum in a sidecar written the same way (after the library,
+    so a crash leaves an unverifiable library, which is rebuilt)."""
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    for target, data in ((lib, built.read_bytes()),
+                         (lib.with_suffix(".json"), json.dumps(_digest(built)).encode())):
+        staged = target.parent / f".{target.name}.{os.getpid()}.tmp"
+        with open(staged, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(staged, target)
+
+
 class Rollout:
     """Run ``step`` over many periods: ``run(s0, U, p) -> (S, L)``.
 
@@ -91,36 +125,57 @@ class Rollout:
         self.nl = step.size1_out(1)
         self._lib = None
         self.how = "vm"
-        if compile and step.is_a("SXFunction") and compiler() is not None:
+        if compile and step.is_a("SXFunction"):
             try:
                 self._load(step.mapaccum(f"{step.name()}_chunk", self.chunk))
             except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
-                warnings.warn(f"tmtcontrol: compiling {step.name()} failed ({exc}); "
-                              "running on CasADi's virtual machine", RuntimeWarning, stacklevel=2)
+                if compiler() is not None:
+                    warnings.warn(f"tmtcontrol: compiling {step.name()} failed ({exc}); "
+                                  "running on CasADi's virtual machine", RuntimeWarning, stacklevel=2)
 
     # -- compilation --------------------------------------------------------------
+    def _key(self, fn: ca.Function) -> str:
+        """Cache key from the Function's structure (its serialisation), the
+        flags, the CasADi version and the CPU: no C is generated to look up."""
+        h = hashlib.sha256(fn.serialize().encode())
+        for part in (" ".join(_FLAGS), ca.__version__, _cpu_id(), str(self.chunk)):
+            h.update(part.encode())
+        return h.hexdigest()[:20]
+
     def _load(self, fn: ca.Function):
         name = fn.name()
+        folder = cache_dir()
+        lib = folder / f"{name}_{self._key(fn)}.so"
+        how = "cached"
+        if lib.exists() and not _verify(lib):
+            warnings.warn(f"tmtcontrol: cached library {lib} is damaged; rebuilding it", RuntimeWarning,
+                          stacklevel=3)
+            how = "rebuilt"
+        elif lib.exists():
+            self._bind(ctypes.CDLL(str(lib)), name)
+            self.how, self.library = how, lib
+            return
+        if compiler() is None:
+            raise OSError("no C compiler")
         with tempfile.TemporaryDirectory(prefix="tmtcontrol-cg-") as tmp:
             gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             gen.add(fn)
             cfile = pathlib.Path(gen.generate(tmp + os.sep))
-            key = hashlib.sha256(cfile.read_bytes() + " ".join(_FLAGS).encode()
-                                 + ca.__version__.encode() + _cpu_id().encode()).hexdigest()[:20]
-            folder = cache_dir()
-            lib = folder / f"{name}_{key}.so"
-            how = "cached"
-            if not lib.exists():
-                folder.mkdir(parents=True, exist_ok=True)
-                tmp_lib = pathlib.Path(tmp) / "lib.so"
-                subprocess.run([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"],
-                               check=True, capture_output=True, timeout=600)
-                staged = folder / f".{lib.name}.{os.getpid()}.tmp"
-                shutil.copyfile(tmp_lib, staged)
-                os.replace(staged, lib)
-                how = "compiled"
-        self._bind(ctypes.CDLL(str(lib)), name)
-        self.how = how
+            tmp_lib = pathlib.Path(tmp) / "lib.so"
+            subprocess.run([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"],
+                           check=True, capture_output=True, timeout=600)
+            try:
+                _store(tmp_lib, lib)
+            except OSError as exc:
+                # an unwritable cache: load from a private copy that outlives the build folder
+                warnings.warn(f"tmtcontrol: cannot write the compile cache {folder} ({exc.strerror}); "
+                              "set TMTCONTROL_CACHE to a writable folder to keep compiled code", RuntimeWarning,
+                              stacklevel=3)
+                private = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-lib-")) / lib.name
+                shutil.copyfile(tmp_lib, private)
+                lib = private
+            self._bind(ctypes.CDLL(str(lib)), name)
+        self.how = "compiled" if how == "cached" else how
         self.library = lib
 
     def _bind(self, dll, name):

@@ -1,27 +1,41 @@
-"""Scenario settings: frozen dataclasses, TOML load/dump, validation.
+"""Scenario settings: one declarative schema (pydantic v2), TOML load/dump, overrides.
 
 A :class:`Scenario` fully describes one simulation of section V of the paper:
 robot, environment (tilted plane and stiffness profile), circular path,
-impedance parameters (eqs. 2-3, 9), controller and reference law (eqs. 11-12
-or 18), force sensor, and integrator. Every field is SI (m, s, N, N/m, kg,
-Hz) and is validated on construction; unknown keys raise an error naming the
-key. ``docs/scenario.md`` documents every key.
+impedance parameters (eqs. 2-3, 9), controller and force-tracking law
+(eqs. 11-12, 18 and the baselines of ``control.laws``), force sensor, and
+integrator. Every field is SI (m, s, N, N/m, kg, Hz) and carries its unit,
+default and range in the schema; models are frozen and forbid unknown keys.
+The stiffness profile, the law and the damping schedule are tagged unions on
+``kind``: each kind has exactly its own fields.
+
+Errors are :class:`ScenarioError`, one line: ``dotted.key: expected ..., got
+... (in FILE)``. :func:`scenario_json_schema` gives the JSON Schema
+(``tmtcontrol scenario --schema``); ``docs/scenario.md`` is generated from it.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import csv
 import math
 import pathlib
 import tomllib
-from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictInt, ValidationError,
+                      model_validator)
+from pydantic.fields import FieldInfo
+
+from ..control.laws import laws, on_register
+from ..control.laws.tmt import TmtParameters
 
 __all__ = [
-    "ScenarioError", "RobotSettings", "StiffnessProfile", "EnvironmentSettings",
-    "TrajectorySettings", "ImpedanceSettings", "ControllerSettings", "SensorSettings",
+    "ScenarioError", "RobotSettings", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness",
+    "SinusoidalStiffness", "TableStiffness", "EnvironmentSettings", "TrajectorySettings",
+    "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "ControllerSettings", "SensorSettings",
     "SimulationSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
-    "scenario_to_dict", "dump_scenario", "apply_overrides",
+    "scenario_to_dict", "dump_scenario", "apply_overrides", "set_key", "scenario_json_schema",
+    "read_stiffness_table",
 ]
 
 
@@ -29,170 +43,193 @@ class ScenarioError(ValueError):
     """Invalid scenario input; the message names the key and the problem."""
 
 
-def _num(key, value, *, lo=None, hi=None, lo_open=False, integer=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ScenarioError(f"{key}: expected a number, got {value!r}")
-    if integer and int(value) != value:
-        raise ScenarioError(f"{key}: expected an integer, got {value!r}")
-    if not math.isfinite(value):
-        raise ScenarioError(f"{key}: must be finite, got {value!r}")
-    if lo is not None and (value <= lo if lo_open else value < lo):
-        raise ScenarioError(f"{key}: must be {'>' if lo_open else '>='} {lo:g}, got {value!r}")
-    if hi is not None and value > hi:
-        raise ScenarioError(f"{key}: must be <= {hi:g}, got {value!r}")
+def num(default, unit: str, doc: str, **limits) -> Any:
+    """A finite number field (an integer is accepted) with its unit."""
+    return Field(default, description=f"{doc} [{unit}]", allow_inf_nan=False, strict=True,
+                 json_schema_extra={"unit": unit}, **limits)
 
 
-def _vec(key, value, n, **kw):
-    if not isinstance(value, (tuple, list)) or len(value) != n:
-        raise ScenarioError(f"{key}: expected a list of {n} numbers, got {value!r}")
-    for i, v in enumerate(value):
-        _num(f"{key}[{i}]", v, **kw)
+F = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Pos = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+NonNeg = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
 
 
-def _as_tuple(key, value):
-    """A list/tuple field as a tuple; anything else (a string!) is an error."""
-    if not isinstance(value, (list, tuple)):
-        raise ScenarioError(f"{key}: expected a list of numbers, got {value!r}")
-    return tuple(value)
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-def _choice(key, value, choices):
-    if value not in choices:
-        raise ScenarioError(f"{key}: expected one of {', '.join(map(repr, choices))}, got {value!r}")
+def _tagged(value, default: str | None = None):
+    """``"name"`` is shorthand for ``{kind = "name"}`` in a tagged union; a
+    table without ``kind`` is of the union's default kind."""
+    if isinstance(value, str):
+        return {"kind": value}
+    if isinstance(value, dict) and "kind" not in value and default is not None:
+        return {"kind": default, **value}
+    return value
 
 
-def _bool(key, value):
-    if not isinstance(value, bool):
-        raise ScenarioError(f"{key}: expected true or false, got {value!r}")
+def _tag_default(default: str):
+    return BeforeValidator(lambda v: _tagged(v, default))
 
 
-@dataclass(frozen=True)
-class RobotSettings:
-    """Plant and the controller's model of it.
+# -- robot ---------------------------------------------------------------------------
 
-    ``armature``/``friction`` configure the simulated PUMA 560;
-    ``model_mass_scale`` scales every link mass, inertia and rotor inertia of
-    the controller's model (D*^, h*^ of eq. 5), so 1.1 is a 10 % overestimate;
-    ``compensate_friction`` adds the controller's (smooth) friction model to
-    the torque.
-    """
-    armature: bool = True
-    friction: bool = False
-    model_mass_scale: float = 1.0
-    compensate_friction: bool = False
-
-    def __post_init__(self):
-        _bool("robot.armature", self.armature)
-        _bool("robot.friction", self.friction)
-        _num("robot.model_mass_scale", self.model_mass_scale, lo=0, lo_open=True)
-        _bool("robot.compensate_friction", self.compensate_friction)
+class RobotSettings(_Section):
+    """Plant and the controller's model of it."""
+    armature: StrictBool = Field(True, description="simulate the motor rotor inertias")
+    friction: StrictBool = Field(False, description="simulate joint friction (smooth Coulomb + viscous)")
+    model_mass_scale: float = num(1.0, "1", "scale of every mass and inertia in the controller's model "
+                                  "(D*^, h*^ of eq. 5); 1.1 is a 10 % overestimate", gt=0)
+    compensate_friction: StrictBool = Field(False, description="add the controller's friction model to the torque")
 
 
-@dataclass(frozen=True)
-class StiffnessProfile:
-    """Environment stiffness k_e(t), N/m.
+# -- environment ---------------------------------------------------------------------
 
-    kind:
-      * ``piecewise_constant``: ``values[i]`` on ``[i, i+1) * segment``
-        (``segment`` defaults to the trajectory period), the last value held;
-      * ``piecewise_linear``: linear interpolation through (``times``, ``values``);
-      * ``sinusoidal``: ``mean + amplitude sin(2 pi t / period)``;
-      * ``table``: a CSV file of ``t, k_e`` rows (header optional), linear interpolation.
-    """
-    kind: str = "piecewise_constant"
-    values: tuple[float, ...] = (5e3, 2e4, 2e3, 1e4)
-    times: tuple[float, ...] = ()
-    segment: float = 0.0
-    mean: float = 1e4
-    amplitude: float = 5e3
-    period: float = 4.0
-    file: str = ""
-
-    def __post_init__(self):
-        key = "environment.stiffness"
-        _choice(f"{key}.kind", self.kind, ("piecewise_constant", "piecewise_linear", "sinusoidal", "table"))
-        object.__setattr__(self, "values", _as_tuple(f"{key}.values", self.values))
-        object.__setattr__(self, "times", _as_tuple(f"{key}.times", self.times))
-        _num(f"{key}.segment", self.segment, lo=0)
-        if self.kind in ("piecewise_constant", "piecewise_linear"):
-            if len(self.values) == 0:
-                raise ScenarioError(f"{key}.values: empty profile; give at least one stiffness")
-            _vec(f"{key}.values", self.values, len(self.values), lo=0, lo_open=True)
-        if self.kind == "piecewise_linear":
-            _vec(f"{key}.times", self.times, len(self.times), lo=0)
-            if len(self.times) != len(self.values):
-                raise ScenarioError(f"{key}.times: needs one time per value ({len(self.values)}), "
-                                    f"got {len(self.times)}")
-            if any(b <= a for a, b in zip(self.times, self.times[1:])):
-                raise ScenarioError(f"{key}.times: must be strictly increasing")
-        if self.kind == "sinusoidal":
-            _num(f"{key}.mean", self.mean, lo=0, lo_open=True)
-            _num(f"{key}.amplitude", self.amplitude, lo=0)
-            _num(f"{key}.period", self.period, lo=0, lo_open=True)
-            if self.amplitude >= self.mean:
-                raise ScenarioError(f"{key}.amplitude: must be < mean ({self.mean:g}) so that k_e stays > 0")
-        if self.kind == "table" and not self.file:
-            raise ScenarioError(f"{key}.file: required for kind = 'table'")
+class PiecewiseConstantStiffness(_Section):
+    """``values[i]`` on ``[i, i+1) * segment``, the last value held (Fig. 3)."""
+    kind: Literal["piecewise_constant"] = "piecewise_constant"
+    values: tuple[Pos, ...] = Field((5e3, 2e4, 2e3, 1e4), min_length=1,
+                                    description="stiffness of each segment [N/m]", json_schema_extra={"unit": "N/m"})
+    segment: float = num(0.0, "s", "segment length; 0 = the trajectory period", ge=0)
 
 
-@dataclass(frozen=True)
-class EnvironmentSettings:
-    """The tilted plane (Fig. 2) and its unilateral spring contact.
+class PiecewiseLinearStiffness(_Section):
+    """Linear interpolation through (``times``, ``values``), held outside."""
+    kind: Literal["piecewise_linear"] = "piecewise_linear"
+    times: tuple[NonNeg, ...] = Field(..., min_length=1, description="knot times, strictly increasing [s]",
+                                      json_schema_extra={"unit": "s"})
+    values: tuple[Pos, ...] = Field(..., min_length=1, description="stiffness at the knots [N/m]",
+                                    json_schema_extra={"unit": "N/m"})
 
-    The plane passes through ``trajectory.center``; its outward normal is the
-    base z axis rotated by ``tilt_deg`` about the base y axis (so it faces the
-    robot). Contact force ``f_e = max(0, k_e(t) d + damping d')`` while the
-    penetration ``d > 0``.
-    """
-    tilt_deg: float = 45.0
-    damping: float = 0.0
-    stiffness: StiffnessProfile = field(default_factory=StiffnessProfile)
-
-    def __post_init__(self):
-        _num("environment.tilt_deg", self.tilt_deg, lo=-89.0, hi=89.0)
-        _num("environment.damping", self.damping, lo=0)
-
-
-@dataclass(frozen=True)
-class TrajectorySettings:
-    """Circle on the plane: centre (base frame, m), radius (m), period (s), cycles."""
-    center: tuple[float, float, float] = (0.5, -0.15, 0.55)
-    radius: float = 0.1
-    period: float = 4.0
-    cycles: float = 4.0
-
-    def __post_init__(self):
-        object.__setattr__(self, "center", _as_tuple("trajectory.center", self.center))
-        _vec("trajectory.center", self.center, 3)
-        _num("trajectory.radius", self.radius, lo=0)
-        _num("trajectory.period", self.period, lo=0, lo_open=True)
-        _num("trajectory.cycles", self.cycles, lo=0, lo_open=True, hi=1000)
+    @model_validator(mode="after")
+    def _knots(self):
+        if len(self.times) != len(self.values):
+            raise ValueError(f"times: needs one time per value ({len(self.values)}), got {len(self.times)}")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError(f"times: must be strictly increasing, got {list(self.times)}")
+        return self
 
 
-@dataclass(frozen=True)
-class ImpedanceSettings:
-    """Target impedance (eq. 2) in the task frame, normal axis first.
+class SinusoidalStiffness(_Section):
+    """``mean + amplitude sin(2 pi t / period)``."""
+    kind: Literal["sinusoidal"] = "sinusoidal"
+    mean: float = num(1e4, "N/m", "mean stiffness", gt=0)
+    amplitude: float = num(5e3, "N/m", "amplitude, < mean so that k_e stays > 0", ge=0)
+    period: float = num(4.0, "s", "period", gt=0)
 
-    ``m`` (kg), ``b`` (N s/m), ``k`` (N/m). The inner-loop gains of eq. (6)
-    default to ``K_D = B/M``, ``K_P = K/M`` (eq. 9); set ``kd``/``kp`` to
-    override.
-    """
-    m: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    b: tuple[float, float, float] = (60.0, 20.0, 20.0)
-    k: tuple[float, float, float] = (100.0, 100.0, 100.0)
-    kd: tuple[float, ...] = ()
-    kp: tuple[float, ...] = ()
+    @model_validator(mode="after")
+    def _positive(self):
+        if self.amplitude >= self.mean:
+            raise ValueError(f"amplitude: must be < mean ({self.mean:g}) so that k_e stays > 0, "
+                             f"got {self.amplitude:g}")
+        return self
 
-    def __post_init__(self):
-        for name in ("m", "b", "k", "kd", "kp"):
-            object.__setattr__(self, name, _as_tuple(f"impedance.{name}", getattr(self, name)))
-        _vec("impedance.m", self.m, 3, lo=0, lo_open=True)
-        _vec("impedance.b", self.b, 3, lo=0)
-        _vec("impedance.k", self.k, 3, lo=0, lo_open=True)
-        if self.kd:
-            _vec("impedance.kd", self.kd, 3, lo=0)
-        if self.kp:
-            _vec("impedance.kp", self.kp, 3, lo=0, lo_open=True)
+
+class TableStiffness(_Section):
+    """A CSV file of ``t, k_e`` rows (s, N/m), linear interpolation. A header
+    row is allowed only if it holds no number; a relative path is relative
+    to the scenario file."""
+    kind: Literal["table"] = "table"
+    file: str = Field(..., min_length=1, description="CSV file of t, k_e rows")
+
+    @model_validator(mode="after")
+    def _readable(self):
+        read_stiffness_table(self.file)
+        return self
+
+
+StiffnessProfile = Annotated[
+    Union[PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness],
+    _tag_default("piecewise_constant"), Field(discriminator="kind")]
+
+
+def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
+    """Read and validate a CSV table of ``t, k_e`` rows (s, N/m). A first row
+    with no number in it is a header; any other malformed row is an error."""
+    import numpy as np
+
+    key = "environment.stiffness.file"
+    p = pathlib.Path(path)
+    if p.is_dir():
+        raise ValueError(f"file: {str(path)!r} is a folder, expected a CSV file")
+    try:
+        with open(p, newline="", encoding="utf-8") as fh:
+            rows = [r for r in csv.reader(fh) if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
+    except FileNotFoundError:
+        raise ValueError(f"file: no such file {str(path)!r}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"file: {str(path)!r} is not UTF-8 text") from None
+    except OSError as exc:
+        raise ValueError(f"file: cannot read {str(path)!r} ({exc.strerror})") from None
+
+    def number(cell):
+        try:
+            return float(cell)
+        except ValueError:
+            return None
+
+    data = []
+    for i, row in enumerate(rows):
+        vals = [number(c) for c in row]
+        if len(row) == 2 and None not in vals:
+            data.append(vals)
+        elif i == 0 and all(v is None for v in vals):
+            continue  # header: no number in it
+        else:
+            raise ValueError(f"file: row {i + 1} of {str(path)!r} is not 't, k_e' numbers: {row!r}")
+    if not data:
+        raise ValueError(f"file: no data rows in {str(path)!r}")
+    arr = np.array(data)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"file: non-finite value in {str(path)!r}")
+    if np.any(arr[:, 1] <= 0):
+        raise ValueError(f"file: stiffness must be > 0 in {str(path)!r}")
+    if np.any(np.diff(arr[:, 0]) <= 0):
+        raise ValueError(f"file: times must be strictly increasing in {str(path)!r}")
+    del key
+    return arr[:, 0], arr[:, 1]
+
+
+class EnvironmentSettings(_Section):
+    """The tilted plane (Fig. 2) and its unilateral spring contact,
+    ``f_e = max(0, k_e(t) d + damping d')`` while the penetration d > 0. The
+    plane passes through ``trajectory.center``; its outward normal is base z
+    rotated by ``tilt_deg`` about base y."""
+    tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis", ge=-89.0, le=89.0)
+    damping: float = num(0.0, "N s/m", "contact damping", ge=0)
+    stiffness: StiffnessProfile = Field(default_factory=PiecewiseConstantStiffness,
+                                        description="stiffness profile k_e(t), a table with its kind")
+
+
+# -- path ----------------------------------------------------------------------------
+
+class TrajectorySettings(_Section):
+    """Circle on the plane, traversed at constant rate."""
+    center: tuple[F, F, F] = Field((0.5, -0.15, 0.55), description="centre, base frame [m]",
+                                   json_schema_extra={"unit": "m"})
+    radius: float = num(0.1, "m", "radius", ge=0)
+    period: float = num(4.0, "s", "time per circle", gt=0)
+    cycles: float = num(4.0, "1", "number of circles (simulated time = cycles x period)", gt=0, le=1000)
+
+
+# -- impedance -----------------------------------------------------------------------
+
+Vec3Pos = tuple[Pos, Pos, Pos]
+Vec3NonNeg = tuple[NonNeg, NonNeg, NonNeg]
+
+
+class ImpedanceSettings(_Section):
+    """Target impedance (eq. 2) in the task frame, normal axis first. The
+    inner-loop gains of eq. (6) default to K_D = B/M, K_P = K/M (eq. 9)."""
+    m: Vec3Pos = Field((1.0, 1.0, 1.0), description="impedance mass M [kg]", json_schema_extra={"unit": "kg"})
+    b: Vec3NonNeg = Field((60.0, 20.0, 20.0), description="impedance damping B [N s/m]",
+                          json_schema_extra={"unit": "N s/m"})
+    k: Vec3Pos = Field((100.0, 100.0, 100.0), description="impedance stiffness K [N/m]",
+                       json_schema_extra={"unit": "N/m"})
+    kd: Vec3NonNeg | None = Field(None, description="inner-loop K_D of eq. (6); default B/M [1/s]",
+                                  json_schema_extra={"unit": "1/s"})
+    kp: Vec3Pos | None = Field(None, description="inner-loop K_P of eq. (6); default K/M [1/s^2]",
+                               json_schema_extra={"unit": "1/s^2"})
 
     @property
     def gains(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -202,55 +239,61 @@ class ImpedanceSettings:
         return kd, kp
 
 
-@dataclass(frozen=True)
-class ControllerSettings:
-    """Sampled controller: rate (Hz), reference law, desired force.
+# -- controller ------------------------------------------------------------------------
 
-    ``law``: ``"tmt"`` (eq. 18) or ``"known"`` (eqs. 11-12 with
-    ``assumed_stiffness``). ``f_d`` is the desired normal force, N.
-    ``force_threshold`` (N): below it the TMT law uses the f_e = 0 branch of
-    eq. (18); between it and twice it the two branches are blended smoothly.
-    ``min_stiffness`` (N/m) bounds the stiffness estimate from below (its
-    compliance from above). ``x_e_error`` (m) is the error of the controller's
-    surface location along the normal (positive: believed deeper).
+class FixedDamping(_Section):
+    """The normal damping is impedance.b[0]."""
+    kind: Literal["off"] = "off"
 
-    ``damping_schedule``: ``"off"`` (fixed B) or ``"zeta"``: the normal
-    damping follows eq. (25) online, ``b = 2 zeta sqrt(m (k + k_hat))`` with
-    the TMT stiffness estimate, clamped to [``schedule_b_min``,
-    ``schedule_b_max``] N s/m, rate-limited to ``schedule_rate`` N s/m per s,
-    held while the force is too small to estimate k_e; K_D = b/m follows.
-    """
-    rate: float = 1000.0
-    law: str = "tmt"
-    f_d: float = 10.0
-    assumed_stiffness: float = 5e3
-    force_threshold: float = 0.5
-    min_stiffness: float = 100.0
-    x_e_error: float = 0.0
-    damping_schedule: str = "off"
-    schedule_zeta: float = 1.0
-    schedule_b_min: float = 1.0
-    schedule_b_max: float = 1000.0
-    schedule_rate: float = 1e4
-    schedule_k_max: float = 1e7
 
-    def __post_init__(self):
-        _num("controller.rate", self.rate, lo=0, lo_open=True, hi=1e6)
-        _choice("controller.law", self.law, ("tmt", "known"))
-        _num("controller.f_d", self.f_d, lo=0, lo_open=True)
-        _num("controller.assumed_stiffness", self.assumed_stiffness, lo=0, lo_open=True)
-        _num("controller.force_threshold", self.force_threshold, lo=0, lo_open=True)
-        _num("controller.min_stiffness", self.min_stiffness, lo=0, lo_open=True)
-        _num("controller.x_e_error", self.x_e_error)
-        _choice("controller.damping_schedule", self.damping_schedule, ("off", "zeta"))
-        _num("controller.schedule_zeta", self.schedule_zeta, lo=0, lo_open=True)
-        _num("controller.schedule_b_min", self.schedule_b_min, lo=0)
-        _num("controller.schedule_b_max", self.schedule_b_max, lo=0, lo_open=True)
-        if self.schedule_b_min > self.schedule_b_max:
-            raise ScenarioError(f"controller.schedule_b_min: must be <= schedule_b_max "
-                                f"({self.schedule_b_max:g}), got {self.schedule_b_min:g}")
-        _num("controller.schedule_rate", self.schedule_rate, lo=0, lo_open=True)
-        _num("controller.schedule_k_max", self.schedule_k_max, lo=0, lo_open=True)
+class ScheduledDamping(_Section):
+    """Eq. (25) used online: ``b = 2 zeta sqrt(m (k + k_hat))`` with the TMT
+    stiffness estimate k_hat = f_m/(x - x_e_hat), clamped and rate-limited,
+    held while the force is too small to estimate k_e; K_D = b/m follows."""
+    kind: Literal["zeta"] = "zeta"
+    zeta: float = num(1.0, "1", "target damping ratio", gt=0)
+    b_min: float = num(1.0, "N s/m", "smallest damping", ge=0)
+    b_max: float = num(1000.0, "N s/m", "largest damping", gt=0)
+    rate: float = num(1e4, "N s/m per s", "rate limit of the damping", gt=0)
+    k_max: float = num(1e7, "N/m", "largest stiffness estimate used", gt=0)
+    force_threshold: float = num(0.5, "N", "the estimate is used above twice this force", gt=0)
+    min_stiffness: float = num(100.0, "N/m", "smallest stiffness estimate used", gt=0)
+
+    @model_validator(mode="after")
+    def _bounds(self):
+        if self.b_min > self.b_max:
+            raise ValueError(f"b_min: must be <= b_max ({self.b_max:g}), got {self.b_min:g}")
+        return self
+
+
+DampingSchedule = Annotated[Union[FixedDamping, ScheduledDamping], _tag_default("off"),
+                            Field(discriminator="kind")]
+
+
+def _law_union():
+    members = tuple(law.parameters for law in laws().values())
+    return Annotated[Union[members], _tag_default("tmt"), Field(discriminator="kind")]
+
+
+class ControllerSettings(_Section):
+    """Sampled controller: rate, desired force, surface estimate, force-tracking
+    law (``controller.law``, with its parameters) and normal damping."""
+    rate: float = num(1000.0, "Hz", "control rate 1/Ts", gt=0, le=1e6)
+    f_d: float = num(10.0, "N", "desired normal force", gt=0)
+    x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
+                           "(positive: believed deeper than it is)")
+    law: _law_union() = Field(default_factory=TmtParameters,
+                              description="force-tracking law: its kind and parameters")
+    damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,
+                                              description="normal damping: fixed ('off') or scheduled ('zeta')")
+
+    @model_validator(mode="after")
+    def _schedule_needs_filter(self):
+        law = laws()[self.law.kind]
+        if self.damping_schedule.kind != "off" and not law.uses_impedance_filter:
+            raise ValueError(f"damping_schedule: law {law.name!r} does not use the impedance filter, "
+                             "so its damping cannot be scheduled; use 'off'")
+        return self
 
     @property
     def Ts(self) -> float:
@@ -258,60 +301,31 @@ class ControllerSettings:
         return 1.0 / self.rate
 
 
-@dataclass(frozen=True)
-class SensorSettings:
-    """Force sensor along the normal: Gaussian noise (N, 1 sigma), seed, and a
-    first-order low-pass filter with cut-off ``filter_cutoff`` Hz (0 = off)."""
-    noise_std: float = 0.0
-    seed: int = 0
-    filter_cutoff: float = 0.0
-
-    def __post_init__(self):
-        _num("sensor.noise_std", self.noise_std, lo=0)
-        _num("sensor.seed", self.seed, lo=0, integer=True)
-        _num("sensor.filter_cutoff", self.filter_cutoff, lo=0)
+class SensorSettings(_Section):
+    """Force sensor along the normal."""
+    noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0)
+    seed: StrictInt = Field(0, ge=0, description="seed of the noise generator (an integer)")
+    filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off; 0 = off", ge=0)
 
 
-@dataclass(frozen=True)
-class SimulationSettings:
+class SimulationSettings(_Section):
     """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period)
     or ``cvodes`` (adaptive, accuracy reference, tolerance ``tol``)."""
-    integrator: str = "fixed"
-    substeps: int = 4
-    tol: float = 1e-10
-
-    def __post_init__(self):
-        _choice("simulation.integrator", self.integrator, ("fixed", "cvodes"))
-        _num("simulation.substeps", self.substeps, lo=1, hi=1000, integer=True)
-        _num("simulation.tol", self.tol, lo=0, lo_open=True, hi=1e-2)
+    integrator: Literal["fixed", "cvodes"] = Field("fixed", description="'fixed' (compiled RK4) or 'cvodes'")
+    substeps: StrictInt = Field(4, ge=1, le=1000, description="RK4 steps per control period (fixed)")
+    tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", gt=0, le=1e-2)
 
 
-_SECTIONS = {
-    "robot": RobotSettings, "environment": EnvironmentSettings,
-    "trajectory": TrajectorySettings, "impedance": ImpedanceSettings,
-    "controller": ControllerSettings, "sensor": SensorSettings,
-    "simulation": SimulationSettings,
-}
-
-
-@dataclass(frozen=True)
-class Scenario:
+class Scenario(_Section):
     """One complete simulation setup (see ``docs/scenario.md``)."""
-    name: str = "paper"
-    robot: RobotSettings = field(default_factory=RobotSettings)
-    environment: EnvironmentSettings = field(default_factory=EnvironmentSettings)
-    trajectory: TrajectorySettings = field(default_factory=TrajectorySettings)
-    impedance: ImpedanceSettings = field(default_factory=ImpedanceSettings)
-    controller: ControllerSettings = field(default_factory=ControllerSettings)
-    sensor: SensorSettings = field(default_factory=SensorSettings)
-    simulation: SimulationSettings = field(default_factory=SimulationSettings)
-
-    def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name:
-            raise ScenarioError(f"name: expected a non-empty string, got {self.name!r}")
-        for key, cls in _SECTIONS.items():
-            if not isinstance(getattr(self, key), cls):
-                raise ScenarioError(f"{key}: expected a {cls.__name__}")
+    name: str = Field("paper", min_length=1, description="a label for outputs")
+    robot: RobotSettings = Field(default_factory=RobotSettings)
+    environment: EnvironmentSettings = Field(default_factory=EnvironmentSettings)
+    trajectory: TrajectorySettings = Field(default_factory=TrajectorySettings)
+    impedance: ImpedanceSettings = Field(default_factory=ImpedanceSettings)
+    controller: ControllerSettings = Field(default_factory=ControllerSettings)
+    sensor: SensorSettings = Field(default_factory=SensorSettings)
+    simulation: SimulationSettings = Field(default_factory=SimulationSettings)
 
     @property
     def duration(self) -> float:
@@ -319,7 +333,27 @@ class Scenario:
         return self.trajectory.cycles * self.trajectory.period
 
     def replace(self, **changes) -> "Scenario":
-        return dataclasses.replace(self, **changes)
+        """A validated copy with top-level sections replaced."""
+        d = scenario_to_dict(self)
+        d.update({k: (v.model_dump() if isinstance(v, BaseModel) else v) for k, v in changes.items()})
+        return scenario_from_dict(d)
+
+
+def _rebuild() -> None:
+    """Accept every registered law in ``controller.law`` (called on registration)."""
+    ControllerSettings.model_fields["law"] = FieldInfo.from_annotated_attribute(
+        _law_union(), Field(default_factory=TmtParameters, description="force-tracking law: its kind and parameters"))
+    ControllerSettings.model_rebuild(force=True)
+    Scenario.model_rebuild(force=True)
+
+
+on_register(_rebuild)
+
+_TAGGED = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default: m for m in (
+               PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness)},
+           ("controller", "law"): lambda: {n: law.parameters for n, law in laws().items()},
+           ("controller", "damping_schedule"): lambda: {"off": FixedDamping, "zeta": ScheduledDamping}}
+"""Tagged unions by location: kind -> model."""
 
 
 def paper_scenario() -> Scenario:
@@ -329,53 +363,133 @@ def paper_scenario() -> Scenario:
     return Scenario()
 
 
-# -- dict / TOML ------------------------------------------------------------
+# -- errors ----------------------------------------------------------------------------
 
-def _from_mapping(cls, data: Any, prefix: str):
-    if not isinstance(data, dict):
-        raise ScenarioError(f"{prefix}: expected a table, got {data!r}")
-    names = {f.name: f for f in dataclasses.fields(cls)}
-    kwargs = {}
-    for key, value in data.items():
-        if key not in names:
-            raise ScenarioError(f"{prefix}.{key}: unknown key (known: {', '.join(names)})")
-        if key == "stiffness" and cls is EnvironmentSettings:
-            value = _from_mapping(StiffnessProfile, value, f"{prefix}.stiffness")
-        elif isinstance(value, list):
-            value = tuple(value)
-        elif isinstance(value, dict):
-            raise ScenarioError(f"{prefix}.{key}: expected a value, got a table")
-        kwargs[key] = value
-    try:
-        return cls(**kwargs)
-    except TypeError as exc:  # pragma: no cover - guarded by the name check above
-        raise ScenarioError(f"{prefix}: {exc}") from None
+def _dotted(loc) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
 
 
-def scenario_from_dict(data: dict) -> Scenario:
-    """Build and validate a :class:`Scenario` from nested dicts (TOML layout)."""
-    if not isinstance(data, dict):
-        raise ScenarioError("scenario: expected a table")
-    kwargs = {}
-    for key, value in data.items():
-        if key == "name":
-            kwargs["name"] = value
-        elif key in _SECTIONS:
-            kwargs[key] = _from_mapping(_SECTIONS[key], value, key)
+def _strip_tags(loc) -> tuple:
+    """Drop the union tag pydantic inserts after a tagged field (``controller.law.tmt.x``)."""
+    out, i = [], 0
+    loc = tuple(loc)
+    while i < len(loc):
+        out.append(loc[i])
+        if tuple(out[-2:]) in _TAGGED and i + 1 < len(loc) and isinstance(loc[i + 1], str) \
+                and loc[i + 1] in _TAGGED[tuple(out[-2:])]():
+            i += 1
+        i += 1
+    return tuple(out)
+
+
+def _model_at(loc, data) -> type[BaseModel] | None:
+    """The model class at ``loc`` (tag-free) for input ``data``."""
+    model: Any = Scenario
+    node = data
+    for i, part in enumerate(loc):
+        if not (isinstance(model, type) and issubclass(model, BaseModel)) or part not in model.model_fields:
+            return None
+        node = node.get(part) if isinstance(node, dict) else None
+        key = tuple(loc[max(0, i - 1):i + 1])
+        if key in _TAGGED:
+            kinds = _TAGGED[key]()
+            kind = _tagged(node).get("kind") if isinstance(_tagged(node), dict) else None
+            model = kinds.get(kind)
         else:
-            raise ScenarioError(f"{key}: unknown key (known: name, {', '.join(_SECTIONS)})")
-    return Scenario(**kwargs)
+            ann = model.model_fields[part].annotation
+            model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    return model
+
+
+def _input_at(data, loc):
+    node = data
+    for part in loc:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, (list, tuple)) and isinstance(part, int) and part < len(node):
+            node = node[part]
+        else:
+            return None
+    return node
+
+
+def _message(err: dict, data: dict) -> str:
+    loc = _strip_tags(err["loc"])
+    typ, ctx, got = err["type"], err.get("ctx") or {}, err.get("input")
+    key = _dotted(loc)
+    if typ == "extra_forbidden":
+        parent = _model_at(loc[:-1], data)
+        known = [f for f in (parent.model_fields if parent else {}) if f != "kind"]
+        hint = ""
+        if tuple(loc[:-1]) == ("controller",):
+            owners = [n for n, law in laws().items() if loc[-1] in law.parameters.model_fields]
+            if owners:
+                hint = f"; it is a parameter of law {owners[0]!r}: set it in [controller.law]"
+        if parent is not None and "kind" in parent.model_fields:
+            kind = parent.model_fields["kind"].default
+            return f"{key}: not a field of kind {kind!r} (its fields: {', '.join(known) or 'none'})"
+        return f"{key}: unknown key (known: {', '.join(known)}){hint}"
+    if typ in ("union_tag_invalid", "union_tag_not_found"):
+        tags = ctx.get("expected_tags", "")
+        found = ctx.get("tag")
+        return (f"{key}: expected kind one of {tags}, got {found!r}" if found is not None
+                else f"{key}: a table needs kind = one of {', '.join(map(repr, _TAGGED.get(tuple(loc[-2:]), dict)()))}")
+    if typ in ("missing", "too_short", "too_long") and loc and isinstance(loc[-1], int):
+        loc, got = loc[:-1], _input_at(data, loc[:-1])
+        key = _dotted(loc)
+        return f"{key}: expected a list of 3 numbers, got {got!r}"
+    if typ in ("too_short",) and ctx.get("min_length") == 1:
+        return f"{key}: empty list; give at least one value"
+    if typ == "missing":
+        return f"{key}: required"
+    expected = {
+        "float_type": "expected a number", "int_type": "expected an integer", "bool_type": "expected true or false",
+        "string_type": "expected a string", "finite_number": "must be finite", "tuple_type": "expected a list",
+        "model_type": "expected a table", "dict_type": "expected a table", "model_attributes_type": "expected a table",
+        "int_from_float": "expected an integer",
+    }.get(typ)
+    if expected is None:
+        if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+            op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}[typ]
+            bound = next(iter(v for k, v in ctx.items() if k in ("gt", "ge", "lt", "le")))
+            expected = f"must be {op} {bound:g}"
+        elif typ == "literal_error":
+            expected = f"expected {ctx.get('expected')}"
+        elif typ == "string_too_short":
+            expected = "must not be empty"
+        elif typ == "value_error":
+            msg = str(ctx.get("error", err["msg"]))
+            field, _, rest = msg.partition(": ")
+            return f"{_dotted((*loc, field))}: {rest}" if rest else f"{key}: {msg}"
+        else:
+            expected = err["msg"]
+    return f"{key}: {expected}, got {got!r}"
+
+
+def scenario_from_dict(data: Any, source: str = "") -> Scenario:
+    """Build and validate a :class:`Scenario` from nested dicts (TOML layout).
+    ``source`` (a file name, ``--set``) is named in errors."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"scenario: expected a table, got {data!r}" + (f" (in {source})" if source else ""))
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(_message(exc.errors()[0], data) + (f" (in {source})" if source else "")) from None
 
 
 def scenario_to_dict(scenario: Scenario) -> dict:
-    """Nested dict of plain Python values (lists for tuples)."""
+    """Nested dict of plain Python values (lists for tuples; unset optional
+    fields left out), the TOML layout."""
     def conv(v):
-        if dataclasses.is_dataclass(v):
-            return {f.name: conv(getattr(v, f.name)) for f in dataclasses.fields(v)}
-        if isinstance(v, tuple):
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (tuple, list)):
             return [conv(x) for x in v]
         return v
-    return conv(scenario)
+    return conv(scenario.model_dump())
 
 
 def _toml_value(v) -> str:
@@ -384,7 +498,7 @@ def _toml_value(v) -> str:
     if isinstance(v, int):
         return str(v)
     if isinstance(v, float):
-        return repr(v)
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, list):
@@ -393,9 +507,10 @@ def _toml_value(v) -> str:
 
 
 def dump_scenario(scenario: Scenario) -> str:
-    """The scenario as a TOML document that :func:`load_scenario` reads back."""
+    """The scenario as a TOML document that :func:`load_scenario` reads back;
+    it holds only the fields of the chosen kinds."""
     d = scenario_to_dict(scenario)
-    lines = [f"# tmtcontrol scenario (SI units; see docs/scenario.md)", f"name = {_toml_value(d.pop('name'))}"]
+    lines = ["# tmtcontrol scenario (SI units; see docs/scenario.md)", f"name = {_toml_value(d.pop('name'))}"]
 
     def table(name, body):
         lines.append("")
@@ -416,32 +531,80 @@ def dump_scenario(scenario: Scenario) -> str:
 
 def load_scenario(path: str | pathlib.Path) -> Scenario:
     """Read and validate a scenario TOML file; the string ``"paper"`` gives
-    :func:`paper_scenario`. Relative ``table`` file paths are resolved against
-    the scenario file's folder."""
+    :func:`paper_scenario`. A relative stiffness ``table`` file is resolved
+    against the scenario file's folder. An empty file is refused."""
     if str(path) == "paper":
         return paper_scenario()
     path = pathlib.Path(path)
+    src = str(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except FileNotFoundError:
-        raise ScenarioError(f"{path}: no such scenario file") from None
+        raise ScenarioError(f"{src}: no such scenario file") from None
+    except IsADirectoryError:
+        raise ScenarioError(f"{src}: is a folder, expected a scenario TOML file") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{src}: not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read ({exc.strerror})") from None
+        raise ScenarioError(f"{src}: cannot read ({exc.strerror})") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: malformed TOML ({exc})") from None
-    scen = scenario_from_dict(data)
-    prof = scen.environment.stiffness
-    if prof.kind == "table" and not pathlib.Path(prof.file).is_absolute():
-        prof = dataclasses.replace(prof, file=str(path.parent / prof.file))
-        scen = scen.replace(environment=dataclasses.replace(scen.environment, stiffness=prof))
-    return scen
+        raise ScenarioError(f"{src}: malformed TOML ({exc})") from None
+    if not data:
+        raise ScenarioError(f"{src}: empty scenario; start from 'tmtcontrol scenario paper > {path.name}'")
+    stiff = data.get("environment", {}).get("stiffness") if isinstance(data.get("environment"), dict) else None
+    if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
+            and not pathlib.Path(stiff["file"]).is_absolute():
+        stiff["file"] = str(path.parent / stiff["file"])
+    return scenario_from_dict(data, src)
+
+
+def set_key(d: dict, key: str, value: Any) -> None:
+    """Set dotted ``key`` of the scenario dict ``d`` (TOML layout) in place.
+
+    Setting a tagged union (``controller.law``, ``environment.stiffness``,
+    ``controller.damping_schedule``) to a kind name, or changing its
+    ``kind``, starts that table afresh with the new kind's defaults, keeping
+    the fields the new kind also has."""
+    parts = key.split(".")
+    if not all(parts):
+        raise ScenarioError(f"{key}: malformed key")
+    node = d
+    for i, p in enumerate(parts[:-1]):
+        if p not in node and tuple(parts[max(0, i - 1):i + 1]) in _TAGGED:
+            node[p] = {}
+        if not isinstance(node, dict) or p not in node:
+            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key")
+        if isinstance(node[p], str) and tuple(parts[max(0, i - 1):i + 1]) in _TAGGED:
+            node[p] = {"kind": node[p]}
+        if not isinstance(node[p], dict):
+            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: is a value, not a table")
+        node = node[p]
+    last = parts[-1]
+    union = tuple(parts[-2:]) if tuple(parts[-2:]) in _TAGGED else None
+    kind_of = tuple(parts[-3:-1]) if last == "kind" and tuple(parts[-3:-1]) in _TAGGED else None
+    if union is not None and isinstance(value, str):
+        node[last] = {"kind": value}
+        return
+    if kind_of is not None and isinstance(value, str) and node.get("kind") != value:
+        model = _TAGGED[kind_of]().get(value)
+        keep = {k: v for k, v in node.items() if model is not None and k in model.model_fields}
+        node.clear()
+        node.update(keep)
+        node["kind"] = value
+        return
+    known = _model_at(tuple(parts[:-1]), d)
+    if last not in node and (known is None or last not in known.model_fields):
+        raise ScenarioError(f"{key}: unknown key")
+    node[last] = value
 
 
 def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
     """Apply ``dotted.key=value`` strings (value in TOML syntax; bare words are
-    strings), e.g. ``controller.f_d=5`` or ``environment.stiffness.values=[1e3,1e4]``."""
+    strings), e.g. ``controller.f_d=5``, ``controller.law=integral`` or
+    ``environment.stiffness.values=[1e3,1e4]``. The result goes through the
+    same schema as a file."""
     d = scenario_to_dict(scenario)
     for item in assignments:
         if "=" not in item:
@@ -451,13 +614,13 @@ def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
             value = tomllib.loads(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:
             value = raw
-        parts = key.split(".")
-        node = d
-        for i, p in enumerate(parts[:-1]):
-            if not isinstance(node, dict) or p not in node or not isinstance(node[p], dict):
-                raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key")
-            node = node[p]
-        if parts[-1] not in node or isinstance(node[parts[-1]], dict):
-            raise ScenarioError(f"{key}: unknown key")
-        node[parts[-1]] = value
-    return scenario_from_dict(d)
+        set_key(d, key, value)
+    return scenario_from_dict(d, "--set")
+
+
+def scenario_json_schema() -> dict:
+    """The JSON Schema of scenario files (draft 2020-12)."""
+    schema = Scenario.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "tmtcontrol scenario"
+    return schema

@@ -15,17 +15,46 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .closedloop import INPUT, LOG, PARAM, STATE, build_step, controller_model
+from ..control.laws import get_law
+from .closedloop import INPUT, LOG, build_step, controller_model, param_layout, state_layout
 from .rollout import Rollout
 from .environment import stiffness_samples, task_frame
 from ..model.puma560 import Puma560
 from .scenario import Scenario, ScenarioError, paper_scenario
 from .trajectory import circle_reference
 
-__all__ = ["Simulator", "SimulationResult", "SimulationError", "PathReport", "check_path"]
+__all__ = ["Simulator", "SimulationResult", "SimulationError", "PathReport", "check_path",
+           "check_run_size", "MAX_STEPS"]
 
 MAX_CONDITION = 100.0
 """Largest Jacobian condition number accepted along the path."""
+
+STIFFNESS_ESTIMATE_FORCE = 0.5
+"""Force (N) above which the logged stiffness estimate f_m/(x - x_e) of
+eq. (14) is reported (NaN below: no contact, or noise)."""
+
+MAX_STEPS = 1_000_000
+"""Default limit on control steps per run (1,000 s at 1 kHz); raise it with
+``max_steps`` (CLI ``--max-steps``)."""
+
+_BYTES_PER_STEP = 8 * 2 * 60 + 300
+"""Rough memory per control step: state, log and inputs (about 60 doubles,
+held twice) plus one CSV row."""
+
+
+def check_run_size(scenario: Scenario, max_steps: int | None = None) -> int:
+    """Number of control steps of ``scenario``; raise :class:`ScenarioError`
+    (with the estimate) if it exceeds ``max_steps`` (default :data:`MAX_STEPS`)."""
+    limit = MAX_STEPS if max_steps is None else max_steps
+    if limit < 1:
+        raise ScenarioError(f"--max-steps: must be >= 1, got {limit}")
+    steps = scenario.duration / scenario.controller.Ts
+    if steps > limit:
+        raise ScenarioError(
+            f"trajectory.cycles: {steps:,.0f} control steps ({scenario.duration:g} s at "
+            f"{scenario.controller.rate:g} Hz, about {steps * _BYTES_PER_STEP / 2**30:,.1f} GiB) exceed the "
+            f"limit of {limit:,}; shorten the run or raise the limit with --max-steps")
+    return int(round(steps))
 
 
 class SimulationError(RuntimeError):
@@ -47,7 +76,7 @@ def _structure(scenario: Scenario):
     """What changes the compiled step (everything else is a runtime input)."""
     r, s = scenario.robot, scenario.simulation
     return (r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
-            s.integrator, s.substeps if s.integrator == "fixed" else s.tol)
+            s.integrator, s.substeps if s.integrator == "fixed" else s.tol, scenario.controller.law.kind)
 
 
 def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
@@ -137,19 +166,22 @@ class Simulator:
         self.plant = Puma560(armature=sc.robot.armature,
                              friction="smooth" if sc.robot.friction else False)
         self.model = controller_model(sc.robot.model_mass_scale, sc.robot.compensate_friction)
-        self.step = build_step(self.plant, self.model, sc.simulation.integrator,
+        self.law = get_law(sc.controller.law.kind)
+        self.step = build_step(self.plant, self.model, self.law, sc.simulation.integrator,
                                sc.simulation.substeps, sc.simulation.tol)
         self.rollout = Rollout(self.step, compile=compile)
         self.build_time = time.perf_counter() - t0
         self._structure = _structure(sc)
 
-    def run(self, scenario: Scenario | None = None) -> SimulationResult:
+    def run(self, scenario: Scenario | None = None, max_steps: int | None = None) -> SimulationResult:
         """Simulate ``scenario`` (default: the one given at construction). It
         must have the same structure (robot options, integrator); everything
-        numeric may differ."""
+        numeric may differ. Runs longer than ``max_steps`` control steps
+        (default :data:`MAX_STEPS`) are refused before any allocation."""
         sc = scenario or self.scenario
+        check_run_size(sc, max_steps)
         if _structure(sc) != self._structure:
-            raise ValueError("run(): scenario differs in robot options or integrator from the "
+            raise ValueError("run(): scenario differs in robot options, integrator or law from the "
                              "one this Simulator was built for; build a new Simulator")
         path = check_path(self.plant, sc)
         inputs, params, s0, t = self._inputs(sc, path)
@@ -181,20 +213,21 @@ class Simulator:
         kd, kp = sc.impedance.gains
         fc = sc.sensor.filter_cutoff
         alpha = float(np.exp(-2 * np.pi * fc * Ts)) if fc > 0 else 0.0
-        ctl = sc.controller
-        P = PARAM.pack(m=sc.impedance.m, b=sc.impedance.b, k=sc.impedance.k, kd=kd, kp=kp,
-                       f_d=ctl.f_d, law=0 if ctl.law == "tmt" else 1,
-                       k_assumed=ctl.assumed_stiffness, f_th=ctl.force_threshold,
-                       k_min=ctl.min_stiffness, x_e_hat=ctl.x_e_error, alpha=alpha,
-                       d_e=sc.environment.damping, R=R.ravel(order="F"), c=c, Ts=Ts,
-                       sched=1.0 if ctl.damping_schedule == "zeta" else 0.0, zeta=ctl.schedule_zeta,
-                       b_min=ctl.schedule_b_min, b_max=ctl.schedule_b_max, b_rate=ctl.schedule_rate,
-                       k_hat_max=ctl.schedule_k_max)
+        ctl, law = sc.controller, self.law
+        sch = ctl.damping_schedule
+        on = sch.kind == "zeta"
+        P = param_layout(law).pack(
+            m=sc.impedance.m, b=sc.impedance.b, k=sc.impedance.k, kd=kd, kp=kp, f_d=ctl.f_d,
+            x_e_hat=ctl.x_e_error, alpha=alpha, d_e=sc.environment.damping, R=R.ravel(order="F"), c=c, Ts=Ts,
+            sched=1.0 if on else 0.0, zeta=sch.zeta if on else 1.0, b_min=sch.b_min if on else 0.0,
+            b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
+            k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,
+            law=law.parameter_vector(ctl.law))
         # start on the surface (x = x_e, zero force), moving with the circle
         q0 = path.q[:, 0]
         dq0 = np.linalg.solve(np.asarray(self.plant.jacobian(q0)), R @ np.r_[0.0, ref.vel[:, 0]])
-        b0 = min(max(sc.impedance.b[0], ctl.schedule_b_min), ctl.schedule_b_max)
-        s0 = STATE.pack(q=q0, dq=dq0, xa=0.0, dxa=0.0, f_filt=0.0, b_n=b0)
+        b0 = min(max(sc.impedance.b[0], sch.b_min), sch.b_max) if on else sc.impedance.b[0]
+        s0 = state_layout(law).pack(q=q0, dq=dq0, f_filt=0.0, b_n=b0, law=law.initial_state(ctl.law))
         return U, P, s0, t
 
     @staticmethod
@@ -215,7 +248,7 @@ class Simulator:
         f_m = lg["f_m"][0]
         depth = lg["X"][0] - sc.controller.x_e_error
         with np.errstate(divide="ignore", invalid="ignore"):
-            k_hat = np.where((f_m > sc.controller.force_threshold) & (depth > 0), f_m / depth, np.nan)
+            k_hat = np.where((f_m > STIFFNESS_ESTIMATE_FORCE) & (depth > 0), f_m / depth, np.nan)
         return SimulationResult(
             scenario=sc, time=t, q=lg["q"], dq=lg["dq"], tau=lg["tau"], position=lg["p"],
             reference_position=to_base(lg["X_r"]), command_position=to_base(lg["X_c"]),

@@ -35,15 +35,16 @@ def scenario_parameters(scenario) -> dict:
             "Ts": sc.controller.Ts, "kd": kd[0], "kp": kp[0],
             "alpha": float(np.exp(-2 * np.pi * fc * sc.controller.Ts)) if fc > 0 else 0.0,
             "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
-            "law": sc.controller.law}
+            "law": sc.controller.law.kind}
 
 
-def paper_effective_mass() -> float:
-    """Smallest effective normal mass along the paper scenario's path, kg
-    (the default ``m_p`` of the sampled-data analysis)."""
+def paper_effective_mass(worst: bool = False) -> float:
+    """Effective normal mass along the paper scenario's path, kg: the
+    smallest, or with ``worst`` the largest (the sampled stiffness limit
+    falls as m_p grows, so the largest mass is the worst case)."""
     from ..simulation.scenario import paper_scenario
 
-    return scenario_parameters(paper_scenario())["m_p_min"]
+    return scenario_parameters(paper_scenario())["m_p_max" if worst else "m_p_min"]
 
 
 def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_p=None,

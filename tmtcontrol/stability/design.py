@@ -35,12 +35,21 @@ from scipy.linalg import solve_continuous_lyapunov
 from .continuous import AnalysisError, _pos
 from .sampled import spectral_radius
 
-__all__ = ["DesignError", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
+__all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
            "overshoot_closed_form", "damping_alternatives", "format_design"]
 
 
+SAMPLING_MARGIN = 1e-3
+"""Relative margin inside the overshoot bound for the sampled NLP constraint."""
+
+
 class DesignError(ValueError):
-    """Invalid or infeasible design specification (the message names why)."""
+    """Invalid design specification (the message names the parameter)."""
+
+
+class DesignInfeasible(RuntimeError):
+    """A valid specification that no design in the bounds meets (the message
+    names the binding constraint); or the solver failed."""
 
 
 @dataclass(frozen=True)
@@ -105,8 +114,23 @@ class DesignResult:
     sampled_limit: float             # largest stable k_e at Ts with the design, N/m
     info: dict = field(default_factory=dict)
 
+    @property
+    def violations(self) -> list[str]:
+        """Bounds the design's own verification finds violated (empty: verified)."""
+        s, out = self.spec, []
+        if self.worst_overshoot > s.max_overshoot + 1e-9:
+            out.append(f"first-contact overshoot {self.worst_overshoot:.4g} % > max_overshoot {s.max_overshoot:g} %")
+        if not self.sampled_limit >= s.stiffness_margin * s.k_e_max:
+            out.append(f"sampled loop stable only up to k_e = {self.sampled_limit:.4g} N/m < margin x k_e_max "
+                       f"= {s.stiffness_margin * s.k_e_max:.4g} N/m")
+        return out
+
+    @property
+    def verified(self) -> bool:
+        return not self.violations
+
     def as_dict(self) -> dict:
-        return {"m": self.spec.m, "b": self.b, "k": self.k, "objective": self.objective,
+        return {"verified": self.verified, "violations": self.violations, "m": self.spec.m, "b": self.b, "k": self.k, "objective": self.objective,
                 "baseline_b": self.baseline_b, "baseline_objective": self.baseline_objective,
                 "worst_overshoot": self.worst_overshoot, "status": self.status,
                 "dense_objective": self.dense_objective, "sampled_max_stable_stiffness": self.sampled_limit,
@@ -203,8 +227,9 @@ def _objective(spec: DesignSpec, b: float, k: float) -> float:
                for ke, w in zip(spec.stiffness_grid, spec.event_weights(spec.stiffness_grid)))
 
 
-def _diagnose(spec: DesignSpec) -> str:
-    """Name the binding constraint of an infeasible spec by scanning b (and k)."""
+def _diagnose(spec: DesignSpec) -> str | None:
+    """Name the binding constraint of an infeasible spec by scanning b (and k)
+    with the closed forms; None if some scanned design meets every constraint."""
     bs = np.geomspace(*spec.b_bounds, 300)
     ks = np.geomspace(*spec.k_bounds, 15) if spec.optimize_k else [spec.k]
     os_ok = np.zeros((len(ks), len(bs)), bool)
@@ -225,7 +250,7 @@ def _diagnose(spec: DesignSpec) -> str:
         b_st = bs[st_ok.any(axis=0)].max()
         return (f"max_overshoot and Ts conflict: overshoot <= {spec.max_overshoot:g} % needs b >= {b_os:.4g} "
                 f"N s/m, but sampled stability at Ts = {spec.Ts:g} s allows b <= {b_st:.4g} N s/m")
-    return "IPOPT did not converge although a feasible b exists; try other bounds"
+    return None
 
 
 def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None = None,
@@ -233,7 +258,14 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
     """Solve the robust design NLP with IPOPT (CasADi Opti).
 
     Raises :class:`DesignError` naming the binding constraint when the
-    specification is infeasible."""
+    specification is invalid and :class:`DesignInfeasible` naming the binding
+    constraint when no design in the bounds meets it (decided by a closed-form
+    scan before IPOPT runs, so an infeasible spec fails fast)."""
+    from ..files import check_interrupt
+
+    why = _diagnose(spec)
+    if why is not None:
+        raise DesignInfeasible(why)
     response = _response_function()
     grid = spec.stiffness_grid
     weights = spec.event_weights(grid)
@@ -249,7 +281,10 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
     for ke, w in zip(grid, weights):
         opti.subject_to(w * _ISE(b, k, ke, spec.m) <= t)
         phi = response(b, k, ke, spec.m, _overshoot_horizon(spec.m, k_lo, ke))
-        opti.subject_to(-phi <= os_frac)          # f_e <= f_d (1 + overshoot) after first contact
+        # f_e <= f_d (1 + overshoot) after first contact, on the response's samples; aimed
+        # SAMPLING_MARGIN inside the bound because the true peak lies between samples (measured:
+        # up to 3e-4 relative above the sampled one), so the closed-form verification holds
+        opti.subject_to(-phi <= os_frac * (1 - SAMPLING_MARGIN))
     opti.subject_to(radius(b, k) <= 1.0)
     opti.subject_to(opti.bounded(spec.b_bounds[0], b, spec.b_bounds[1]))
     if spec.optimize_k:
@@ -266,12 +301,14 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
                                                  "max_iter": 500})
     try:
         sol = opti.solve()
-        status = sol.stats()["return_status"]
-        b_opt = float(sol.value(b))
-        k_opt = float(sol.value(k))
     except RuntimeError:
-        status = opti.stats()["return_status"]
-        raise DesignError(_diagnose(spec)) from None
+        check_interrupt()        # CasADi turns Ctrl-C inside IPOPT into a solver failure
+        raise DesignInfeasible(f"IPOPT did not converge ({opti.stats()['return_status']}) although "
+                               "the closed-form scan found a feasible b; try other bounds") from None
+    check_interrupt()
+    status = sol.stats()["return_status"]
+    b_opt = float(sol.value(b))
+    k_opt = float(sol.value(k))
 
     b_base = 2 * math.sqrt(spec.m * (spec.k + spec.k_e_max))
     dense = np.geomspace(spec.k_e_min, spec.k_e_max, verify_points) if spec.k_e_max > spec.k_e_min else grid
@@ -299,13 +336,13 @@ def damping_alternatives(scenario, result: DesignResult) -> dict:
 
     def fixed(b_n):
         return apply_overrides(scenario, [f"impedance.b=[{float(b_n)!r}, {b[1]!r}, {b[2]!r}]",
-                                          'controller.damping_schedule="off"'])
+                                          "controller.damping_schedule=off"])
 
     return {f"scenario b = {b[0]:.4g}": fixed(b[0]),
             f"eq. (25) worst case b = {result.baseline_b:.4g}": fixed(result.baseline_b),
             f"optimal b = {result.b:.4g}": fixed(result.b),
-            "scheduled (zeta = 1)": apply_overrides(scenario, ['controller.damping_schedule="zeta"',
-                                                               "controller.schedule_zeta=1.0"])}
+            "scheduled (zeta = 1)": apply_overrides(scenario, ["controller.damping_schedule=zeta",
+                                                               "controller.damping_schedule.zeta=1.0"])}
 
 
 def format_design(r: DesignResult) -> str:

@@ -23,7 +23,7 @@ import control as ct
 import numpy as np
 from scipy.linalg import expm
 
-from .continuous import _check, _pos
+from .continuous import AnalysisError, _check, _pos
 
 __all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
            "max_stable_stiffness", "stability_region", "switch_response"]
@@ -87,6 +87,8 @@ def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alph
     _check(m, b, k, k_e)
     _pos("Ts", Ts)
     _pos("m_p", m_p)
+    if law not in ("tmt", "known"):
+        raise AnalysisError(f"law: the 1-D sampled model covers 'tmt' and 'known', got {law!r}")
     kd = b / m if kd is None else kd
     kp = k / m if kp is None else kp
     # continuous part within a period: z = (x, v, xa, va), held inputs (U, f)

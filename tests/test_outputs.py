@@ -1,0 +1,144 @@
+"""Outputs never destroy a user's files; unwritable targets, interrupts and huge
+runs fail with one line; the compile cache survives damage."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tmtcontrol.cli import main
+from tmtcontrol.files import MANIFEST
+
+CLI = [sys.executable, "-m", "tmtcontrol.cli"]
+SHORT = ["--set", "trajectory.cycles=0.1", "--no-plots"]
+
+
+def run(args, **kw):
+    return subprocess.run(CLI + args, capture_output=True, text=True, **kw)
+
+
+def one_line(stderr):
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    return lines[0]
+
+
+def hidden_litter(folder):
+    return [p.name for p in folder.iterdir() if p.name.startswith(".") and "tmt-" in p.name or ".old-" in p.name]
+
+
+@pytest.mark.parametrize("args,flag", [
+    (["simulate", *SHORT], "--out"),
+    (["report"], "--out"),
+    (["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke", "5000"], "--plot"),
+    (["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "20000", "--ts", "0.001",
+      "--max-overshoot", "5", "--mp", "3.3"], "--plot"),
+])
+def test_user_folder_is_never_touched(tmp_path, args, flag):
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "thesis.tex").write_text("precious")
+    t0 = time.perf_counter()
+    r = run([*args, flag, str(user)])
+    assert r.returncode == 2
+    line = one_line(r.stderr)
+    assert flag in line and "did not write" in line
+    assert (user / "thesis.tex").read_text() == "precious"
+    assert sorted(p.name for p in user.iterdir()) == ["thesis.tex"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]
+    if args[0] == "report":     # refused before anything is computed
+        assert "[1/" not in r.stderr and time.perf_counter() - t0 < 10
+
+
+def test_out_dot_and_empty_are_refused(tmp_path):
+    (tmp_path / "notes.txt").write_text("keep")
+    r = run(["simulate", *SHORT, "--out", "."], cwd=tmp_path)
+    assert r.returncode == 2 and "--out" in one_line(r.stderr)
+    assert (tmp_path / "notes.txt").read_text() == "keep"
+    r = run(["simulate", *SHORT, "--out", ""], cwd=tmp_path)
+    assert r.returncode == 2 and "--out: empty path" in one_line(r.stderr)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("target", ["/proc/tmt-x", "{file}/below", "/sys/tmt-x"])
+def test_unwritable_target_is_one_line(tmp_path, target):
+    (tmp_path / "f").write_text("x")
+    r = run(["simulate", *SHORT, "--out", target.format(file=tmp_path / "f")])
+    assert r.returncode == 2
+    assert one_line(r.stderr).startswith("error: --out: cannot write")
+
+
+def test_previous_output_is_replaced_but_not_foreign_files(tmp_path):
+    out = tmp_path / "o"
+    assert main(["simulate", *SHORT, "--out", str(out)]) == 0
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["written_by"] == "tmtcontrol" and set(manifest["files"]) == {"timeseries.csv", "summary.json"}
+    first = (out / "summary.json").stat().st_mtime_ns
+    assert main(["simulate", *SHORT, "--out", str(out)]) == 0      # a previous output: replaced whole
+    assert (out / "summary.json").stat().st_mtime_ns != first
+    (out / "my-notes.txt").write_text("mine")                     # now it holds a user's file
+    assert main(["simulate", *SHORT, "--out", str(out)]) == 2
+    assert (out / "my-notes.txt").read_text() == "mine"
+    # a failing run leaves the previous output untouched
+    (out / "my-notes.txt").unlink()
+    assert main(["simulate", "--out", str(out), "--set", "controller.f_d=0"]) == 2
+    assert (out / "summary.json").exists() and hidden_litter(tmp_path) == []
+
+
+def test_huge_run_is_refused_with_estimate_and_limit_can_be_raised(tmp_path):
+    r = run(["simulate", "--set", "trajectory.cycles=1000", "--set", "controller.rate=1e6",
+             "--out", str(tmp_path / "o")])
+    assert r.returncode == 2
+    line = one_line(r.stderr)
+    assert "4,000,000,000 control steps" in line and "GiB" in line and "--max-steps" in line
+    assert not (tmp_path / "o").exists()
+    r = run(["simulate", "--set", "trajectory.cycles=0.5", "--max-steps", "1000", "--no-plots",
+             "--out", str(tmp_path / "o")])
+    assert r.returncode == 2 and "2,000 control steps" in one_line(r.stderr)
+    r = run(["simulate", "--set", "trajectory.cycles=0.5", "--max-steps", "2000", "--no-plots",
+             "--out", str(tmp_path / "o")])
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupt_exits_cleanly_and_leaves_nothing(tmp_path, sig, code):
+    out = tmp_path / "o"
+    p = subprocess.Popen(CLI + ["simulate", "--set", "trajectory.cycles=200", "--no-plots", "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 30
+    while time.time() < deadline and not any(tmp_path.iterdir()):   # wait for the staging folder
+        time.sleep(0.05)
+    time.sleep(0.3)
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == code, err
+    assert "interrupted" in one_line(err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupt_during_design_is_not_a_result(tmp_path):
+    p = subprocess.Popen(CLI + ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "20000",
+                                "--ts", "0.001", "--max-overshoot", "5", "--mp", "3.3", "--optimize-k",
+                                "--plot", str(tmp_path / "p")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.0)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=60)
+    if p.returncode == 0:     # finished before the signal: nothing to test on this machine's speed
+        pytest.fail("design finished within 2 s; make the interrupted problem larger")
+    assert p.returncode == 130 and out == "" and "interrupted" in one_line(err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_parallel_writers_leave_one_valid_folder(tmp_path):
+    out = tmp_path / "o"
+    procs = [subprocess.Popen(CLI + ["simulate", *SHORT, "--out", str(out)], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(3)]
+    results = [(p.wait(timeout=120), p.stderr.read()) for p in procs]
+    for code, err in results:
+        assert code == 0 and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]
+    assert set(json.loads((out / MANIFEST).read_text())["files"]) == {"timeseries.csv", "summary.json"}

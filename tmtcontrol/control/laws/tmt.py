@@ -1,0 +1,90 @@
+"""The trajectory modification technique (TMT), eqs. (14)-(18): the paper's law.
+
+The unknown k_e of eqs. (11)-(12) is replaced by ``f_e / (x - x_e)``
+(eq. 14), giving the reference of eq. (16)/(18) from measured quantities
+only. Needs x_e (not k_e). Steady state: f_e = f_d for any constant k_e
+(eqs. 23-24). Stability: eq. (22), ``m s^2 + b s + (k + k_e)``, stable for
+b > 0 in continuous time; the sampled loop has a stiffness limit (see
+``stability.sampled``).
+
+The reference functions work on floats and on CasADi symbols, so the
+derivation checks and the simulator use the very same expressions. Units:
+positions m, forces N, stiffness N/m.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import casadi as ca
+from pydantic import Field
+
+from ..impedance import filtered_command
+from .base import Law, LawParameters
+
+__all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT"]
+
+
+def k_eff(k, k_e):
+    """Effective stiffness of impedance and environment in series, eq. (12)."""
+    return k * k_e / (k + k_e)
+
+
+def known_reference(x_e, f_d, k, k_e):
+    """x_r = x_e + f_d / k_eff with a given (assumed) k_e, eqs. (11)-(12)."""
+    return x_e + f_d / k_eff(k, k_e)
+
+
+def tmt_delta(x, f_e, x_e, f_d, k):
+    """The raw trajectory modification term, eq. (17):
+    ``f_d (k (x - x_e) + f_e) / (k f_e)`` — undefined at f_e = 0."""
+    return f_d * (k * (x - x_e) + f_e) / (k * f_e)
+
+
+def tmt_reference(x, f_e, x_e, f_d, k, force_threshold, min_stiffness):
+    """TMT reference x_r of eq. (18) with safeguards for f_e -> 0 and noise.
+
+    Eq. (18) is ``x_e + f_d/k`` at f_e = 0 and ``x_e + f_d/k + f_d c`` with the
+    compliance estimate ``c = (x - x_e)/f_e`` (= 1/k_e, eq. 14) otherwise. The
+    implementation
+
+    * uses the f_e = 0 branch while the measured force is below
+      ``force_threshold`` (a noisy force near zero makes ``c`` meaningless),
+      switching to the full law by twice the threshold through a C1 smoothstep
+      weight, so x_r never jumps;
+    * clips ``c`` to ``[0, 1/min_stiffness]``: a spring has non-negative
+      compliance, and the bound keeps a noisy ratio from commanding a deep
+      reference.
+
+    Where ``f_e >= 2 force_threshold`` and ``0 <= c <= 1/min_stiffness`` the
+    value is exactly eq. (16)/(18).
+    """
+    ratio = (f_e - force_threshold) / force_threshold
+    w = ca.fmin(ca.fmax(ratio, 0), 1)
+    w = w * w * (3 - 2 * w)
+    f_safe = ca.fmax(f_e, force_threshold)
+    c = ca.fmin(ca.fmax((x - x_e) / f_safe, 0), 1 / min_stiffness)
+    return x_e + f_d / k + w * f_d * c
+
+
+class TmtParameters(LawParameters):
+    kind: Literal["tmt"] = "tmt"
+    force_threshold: Annotated[float, Field(
+        gt=0, allow_inf_nan=False, strict=True,
+        description="below it the f_e = 0 branch of eq. (18) is used, blended up to twice it, N")] = 0.5
+    min_stiffness: Annotated[float, Field(
+        gt=0, allow_inf_nan=False, strict=True,
+        description="lower bound of the stiffness estimate (upper bound of its compliance), N/m")] = 100.0
+
+
+def _update(y, p, s):
+    x_r = tmt_reference(y["x"], y["f_m"], y["x_e_hat"], y["f_d"], y["k"], p["force_threshold"],
+                        p["min_stiffness"])
+    # x_r' = x_r'' = 0 as in section IV (x_r'' = x_e'' = 0)
+    x_c, dx_c, ddx_c, xa, dxa = filtered_command(x_r, 0, 0, y["f_m"], s["x_a"], s["dx_a"],
+                                                 y["m"], y["b"], y["k"], y["Ts"])
+    return {"x_r": x_r, "x_c": x_c, "dx_c": dx_c, "ddx_c": ddx_c, "s_next": {"x_a": xa, "dx_a": dxa}}
+
+
+TMT = Law("tmt", TmtParameters, ("x_a", "dx_a"), _update, needs=("x_e",),
+          summary="trajectory modification technique, eq. (18) (the paper)")
