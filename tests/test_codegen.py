@@ -38,7 +38,8 @@ def test_second_build_uses_the_cache():
     assert Rollout(toy_step()).how == "cached"
 
 
-def test_no_compiler_falls_back_to_vm(monkeypatch):
+def test_no_compiler_falls_back_to_vm(monkeypatch, tmp_path):
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))       # nothing cached either
     monkeypatch.setattr(codegen, "compiler", lambda: None)
     U, S_ref = reference(50)
     r = Rollout(toy_step())
@@ -53,3 +54,57 @@ def test_failing_compiler_warns_and_falls_back(monkeypatch, tmp_path):
         r = Rollout(toy_step())
     assert r.how == "vm"
     assert not list(tmp_path.glob("*.so"))          # nothing half-written in the cache
+
+
+# -- a damaged or unwritable cache never crashes the process (issue #11) -------------------
+
+def _cached_lib(folder):
+    return next(p for p in folder.iterdir() if p.suffix == ".so")
+
+
+@pytest.mark.parametrize("damage", ["truncate_4096", "truncate_0", "flip_byte"])
+def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage):
+    # as in real life, the damage (a crash or a full disk during a write) is met by a new process
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "TMTCONTROL_CACHE": str(tmp_path / "cache")}
+
+    def simulate(name):
+        return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
+                               str(tmp_path / name), "--set", "trajectory.cycles=0.05"],
+                              capture_output=True, text=True, env=env)
+
+    first = simulate("a")
+    assert first.returncode == 0 and "(compiled)" in first.stdout, first.stderr
+    lib = _cached_lib(tmp_path / "cache")
+    data = lib.read_bytes()
+    lib.write_bytes({"truncate_4096": data[:4096], "truncate_0": b"",
+                     "flip_byte": data[:100] + bytes([data[100] ^ 0xFF]) + data[101:]}[damage])
+    second = simulate("b")
+    assert second.returncode == 0, second.stderr           # no SIGBUS (exit 135), no traceback
+    assert "is damaged; rebuilding it" in second.stderr and "(rebuilt)" in second.stdout
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+    third = simulate("c")
+    assert third.returncode == 0 and "(cached)" in third.stdout and third.stderr == ""
+
+
+def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
+    from tmtcontrol import Simulator, paper_scenario
+
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker / "cache"))      # below a regular file
+    with pytest.warns(RuntimeWarning, match="cannot write the compile cache .* TMTCONTROL_CACHE"):
+        sim = Simulator(paper_scenario())
+    assert sim.rollout.how == "compiled" and not str(sim.rollout.library).startswith(str(blocker))
+
+
+def test_no_compiler_uses_a_valid_cached_library(monkeypatch, tmp_path):
+    from tmtcontrol import Simulator, paper_scenario
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    Simulator(paper_scenario())
+    monkeypatch.setattr(codegen, "compiler", lambda: None)
+    assert Simulator(paper_scenario()).rollout.how == "cached"

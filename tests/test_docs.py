@@ -36,3 +36,13 @@ def test_cli_reference_lists_every_command():
     text = (ROOT / "docs" / "cli.md").read_text()
     for name in sub.choices:
         assert f"`tmtcontrol {name}" in text, name
+
+
+def test_scenario_reference_is_generated_from_the_schema():
+    import pathlib
+
+    from tmtcontrol.simulation.scenario import scenario_reference
+
+    text = (pathlib.Path(__file__).parents[1] / "docs" / "scenario.md").read_text()
+    block = text.split("do not edit -->\n")[1].split("<!-- end of generated reference -->")[0]
+    assert block == scenario_reference()

@@ -80,3 +80,94 @@ def test_direct_construction_validates():
     with pytest.raises(ValidationError, match="f_d"):
         ControllerSettings(f_d=-1.0)
     assert math.isclose(ControllerSettings(rate=500).Ts, 2e-3)
+
+
+# -- the schema's known holes (issue #11), each a one-line error naming the key and the file --------
+
+@pytest.mark.parametrize("toml,match", [
+    ("[sensor]\nnoise_std = 0.1\nseed = 2.0\n", r"sensor\.seed: expected an integer, got 2\.0"),
+    ("[environment.stiffness]\nkind = 'sinusoidal'\nperiod = 0\n", r"environment\.stiffness\.period: must be > 0, got 0"),
+    ("[environment.stiffness]\nkind = 'sinusoidal'\nmean = -1\n", r"environment\.stiffness\.mean: must be > 0, got -1"),
+    ("[environment.stiffness]\nkind = 'piecewise_linear'\ntimes = [0, 2, 1]\nvalues = [1e3, 2e3, 3e3]\n",
+     r"environment\.stiffness\.times: must be strictly increasing"),
+    ("[environment.stiffness]\nkind = 'sinusoidal'\nfile = 'k.csv'\n",
+     r"environment\.stiffness\.file: not a field of kind 'sinusoidal' \(its fields: mean, amplitude, period\)"),
+    ("[environment.stiffness]\nvalues = [1e3]\nperiod = 3\n", r"environment\.stiffness\.period: not a field of kind 'piecewise_constant'"),
+    ("[environment.stiffness]\nkind = 'table'\n", r"environment\.stiffness\.file: required"),
+    ("[environment.stiffness]\nkind = 'table'\nfile = '.'\n", r"environment\.stiffness\.file: '.*' is a folder"),
+    ("[environment.stiffness]\namplitude = 1e3\n", r"environment\.stiffness\.amplitude: not a field of kind 'piecewise_constant'"),
+    ("[controller]\nforce_threshold = 1\n", r"controller\.force_threshold: unknown key .*parameter of law 'tmt'"),
+    ("[controller.law]\nkind = 'known'\nforce_threshold = 1\n",
+     r"controller\.law\.force_threshold: not a field of kind 'known' \(its fields: assumed_stiffness\)"),
+    ("[robot]\narmature = 1\n", r"robot\.armature: expected true or false, got 1"),
+    ("[controller]\nf_d = '10'\n", r"controller\.f_d: expected a number, got '10'"),
+    ("[controller.damping_schedule]\nkind = 'zeta'\nb_min = 5\nb_max = 2\n",
+     r"controller\.damping_schedule\.b_min: must be <= b_max \(2\), got 5"),
+    ("[environment.stiffness]\nkind = 'sinusoidal'\namplitude = 2e4\n", r"environment\.stiffness\.amplitude: must be < mean"),
+    ("", r"empty scenario"),
+])
+def test_schema_holes_name_key_and_file(tmp_path, toml, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(toml)
+    with pytest.raises(ScenarioError, match=match) as info:
+        load_scenario(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_non_utf8_files_are_named(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes("name = 'caf\xe9'\n".encode("latin-1"))
+    with pytest.raises(ScenarioError, match=r"latin1\.toml: not UTF-8"):
+        load_scenario(path)
+    table = tmp_path / "k.csv"
+    table.write_bytes("t,k\n0,1e3\n1,2e3 \xb5\n".encode("latin-1"))
+    path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'k.csv'\n")
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: .*k\.csv' is not UTF-8"):
+        load_scenario(path)
+
+
+@pytest.mark.parametrize("rows,ok", [
+    ("t,k_e\n0,1e3\n4,2e3\n", True),             # a header with no number: skipped
+    ("0,1e3\n4,2e3\n", True),                    # no header
+    ("0,1e3x\n4,2e3\n", False),                  # a malformed first data row is not a header
+    ("t,1000\n4,2e3\n", False),                  # a 'header' holding a number is a broken row
+    ("0,1e3\n4\n", False),
+])
+def test_table_first_row_is_header_only_without_numbers(tmp_path, rows, ok):
+    (tmp_path / "k.csv").write_text(rows)
+    path = tmp_path / "s.toml"
+    path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'k.csv'\n")
+    if ok:
+        sc = load_scenario(path)
+        assert sc.environment.stiffness.file == str(tmp_path / "k.csv")
+    else:
+        with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: row \d of .* is not 't, k_e' numbers"):
+            load_scenario(path)
+
+
+def test_override_changes_kind_and_keeps_shared_fields():
+    sc = apply_overrides(paper_scenario(), ["environment.stiffness.kind=piecewise_linear",
+                                            "environment.stiffness.times=[0, 4, 8, 12]"])
+    assert sc.environment.stiffness.values == (5e3, 2e4, 2e3, 1e4)       # shared field kept
+    sc = apply_overrides(paper_scenario(), ["controller.law=known", "controller.law.assumed_stiffness=2e4"])
+    assert sc.controller.law.assumed_stiffness == 2e4
+    with pytest.raises(ScenarioError, match=r"controller\.law\.assumed_stiffness: not a field of kind 'tmt'"):
+        apply_overrides(paper_scenario(), ["controller.law.assumed_stiffness=2e4"])
+
+
+def test_dump_has_only_the_chosen_kinds_fields():
+    text = dump_scenario(apply_overrides(paper_scenario(), ["environment.stiffness=sinusoidal"]))
+    block = text.split("[environment.stiffness]")[1].split("[")[0]
+    assert {line.split(" =")[0] for line in block.strip().splitlines()} == {"kind", "mean", "amplitude", "period"}
+    assert "assumed_stiffness" not in dump_scenario(paper_scenario())     # the tmt law's fields only
+
+
+def test_json_schema_lists_every_kind_and_unit():
+    from tmtcontrol.simulation.scenario import scenario_json_schema
+
+    s = scenario_json_schema()
+    defs = s["$defs"]
+    assert set(defs["ControllerSettings"]["properties"]["law"]["discriminator"]["mapping"]) >= {"tmt", "known"}
+    assert defs["ControllerSettings"]["properties"]["f_d"]["unit"] == "N"
+    assert defs["ControllerSettings"]["properties"]["f_d"]["exclusiveMinimum"] == 0
+    assert defs["ControllerSettings"]["additionalProperties"] is False

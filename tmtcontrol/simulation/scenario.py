@@ -355,6 +355,10 @@ _TAGGED = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default
            ("controller", "damping_schedule"): lambda: {"off": FixedDamping, "zeta": ScheduledDamping}}
 """Tagged unions by location: kind -> model."""
 
+_TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller", "law"): "tmt",
+                 ("controller", "damping_schedule"): "off"}
+"""The kind of a tagged table that does not say."""
+
 
 def paper_scenario() -> Scenario:
     """The paper's section V: 3-link PUMA, 45 deg plane, f_d = 10 N, M = I,
@@ -396,7 +400,8 @@ def _model_at(loc, data) -> type[BaseModel] | None:
         key = tuple(loc[max(0, i - 1):i + 1])
         if key in _TAGGED:
             kinds = _TAGGED[key]()
-            kind = _tagged(node).get("kind") if isinstance(_tagged(node), dict) else None
+            tagged = _tagged(node, _TAG_DEFAULTS[key])
+            kind = tagged.get("kind") if isinstance(tagged, dict) else None
             model = kinds.get(kind)
         else:
             ann = model.model_fields[part].annotation
@@ -595,7 +600,8 @@ def set_key(d: dict, key: str, value: Any) -> None:
         node["kind"] = value
         return
     known = _model_at(tuple(parts[:-1]), d)
-    if last not in node and (known is None or last not in known.model_fields):
+    tagged_member = known is not None and "kind" in known.model_fields   # the schema names the kind
+    if last not in node and not tagged_member and (known is None or last not in known.model_fields):
         raise ScenarioError(f"{key}: unknown key")
     node[last] = value
 
@@ -624,3 +630,50 @@ def scenario_json_schema() -> dict:
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "tmtcontrol scenario"
     return schema
+
+
+def scenario_reference() -> str:
+    """The scenario reference tables of ``docs/scenario.md``, generated from
+    the schema: one row per key with unit, default, valid range and meaning;
+    one table per kind of each tagged union."""
+    def rng(info) -> str:
+        parts = []
+        for m in info.metadata:
+            for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                if getattr(m, attr, None) is not None:
+                    parts.append(f"{op} {getattr(m, attr):g}")
+            if getattr(m, "min_length", None):
+                parts.append("non-empty")
+        return ", ".join(parts) or "–"
+
+    def fmt(v) -> str:
+        if isinstance(v, tuple):
+            return "[" + ", ".join(fmt(x) for x in v) + "]"
+        return "–" if v is None else f"`{_toml_value(v)}`" if not isinstance(v, BaseModel) else "(table)"
+
+    def rows(model, title):
+        doc = " ".join(model.__doc__.split("\n\n")[0].split()).replace("``", "`") if model.__doc__ else ""
+        out = [f"**[{title}]**" + (f" — {doc}" if doc else ""), "",
+               "| key | unit | default | valid range | meaning |", "|---|---|---|---|---|"]
+        for name, info in model.model_fields.items():
+            extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+            unit = extra.get("unit", "–")
+            desc = (info.description or "").replace(f" [{unit}]", "")
+            default = info.get_default(call_default_factory=True) if not info.is_required() else None
+            kind = "required" if info.is_required() else fmt(default)
+            if isinstance(default, BaseModel):
+                kind = f"kind `{getattr(default, 'kind', '')}`" if hasattr(default, "kind") else "(table)"
+            out.append(f"| `{name}` | {unit} | {kind} | {rng(info) if name != 'kind' else 'this kind'} | {desc} |")
+        return out + [""]
+
+    lines = []
+    for section, model in (("robot", RobotSettings), ("environment", EnvironmentSettings),
+                           ("trajectory", TrajectorySettings), ("impedance", ImpedanceSettings),
+                           ("controller", ControllerSettings), ("sensor", SensorSettings),
+                           ("simulation", SimulationSettings)):
+        lines += rows(model, section)
+        for (sec, field), kinds in _TAGGED.items():
+            if sec == section:
+                for kind, member in kinds().items():
+                    lines += rows(member, f"{sec}.{field}] kind = \"{kind}\"".replace("] kind", " kind").rstrip("]"))
+    return "\n".join(lines).rstrip() + "\n"

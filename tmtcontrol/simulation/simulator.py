@@ -199,7 +199,8 @@ class Simulator:
         Ts = sc.controller.Ts
         N = int(round(sc.duration / Ts))
         if N < 1:
-            raise ScenarioError("trajectory.cycles: simulated time is shorter than one control period")
+            raise ScenarioError(f"trajectory.cycles: the run (cycles x period = {sc.duration:g} s) is shorter "
+                                f"than one control period (1/controller.rate = {Ts:g} s)")
         t = np.arange(N) * Ts
         R = task_frame(sc.environment.tilt_deg)
         c = np.asarray(sc.trajectory.center, dtype=float)
