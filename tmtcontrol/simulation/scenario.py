@@ -514,8 +514,14 @@ def _toml_value(v) -> str:
 def dump_scenario(scenario: Scenario) -> str:
     """The scenario as a TOML document that :func:`load_scenario` reads back;
     it holds only the fields of the chosen kinds."""
-    d = scenario_to_dict(scenario)
-    lines = ["# tmtcontrol scenario (SI units; see docs/scenario.md)", f"name = {_toml_value(d.pop('name'))}"]
+    return toml_document(scenario_to_dict(scenario))
+
+
+def toml_document(d: dict) -> str:
+    """A scenario dict (TOML layout, valid or not) as a TOML document: ``name``
+    and the sections (tables); other top-level values are left out."""
+    d = dict(d)
+    lines = ["# tmtcontrol scenario (SI units; see docs/scenario.md)", f"name = {_toml_value(d.pop('name', 'scenario'))}"]
 
     def table(name, body):
         lines.append("")
@@ -529,8 +535,9 @@ def dump_scenario(scenario: Scenario) -> str:
         for k, v in sub:
             table(f"{name}.{k}", v)
 
-    for name, body in d.items():
-        table(name, body)
+    for name, body in d.items():      # sections only: a scenario has no other top-level value
+        if isinstance(body, dict):
+            table(name, body)
     return "\n".join(lines) + "\n"
 
 
