@@ -121,10 +121,14 @@ def test_a_crashing_implementation_fails_its_check(default_impl):
 def test_cli_check_table_and_json():
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "check"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert "13 passed, 0 failed" in r.stdout and "(22)" in r.stdout
+    assert " passed, 0 failed" in r.stdout and "(22)" in r.stdout and "integral: characteristic polynomial" in r.stdout
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "check", "--json"], capture_output=True, text=True)
     data = json.loads(r.stdout)
-    assert len(data) == 13
+    from tmtcontrol.control.laws import laws
+
+    # 13 paper checks, then 2 per law plus one per documented polynomial
+    assert len(data) == 13 + sum(2 + (law.characteristic_polynomial is not None) for law in laws().values())
+    assert all(item["passed"] for item in data)
     for item in data:
         assert {"name", "equation", "claim", "method", "residual", "passed"} <= set(item)
     assert any(item["equation"] == "(18)" for item in data)
@@ -133,6 +137,6 @@ def test_cli_check_table_and_json():
 def test_cli_check_exits_1_on_failure(monkeypatch, capsys, default_impl):
     orig = derivations.run_checks
     bad = Implementation(robot=default_impl.robot, model=default_impl.model, tmt_delta=missing_term_delta)
-    monkeypatch.setattr(derivations, "run_checks", lambda: orig(bad))
+    monkeypatch.setattr(derivations, "run_checks", lambda **kw: orig(bad))
     assert main(["check"]) == 1
     assert "FAIL" in capsys.readouterr().out

@@ -1,4 +1,8 @@
 """Closed-loop simulation of section V: acceptance, accuracy, safeguards."""
+import json
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -217,3 +221,50 @@ def test_same_seed_same_bytes_other_seed_differs(tmp_path):
     a, b, c = csv(7, "a"), csv(7, "b"), csv(8, "c")
     assert a == b
     assert a != c
+
+
+# -- per-segment verdicts (both ways) -----------------------------------------------
+
+def _verdict(f):
+    from tmtcontrol.simulation.metrics import segment_verdict
+
+    return segment_verdict(np.asarray(f, dtype=float), 10.0, 0.1)
+
+
+def test_segment_verdicts_on_synthetic_forces():
+    t = np.linspace(0, 4, 4000)
+    assert _verdict(10 + 1e-3 * np.sin(60 * t)) == "converged"                       # ripple below the band
+    assert _verdict(10 + 5 * np.exp(-1.4 * t) * np.sin(60 * t)) == "converged"        # still decaying
+    assert _verdict(10 + 2 * np.sin(60 * t)) == "limit_cycle"                        # sustained
+    assert _verdict(np.maximum(0, 10 + 15 * np.sin(60 * t))) == "limit_cycle"          # bouncing
+    assert _verdict(10 + 1e-3 * np.exp(2 * t) * np.sin(60 * t)) == "diverged"         # growing, in contact
+    assert _verdict(np.r_[np.full(3999, 10.0), np.nan]) == "diverged"
+
+
+def _simulate_exit(tmp_path, k_e):
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
+                        str(tmp_path / "o"), "--set", "trajectory.cycles=1.0", "--set",
+                        f"environment.stiffness.values=[{k_e}]"], capture_output=True, text=True)
+    return r
+
+
+def test_limit_cycle_run_exits_1_and_names_the_segment(tmp_path):
+    from tmtcontrol.stability import scenario_stiffness_limit
+
+    limit = scenario_stiffness_limit(paper_scenario())
+    r = _simulate_exit(tmp_path, round(1.3 * limit))
+    assert r.returncode == 1, r.stderr
+    assert "limit_cycle" in r.stdout
+    line = r.stderr.strip().splitlines()
+    assert len(line) == 1 and line[0].startswith("limit_cycle: segment 1") and f"{limit:.4g}" in line[0]
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())      # outputs still written
+    assert summary["segments"][0]["verdict"] == "limit_cycle"
+
+
+def test_run_at_0_8_of_the_predicted_limit_converges(tmp_path):
+    from tmtcontrol.stability import scenario_stiffness_limit
+
+    r = _simulate_exit(tmp_path, round(0.8 * scenario_stiffness_limit(paper_scenario())))
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["segments"][0]["verdict"] == "converged"

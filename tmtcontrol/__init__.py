@@ -19,9 +19,11 @@ from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump
                        paper_scenario)
 from .simulation.simulator import SimulationError, SimulationResult, Simulator
 from .simulation.metrics import SegmentMetrics, segment_metrics
+from .simulation.compare import Comparison, LawRun, compare_laws
 
 __all__ = [
     "__version__", "Puma560", "PUMA560_LINKS", "LinkParameters", "Scenario", "ScenarioError",
     "paper_scenario", "load_scenario", "dump_scenario", "apply_overrides", "Simulator",
-    "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics",
+    "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
+    "LawRun",
 ]

@@ -56,6 +56,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.set_defaults(func=_simulate)
 
+    p = sub.add_parser("compare", help="run one scenario with several force-tracking laws, side by side",
+                       formatter_class=_RAW,
+                       description="Each law runs with its parameters from the scenario if it is the scenario's "
+                                   "law, otherwise its documented defaults.\n"
+                                   "Exit 1 if any law has a segment that did not converge.",
+                       epilog="example:\n  tmtcontrol compare paper --laws tmt,integral --set controller.x_e_error=0.005")
+    _add_scenario_args(p, "tmt-compare")
+    p.add_argument("--laws", default=None, metavar="A,B,...",
+                   help="comma-separated law names (default: all registered laws)")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.set_defaults(func=_compare)
+
     p = sub.add_parser(
         "analyze", help="stability and damping of the TMT error dynamics (eqs. 22, 25)",
         formatter_class=_RAW,
@@ -145,9 +157,60 @@ def _simulate(args) -> int:
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           f"{sc.simulation.integrator} integrator ({res.info['code']}), "
           f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
-    print(format_table(segment_metrics(res)))
+    segs = segment_metrics(res)
+    print(format_table(segs))
     print(f"wrote {out.out}/")
-    return 0
+    return _verdict_exit(sc, segs)
+
+
+def _compare(args) -> int:
+    from .control.laws import laws
+    from .files import OutputFolder
+    from .simulation.compare import compare_laws, format_comparison, save_comparison
+    from .simulation.simulator import check_run_size
+
+    sc = _load(args)
+    if args.laws is None:
+        names = list(laws())
+    else:
+        names = [n.strip() for n in args.laws.split(",")]
+        unknown = [n for n in names if n not in laws()]
+        if unknown or not all(names):
+            raise UsageError(f"--laws: unknown law {', '.join(repr(n) for n in unknown) or repr('')} "
+                             f"(known: {', '.join(laws())})")
+        if len(set(names)) != len(names):
+            raise UsageError("--laws: a law is listed twice")
+    check_run_size(sc, args.max_steps)
+    with OutputFolder(args.out, "--out") as out:
+        cmp = compare_laws(sc, names, max_steps=args.max_steps)
+        save_comparison(cmp, out.path, plots=not args.no_plots)
+        out.commit()
+    print(f"scenario {sc.name!r}, {len(names)} laws")
+    print(format_comparison(cmp))
+    print(f"wrote {out.out}/")
+    bad = [(n, i, s) for n, r in cmp.runs.items() for i, s in enumerate(r.segments, 1) if s.verdict != "converged"]
+    for n, r in cmp.runs.items():
+        if r.result is None:
+            print(f"diverged: law {n}: {r.error}", file=sys.stderr)
+    for n, i, s in bad:
+        print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m",
+              file=sys.stderr)
+    return 0 if cmp.converged else 1
+
+
+def _verdict_exit(sc, segs) -> int:
+    """1 (with one line per failing segment on stderr) if any segment did not converge."""
+    bad = [(i, s) for i, s in enumerate(segs, 1) if s.verdict != "converged"]
+    if not bad:
+        return 0
+    from .stability.analysis import scenario_stiffness_limit
+
+    limit = scenario_stiffness_limit(sc)
+    lim = f"predicted limit {limit:.4g} N/m" if limit is not None else "no linear prediction for this law"
+    for i, s in bad:
+        print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}",
+              file=sys.stderr)
+    return 1
 
 
 def _analyze(args) -> int:
@@ -221,10 +284,11 @@ def _design(args) -> int:
 def _check(args) -> int:
     import json
 
-    from .checks.derivations import format_checks, run_checks
+    from .checks import all_checks
+    from .checks.derivations import format_checks
     from .files import jsonable
 
-    results = run_checks()
+    results = all_checks()
     if args.json:
         print(json.dumps(jsonable([r.as_dict() for r in results]), indent=2))
     else:

@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..checks.derivations import run_checks
+from ..checks import all_checks
 from ..files import versions
 from ..simulation import figures as sim_figures
 from ..simulation.metrics import segment_metrics
@@ -91,7 +91,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
 
     # 1. derivation checks
     t0 = stage(0)
-    checks = run_checks()
+    checks = all_checks()
     rep.sections["checks"] = checks
     n_ok = sum(c.passed for c in checks)
     rep.verdicts.append(Verdict("Derivation checks passed", n_ok == len(checks),

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 from .simulator import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
-           "save_simulation_figures"]
+           "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
+           "save_comparison_figures"]
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
@@ -88,5 +89,53 @@ def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -
                        ("fig5_position", position_figure), ("path3d", path_figure)):
         path = folder / f"{name}.png"
         make(res).savefig(path, dpi=120)
+        out.append(path)
+    return out
+
+
+def comparison_force_figure(cmp) -> Figure:
+    """Contact force of every law of a :class:`~.compare.Comparison` against f_d."""
+    fig = Figure(figsize=(7, 3.4), layout="constrained")
+    ax = fig.add_subplot()
+    peak = 0.0
+    for name, run in cmp.runs.items():
+        if run.result is None:
+            continue
+        ax.plot(run.result.time, run.result.contact_force, lw=1, label=name)
+        peak = max(peak, float(np.max(run.result.contact_force)))
+        f_d = float(run.result.desired_force[0])
+        time = run.result.time
+    if peak:
+        ax.plot(time, np.full_like(time, f_d), "k--", lw=0.8, label="$f_d$")
+        top = min(peak, 6 * f_d)
+        ax.set_ylim(-0.05 * top, 1.1 * top)
+    ax.set(xlabel="time (s)", ylabel="normal force $f_e$ (N)", title="Force tracking, all laws")
+    ax.legend(ncol=3, fontsize="small")
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def comparison_error_figure(cmp) -> Figure:
+    """|f_e - f_d| of every law on a log axis (floor 1e-6 N), with the 0.01 N band."""
+    fig = Figure(figsize=(7, 3.4), layout="constrained")
+    ax = fig.add_subplot()
+    for name, run in cmp.runs.items():
+        if run.result is None:
+            continue
+        ax.semilogy(run.result.time, np.maximum(np.abs(run.result.force_error), 1e-6), lw=0.8, label=name)
+    ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 N")
+    ax.set(xlabel="time (s)", ylabel="$|f_e - f_d|$ (N)", title="Force error, all laws")
+    ax.legend(ncol=3, fontsize="small")
+    ax.grid(True, which="both", alpha=0.3)
+    return fig
+
+
+def save_comparison_figures(cmp, folder: str | pathlib.Path) -> list[pathlib.Path]:
+    """Write compare_force.png and compare_error.png."""
+    folder = pathlib.Path(folder)
+    out = []
+    for name, make in (("compare_force", comparison_force_figure), ("compare_error", comparison_error_figure)):
+        path = folder / f"{name}.png"
+        make(cmp).savefig(path, dpi=120)
         out.append(path)
     return out

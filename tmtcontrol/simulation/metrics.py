@@ -13,35 +13,54 @@ import numpy as np
 
 from .simulator import SimulationResult
 
-__all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table"]
+__all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "segment_verdict",
+           "VERDICTS"]
+
+VERDICTS = ("converged", "limit_cycle", "diverged")
+"""Per-segment verdicts, best first."""
 
 STEADY_FRACTION = 0.25
 """The last quarter of a segment is its steady state."""
 
+RIPPLE_BAND = 0.01
+"""Peak-to-peak force ripple, as a fraction of f_d, below which a segment's
+steady state counts as settled (plus 6 sensor-noise standard deviations)."""
+
 
 @dataclass(frozen=True)
 class SegmentMetrics:
-    """Metrics of one segment.
+    """Metrics of one segment (forces N, times s, positions m).
 
-    ``overshoot_pct`` is ``(peak - f_d)/f_d * 100`` (0 if the force never
-    exceeds f_d); ``settling_time`` is measured from the segment start until
-    |f_e - f_d| stays within 2 % of f_d (NaN if it never does);
-    ``settling_time_10mN`` the same for the 0.01 N band; the steady-state
-    error is the mean of f_e - f_d and the tangential RMS the RMS distance
-    between X and X_r in the plane, both over the last quarter.
+    * ``switch_jump``: the force step at the segment's first sample (the
+      stiffness switch acting on the current penetration, which no
+      controller can avoid; for the first segment, the force there);
+    * ``overshoot_pct``: the controller's overshoot after it, relative to
+      f_d: if the force starts above f_d, how far it then dips below f_d;
+      otherwise how far it rises above f_d (0 if it never crosses);
+    * ``settling_time`` / ``settling_time_10mN``: from the segment start
+      until |f_e - f_d| stays within 2 % of f_d / within 0.01 N (NaN: never);
+    * ``steady_state_error``: the largest |f_e - f_d| over the last quarter,
+      ``steady_rms_error`` its RMS; ``max_steady_error`` = the former (kept
+      for older summaries); ``tangential_rms``: RMS distance between X and
+      X_r in the surface plane over the last quarter;
+    * ``contact_lost_steady``: f_e <= 0 somewhere in the last quarter;
+    * ``verdict``: :func:`segment_verdict`.
     """
     start: float
     end: float
     stiffness: float
     steady_state_error: float
+    steady_rms_error: float
     peak_force: float
     min_force: float
+    switch_jump: float
     overshoot_pct: float
     settling_time: float
     settling_time_10mN: float
     max_steady_error: float
     tangential_rms: float
     contact_lost_steady: bool
+    verdict: str
 
     def as_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
@@ -70,10 +89,46 @@ def settling_time(err: np.ndarray, band: float, t: np.ndarray) -> float:
     return float(t[last + 1] - t[0]) if last + 1 < t.size else float("nan")
 
 
+def segment_verdict(force: np.ndarray, f_d: float, band: float) -> str:
+    """``converged``, ``limit_cycle`` or ``diverged`` for one segment's force.
+
+    The last quarter is split in halves A and B; with the peak-to-peak
+    amplitudes a_A, a_B of the force in each:
+
+    * ``limit_cycle`` if the contact is lost (f_e <= 0) anywhere in the last
+      quarter, or if a_B > ``band`` and a_B >= 0.8 a_A (a sustained
+      oscillation);
+    * ``diverged`` if a_B > ``band`` and a_B > 1.5 a_A (growing), or any
+      force is not finite;
+    * ``converged`` otherwise: settled (a_B <= band), or decaying (an
+      oscillation near the stability limit may still be above the band; its
+      ``steady_state_error`` says how far).
+
+    ``band`` (N) is the ripple that counts as settled (the caller adds the
+    sensor noise to it).
+    """
+    if not np.all(np.isfinite(force)):
+        return "diverged"
+    n = force.size
+    last = force[int(n * (1 - STEADY_FRACTION)):]
+    if last.size < 4:
+        return "converged"
+    if np.any(last <= 0.0):
+        return "limit_cycle"
+    h = last.size // 2
+    a_A, a_B = float(np.ptp(last[:h])), float(np.ptp(last[h:]))
+    if a_B > band and a_B > 1.5 * a_A:
+        return "diverged"
+    if a_B > band and a_B >= 0.8 * a_A:
+        return "limit_cycle"
+    return "converged"
+
+
 def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     """:class:`SegmentMetrics` for every segment of ``result``."""
     out = []
     f_d = float(result.desired_force[0])
+    band = RIPPLE_BAND * f_d + 6.0 * result.scenario.sensor.noise_std
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -82,29 +137,34 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         dt = result.position_task[1:, i0:i1] - result.reference_task[1:, i0:i1]
         tang = np.sqrt(np.mean(np.sum(dt[:, ss] ** 2, axis=0)))
         peak = float(f.max())
+        jump = float(f[0] - (result.contact_force[i0 - 1] if i0 > 0 else 0.0))
+        after = f[1:] if f.size > 1 else f
+        overshoot = (max(0.0, f_d - float(after.min())) if f[0] > f_d else max(0.0, float(after.max()) - f_d))
+        ss_err = float(np.abs(err[ss]).max())
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
-            steady_state_error=float(np.mean(err[ss])),
+            steady_state_error=ss_err, steady_rms_error=float(np.sqrt(np.mean(err[ss] ** 2))),
             peak_force=peak, min_force=float(f.min()),
-            overshoot_pct=max(0.0, (peak - f_d) / f_d * 100.0),
+            switch_jump=jump, overshoot_pct=overshoot / f_d * 100.0,
             settling_time=settling_time(err, 0.02 * f_d, t),
             settling_time_10mN=settling_time(err, 0.01, t),
-            max_steady_error=float(np.abs(err[ss]).max()),
+            max_steady_error=ss_err,
             tangential_rms=float(tang),
             contact_lost_steady=bool(np.any(f[ss] <= 0.0)),
+            verdict=segment_verdict(f, f_d, band),
         ))
     return out
 
 
 def format_table(metrics: list[SegmentMetrics]) -> str:
     """A plain-text table of the per-segment metrics."""
-    head = (f"{'segment':>7} {'t (s)':>11} {'k_e (N/m)':>10} {'ss err (N)':>11} {'peak (N)':>9} "
-            f"{'overshoot':>9} {'settle 2% (s)':>13} {'tang RMS (mm)':>13}")
+    head = (f"{'segment':>7} {'t (s)':>11} {'k_e (N/m)':>10} {'ss err (N)':>10} {'peak (N)':>9} "
+            f"{'jump (N)':>9} {'overshoot':>9} {'settle 2% (s)':>13} {'tang RMS (mm)':>13}  verdict")
     rows = [head, "-" * len(head)]
     for i, m in enumerate(metrics, 1):
         settle = f"{m.settling_time:.3f}" if np.isfinite(m.settling_time) else "never"
         rows.append(f"{i:>7} {m.start:>5.1f}-{m.end:<5.1f} {m.stiffness:>10.4g} "
-                    f"{m.steady_state_error:>11.2e} {m.peak_force:>9.2f} {m.overshoot_pct:>8.1f}% "
-                    f"{settle:>13} {m.tangential_rms * 1e3:>13.4f}")
+                    f"{m.steady_state_error:>10.2e} {m.peak_force:>9.2f} {m.switch_jump:>+9.2f} "
+                    f"{m.overshoot_pct:>8.1f}% {settle:>13} {m.tangential_rms * 1e3:>13.4f}  {m.verdict}")
     return "\n".join(rows)

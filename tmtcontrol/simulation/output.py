@@ -8,7 +8,7 @@ import numpy as np
 
 from ..files import versions, write_json
 
-__all__ = ["TIMESERIES_COLUMNS", "save_simulation"]
+__all__ = ["TIMESERIES_COLUMNS", "save_simulation", "write_timeseries"]
 
 
 TIMESERIES_COLUMNS = (
@@ -16,6 +16,15 @@ TIMESERIES_COLUMNS = (
     "x", "y", "z", "x_ref", "y_ref", "z_ref", "x_cmd", "y_cmd", "z_cmd",
     "q1", "q2", "q3", "dq1", "dq2", "dq3", "tau1", "tau2", "tau3")
 """Columns of timeseries.csv (SI: s, N, N/m, m, rad, rad/s, N m)."""
+
+
+def write_timeseries(result, path: str | pathlib.Path) -> None:
+    """Write the :data:`TIMESERIES_COLUMNS` of a result as CSV."""
+    r = result
+    data = np.column_stack([r.time, r.contact_force, r.measured_force, r.desired_force, r.stiffness,
+                            r.stiffness_estimate, r.position.T, r.reference_position.T,
+                            r.command_position.T, r.q.T, r.dq.T, r.tau.T])
+    np.savetxt(path, data, delimiter=",", fmt="%.9g", header=",".join(TIMESERIES_COLUMNS), comments="")
 
 
 def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> dict:
@@ -26,11 +35,7 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> d
 
     folder = pathlib.Path(folder)
     r = result
-    data = np.column_stack([r.time, r.contact_force, r.measured_force, r.desired_force, r.stiffness,
-                            r.stiffness_estimate, r.position.T, r.reference_position.T,
-                            r.command_position.T, r.q.T, r.dq.T, r.tau.T])
-    np.savetxt(folder / "timeseries.csv", data, delimiter=",", fmt="%.9g",
-               header=",".join(TIMESERIES_COLUMNS), comments="")
+    write_timeseries(r, folder / "timeseries.csv")
     segs = segment_metrics(result)
     summary = {
         "scenario": scenario_to_dict(r.scenario),

@@ -103,6 +103,25 @@ def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
     return PathReport(np.array(qs).T, np.array(conds))
 
 
+_PATHS: dict = {}
+
+
+def _path(robot: Puma560, scenario: Scenario) -> PathReport:
+    """:func:`check_path`, computed once per distinct path (the IK depends only
+    on the robot's kinematics, the circle and the surface tilt); the arrays
+    are read-only."""
+    tr = scenario.trajectory
+    key = (tuple(tr.center), tr.radius, tr.period, scenario.environment.tilt_deg, robot.links)
+    if key not in _PATHS:
+        rep = check_path(robot, scenario)
+        rep.q.setflags(write=False)
+        rep.condition_number.setflags(write=False)
+        if len(_PATHS) > 64:
+            _PATHS.clear()
+        _PATHS[key] = rep
+    return _PATHS[key]
+
+
 @dataclass(frozen=True)
 class SimulationResult:
     """Time series of one simulation, sampled at the control instants t_k.
@@ -183,7 +202,7 @@ class Simulator:
         if _structure(sc) != self._structure:
             raise ValueError("run(): scenario differs in robot options, integrator or law from the "
                              "one this Simulator was built for; build a new Simulator")
-        path = check_path(self.plant, sc)
+        path = _path(self.plant, sc)
         inputs, params, s0, t = self._inputs(sc, path)
         t0 = time.perf_counter()
         S, L = self.rollout.run(s0, inputs, params)

@@ -8,7 +8,7 @@ import numpy as np
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
 
-__all__ = ["scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs", "format_analysis"]
+__all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs", "format_analysis"]
 
 
 
@@ -36,6 +36,25 @@ def scenario_parameters(scenario) -> dict:
             "alpha": float(np.exp(-2 * np.pi * fc * sc.controller.Ts)) if fc > 0 else 0.0,
             "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
             "law": sc.controller.law.kind}
+
+
+def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | None:
+    """The largest stable constant k_e (N/m) predicted for a scenario by the
+    sampled normal-axis loop of its law (``stability.lawloop``), the worse
+    of the path's two extreme effective masses, with the scenario's x_e
+    error, force filter, contact damping and inner-loop gains. ``None`` for
+    a law without a linear verdict (``Law.linear_analysis``)."""
+    from ..control.laws import get_law
+    from .lawloop import law_stiffness_limit
+
+    p = scenario_parameters(scenario) if params is None else params
+    law = get_law(scenario.controller.law.kind)
+    if not law.linear_analysis:
+        return None
+    kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
+              d_e=p["d_e"], delta=scenario.controller.x_e_error)
+    return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)
+               for mp in (p["m_p_min"], p["m_p_max"]))
 
 
 def paper_effective_mass(worst: bool = False) -> float:

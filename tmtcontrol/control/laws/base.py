@@ -71,6 +71,20 @@ class Law:
         location) and/or ``"k_e"`` (stiffness).
     summary : str
         One line: what it does and where it comes from.
+    steady_force : callable, optional
+        Its steady-state claim, ``steady_force(params, f_d, k, k_e, delta)
+        -> f_e`` (N) for a constant stiffness k_e (N/m), impedance stiffness
+        k (N/m) and surface-location error ``delta`` (m, estimate minus true
+        surface). The derivation checks compare it with the equilibrium of
+        the symbolic closed loop.
+    linear_analysis : bool
+        Whether the spectral radius at its equilibrium decides local
+        stability (False for a law with a continuum of equilibria, such as
+        parameter estimates that the data do not identify).
+    characteristic_polynomial : callable, optional
+        Its documented continuous-time normal-axis characteristic polynomial
+        with the ideal inner loop, ``(params, m, b, k, k_e) -> coefficients``
+        (highest power first); checked against ``stability.lawloop``.
     """
     name: str
     parameters: type[LawParameters]
@@ -80,6 +94,9 @@ class Law:
     uses_impedance_filter: bool = True
     needs: tuple[str, ...] = ("x_e",)
     summary: str = ""
+    steady_force: Callable[..., float] | None = None
+    linear_analysis: bool = True
+    characteristic_polynomial: Callable[..., list] | None = None
 
     @property
     def parameter_names(self) -> tuple[str, ...]:

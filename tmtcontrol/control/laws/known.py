@@ -15,7 +15,7 @@ from pydantic import Field
 
 from ..impedance import filtered_command
 from .base import Law, LawParameters
-from .tmt import known_reference
+from .tmt import eq22_polynomial, k_eff, known_reference
 
 __all__ = ["KnownParameters", "KNOWN"]
 
@@ -33,5 +33,12 @@ def _update(y, p, s):
     return {"x_r": x_r, "x_c": x_c, "dx_c": dx_c, "ddx_c": ddx_c, "s_next": {"x_a": xa, "dx_a": dxa}}
 
 
+def _steady_force(params, f_d, k, k_e, delta):
+    """f_e = k_eff(k_e) (x_r - x_e - f_e/k) solved for f_e: ``f_d
+    k_eff(k_e)/k_eff(k_e_hat) + k_eff(k_e) delta``."""
+    return f_d * k_eff(k, k_e) / k_eff(k, params.assumed_stiffness) + k_eff(k, k_e) * delta
+
+
 KNOWN = Law("known", KnownParameters, ("x_a", "dx_a"), _update, needs=("x_e", "k_e"),
+            steady_force=_steady_force, characteristic_polynomial=eq22_polynomial,
             summary="eqs. (11)-(12) with an assumed k_e (the paper's baseline)")

@@ -22,7 +22,7 @@ from pydantic import Field
 from ..impedance import filtered_command
 from .base import Law, LawParameters
 
-__all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT"]
+__all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT", "eq22_polynomial"]
 
 
 def k_eff(k, k_e):
@@ -86,5 +86,18 @@ def _update(y, p, s):
     return {"x_r": x_r, "x_c": x_c, "dx_c": dx_c, "ddx_c": ddx_c, "s_next": {"x_a": xa, "dx_a": dxa}}
 
 
-TMT = Law("tmt", TmtParameters, ("x_a", "dx_a"), _update, needs=("x_e",),
+def _steady_force(params, f_d, k, k_e, delta):
+    """f_e = f_d (eqs. 23-24) while the compliance estimate at f_d is
+    non-negative, i.e. delta < f_d/k_e; beyond, it is clipped at 0 and the
+    reference is x_e_hat + f_d/k, so f_e = k_eff (delta + f_d/k)."""
+    return f_d if delta < f_d / k_e else k_eff(k, k_e) * (delta + f_d / k)
+
+
+def eq22_polynomial(params, m, b, k, k_e):
+    """Eq. (22): m s^2 + b s + (k + k_e)."""
+    return [m, b, k + k_e]
+
+
+TMT = Law("tmt", TmtParameters, ("x_a", "dx_a"), _update, needs=("x_e",), steady_force=_steady_force,
+          characteristic_polynomial=eq22_polynomial,
           summary="trajectory modification technique, eq. (18) (the paper)")

@@ -1,0 +1,228 @@
+"""Force-tracking laws as plug-ins: registration, each law's claims, the
+sampled bound of the adaptive law, the RLS safeguards, and `compare`."""
+import json
+import pathlib
+import subprocess
+import sys
+from typing import Literal
+
+import numpy as np
+import pytest
+
+from tmtcontrol import apply_overrides, paper_scenario, segment_metrics, Simulator
+from tmtcontrol.checks.laws import law_checks
+from tmtcontrol.control.impedance import filtered_command
+from tmtcontrol.control.laws import INTEGRAL, Law, LawParameters, get_law, laws, register_law, unregister_law
+from tmtcontrol.control.laws.adaptive_damping import sigma_bound
+from tmtcontrol.control.laws.tmt import k_eff
+from tmtcontrol.stability import law_loop, law_stiffness_limit, max_stable_stiffness
+
+PAPER = dict(m=1.0, b=60.0, k=100.0)
+
+
+def short(*sets):
+    """The paper scenario shortened to one 4 s cycle, with overrides."""
+    return apply_overrides(paper_scenario(), ["trajectory.cycles=1.0", *sets])
+
+
+# -- plug-in architecture ---------------------------------------------------------
+
+class OffsetParameters(LawParameters):
+    kind: Literal["toy_offset"] = "toy_offset"
+    offset: float = 0.1
+
+
+def _offset_update(y, p, s):
+    x_r = y["x_e_hat"] + p["offset"]
+    x_c, dx_c, ddx_c, xa, dxa = filtered_command(x_r, 0, 0, y["f_m"], s["x_a"], s["dx_a"],
+                                                 y["m"], y["b"], y["k"], y["Ts"])
+    return {"x_r": x_r, "x_c": x_c, "dx_c": dx_c, "ddx_c": ddx_c, "s_next": {"x_a": xa, "dx_a": dxa}}
+
+
+def test_toy_law_registered_from_a_test_file_is_simulated():
+    register_law(Law("toy_offset", OffsetParameters, ("x_a", "dx_a"), _offset_update))
+    try:
+        sc = short("controller.law=toy_offset", "controller.law.offset=0.05", "environment.stiffness.values=[5000.0]")
+        res = Simulator(sc, compile=False).run(sc)
+        # a fixed reference 0.05 m beyond the surface: f = k_eff (x_r - x_e), eqs. (11)-(12) read backwards
+        want = k_eff(100.0, 5000.0) * 0.05
+        seg = segment_metrics(res)[0]
+        # tangential coupling leaves ~2e-4 N (the tmt runs show the same); 2e-3 N is 10x that
+        assert abs(res.contact_force[-500:].mean() - want) < 2e-3
+        assert seg.verdict == "converged"
+    finally:
+        unregister_law("toy_offset")
+    assert "toy_offset" not in laws()
+
+
+def test_closed_loop_contains_no_law_name_or_index():
+    src = (pathlib.Path(__file__).parents[1] / "tmtcontrol" / "simulation" / "closedloop.py").read_text()
+    for name in laws():
+        assert f'"{name}"' not in src and f"'{name}'" not in src, name
+    assert "law_index" not in src and "law ==" not in src
+
+
+# -- each law's claims ----------------------------------------------------------------
+
+def _flipped_integral():
+    """The integral law with the sign of its integrator flipped (positive feedback)."""
+    def update(y, p, s):
+        out = INTEGRAL.update(y, p, s)
+        out["s_next"]["I"] = 2 * s["I"] - out["s_next"]["I"]
+        return out
+    return INTEGRAL.replace(update=update)
+
+
+def test_every_registered_law_passes_its_checks():
+    for law in laws().values():
+        for r in law_checks(law):
+            assert r.passed, (r.name, r.residual, r.note)
+
+
+def test_broken_law_fails_its_checks():
+    failed = {r.name for r in law_checks(_flipped_integral()) if not r.passed}
+    assert "integral: tracks the paper's stiffness sequence" in failed
+    assert "integral: characteristic polynomial" in failed
+
+
+def test_broken_steady_state_claim_fails():
+    # a law that claims f_d but whose reference ignores the force: the known law with k_e_hat = 5e3
+    lying = get_law("known").replace(steady_force=lambda params, f_d, k, k_e, delta: f_d)
+    failed = {r.name for r in law_checks(lying) if not r.passed}
+    assert "known: steady state" in failed
+
+
+def test_generic_sampled_loop_matches_the_closed_form_tmt_model():
+    # two independent implementations of the same sampled loop: the hand-written
+    # 1-D model (stability.sampled) and the law's own CasADi update (stability.lawloop);
+    # both bisect to ~1e-4 relative, so they must agree to 5e-4
+    for m_p, alpha in ((3.3, 0.0), (8.0, 0.5)):
+        closed = max_stable_stiffness(1.0, 60.0, 100.0, 1e-3, m_p, alpha=alpha)
+        generic = law_stiffness_limit(get_law("tmt"), **PAPER, Ts=1e-3, m_p=m_p, alpha=alpha)
+        assert generic == pytest.approx(closed, rel=5e-4)
+
+
+def test_integral_sampled_limit_is_below_the_euler_bound():
+    # the forward-Euler integral alone allows k_e < 2/(Ts k_i); the loop with the plant is stricter
+    for k_i in (0.03, 0.1):
+        lim = law_stiffness_limit(INTEGRAL, INTEGRAL.parameters(k_i=k_i), **PAPER, Ts=1e-3, m_p=3.3)
+        assert 0.5 * 2 / (1e-3 * k_i) < lim < 2 / (1e-3 * k_i)
+
+
+def test_known_with_a_50_percent_wrong_stiffness_is_off_by_eqs_11_12():
+    k_e, k_hat = 1e4, 5e3
+    sc = short("controller.law=known", f"controller.law.assumed_stiffness={k_hat}",
+               f"environment.stiffness.values=[{k_e}]")
+    res = Simulator(sc, compile=False).run(sc)
+    want = 10.0 * k_eff(100.0, k_e) / k_eff(100.0, k_hat)       # 10.099 N
+    got = res.contact_force[-1000:].mean()
+    assert abs(want - 10.0) > 0.09                               # the error is real ...
+    assert got == pytest.approx(want, abs=2e-3)                  # ... and is the eq. (11)-(12) amount
+
+
+# -- adaptive damping: the sampled bound on sigma ------------------------------------
+
+def _sigma_limit(k_e, m_p=3.3):
+    law = get_law("adaptive_damping")
+    lo, hi = 1e-4, 1.0
+    while hi / lo > 1.001:
+        mid = np.sqrt(lo * hi)
+        stable = law_loop(law, law.parameters(sigma=mid), **PAPER, k_e=k_e, Ts=1e-3, m_p=m_p).stable
+        lo, hi = (mid, hi) if stable else (lo, mid)
+    return lo
+
+
+def test_adaptive_sigma_bound_against_the_sampled_model():
+    bound = sigma_bound(1.0, 60.0, 1e-3)
+    assert bound == pytest.approx(0.06)
+    # the bound is the k_e Ts -> 0 limit: within 5 % at 1e3 N/m, never exceeded
+    assert 0.95 * bound < _sigma_limit(1e3) < bound
+    assert _sigma_limit(1e4) < _sigma_limit(1e3)
+
+
+@pytest.mark.parametrize("factor, converges", [(0.8, True), (1.2, False)])
+def test_adaptive_sigma_bound_in_simulation(factor, converges):
+    sigma = factor * sigma_bound(1.0, 60.0, 1e-3)
+    sc = short("controller.law=adaptive_damping", f"controller.law.sigma={sigma}",
+               "environment.stiffness.values=[1000.0]")
+    try:
+        seg = segment_metrics(Simulator(sc, compile=False).run(sc))[0]
+        verdict = seg.verdict
+    except Exception as exc:                          # a runaway is also "does not converge"
+        verdict = f"raised {exc}"
+    assert (verdict == "converged") is converges, verdict
+
+
+# -- RLS ---------------------------------------------------------------------------------
+
+def test_rls_needs_its_covariance_reset_at_a_stiffness_switch():
+    """Without change detection the estimate mixes the old and new surface
+    into a nonsense line and the loop leaves the 0.01 N band (docstring of
+    laws/rls.py); with it, every segment ends within 1e-6 N."""
+    rls = get_law("rls")
+    ok = {r.name: r for r in law_checks(rls)}["rls: tracks the paper's stiffness sequence"]
+    assert ok.passed and ok.residual < 1e-6
+    params = rls.parameters(reset_error=1e9)
+    z = None
+    for k_e in (5e3, 2e4):
+        lp = law_loop(rls, params, **PAPER, k_e=k_e, Ts=1e-3, m_p=3.3)
+        if z is None:
+            z = np.zeros(lp.z_eq.size)
+            z[3:3 + len(rls.states)] = rls.initial_state(params)
+        with np.errstate(all="ignore"):
+            Z, F = lp.simulate(z, 4000)
+        z = Z[-1]
+    assert not abs(F[-1] - 10.0) < 0.01
+
+
+# -- compare -------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cmp") / "c"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "compare", "paper", "--out", str(out)],
+                       capture_output=True, text=True)
+    return r, out
+
+
+def test_compare_paper_all_laws(compared):
+    r, out = compared
+    summary = json.loads((out / "summary.json").read_text())
+    assert list(summary["laws"]) == list(laws())
+    for name in ("tmt", "integral", "adaptive_damping", "rls"):
+        segs = summary["laws"][name]["segments"]
+        assert len(segs) == 4
+        for s in segs:
+            # acceptance of issue 12: every segment within 0.01 N at its documented defaults
+            assert s["steady_state_error"] <= 0.01, (name, s)
+            assert s["verdict"] == "converged"
+        rows = np.loadtxt(out / name / "timeseries.csv", delimiter=",", skiprows=1)
+        assert rows.shape == (16000, 24)
+        assert np.abs(rows[-250:, 1] - 10.0).max() <= 0.01
+    # known's default assumed stiffness (5e3) is right only in segment 1
+    known = summary["laws"]["known"]["segments"]
+    assert known[0]["steady_state_error"] < 1e-3 and known[2]["steady_state_error"] > 0.1
+    assert (out / "compare_force.png").stat().st_size > 0 and (out / "compare_error.png").stat().st_size > 0
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("converged") == 20
+
+
+def test_compare_python_api_returns_the_same_numbers(compared):
+    from tmtcontrol import compare_laws
+
+    _, out = compared
+    summary = json.loads((out / "summary.json").read_text())
+    cmp = compare_laws(paper_scenario(), ["integral"])
+    got = cmp.runs["integral"].segments
+    for s, ref in zip(got, summary["laws"]["integral"]["segments"]):
+        assert s.steady_state_error == pytest.approx(ref["steady_state_error"], rel=1e-9)
+
+
+@pytest.mark.parametrize("laws_arg, msg", [("tmt,nope", "--laws: unknown law 'nope'"),
+                                           ("tmt,tmt", "--laws: a law is listed twice"),
+                                           ("tmt,", "--laws: unknown law ''")])
+def test_compare_bad_laws_exit_2(tmp_path, laws_arg, msg):
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "compare", "--laws", laws_arg, "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and msg in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()

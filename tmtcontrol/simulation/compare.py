@@ -1,0 +1,135 @@
+"""Several force-tracking laws on the same scenario, side by side.
+
+:func:`compare_laws` runs one scenario once per law (each law with the
+scenario's parameters if it is the scenario's law, otherwise its documented
+defaults) and returns a :class:`Comparison`: per law the simulation result,
+the per-segment metrics and verdicts (``metrics``), or the divergence.
+``save_comparison`` writes ``summary.json`` (``{"laws": {NAME: {"segments":
+[...]}}}``), ``<law>/timeseries.csv`` and the overlay figures. Units SI.
+"""
+
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..control.laws import get_law, laws
+from .metrics import SegmentMetrics, segment_metrics
+from .scenario import Scenario, scenario_to_dict
+from .simulator import SimulationError, SimulationResult, Simulator, check_run_size
+
+__all__ = ["LawRun", "Comparison", "compare_laws", "with_law", "save_comparison", "format_comparison"]
+
+
+@dataclass(frozen=True)
+class LawRun:
+    """One law on the scenario: its scenario, result and segment metrics, or
+    ``error`` (the divergence message) with ``result = None``."""
+    law: str
+    scenario: Scenario
+    result: SimulationResult | None
+    segments: list[SegmentMetrics] = field(default_factory=list)
+    error: str | None = None
+
+    @property
+    def verdict(self) -> str:
+        """``diverged`` if the run blew up, else the worst segment verdict."""
+        if self.result is None:
+            return "diverged"
+        order = ("converged", "limit_cycle", "diverged")
+        return max((s.verdict for s in self.segments), key=order.index, default="converged")
+
+    def as_dict(self) -> dict:
+        return {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
+                "segments": [s.as_dict() for s in self.segments]}
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Results of :func:`compare_laws`, by law name in the order asked."""
+    scenario: Scenario
+    runs: dict[str, LawRun]
+
+    @property
+    def converged(self) -> bool:
+        return all(r.verdict == "converged" for r in self.runs.values())
+
+    def summary(self) -> dict:
+        return {"scenario": scenario_to_dict(self.scenario),
+                "laws": {name: run.as_dict() for name, run in self.runs.items()}}
+
+
+def with_law(scenario: Scenario, name: str) -> Scenario:
+    """``scenario`` run with law ``name``: its own parameters if it is the
+    scenario's law, the law's documented defaults otherwise."""
+    law = get_law(name)
+    if scenario.controller.law.kind == name:
+        return scenario
+    ctl = scenario.controller.model_copy(update={"law": law.parameters()})
+    return scenario.model_copy(update={"controller": ctl})
+
+
+def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None = None, *,
+                 max_steps: int | None = None) -> Comparison:
+    """Run ``scenario`` once per law (default: every registered law).
+
+    Returns a :class:`Comparison`; a law whose run diverges is kept with
+    ``error`` set rather than raising. Unknown law names raise ValueError
+    naming them before anything runs."""
+    names = list(laws()) if names is None else list(names)
+    for n in names:
+        get_law(n)
+    if len(set(names)) != len(names):
+        raise ValueError(f"--laws: a law is listed twice ({', '.join(names)})")
+    check_run_size(scenario, max_steps)
+    runs = {}
+    for n in names:
+        sc = with_law(scenario, n)
+        try:
+            res = Simulator(sc).run(sc, max_steps=max_steps)
+        except SimulationError as exc:
+            runs[n] = LawRun(n, sc, None, [], str(exc))
+            continue
+        runs[n] = LawRun(n, sc, res, segment_metrics(res))
+    return Comparison(scenario, runs)
+
+
+def format_comparison(cmp: Comparison) -> str:
+    """One table, law x segment: steady-state error (max over the last
+    quarter), peak, settling to 0.01 N, tangential RMS, verdict."""
+    head = (f"{'law':<17} {'seg':>3} {'k_e (N/m)':>10} {'ss err (N)':>10} {'peak (N)':>9} "
+            f"{'settle 10 mN (s)':>16} {'tang RMS (mm)':>13}  verdict")
+    rows = [head, "-" * len(head)]
+    for name, run in cmp.runs.items():
+        if run.result is None:
+            rows.append(f"{name:<17} {'-':>3} {'':>10} {'':>10} {'':>9} {'':>16} {'':>13}  diverged: {run.error}")
+            continue
+        for i, s in enumerate(run.segments, 1):
+            settle = f"{s.settling_time_10mN:.3f}" if np.isfinite(s.settling_time_10mN) else "never"
+            rows.append(f"{name if i == 1 else '':<17} {i:>3} {s.stiffness:>10.4g} {s.steady_state_error:>10.2e} "
+                        f"{s.peak_force:>9.2f} {settle:>16} {s.tangential_rms * 1e3:>13.4f}  {s.verdict}")
+    return "\n".join(rows)
+
+
+def save_comparison(cmp: Comparison, folder: str | pathlib.Path, plots: bool = True) -> dict:
+    """Write ``summary.json``, ``<law>/timeseries.csv`` and (``plots``) the
+    overlay figures into ``folder``; return the summary."""
+    from ..files import versions, write_json
+    from .output import write_timeseries
+
+    folder = pathlib.Path(folder)
+    summary = cmp.summary()
+    summary["versions"] = versions()
+    for name, run in cmp.runs.items():
+        if run.result is not None:
+            (folder / name).mkdir()
+            write_timeseries(run.result, folder / name / "timeseries.csv")
+            summary["laws"][name]["timeseries"] = f"{name}/timeseries.csv"
+    if plots:
+        from .figures import save_comparison_figures
+
+        summary["figures"] = [p.name for p in save_comparison_figures(cmp, folder)]
+    write_json(folder / "summary.json", summary)
+    return summary
