@@ -10,6 +10,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCRIPTS = {
     "paper_figures.py": ["--cycles", "0.5"],
     "damping_comparison.py": ["--cycles", "0.5"],
+    "law_comparison.py": ["--cycles", "0.25"],
 }
 
 

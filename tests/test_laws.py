@@ -226,3 +226,20 @@ def test_compare_bad_laws_exit_2(tmp_path, laws_arg, msg):
                         str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 2 and msg in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_docs_comparison_tables_are_the_generated_ones(compared):
+    """docs/choosing-a-law.md shows the table analysis/law_comparison.py wrote,
+    and its paper numbers are today's (2 significant digits, as printed)."""
+    root = pathlib.Path(__file__).parents[1]
+    table = (root / "docs" / "figures" / "law-comparison" / "table.md").read_text()
+    page = (root / "docs" / "choosing-a-law.md").read_text()
+    for block in table.split("###")[1:]:
+        rows = [line for line in block.splitlines() if line.startswith("| `")]
+        assert rows and all(row in page for row in rows)
+    _, out = compared
+    summary = json.loads((out / "summary.json").read_text())
+    paper = table.split("###")[1]
+    for name, entry in summary["laws"].items():
+        cells = " | ".join(f"{s['steady_state_error']:.2g} N" for s in entry["segments"])
+        assert f"| `{name}` | {cells} |" in paper, name
