@@ -9,8 +9,15 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
+    """A compile cache private to this test run, shared by its xdist workers
+    (the cache's atomic, verified writes make sharing safe), so each law's
+    step is compiled once per run rather than once per worker."""
     old = os.environ.get("TMTCONTROL_CACHE")
-    os.environ["TMTCONTROL_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    cache = shared / "tmtcontrol-cache"
+    cache.mkdir(exist_ok=True)
+    os.environ["TMTCONTROL_CACHE"] = str(cache)
     yield
     if old is None:
         os.environ.pop("TMTCONTROL_CACHE", None)

@@ -62,31 +62,41 @@ def _cached_lib(folder):
     return next(p for p in folder.iterdir() if p.suffix == ".so")
 
 
-@pytest.mark.parametrize("damage", ["truncate_4096", "truncate_0", "flip_byte"])
-def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage):
-    # as in real life, the damage (a crash or a full disk during a write) is met by a new process
+def _simulate_in(tmp, cache, name):
     import os
     import subprocess
     import sys
 
-    env = {**os.environ, "TMTCONTROL_CACHE": str(tmp_path / "cache")}
+    env = {**os.environ, "TMTCONTROL_CACHE": str(cache)}
+    return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
+                           str(tmp / name), "--set", "trajectory.cycles=0.05"],
+                          capture_output=True, text=True, env=env)
 
-    def simulate(name):
-        return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
-                               str(tmp_path / name), "--set", "trajectory.cycles=0.05"],
-                              capture_output=True, text=True, env=env)
 
-    first = simulate("a")
+@pytest.fixture(scope="module")
+def first_compile(tmp_path_factory):
+    """One fresh process compiling into an empty cache; the damage tests copy it."""
+    tmp = tmp_path_factory.mktemp("first")
+    first = _simulate_in(tmp, tmp / "cache", "a")
     assert first.returncode == 0 and "(compiled)" in first.stdout, first.stderr
+    return tmp
+
+
+@pytest.mark.parametrize("damage", ["truncate_4096", "truncate_0", "flip_byte"])
+def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage, first_compile):
+    # as in real life, the damage (a crash or a full disk during a write) is met by a new process
+    import shutil
+
+    shutil.copytree(first_compile / "cache", tmp_path / "cache")
     lib = _cached_lib(tmp_path / "cache")
     data = lib.read_bytes()
     lib.write_bytes({"truncate_4096": data[:4096], "truncate_0": b"",
                      "flip_byte": data[:100] + bytes([data[100] ^ 0xFF]) + data[101:]}[damage])
-    second = simulate("b")
+    second = _simulate_in(tmp_path, tmp_path / "cache", "b")
     assert second.returncode == 0, second.stderr           # no SIGBUS (exit 135), no traceback
     assert "is damaged; rebuilding it" in second.stderr and "(rebuilt)" in second.stdout
-    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
-    third = simulate("c")
+    assert (first_compile / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+    third = _simulate_in(tmp_path, tmp_path / "cache", "c")
     assert third.returncode == 0 and "(cached)" in third.stdout and third.stderr == ""
 
 

@@ -51,7 +51,7 @@ def test_optimum_is_constrained_and_beats_baseline(optimum):
     assert r.sampled_limit > 2 * SPEC.k_e_max
 
 
-@pytest.mark.parametrize("b0", [10.0, 60.0, 1000.0, 4000.0])
+@pytest.mark.parametrize("b0", [10.0, 1000.0])       # below and far above the optimum (~196 N s/m)
 def test_same_optimum_from_several_starts(optimum, b0):
     r = design_impedance(SPEC, b0=b0)
     assert r.b == pytest.approx(optimum.b, rel=1e-6)

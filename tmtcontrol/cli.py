@@ -336,9 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import threading
 
-    from .files import Interrupted, install_signal_handlers
-    from .simulation.simulator import SimulationError
-    from .stability.design import DesignInfeasible
+    from .files import Interrupted, VerdictFailed, install_signal_handlers
 
     parser = build_parser()
     previous = None
@@ -361,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)
         return 130
-    except (SimulationError, DesignInfeasible) as exc:   # computed verdicts: exit 1
+    except VerdictFailed as exc:   # computed verdicts (diverged simulation, infeasible design): exit 1
         print(f"error: {exc}", file=sys.stderr)
         return 1
     finally:

@@ -29,7 +29,7 @@ import tempfile
 
 import numpy as np
 
-__all__ = ["MANIFEST", "OutputError", "OutputFolder", "Interrupted", "install_signal_handlers",
+__all__ = ["MANIFEST", "OutputError", "OutputFolder", "Interrupted", "VerdictFailed", "install_signal_handlers",
            "check_interrupt", "versions", "jsonable", "write_json"]
 
 MANIFEST = ".tmtcontrol-output.json"
@@ -38,6 +38,13 @@ MANIFEST = ".tmtcontrol-output.json"
 
 class OutputError(ValueError):
     """An output target that cannot or must not be written; names the flag."""
+
+
+class VerdictFailed(RuntimeError):
+    """A computed verdict failed (a diverged simulation, an infeasible
+    design): the CLI prints the message on one line and exits 1. Lives here,
+    with the other exit-code exceptions, so the CLI can catch it without
+    importing the analysis stack."""
 
 
 class Interrupted(KeyboardInterrupt):
@@ -163,9 +170,12 @@ class OutputFolder:
         """Write the manifest and rename the staging folder onto the target.
 
         Another process may commit the same target at the same moment: the
-        target is re-checked and moved aside before each rename attempt."""
+        target is re-checked and moved aside before each rename attempt.
+        A signal that arrived meanwhile (even one a compiled library
+        swallowed) stops the commit: an interrupted run is never a result."""
         from . import __version__
 
+        check_interrupt()
         files = sorted(_listing(self.path))
         (self.path / MANIFEST).write_text(json.dumps(
             {"written_by": "tmtcontrol", "version": __version__, "command": command or " ".join(sys.argv),

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..files import VerdictFailed, check_interrupt
 from ..control.laws import get_law
 from .closedloop import INPUT, LOG, build_step, controller_model, param_layout, state_layout
 from .rollout import Rollout
@@ -57,7 +58,7 @@ def check_run_size(scenario: Scenario, max_steps: int | None = None) -> int:
     return int(round(steps))
 
 
-class SimulationError(RuntimeError):
+class SimulationError(VerdictFailed):
     """The simulation diverged (non-finite or runaway state)."""
 
 
@@ -206,6 +207,7 @@ class Simulator:
         inputs, params, s0, t = self._inputs(sc, path)
         t0 = time.perf_counter()
         S, L = self.rollout.run(s0, inputs, params)
+        check_interrupt()            # CasADi may swallow Ctrl-C inside a long evaluation
         run_time = time.perf_counter() - t0
         self._check_finite(S, L, t)
         return self._result(sc, t, L, inputs, path,

@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import solve_continuous_lyapunov
 
+from ..files import VerdictFailed
 from .continuous import AnalysisError, _pos
 from .sampled import spectral_radius
 
@@ -47,7 +48,7 @@ class DesignError(ValueError):
     """Invalid design specification (the message names the parameter)."""
 
 
-class DesignInfeasible(RuntimeError):
+class DesignInfeasible(VerdictFailed):
     """A valid specification that no design in the bounds meets (the message
     names the binding constraint); or the solver failed."""
 
