@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..control.laws import Law, laws
-from ..stability.lawloop import continuous_limit, law_loop
+from ..stability.lawloop import continuous_limit, law_loop, stiffness_sequence
 from .derivations import CheckResult
 
 __all__ = ["law_checks", "run_law_checks", "PAPER_STIFFNESS", "CHECK_M_P"]
@@ -75,22 +75,16 @@ def _tracking(law: Law) -> CheckResult:
     claim = ("from contact at rest, |f_e - claim| <= 0.01 N at the end of every 4 s segment"
              + ("; spectral radius < 1 at each equilibrium" if law.linear_analysis else ""))
     params = law.parameters()
+    kw = dict(**_IMPEDANCE, Ts=1e-3, m_p=CHECK_M_P, f_d=10.0)
     worst, rho_max = 0.0, 0.0
     try:
-        z = None
-        for k_e in PAPER_STIFFNESS:
-            lp = law_loop(law, params, **_IMPEDANCE, k_e=k_e, Ts=1e-3, m_p=CHECK_M_P, f_d=10.0)
-            if z is None:
-                z = np.zeros(lp.z_eq.size)
-                z[3:3 + len(law.states)] = law.initial_state(params)
-            with np.errstate(all="ignore"):
-                Z, F = lp.simulate(z, 4000)
-            z = Z[-1]
+        forces = stiffness_sequence(law, params, PAPER_STIFFNESS, 4.0, **kw)
+        for k_e, F in zip(PAPER_STIFFNESS, forces):
             want = law.steady_force(params, 10.0, _IMPEDANCE["k"], k_e, 0.0) if law.steady_force else 10.0
             err = abs(F[-1] - want)
             worst = max(worst, err if np.isfinite(err) else np.inf)
             if law.linear_analysis:
-                rho_max = max(rho_max, lp.spectral_radius)
+                rho_max = max(rho_max, law_loop(law, params, k_e=k_e, **kw).spectral_radius)
     except Exception as exc:
         return _fail(name, eq, claim, exc)
     ok = worst <= TRACK_TOL and (rho_max < 1.0 or not law.linear_analysis)

@@ -4,7 +4,7 @@ sampled-data loop (:mod:`.sampled`; any law's: :mod:`.lawloop`), one-call analys
 
 from .analysis import (analysis_kwargs, analyze, format_analysis, paper_effective_mass, scenario_parameters,
                        scenario_stiffness_limit)
-from .lawloop import LawLoop, continuous_limit, law_loop, law_stiffness_limit
+from .lawloop import LawLoop, continuous_limit, law_loop, law_stiffness_limit, stiffness_sequence
 from .continuous import (AnalysisError, ContinuousAnalysis, RangeAnalysis, analyze_continuous, analyze_range,
                          bibo_stable, critical_damping, damping_for_range, damping_ratio, internally_stable,
                          minimal_realization, stiffness_sweep, tmt_error_ss, tmt_error_tf, x_e_error_force)
@@ -19,5 +19,5 @@ __all__ = [
     "spectral_radius", "max_stable_stiffness", "stability_region", "switch_response",
     "effective_mass", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
     "format_analysis", "scenario_stiffness_limit", "LawLoop", "law_loop", "law_stiffness_limit",
-    "continuous_limit",
+    "continuous_limit", "stiffness_sequence",
 ]

@@ -35,8 +35,9 @@ import numpy as np
 
 from ..control.laws import MEASUREMENTS, Law, LawParameters
 from .continuous import AnalysisError, _pos
+from .sampled import _zoh
 
-__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "continuous_limit"]
+__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "continuous_limit", "stiffness_sequence"]
 
 
 @dataclass(frozen=True)
@@ -68,20 +69,13 @@ class LawLoop:
     def simulate(self, z0: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Iterate the (nonlinear) map ``n`` times from ``z0``: states
         (n+1, nz) and forces (n,)."""
-        acc = self.step.mapaccum("acc", n)
-        Z, F = acc(z0)
-        Z = np.hstack([np.reshape(z0, (-1, 1)), np.array(Z)])
-        return Z.T, np.ravel(np.array(F))
+        return _iterate(self.step, z0, n)
 
 
-def _zoh(A, B, Ts):
-    from scipy.linalg import expm
-
-    n, mi = A.shape[0], B.shape[1]
-    M = np.zeros((n + mi, n + mi))
-    M[:n, :n], M[:n, n:] = A, B
-    E = expm(M * Ts)
-    return E[:n, :n], E[:n, n:]
+def _iterate(step: ca.Function, z0: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    Z, F = step.mapaccum("acc", n)(z0)
+    Z = np.hstack([np.reshape(z0, (-1, 1)), np.array(Z)])
+    return Z.T, np.ravel(np.array(F))
 
 
 def _step_function(law: Law, params: LawParameters, *, m, b, k, k_e, Ts, m_p, f_d, delta, kd, kp, alpha,
@@ -155,7 +149,7 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     guess = z0.copy()
     n = max(1, int(round(settle / Ts)))
     with np.errstate(all="ignore"):
-        Z, _ = LawLoop(law.name, k_e, Ts, delta, delay, F, names, z0, 0.0, np.eye(nz), 0.0, 0.0).simulate(z0, n)
+        Z, _ = _iterate(F, z0, n)
     if np.all(np.isfinite(Z[-1])) and np.max(np.abs(Z[-1, :2])) < 1.0:
         guess = Z[-1]
     else:
@@ -170,6 +164,25 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     rho = float(np.max(np.abs(np.linalg.eigvals(A))))
     f_eq = float(F(z_eq)[1])
     return LawLoop(law.name, k_e, Ts, delta, delay, F, names, np.ravel(z_eq), f_eq, A, rho, residual)
+
+
+def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: float, **kw) -> list[np.ndarray]:
+    """Iterate the (nonlinear) sampled loop of ``law`` from contact at rest
+    through constant stiffnesses ``k_es`` (N/m), ``duration`` seconds each
+    (the state carries over at each switch); ``kw`` as :func:`law_loop`.
+    Returns the contact force of each segment (N; NaN/inf if it blows up)."""
+    params = law.parameters() if params is None else params
+    z, out = None, []
+    for k_e in k_es:
+        lp = law_loop(law, params, k_e=k_e, **kw)
+        if z is None:
+            z = np.zeros(lp.z_eq.size)
+            z[3:3 + len(law.states)] = law.initial_state(params)
+        with np.errstate(all="ignore"):
+            Z, F = lp.simulate(z, max(1, int(round(duration / lp.Ts))))
+        z = Z[-1]
+        out.append(F)
+    return out
 
 
 def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
