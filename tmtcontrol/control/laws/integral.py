@@ -3,11 +3,9 @@
     x_r = x_e_hat + f_d/k + k_i * I,      I' = f_d - f_m,      x_r' = k_i (f_d - f_m)
 
 through the standard impedance filter of eqs. (2)-(4) (``k_i`` in m/(N s)).
-The classical remedy for an unknown stiffness (e.g. Seraji & Colbaugh,
-IJRR 16(1), 1997, "indirect" vs "direct" force tracking; Lee & Buss 2008
-discuss the same integral action through the target stiffness): whatever
-k_e and whatever error in x_e_hat, the only equilibrium of I' = 0 is
-f_m = f_d. Needs x_e only as the start of the reference (any error is
+Integral force feedback, the classical remedy for an unknown stiffness:
+whatever k_e and whatever error in x_e_hat, the only equilibrium of
+I' = 0 is f_m = f_d. Needs x_e only as the start of the reference (any error is
 integrated away); does not need k_e.
 
 With the ideal inner loop (x = x_c) and f = k_e (x - x_e) the normal-axis
