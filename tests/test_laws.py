@@ -164,7 +164,7 @@ def test_rls_needs_its_covariance_reset_at_a_stiffness_switch():
     ok = {r.name: r for r in law_checks(rls)}["rls: tracks the paper's stiffness sequence"]
     assert ok.passed and ok.residual < 1e-6
     params = rls.parameters(reset_error=1e9)
-    F = stiffness_sequence(rls, params, (5e3, 2e4), 4.0, **PAPER, Ts=1e-3, m_p=3.3)[-1]
+    _, F = stiffness_sequence(rls, params, (5e3, 2e4), 4.0, **PAPER, Ts=1e-3, m_p=3.3)[-1]
     assert not abs(F[-1] - 10.0) < 0.01
 
 

@@ -166,20 +166,17 @@ def _simulate(args) -> int:
 def _compare(args) -> int:
     from .control.laws import laws
     from .files import OutputFolder
-    from .simulation.compare import compare_laws, format_comparison, save_comparison
+    from .simulation.compare import check_law_names, compare_laws, format_comparison, save_comparison
     from .simulation.simulator import check_run_size
 
     sc = _load(args)
     if args.laws is None:
         names = list(laws())
     else:
-        names = [n.strip() for n in args.laws.split(",")]
-        unknown = [n for n in names if n not in laws()]
-        if unknown or not all(names):
-            raise UsageError(f"--laws: unknown law {', '.join(repr(n) for n in unknown) or repr('')} "
-                             f"(known: {', '.join(laws())})")
-        if len(set(names)) != len(names):
-            raise UsageError("--laws: a law is listed twice")
+        try:
+            names = check_law_names(n.strip() for n in args.laws.split(","))
+        except ValueError as exc:
+            raise UsageError(f"--laws: {exc}") from None
     check_run_size(sc, args.max_steps)
     with OutputFolder(args.out, "--out") as out:
         cmp = compare_laws(sc, names, max_steps=args.max_steps)

@@ -78,13 +78,13 @@ def _tracking(law: Law) -> CheckResult:
     kw = dict(**_IMPEDANCE, Ts=1e-3, m_p=CHECK_M_P, f_d=10.0)
     worst, rho_max = 0.0, 0.0
     try:
-        forces = stiffness_sequence(law, params, PAPER_STIFFNESS, 4.0, **kw)
-        for k_e, F in zip(PAPER_STIFFNESS, forces):
+        segments = stiffness_sequence(law, params, PAPER_STIFFNESS, 4.0, **kw)
+        for k_e, (lp, F) in zip(PAPER_STIFFNESS, segments):
             want = law.steady_force(params, 10.0, _IMPEDANCE["k"], k_e, 0.0) if law.steady_force else 10.0
             err = abs(F[-1] - want)
             worst = max(worst, err if np.isfinite(err) else np.inf)
             if law.linear_analysis:
-                rho_max = max(rho_max, law_loop(law, params, k_e=k_e, **kw).spectral_radius)
+                rho_max = max(rho_max, lp.spectral_radius)
     except Exception as exc:
         return _fail(name, eq, claim, exc)
     ok = worst <= TRACK_TOL and (rho_max < 1.0 or not law.linear_analysis)

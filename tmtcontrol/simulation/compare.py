@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..control.laws import get_law, laws
-from .metrics import SegmentMetrics, segment_metrics
+from .metrics import VERDICTS, SegmentMetrics, segment_metrics
 from .scenario import Scenario, scenario_to_dict
 from .simulator import SimulationError, SimulationResult, Simulator, check_run_size
 
-__all__ = ["LawRun", "Comparison", "compare_laws", "with_law", "save_comparison", "format_comparison"]
+__all__ = ["check_law_names", "LawRun", "Comparison", "compare_laws", "with_law", "save_comparison", "format_comparison"]
 
 
 @dataclass(frozen=True)
@@ -38,8 +38,7 @@ class LawRun:
         """``diverged`` if the run blew up, else the worst segment verdict."""
         if self.result is None:
             return "diverged"
-        order = ("converged", "limit_cycle", "diverged")
-        return max((s.verdict for s in self.segments), key=order.index, default="converged")
+        return max((s.verdict for s in self.segments), key=VERDICTS.index, default="converged")
 
     def as_dict(self) -> dict:
         return {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
@@ -71,6 +70,19 @@ def with_law(scenario: Scenario, name: str) -> Scenario:
     return scenario.model_copy(update={"controller": ctl})
 
 
+def check_law_names(names) -> list[str]:
+    """``names`` as a list if every one is a registered law, listed once;
+    else ValueError naming the offending name."""
+    names = list(names)
+    known = laws()
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"unknown law {', '.join(repr(n) for n in unknown)} (known: {', '.join(known)})")
+    if len(set(names)) != len(names):
+        raise ValueError(f"a law is listed twice ({', '.join(names)})")
+    return names
+
+
 def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None = None, *,
                  max_steps: int | None = None) -> Comparison:
     """Run ``scenario`` once per law (default: every registered law).
@@ -78,11 +90,7 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
     Returns a :class:`Comparison`; a law whose run diverges is kept with
     ``error`` set rather than raising. Unknown law names raise ValueError
     naming them before anything runs."""
-    names = list(laws()) if names is None else list(names)
-    for n in names:
-        get_law(n)
-    if len(set(names)) != len(names):
-        raise ValueError(f"--laws: a law is listed twice ({', '.join(names)})")
+    names = list(laws()) if names is None else check_law_names(names)
     check_run_size(scenario, max_steps)
     runs = {}
     for n in names:

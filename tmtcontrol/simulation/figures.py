@@ -16,7 +16,7 @@ from .simulator import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
            "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
-           "save_comparison_figures"]
+           "save_comparison_figures", "save_figures"]
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
@@ -81,16 +81,22 @@ def path_figure(res: SimulationResult) -> Figure:
     return fig
 
 
-def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -> list[pathlib.Path]:
-    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
+def save_figures(makers, data, folder: str | pathlib.Path, dpi: int = 120) -> list[pathlib.Path]:
+    """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
+    being ``make(data)``; return the paths."""
     folder = pathlib.Path(folder)
     out = []
-    for name, make in (("fig3_stiffness", stiffness_figure), ("fig4_force", force_figure),
-                       ("fig5_position", position_figure), ("path3d", path_figure)):
+    for name, make in makers:
         path = folder / f"{name}.png"
-        make(res).savefig(path, dpi=120)
+        make(data).savefig(path, dpi=dpi)
         out.append(path)
     return out
+
+
+def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -> list[pathlib.Path]:
+    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
+    return save_figures((("fig3_stiffness", stiffness_figure), ("fig4_force", force_figure),
+                         ("fig5_position", position_figure), ("path3d", path_figure)), res, folder)
 
 
 def comparison_force_figure(cmp) -> Figure:
@@ -132,10 +138,5 @@ def comparison_error_figure(cmp) -> Figure:
 
 def save_comparison_figures(cmp, folder: str | pathlib.Path) -> list[pathlib.Path]:
     """Write compare_force.png and compare_error.png."""
-    folder = pathlib.Path(folder)
-    out = []
-    for name, make in (("compare_force", comparison_force_figure), ("compare_error", comparison_error_figure)):
-        path = folder / f"{name}.png"
-        make(cmp).savefig(path, dpi=120)
-        out.append(path)
-    return out
+    return save_figures((("compare_force", comparison_force_figure), ("compare_error", comparison_error_figure)),
+                        cmp, folder)

@@ -11,6 +11,8 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..simulation.figures import save_figures
+
 __all__ = ["root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",
            "save_design_figures"]
@@ -162,10 +164,6 @@ def design_response_figure(result) -> Figure:
 
 
 def save_design_figures(result, folder) -> list[pathlib.Path]:
-    folder = pathlib.Path(folder)
-    out = []
-    for name, make in (("design_cost", design_cost_figure), ("design_responses", design_response_figure)):
-        path = folder / f"{name}.png"
-        make(result).savefig(path, dpi=110)
-        out.append(path)
-    return out
+    """Write design_cost.png and design_responses.png."""
+    return save_figures((("design_cost", design_cost_figure), ("design_responses", design_response_figure)),
+                        result, folder, dpi=110)

@@ -160,17 +160,19 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     jac = ca.Function("jacobian", [zs], [ca.jacobian(F(zs)[0] - zs, zs)])
     z_eq = _newton(res, jac, guess)
     residual = float(np.max(np.abs(np.array(res(z_eq)))))
-    A = np.array(ca.Function("A", [zs], [ca.jacobian(F(zs)[0], zs)])(z_eq))
+    A = np.array(jac(z_eq)) + np.eye(nz)                       # d(z_next)/dz = d(z_next - z)/dz + I
     rho = float(np.max(np.abs(np.linalg.eigvals(A))))
     f_eq = float(F(z_eq)[1])
     return LawLoop(law.name, k_e, Ts, delta, delay, F, names, np.ravel(z_eq), f_eq, A, rho, residual)
 
 
-def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: float, **kw) -> list[np.ndarray]:
+def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: float,
+                       **kw) -> list[tuple[LawLoop, np.ndarray]]:
     """Iterate the (nonlinear) sampled loop of ``law`` from contact at rest
     through constant stiffnesses ``k_es`` (N/m), ``duration`` seconds each
     (the state carries over at each switch); ``kw`` as :func:`law_loop`.
-    Returns the contact force of each segment (N; NaN/inf if it blows up)."""
+    Returns, per segment, its :class:`LawLoop` (equilibrium, spectral
+    radius) and contact force (N; NaN/inf if it blows up)."""
     params = law.parameters() if params is None else params
     z, out = None, []
     for k_e in k_es:
@@ -181,7 +183,7 @@ def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: f
         with np.errstate(all="ignore"):
             Z, F = lp.simulate(z, max(1, int(round(duration / lp.Ts))))
         z = Z[-1]
-        out.append(F)
+        out.append((lp, F))
     return out
 
 
