@@ -189,3 +189,25 @@ def test_functions_have_named_io(robot):
 def test_rejects_bad_friction_option():
     with pytest.raises(ValueError, match="friction"):
         Puma560(friction="yes")
+
+
+def test_closed_form_inverse_kinematics_round_trip(robot):
+    # Independent reference: the DH forward kinematics (CasADi). For random
+    # joint angles, every one of the four closed-form branches reaches fk(q)
+    # (tolerance 1e-12 m: double-precision trig on ~1 m lengths), and one of
+    # them is q itself (1e-9 rad: arccos loses digits near a stretched arm).
+    q = RNG.uniform(-math.pi, math.pi, (3, 200))
+    P = np.asarray(robot.fk.map(200)(q))
+    found = np.zeros(200, bool)
+    for shoulder in (1, -1):
+        for elbow in (1, -1):
+            Q = robot.inverse_kinematics(P, shoulder=shoulder, elbow=elbow)
+            assert Q.shape == (3, 200)
+            assert np.abs(np.asarray(robot.fk.map(200)(Q)) - P).max() < 1e-12
+            d = (Q - q + math.pi) % (2 * math.pi) - math.pi
+            found |= np.abs(d).max(axis=0) < 1e-9
+    assert found.all()
+    # one point gives one joint vector; a point beyond reach is named
+    assert robot.inverse_kinematics(P[:, 0]).shape == (3,)
+    with pytest.raises(ValueError, match=r"point \[2.0, 0.0, 0.5\] m is outside the workspace"):
+        robot.inverse_kinematics(np.array([[0.5, 2.0], [0.0, 0.0], [0.5, 0.5]]))

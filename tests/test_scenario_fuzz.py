@@ -72,6 +72,7 @@ def _short(**changes):
 @given(corrupted())
 @example(_short(controller__f_d=3))                       # valid: must run
 @example(_short(controller__f_d="3"))                     # invalid: must be exit 2 naming the key
+@example({**_short(), "name": {"kind": "zzz"}})              # a table where a string belongs: exit 2
 @example(_short(sensor__noise_std=112.0))                 # runs, does not converge: outputs, then exit 1
 def test_corrupted_scenarios_run_or_fail_cleanly(data):
     with tempfile.TemporaryDirectory() as tmp:

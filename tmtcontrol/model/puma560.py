@@ -227,25 +227,44 @@ class Puma560:
         self.energy = ca.Function("energy", [q, dq], [0.5 * ca.dot(dq, M @ dq), V],
                                   ["q", "dq"], ["T", "V"])
 
-    def inverse_kinematics(self, p, q0=(0.0, -0.6, 0.4), tol: float = 1e-12,
-                           max_iter: int = 100):
-        """Joint angles placing the wrist centre at ``p`` (m), by damped Newton
-        iterations from ``q0`` (rad; the default is elbow-up, in front of the
-        base). Raises ``ValueError`` when ``p`` is not reached to ``tol``."""
+    def inverse_kinematics(self, p, shoulder: int = 1, elbow: int = 1):
+        """Joint angles (rad) placing the wrist centre at ``p`` (m), in closed form.
+
+        ``p`` is one point (3,) or a path (3, n); the result has the same shape.
+        The wrist centre lies at the lateral offset ``d3`` (link 3's DH d) from
+        the vertical plane of the upper arm and forearm, which gives
+        ``px sin q1 - py cos q1 = d3`` for q1; the arm in that plane is a
+        two-link arm of lengths ``a2`` and ``sqrt(a3^2 + d4^2)``. ``shoulder``
+        and ``elbow`` (+1 or -1) choose among the four solutions; the default
+        (+1, +1) is the posture of the paper's path (upper arm raised in front
+        of the base, q2 < 0 < q3). Raises ``ValueError`` naming the first
+        unreachable point."""
         import numpy as np
 
-        target = np.asarray(p, dtype=float).ravel()
-        q = np.asarray(q0, dtype=float).ravel().copy()
-        for _ in range(max_iter):
-            err = target - np.asarray(self.fk(q)).ravel()
-            if np.linalg.norm(err) < tol:
-                return q
-            J = np.asarray(self.jacobian(q))
-            # Levenberg-Marquardt step: well defined near singularities
-            lam = 1e-9 + 1e-3 * min(np.linalg.norm(err), 1.0)
-            q = q + np.linalg.solve(J.T @ J + lam * np.eye(3), J.T @ err)
-        raise ValueError(f"inverse kinematics: point {target.tolist()} not reached "
-                         f"(residual {np.linalg.norm(err):.3g} m); is it outside the workspace?")
+        if shoulder not in (1, -1) or elbow not in (1, -1):
+            raise ValueError(f"shoulder, elbow: expected +1 or -1, got {shoulder!r}, {elbow!r}")
+        P = np.asarray(p, dtype=float)
+        pts = P.reshape(3, -1)
+        px, py, pz = pts
+        l1, l2, l3 = self.links
+        d1, a2, d3, a3, d4 = l1.d, l2.a, l3.d, l3.a, WRIST_OFFSET
+        r = np.hypot(px, py)
+        lw, psi = math.hypot(a3, d4), math.atan2(d4, a3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.arcsin(d3 / r)
+            q1 = np.arctan2(py, px) + (s if shoulder > 0 else np.pi - s)
+            x = np.cos(q1) * px + np.sin(q1) * py
+            y = pz - d1
+            cb = (x * x + y * y - a2 * a2 - lw * lw) / (2 * a2 * lw)
+        bad = ~(np.isfinite(q1) & (np.abs(cb) <= 1.0))
+        if bad.any():
+            target = np.round(pts[:, int(np.argmax(bad))], 4)
+            raise ValueError(f"point {target.tolist()} m is outside the workspace")
+        beta = elbow * np.arccos(cb)
+        q2 = np.arctan2(y, x) - np.arctan2(lw * np.sin(beta), a2 + lw * np.cos(beta))
+        q = np.vstack([q1, q2, beta - psi])
+        q = (q + np.pi) % (2 * np.pi) - np.pi
+        return q.reshape(P.shape)
 
     # -- derivation helpers ------------------------------------------------
     def _frames(self, q):

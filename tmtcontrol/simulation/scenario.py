@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import math
 import pathlib
+import re
 import tomllib
 from typing import Annotated, Any, Literal, Union
 
@@ -497,6 +498,11 @@ def scenario_to_dict(scenario: Scenario) -> dict:
     return conv(scenario.model_dump())
 
 
+def _toml_key(k) -> str:
+    k = str(k)
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml_value(k)
+
+
 def _toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -508,6 +514,8 @@ def _toml_value(v) -> str:
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, list):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):      # an inline table (a value where the schema wants a table, or a wrong one)
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(f"cannot write {v!r} as TOML")
 
 

@@ -81,27 +81,24 @@ def _structure(scenario: Scenario):
 
 
 def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
-    """Inverse kinematics around the circle; raises :class:`ScenarioError` if a
-    point is unreachable or the Jacobian is near-singular (cond > 100)."""
+    """Inverse kinematics around the circle (closed form, the default
+    branch); raises :class:`ScenarioError` if a point is unreachable or the
+    Jacobian is near-singular (cond > 100)."""
     tr = scenario.trajectory
     R = task_frame(scenario.environment.tilt_deg)
     ref = circle_reference(np.linspace(0, tr.period, n), tr.radius, tr.period)
-    qs, conds = [], []
-    q = np.array([0.0, -0.6, 0.4])
-    for k in range(n):
-        p = np.asarray(tr.center) + R @ np.r_[0.0, ref.pos[:, k]]
-        try:
-            q = robot.inverse_kinematics(p, q0=q)
-        except ValueError:
-            raise ScenarioError(f"trajectory: point {np.round(p, 4).tolist()} m of the circle is "
-                                "outside the workspace (unreachable path)") from None
-        c = float(robot.condition_number(q))
-        if not c < MAX_CONDITION:
-            raise ScenarioError(f"trajectory: the path passes near a singularity (Jacobian "
-                                f"condition number {c:.3g} > {MAX_CONDITION:g} at {np.round(p, 4).tolist()} m)")
-        qs.append(q)
-        conds.append(c)
-    return PathReport(np.array(qs).T, np.array(conds))
+    P = np.asarray(tr.center)[:, None] + R @ np.vstack([np.zeros(n), ref.pos])
+    try:
+        q = robot.inverse_kinematics(P)
+    except ValueError as exc:
+        raise ScenarioError(f"trajectory: unreachable path ({exc})") from None
+    conds = np.asarray(robot.condition_number.map(n)(q)).ravel()
+    k = int(np.argmax(~(conds < MAX_CONDITION)))
+    if not conds[k] < MAX_CONDITION:
+        raise ScenarioError(f"trajectory: the path passes near a singularity (Jacobian "
+                            f"condition number {conds[k]:.3g} > {MAX_CONDITION:g} at "
+                            f"{np.round(P[:, k], 4).tolist()} m)")
+    return PathReport(q, conds)
 
 
 _PATHS: dict = {}

@@ -15,9 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import control as ct
 import numpy as np
+
+if TYPE_CHECKING:  # python-control takes 1.4 s to import: functions import it when called
+    import control as ct
 
 __all__ = [
     "AnalysisError", "ContinuousAnalysis", "minimal_realization", "bibo_stable",
@@ -54,12 +57,14 @@ def _check(m, b, k, k_e=None, f_d=None):
 
 def tmt_error_tf(m, b, k, k_e) -> ct.TransferFunction:
     """Eq. (22) as the transfer function f_d -> f_e, ``(k+k_e)/(m s^2 + b s + k + k_e)``."""
+    import control as ct
     _check(m, b, k, k_e)
     return ct.tf([k + k_e], [m, b, k + k_e], inputs="f_d", outputs="f_e")
 
 
 def tmt_error_ss(m, b, k, k_e) -> ct.StateSpace:
     """Eq. (22) in state space: state (e, e'), input f_d, output f_e = -k_e e."""
+    import control as ct
     _check(m, b, k, k_e)
     A = [[0.0, 1.0], [-(k + k_e) / m, -b / m]]
     B = [[0.0], [-(k + k_e) / (k_e * m)]]
@@ -115,6 +120,7 @@ def minimal_realization(sys: ct.LTI, tol: float = 1e-9) -> ct.StateSpace:
     on the controllable subspace, then on the orthogonal complement of the
     unobservable subspace (both are A-invariant, so the projections are
     exact)."""
+    import control as ct
     S = ct.ss(sys)
     A, B, C, D = (np.asarray(M, dtype=float) for M in (S.A, S.B, S.C, S.D))
     n = A.shape[0]
@@ -150,12 +156,14 @@ def bibo_stable(sys: ct.LTI) -> bool:
     mode that the input reaches and the output sees. Modes that are exactly
     uncontrollable or unobservable do not affect BIBO stability; see
     :func:`internally_stable` for those."""
+    import control as ct
     red = minimal_realization(sys)
     return _stable_eigs(np.linalg.eigvals(red.A), ct.ss(sys).isdtime()) if red.nstates else True
 
 
 def internally_stable(sys: ct.LTI) -> bool:
     """Every eigenvalue of the (non-reduced) state matrix is stable."""
+    import control as ct
     S = ct.ss(sys)
     return _stable_eigs(np.linalg.eigvals(S.A), S.isdtime()) if S.nstates else True
 
@@ -163,6 +171,7 @@ def internally_stable(sys: ct.LTI) -> bool:
 def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
     """Poles, natural frequency, damping, BIBO verdict, steady state and step
     metrics of eq. (22) at one stiffness."""
+    import control as ct
     _check(m, b, k, k_e, f_d)
     G = tmt_error_tf(m, b, k, k_e)
     S = tmt_error_ss(m, b, k, k_e)
@@ -238,6 +247,7 @@ def stiffness_sweep(m, b, k, k_e: np.ndarray) -> dict:
     The characteristic polynomial ``m s^2 + b s + k + k_e`` is
     ``1 + k_e L(s)`` with ``L = 1/(m s^2 + b s + k)``, so python-control's
     :func:`control.root_locus_map` of L gives the locus."""
+    import control as ct
     _check(m, b, k)
     k_e = np.asarray(k_e, dtype=float)
     L = ct.tf([1.0], [m, b, k])

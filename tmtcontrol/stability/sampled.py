@@ -18,12 +18,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import control as ct
 import numpy as np
 from scipy.linalg import expm
 
 from .continuous import AnalysisError, _check, _pos
+
+if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of SampledModel.sys
+    import control as ct
 
 __all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
            "max_stable_stiffness", "stability_region", "switch_response"]
@@ -44,9 +47,18 @@ class SampledModel:
     input f_d (N) and output the contact force f_e (N)."""
     Ts: float
     k_e: float
-    sys: ct.StateSpace
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
     spectral_radius: float
     params: dict = field(default_factory=dict)
+
+    @property
+    def sys(self) -> ct.StateSpace:
+        import control as ct
+
+        return ct.ss(self.A, self.B, self.C, [[0.0]], self.Ts, inputs="f_d", outputs="f_e",
+                     states=["x", "dx", "xa", "dxa", "f_m"])
 
     @property
     def stable(self) -> bool:
@@ -114,10 +126,8 @@ def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alph
     Bd[:4, 0] = Gam @ np.array([U_fd, 0.0])
     Ad[4] = fm
     C = np.array([[k_e, d_e, 0, 0, 0]])
-    sys = ct.ss(Ad, Bd, C, [[0.0]], Ts, inputs="f_d", outputs="f_e",
-                states=["x", "dx", "xa", "dxa", "f_m"])
     rho = float(np.max(np.abs(np.linalg.eigvals(Ad))))
-    return SampledModel(Ts, k_e, sys, rho, {"m": m, "b": b, "k": k, "m_p": m_p, "kd": kd, "kp": kp,
+    return SampledModel(Ts, k_e, Ad, Bd, C, rho, {"m": m, "b": b, "k": k, "m_p": m_p, "kd": kd, "kp": kp,
                                              "law": law, "alpha": alpha, "d_e": d_e})
 
 
@@ -166,7 +176,7 @@ def switch_response(m, b, k, k_old, k_new, Ts, m_p, f_d=10.0, duration=4.0, **kw
     linear prediction went below zero force, where the unilateral contact
     makes it invalid)."""
     model = sampled_closed_loop(m, b, k, k_new, Ts, m_p, **kw)
-    A, C = model.sys.A, model.sys.C
+    A, C = model.A, model.C
     # equilibrium for k_new (deviation origin) and the old state
     x_new, x_old = f_d / k_new, f_d / k_old
     # deviations from the new equilibrium; the force filter had converged to
