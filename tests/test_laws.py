@@ -93,6 +93,22 @@ def test_broken_steady_state_claim_fails():
     assert "known: steady state" in failed
 
 
+def test_x_e_error_polynomial_is_checked_on_the_running_code():
+    # The TMT polynomial with a surface-location error delta is
+    # m(1-c) s^2 + b(1-c) s + k_e + k(1-c), c = delta k_e/f_d (the stiffness changes by at most k).
+    # Declaring plain eq. (22), which ignores delta, must fail the check; so must the
+    # formula "k_e + k(1 - c) with m, b unchanged".
+    from tmtcontrol.control.laws.tmt import eq22_polynomial, tmt_polynomial
+
+    assert tmt_polynomial(None, 1.0, 60.0, 100.0, 1e4, 10.0, 0.0) == [1.0, 60.0, 1e4 + 100.0]
+    tmt = get_law("tmt")
+    name = "tmt: characteristic polynomial"
+    for wrong in (eq22_polynomial, lambda p, m, b, k, k_e, f_d, delta: [m, b, k_e + k * (1 - delta * k_e / f_d)]):
+        results = {r.name: r for r in law_checks(tmt.replace(characteristic_polynomial=wrong))}
+        assert not results[name].passed
+    assert {r.name: r for r in law_checks(tmt)}[name].passed
+
+
 def test_generic_sampled_loop_matches_the_closed_form_tmt_model():
     # two independent implementations of the same sampled loop: the hand-written
     # 1-D model (stability.sampled) and the law's own CasADi update (stability.lawloop);

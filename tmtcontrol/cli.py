@@ -86,6 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ts", type=float, help="control period, s: adds the sampled-data analysis")
     p.add_argument("--mp", type=float, help="robot's effective mass along the normal, kg, with --ts "
                    "(default: both extremes along the paper path)")
+    p.add_argument("--delay", type=int, help="computation delay, samples, with --ts (default 0)")
+    p.add_argument("--x-e-error", type=float, help="surface-location error, m: the controller's estimate minus "
+                   "the true surface (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures to DIR")
     p.set_defaults(func=_analyze)
@@ -144,7 +147,7 @@ def _load(args):
 
 def _simulate(args) -> int:
     from .files import OutputFolder
-    from .simulation.metrics import format_table, segment_metrics
+    from .simulation.metrics import first_contact, format_table, segment_metrics
     from .simulation.output import save_simulation
     from .simulation.simulator import Simulator, check_run_size
 
@@ -159,6 +162,12 @@ def _simulate(args) -> int:
           f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
     segs = segment_metrics(res)
     print(format_table(segs))
+    fc = first_contact(res)
+    if fc.time is None:
+        print("first contact: never (the run does not touch the surface)")
+    else:
+        print(f"first contact at {fc.time:.3f} s: peak {fc.peak_force:.2f} N = {fc.peak_ratio:.2f} f_d, "
+              f"{fc.bounces} bounce(s) in the next second")
     print(f"wrote {out.out}/")
     return _verdict_exit(sc, segs)
 
@@ -214,15 +223,17 @@ def _analyze(args) -> int:
     import json
 
     from .files import OutputFolder, jsonable
-    from .stability import analysis_kwargs, analyze, format_analysis, scenario_parameters
+    from .stability import analyze, analyze_scenario, format_analysis
 
+    flags = ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp", "delay", "x_e_error")
     if args.scenario:
         from .simulation.scenario import load_scenario
 
-        for flag in ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp"):
+        for flag in flags:
             if getattr(args, flag) is not None:
-                raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario")
-        kw = analysis_kwargs(scenario_parameters(load_scenario(args.scenario)))
+                raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario (set it in the scenario)")
+        sc = load_scenario(args.scenario)
+        run = lambda: analyze_scenario(sc)
     else:
         for flag in ("m", "b", "k"):
             if getattr(args, flag) is None:
@@ -231,14 +242,19 @@ def _analyze(args) -> int:
             raise UsageError("--ke: give either --ke or --ke-min/--ke-max, not both")
         if args.ke is None and (args.ke_min is None or args.ke_max is None):
             raise UsageError("--ke: required (or both --ke-min and --ke-max)")
-        if args.mp is not None and args.ts is None:
-            raise UsageError("--mp: only used by the sampled-data analysis; give --ts too")
+        for flag in ("mp", "delay"):
+            if getattr(args, flag) is not None and args.ts is None:
+                raise UsageError(f"--{flag}: only used by the sampled-data analysis; give --ts too")
+        if args.delay is not None and args.delay < 0:
+            raise UsageError(f"--delay: must be an integer >= 0 samples, got {args.delay}")
         kw = dict(m=args.m, b=args.b, k=args.k, f_d=10.0 if args.fd is None else args.fd,
-                  Ts=args.ts, m_p=args.mp)
+                  Ts=args.ts, m_p=args.mp, delay=args.delay or 0,
+                  x_e_error=0.0 if args.x_e_error is None else args.x_e_error)
         kw.update(dict(k_e=args.ke) if args.ke is not None else dict(k_e_min=args.ke_min, k_e_max=args.ke_max))
+        run = lambda: analyze(**kw)
     out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
     with out if out is not None else contextlib.nullcontext():
-        result = analyze(**kw)
+        result = run()
         if out is not None:
             from .stability.figures import save_analysis_figures
 

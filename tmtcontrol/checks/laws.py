@@ -97,15 +97,18 @@ def _polynomial(law: Law, rng) -> CheckResult | None:
     if law.characteristic_polynomial is None:
         return None
     name, eq = f"{law.name}: characteristic polynomial", "law"
-    claim = "the ideal-inner-loop linearisation of the update has the documented polynomial"
+    claim = ("the ideal-inner-loop linearisation of the update has the documented polynomial, "
+             "with and without a surface-location error")
     params = law.parameters()
     res = 0.0
     try:
-        for _ in range(5):
+        for i in range(6):
             m, b, k = rng.uniform(0.5, 5), rng.uniform(10, 200), rng.uniform(10, 1000)
-            k_e = 10 ** rng.uniform(3, 5)
-            A, _ = continuous_limit(law, params, m=m, b=b, k=k, k_e=k_e)
-            want = np.asarray(law.characteristic_polynomial(params, m, b, k, k_e), dtype=float)
+            k_e, f_d = 10 ** rng.uniform(3, 5), rng.uniform(1, 50)
+            # delta from 5 mm-scale errors towards the robot up to 0.9 of the penetration f_d/k_e
+            delta = 0.0 if i < 3 else rng.uniform(-5.0, 0.9) * f_d / k_e
+            A, _ = continuous_limit(law, params, m=m, b=b, k=k, k_e=k_e, f_d=f_d, delta=delta)
+            want = np.asarray(law.characteristic_polynomial(params, m, b, k, k_e, f_d, delta), dtype=float)
             want = want / want[0]
             got = np.real(np.poly(A))
             if got.size != want.size:
@@ -114,8 +117,9 @@ def _polynomial(law: Law, rng) -> CheckResult | None:
             res = max(res, float(np.max(np.abs(got - want) / np.abs(want))))
     except Exception as exc:
         return _fail(name, eq, claim, exc)
-    return CheckResult(name, eq, claim, "d(update)/dTs at Ts = 0 with x = x_c, linearised, at 5 random "
-                       "(m, b, k, k_e); coefficientwise", res, bool(res <= 1e-9), 1e-9)
+    return CheckResult(name, eq, claim, "d(update)/dTs at Ts = 0 with x = x_c, linearised, at 6 random "
+                       "(m, b, k, k_e, f_d), 3 with a random x_e error delta; coefficientwise (monic)",
+                       res, bool(res <= 1e-9), 1e-9)
 
 
 def law_checks(law: Law, seed: int = 2024) -> list[CheckResult]:

@@ -10,6 +10,21 @@ adjustment is zero and their command is the circle itself. The torque is then
 held (zero-order hold) while a CasADi integrator advances the continuous
 plant, eq. (1) in joint space with the unilateral contact.
 
+Two things real controllers have are part of the loop (beyond the paper):
+
+* a computation delay of N samples (``delay``, structural): the torque
+  computed at t_k is applied over [t_(k+N), t_(k+N+1)); the state carries
+  the N torques computed but not yet applied;
+* a guarded approach (first contact from a gap above the surface): while
+  ``approach`` is 1 the normal command advances toward the surface at the
+  approach speed, x_c = x_app, dx_c = v, ddx_c = 0, and the law's state is
+  held. When the measured force exceeds the contact threshold the surface
+  estimate becomes the contact point (plus the configured x_e error), and
+  the law takes over with its desired force ramped from 0 to f_d over the
+  force ramp. With f_d = 0 every law's command is the surface estimate, so
+  the hand-over has no jump in position. Starting on the surface
+  (``approach`` = 0, ramp = 1) is the paper's loop, unchanged.
+
 :func:`build_step` returns ``step: ["s", "u", "p"] -> ["s_next", "log"]``,
 whose vectors are laid out by :func:`state_layout`, :data:`INPUT`,
 :func:`param_layout` and :data:`LOG`. Numeric settings (gains, f_d, law
@@ -58,10 +73,15 @@ class Layout:
         return out
 
 
-def state_layout(law: Law) -> Layout:
+def state_layout(law: Law, delay: int = 0) -> Layout:
     """Closed-loop state: joints (rad, rad/s), force-sensor filter state (N),
-    scheduled normal damping (N s/m), then the law's own state."""
-    return Layout(("q", 3), ("dq", 3), ("f_filt", 1), ("b_n", 1), ("law", len(law.states)))
+    scheduled normal damping (N s/m), approach phase (1 while approaching,
+    else 0), approach command x_app (m, task normal), progress of the f_d
+    ramp (0..1), the controller's surface estimate x_e_hat (m), the
+    ``delay`` torques waiting to be applied (N m, oldest first), then the
+    law's own state."""
+    return Layout(("q", 3), ("dq", 3), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
+                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", 3 * delay), ("law", len(law.states)))
 
 
 INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1))
@@ -75,18 +95,22 @@ def param_layout(law: Law) -> Layout:
     damping (N s/m); task frame R (column-major) and origin c (m); control
     period Ts (s); damping schedule on/off, target ratio, bounds on b
     (N s/m), rate limit (N s/m per s), largest and smallest stiffness
-    estimate (N/m) and force threshold (N); then the law's parameters."""
+    estimate (N/m) and force threshold (N); approach speed (m/s), contact
+    threshold (N) and f_d ramp rate (1/s); then the law's parameters."""
     return Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("x_e_hat", 1),
                   ("alpha", 1), ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1), ("sched", 1), ("zeta", 1),
                   ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1), ("k_hat_min", 1),
-                  ("sched_f_th", 1), ("law", len(law.parameter_names)))
+                  ("sched_f_th", 1), ("v_app", 1), ("f_contact", 1), ("ramp_rate", 1),
+                  ("law", len(law.parameter_names)))
 
 
 LOG = Layout(("q", 3), ("dq", 3), ("tau", 3), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
-             ("f_e", 1), ("f_m", 1), ("b_n", 1))
-"""Per-sample log at t_k: joints, torque (N m), wrist position (base, m), task
-position X, reference X_r, command X_c (task, m), true and measured normal
-force (N), normal impedance damping in use (N s/m)."""
+             ("f_e", 1), ("f_m", 1), ("b_n", 1), ("f_d", 1), ("x_e_hat", 1))
+"""Per-sample log at t_k: joints, torque applied over [t_k, t_k+1) (N m),
+wrist position (base, m), task position X, reference X_r, command X_c (task,
+m), true and measured normal force (N), normal impedance damping in use
+(N s/m), desired force in use (N, ramped after an approach) and the surface
+estimate (m)."""
 
 
 def damping_schedule(b_prev, f_m, depth, m, k, P):
@@ -119,8 +143,9 @@ def _task(robot: Puma560, q, dq, R, c):
 
 
 def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 4,
-               tol: float = 1e-10) -> ca.Function:
-    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``.
+               tol: float = 1e-10, delay: int = 0) -> ca.Function:
+    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
+    and a computation delay of ``delay`` samples.
 
     ``integrator="fixed"``: CasADi 'rk' (RK4, ``substeps`` per period,
     ``simplify``), the step expanded to SX so it can be compiled.
@@ -149,7 +174,7 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
         raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
 
     # -- controller at t_k -------------------------------------------------------
-    STATE, PARAM = state_layout(law), param_layout(law)
+    STATE, PARAM = state_layout(law, delay), param_layout(law)
     s = ca.MX.sym("s", STATE.size)
     u = ca.MX.sym("u", INPUT.size)
     p = ca.MX.sym("p", PARAM.size)
@@ -159,14 +184,23 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     pos, J, X, dX = _task(model, q, dq, R, P["c"])            # encoders through fk
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
     f_m = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * (f_true + U_in["noise"])   # measured normal force
+    # guarded approach: contact detected now ends it; the surface estimate becomes the contact point
+    approaching = S["approach"] > 0
+    detect = ca.logic_and(approaching, f_m > P["f_contact"])
+    engaged = ca.logic_not(ca.logic_and(approaching, ca.logic_not(detect)))
+    x_e_hat = ca.if_else(detect, X[0] + P["x_e_hat"], S["x_e_hat"])
+    f_d = P["f_d"] * S["ramp"]
     # normal damping: fixed, or scheduled from the stiffness estimate (K_D = B/M kept, eq. 9)
-    b_sched = damping_schedule(S["b_n"], f_m, X[0] - P["x_e_hat"], P["m"][0], P["k"][0], P)
+    b_sched = damping_schedule(S["b_n"], f_m, X[0] - x_e_hat, P["m"][0], P["k"][0], P)
     b_n = ca.if_else(P["sched"] > 0, b_sched, P["b"][0])
     kd_vec = ca.vertcat(ca.if_else(P["sched"] > 0, b_n / P["m"][0], P["kd"][0]), P["kd"][1:])
-    y = {"x": X[0], "dx": dX[0], "f_m": f_m, "f_d": P["f_d"], "x_e_hat": P["x_e_hat"], "Ts": P["Ts"],
+    y = {"x": X[0], "dx": dX[0], "f_m": f_m, "f_d": f_d, "x_e_hat": x_e_hat, "Ts": P["Ts"],
          "m": P["m"][0], "b": b_n, "k": P["k"][0]}
     x_r, x_c, dx_c, ddx_c, law_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
                                                      P["law"], S["law"])
+    x_r, x_c, dx_c, ddx_c = (ca.if_else(engaged, a, b) for a, b in
+                             ((x_r, S["x_app"]), (x_c, S["x_app"]), (dx_c, P["v_app"]), (ddx_c, 0)))
+    law_next = ca.if_else(engaged, law_next, S["law"])
     X_r = ca.vertcat(x_r, U_in["pos_t"])
     X_c, dX_c, ddX_c = (ca.vertcat(x_c, U_in["pos_t"]), ca.vertcat(dx_c, U_in["vel_t"]),
                         ca.vertcat(ddx_c, U_in["acc_t"]))                              # eq. (4)
@@ -175,10 +209,18 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     F = control_force(model.cartesian_inertia(q), model.cartesian_bias(q, dq),
                       ca.mtimes(R, U), ca.mtimes(R, F_e))                              # eq. (5)
     tau = ca.mtimes(J.T, F) + model.friction(dq)
+    if delay:           # apply the oldest waiting torque; queue this one
+        queue = ca.vertcat(S["tau_wait"], tau)
+        tau, tau_wait = queue[:3], queue[3:]
+    else:
+        tau_wait = ca.MX(0, 1)
 
     pz_val = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], P["c"], P["Ts"])
     zf = plant_flow(x0=ca.vertcat(q, dq), p=pz_val)["xf"]
-    s_next = ca.vertcat(zf, f_m, b_n, law_next)
-    log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n)
-    step = ca.Function(f"step_{law.name}", [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
+    ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
+    x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
+    s_next = ca.vertcat(zf, f_m, b_n, ca.if_else(engaged, 0, 1), x_app, ramp, x_e_hat, tau_wait, law_next)
+    log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n, f_d, x_e_hat)
+    step = ca.Function(f"step_{law.name}" + (f"_delay{delay}" if delay else ""), [s, u, p], [s_next, log],
+                       ["s", "u", "p"], ["s_next", "log"])
     return step.expand() if integrator == "fixed" else step

@@ -39,7 +39,7 @@ def force_figure(res: SimulationResult) -> Figure:
     ax.plot(res.time, res.contact_force, label="$f_e$")
     ax.plot(res.time, res.desired_force, "k--", lw=1, label="$f_d$")
     ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
-    top = min(float(np.max(res.contact_force)), 6 * float(res.desired_force[0]))
+    top = min(float(np.max(res.contact_force)), 6 * res.scenario.controller.f_d)
     ax.set_ylim(-0.05 * top, 1.1 * top)
     ax.legend()
     ax.grid(True, alpha=0.3)
@@ -109,7 +109,7 @@ def comparison_force_figure(cmp) -> Figure:
             continue
         ax.plot(run.result.time, run.result.contact_force, lw=1, label=name)
         peak = max(peak, float(np.max(run.result.contact_force)))
-        f_d = float(run.result.desired_force[0])
+        f_d = run.result.scenario.controller.f_d
         time = run.result.time
     if peak:
         ax.plot(time, np.full_like(time, f_d), "k--", lw=0.8, label="$f_d$")

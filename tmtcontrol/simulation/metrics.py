@@ -14,7 +14,7 @@ import numpy as np
 from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "segment_verdict",
-           "VERDICTS"]
+           "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
 
 VERDICTS = ("converged", "limit_cycle", "diverged")
 """Per-segment verdicts, best first."""
@@ -127,7 +127,7 @@ def segment_verdict(force: np.ndarray, f_d: float, band: float) -> str:
 def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     """:class:`SegmentMetrics` for every segment of ``result``."""
     out = []
-    f_d = float(result.desired_force[0])
+    f_d = result.scenario.controller.f_d
     band = RIPPLE_BAND * f_d + 6.0 * result.scenario.sensor.noise_std
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
@@ -155,6 +155,42 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             verdict=segment_verdict(f, f_d, band),
         ))
     return out
+
+
+FIRST_CONTACT_WINDOW = 1.0
+"""Seconds after the first contact over which its peak and bounces count."""
+
+
+@dataclass(frozen=True)
+class FirstContact:
+    """The first contact with the surface (forces N, times s).
+
+    ``time``: first sample with f_e > 0 (None if the run never touches);
+    ``peak_force``: the largest f_e within :data:`FIRST_CONTACT_WINDOW` after
+    it (and within the first segment), ``peak_ratio`` = peak / f_d;
+    ``bounces``: how often the contact is lost again in that window."""
+    time: float | None
+    peak_force: float
+    peak_ratio: float
+    bounces: int
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW) -> FirstContact:
+    """:class:`FirstContact` of ``result``. A run that starts on the surface
+    at zero force touches at its first positive force."""
+    f = result.contact_force
+    touching = f > 0.0
+    if not touching.any():
+        return FirstContact(None, 0.0, 0.0, 0)
+    i0 = int(np.argmax(touching))
+    end = min(segments(result)[0][1], i0 + int(round(window / result.Ts)) + 1)
+    w = touching[i0:max(end, i0 + 1)]
+    peak = float(f[i0:max(end, i0 + 1)].max())
+    return FirstContact(float(result.time[i0]), peak, peak / result.scenario.controller.f_d,
+                        int(np.count_nonzero(w[:-1] & ~w[1:])))
 
 
 def format_table(metrics: list[SegmentMetrics]) -> str:

@@ -30,7 +30,7 @@ def write_timeseries(result, path: str | pathlib.Path) -> None:
 def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> dict:
     """Write ``timeseries.csv``, ``summary.json`` and (``plots``) the figures of
     a :class:`~tmtcontrol.SimulationResult` into ``folder``; return the summary."""
-    from .metrics import segment_metrics
+    from .metrics import first_contact, segment_metrics
     from .scenario import scenario_to_dict
 
     folder = pathlib.Path(folder)
@@ -44,6 +44,7 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> d
         "path": {"condition_number_min": float(r.path.condition_number.min()),
                  "condition_number_max": r.path.max_condition},
         "segments": [s.as_dict() for s in segs],
+        "first_contact": first_contact(result).as_dict(),
     }
     if plots:
         from .figures import save_simulation_figures

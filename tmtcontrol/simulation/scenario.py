@@ -211,6 +211,8 @@ class TrajectorySettings(_Section):
     radius: float = num(0.1, "m", "radius", ge=0)
     period: float = num(4.0, "s", "time per circle", gt=0)
     cycles: float = num(4.0, "1", "number of circles (simulated time = cycles x period)", gt=0, le=1000)
+    approach_gap: float = num(0.0, "m", "start this far above the surface, along the normal "
+                              "(0 = on the surface at zero force, the paper's start)", ge=0, le=0.5)
 
 
 # -- impedance -----------------------------------------------------------------------
@@ -283,6 +285,14 @@ class ControllerSettings(_Section):
     f_d: float = num(10.0, "N", "desired normal force", gt=0)
     x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
                            "(positive: believed deeper than it is)")
+    delay_samples: StrictInt = Field(0, ge=0, le=20, description="computation delay: the torque computed "
+                                     "at t_k is applied from t_(k+N) [samples]")
+    approach_speed: float = num(0.01, "m/s", "guarded approach from trajectory.approach_gap: the command "
+                                "advances toward the surface at this speed until contact is detected; "
+                                "0 = the law acts from the start", ge=0, le=1.0)
+    contact_threshold: float = num(1.0, "N", "measured force that ends the guarded approach", gt=0)
+    force_ramp: float = num(0.25, "s", "after a guarded approach, f_d rises linearly from 0 over this time",
+                            gt=0, le=100)
     law: _law_union() = Field(default_factory=TmtParameters,
                               description="force-tracking law: its kind and parameters")
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,

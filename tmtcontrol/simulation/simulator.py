@@ -77,7 +77,8 @@ def _structure(scenario: Scenario):
     """What changes the compiled step (everything else is a runtime input)."""
     r, s = scenario.robot, scenario.simulation
     return (r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
-            s.integrator, s.substeps if s.integrator == "fixed" else s.tol, scenario.controller.law.kind)
+            s.integrator, s.substeps if s.integrator == "fixed" else s.tol, scenario.controller.law.kind,
+            scenario.controller.delay_samples)
 
 
 def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
@@ -140,7 +141,7 @@ class SimulationResult:
     command_task: np.ndarray         # (3, N)
     contact_force: np.ndarray        # (N,) true normal force f_e
     measured_force: np.ndarray       # (N,) sensor output (noise, filter)
-    desired_force: np.ndarray        # (N,) f_d
+    desired_force: np.ndarray        # (N,) f_d in use (ramped after a guarded approach)
     stiffness: np.ndarray            # (N,) true k_e(t)
     stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e) of eq. (14); NaN out of contact
     damping: np.ndarray              # (N,) normal impedance damping in use, N s/m
@@ -184,8 +185,9 @@ class Simulator:
                              friction="smooth" if sc.robot.friction else False)
         self.model = controller_model(sc.robot.model_mass_scale, sc.robot.compensate_friction)
         self.law = get_law(sc.controller.law.kind)
+        self.delay = sc.controller.delay_samples
         self.step = build_step(self.plant, self.model, self.law, sc.simulation.integrator,
-                               sc.simulation.substeps, sc.simulation.tol)
+                               sc.simulation.substeps, sc.simulation.tol, self.delay)
         self.rollout = Rollout(self.step, compile=compile)
         self.build_time = time.perf_counter() - t0
         self._structure = _structure(sc)
@@ -198,7 +200,7 @@ class Simulator:
         sc = scenario or self.scenario
         check_run_size(sc, max_steps)
         if _structure(sc) != self._structure:
-            raise ValueError("run(): scenario differs in robot options, integrator or law from the "
+            raise ValueError("run(): scenario differs in robot options, integrator, law or delay from the "
                              "one this Simulator was built for; build a new Simulator")
         path = _path(self.plant, sc)
         inputs, params, s0, t = self._inputs(sc, path)
@@ -241,12 +243,19 @@ class Simulator:
             sched=1.0 if on else 0.0, zeta=sch.zeta if on else 1.0, b_min=sch.b_min if on else 0.0,
             b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
             k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,
+            v_app=ctl.approach_speed, f_contact=ctl.contact_threshold, ramp_rate=1.0 / ctl.force_ramp,
             law=law.parameter_vector(ctl.law))
-        # start on the surface (x = x_e, zero force), moving with the circle
-        q0 = path.q[:, 0]
+        # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the circle
+        gap = sc.trajectory.approach_gap
+        q0 = path.q[:, 0] if gap == 0 else self.plant.inverse_kinematics(
+            c + R @ np.r_[-gap, ref.pos[:, 0]])
         dq0 = np.linalg.solve(np.asarray(self.plant.jacobian(q0)), R @ np.r_[0.0, ref.vel[:, 0]])
         b0 = min(max(sc.impedance.b[0], sch.b_min), sch.b_max) if on else sc.impedance.b[0]
-        s0 = state_layout(law).pack(q=q0, dq=dq0, f_filt=0.0, b_n=b0, law=law.initial_state(ctl.law))
+        guarded = gap > 0 and ctl.approach_speed > 0
+        s0 = state_layout(law, self.delay).pack(
+            q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=-gap,
+            ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(3 * self.delay),
+            law=law.initial_state(ctl.law))
         return U, P, s0, t
 
     @staticmethod
@@ -265,7 +274,7 @@ class Simulator:
         c = np.asarray(sc.trajectory.center, dtype=float)[:, None]
         to_base = lambda X: c + R @ X
         f_m = lg["f_m"][0]
-        depth = lg["X"][0] - sc.controller.x_e_error
+        depth = lg["X"][0] - lg["x_e_hat"][0]
         with np.errstate(divide="ignore", invalid="ignore"):
             k_hat = np.where((f_m > STIFFNESS_ESTIMATE_FORCE) & (depth > 0), f_m / depth, np.nan)
         return SimulationResult(
@@ -273,5 +282,5 @@ class Simulator:
             reference_position=to_base(lg["X_r"]), command_position=to_base(lg["X_c"]),
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
             contact_force=lg["f_e"][0], measured_force=f_m,
-            desired_force=np.full(t.size, sc.controller.f_d), stiffness=U[INPUT["k_e"]][0],
+            desired_force=lg["f_d"][0], stiffness=U[INPUT["k_e"]][0],
             stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path, info=info)

@@ -8,7 +8,8 @@ import numpy as np
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
 
-__all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs", "format_analysis"]
+__all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
+           "analyze_scenario", "format_analysis"]
 
 
 
@@ -35,14 +36,16 @@ def scenario_parameters(scenario) -> dict:
             "Ts": sc.controller.Ts, "kd": kd[0], "kp": kp[0],
             "alpha": float(np.exp(-2 * np.pi * fc * sc.controller.Ts)) if fc > 0 else 0.0,
             "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
-            "law": sc.controller.law.kind}
+            "law": sc.controller.law.kind, "delay": sc.controller.delay_samples,
+            "x_e_error": sc.controller.x_e_error}
 
 
 def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | None:
     """The largest stable constant k_e (N/m) predicted for a scenario by the
     sampled normal-axis loop of its law (``stability.lawloop``), the worse
     of the path's two extreme effective masses, with the scenario's x_e
-    error, force filter, contact damping and inner-loop gains. ``None`` for
+    error, computation delay, force filter, contact damping and inner-loop
+    gains. ``None`` for
     a law without a linear verdict (``Law.linear_analysis``)."""
     from ..control.laws import get_law
     from .lawloop import law_stiffness_limit
@@ -52,7 +55,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     if not law.linear_analysis:
         return None
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
-              d_e=p["d_e"], delta=scenario.controller.x_e_error)
+              d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
     return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)
                for mp in (p["m_p_min"], p["m_p_max"]))
 
@@ -67,15 +70,26 @@ def paper_effective_mass(worst: bool = False) -> float:
 
 
 def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_p=None,
-            kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt") -> dict:
+            kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt", delay=0, x_e_error=0.0, law_params=None) -> dict:
     """Everything ``tmtcontrol analyze`` reports, as a dict of plain values
     (the python-control objects under ``"systems"``).
 
     Give either ``k_e`` or ``k_e_min`` and ``k_e_max`` (N/m). With ``Ts`` (s)
     the sampled-data analysis is added; ``m_p`` (kg) is the robot's effective
-    normal mass, a number or a (min, max) pair (default: the paper path's
-    minimum)."""
+    normal mass, a number or a (min, max) pair (default: both extremes along
+    the paper path; the limit falls as m_p grows). ``delay`` (samples) and
+    ``x_e_error`` (m, surface estimate minus true surface) enter the sampled
+    loop and the steady state; with either, or a law other than ``tmt`` and
+    ``known``, the loop is the law's own update (``stability.lawloop``),
+    else the closed-form 1-D model (``stability.sampled``), which agree to
+    5e-4 where both apply."""
+    from ..control.laws import get_law
+
     _check(m, b, k, None, f_d)
+    if not isinstance(delay, (int, np.integer)) or delay < 0:
+        raise AnalysisError(f"delay: expected an integer >= 0 samples, got {delay!r}")
+    if not np.isfinite(x_e_error):
+        raise AnalysisError(f"x_e_error: must be finite, got {x_e_error!r}")
     if (k_e is None) == (k_e_min is None and k_e_max is None):
         raise AnalysisError("k_e: give either k_e or both k_e_min and k_e_max")
     if k_e is not None:
@@ -90,34 +104,74 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         out = rng.as_dict()
         out["systems"] = {"tf": rng.at_max.tf, "ss": rng.at_max.ss, "tf_min": rng.at_min.tf}
         lo, hi = k_e_min, k_e_max
+    lw = get_law(law)
+    params = lw.parameters() if law_params is None else law_params
+    if x_e_error != 0.0 and lw.steady_force is not None:
+        worst = max((lw.steady_force(params, f_d, k, ke, x_e_error) for ke in (lo, hi)),
+                    key=lambda f: abs(f - f_d))
+        out.update({"x_e_error": x_e_error, "steady_state_force_x_e_error": float(worst)})
     if Ts is not None:
         _pos("Ts", Ts)
         if m_p is None:
-            m_p = paper_effective_mass()
+            m_p = (paper_effective_mass(), paper_effective_mass(worst=True))
         masses = tuple(m_p) if isinstance(m_p, (tuple, list)) else (m_p,)
         for v in masses:
             _pos("m_p", v)
-        kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
-        limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
-        rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
-        out.update({"Ts": Ts, "m_p": list(masses), "max_stable_stiffness": limit,
+        if law in ("tmt", "known") and delay == 0 and x_e_error == 0.0:
+            kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
+            limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
+            rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
+            out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, max(masses), **kw).sys
+            model = "closed-form 1-D (stability.sampled)"
+        else:
+            from .lawloop import law_loop, law_stiffness_limit
+
+            if not lw.linear_analysis:
+                raise AnalysisError(f"law: {law!r} has no linear stability verdict (a continuum of equilibria)")
+            kw = dict(m=m, b=b, k=k, Ts=Ts, f_d=f_d, kd=kd, kp=kp, alpha=alpha, d_e=d_e, delta=x_e_error,
+                      delay=delay)
+            limit = min(law_stiffness_limit(lw, params, m_p=mp, **kw) for mp in masses)
+            rho = max(law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
+                      for ke in grid[::3] for mp in masses)
+            model = "the law's 1-D loop (stability.lawloop)"
+        out.update({"Ts": Ts, "m_p": list(masses), "delay": delay, "x_e_error": x_e_error,
+                    "sampled_model": model, "max_stable_stiffness": limit,
                     "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
-        out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, min(masses), **kw).sys
     return out
 
 
 def analysis_kwargs(p: dict) -> dict:
     """:func:`analyze` keywords for a scenario's :func:`scenario_parameters`:
     its normal axis, stiffness range (a single k_e if constant), Ts, gains,
-    force filter and the path's effective masses."""
+    force filter, delay, x_e error and the path's effective masses."""
     kw = dict(m=p["m"], b=p["b"], k=p["k"], f_d=p["f_d"], Ts=p["Ts"], kd=p["kd"], kp=p["kp"],
-              alpha=p["alpha"], d_e=p["d_e"], law=p["law"], m_p=(p["m_p_min"], p["m_p_max"]))
+              alpha=p["alpha"], d_e=p["d_e"], law=p["law"], m_p=(p["m_p_min"], p["m_p_max"]),
+              delay=p["delay"], x_e_error=p["x_e_error"])
     if p["k_e_min"] == p["k_e_max"]:
         kw["k_e"] = p["k_e_min"]
     else:
         kw.update(k_e_min=p["k_e_min"], k_e_max=p["k_e_max"])
     return kw
+
+
+def analyze_scenario(scenario, points: int = 8) -> dict:
+    """:func:`analyze` for a scenario (its law parameters included), plus
+    the whole-loop linearisation (``stability.wholeloop``): the limit at
+    ``points`` path points, whose minimum decides the sampled verdict (the
+    1-D limit stays as the closed-form explanation)."""
+    from ..control.laws import get_law
+    from .wholeloop import whole_loop_limit
+
+    out = analyze(**analysis_kwargs(scenario_parameters(scenario)), law_params=scenario.controller.law)
+    if get_law(scenario.controller.law.kind).linear_analysis:
+        limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
+                                            guess=out["max_stable_stiffness"])
+        k_max = out.get("k_e_max", out.get("k_e"))
+        out.update({"whole_loop_limit": limit,
+                    "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
+                    "sampled_stable": bool(out["sampled_stable"] and k_max < limit)})
+    return out
 
 
 def format_analysis(d: dict) -> str:
@@ -144,9 +198,17 @@ def format_analysis(d: dict) -> str:
                  f"stable for all k_e   {yes(d['stable_for_all'])}",
                  f"b for zeta >= 1      {d['b_for_critical_damping_over_range']:.4g} N s/m over the range; "
                  f"then settling at k_e_min {d['slowest_settling_with_that_b']:.4g} s"]
+    if "steady_state_force_x_e_error" in d:
+        rows.append(f"with x_e error       {d['x_e_error'] * 1e3:+.4g} mm: steady-state force "
+                    f"{d['steady_state_force_x_e_error']:.6g} N (worst end of the range)")
     if "Ts" in d:
-        rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg",
-                 f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m",
-                 f"spectral radius      {d['spectral_radius']:.6f}",
-                 f"sampled stable       {yes(d['sampled_stable'])}"]
+        rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg, "
+                 f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm",
+                 f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']})",
+                 f"spectral radius      {d['spectral_radius']:.6f}"]
+        if "whole_loop_limit" in d:
+            pts = d["whole_loop_points"]
+            rows.append(f"whole loop           {d['whole_loop_limit']:.6g} N/m (smallest over {len(pts)} path "
+                        f"points; largest {max(p['limit'] for p in pts):.6g} N/m)")
+        rows.append(f"sampled stable       {yes(d['sampled_stable'])}")
     return "\n".join(rows)

@@ -83,8 +83,9 @@ class Law:
         parameter estimates that the data do not identify).
     characteristic_polynomial : callable, optional
         Its documented continuous-time normal-axis characteristic polynomial
-        with the ideal inner loop, ``(params, m, b, k, k_e) -> coefficients``
-        (highest power first); checked against ``stability.lawloop``.
+        with the ideal inner loop, ``(params, m, b, k, k_e, f_d, delta) ->
+        coefficients`` (highest power first; ``delta`` the surface-location
+        error, m); checked against ``stability.lawloop``.
     """
     name: str
     parameters: type[LawParameters]

@@ -55,7 +55,7 @@ def _steady_force(params, f_d, k, k_e, delta):
     return f_d
 
 
-def _poly(params, m, b, k, k_e):
+def _poly(params, m, b, k, k_e, f_d=10.0, delta=0.0):
     k_i = params.k_i
     return [m, b + m * k_i * k_e, k + k_e + b * k_i * k_e, k * k_i * k_e]
 

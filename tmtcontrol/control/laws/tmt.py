@@ -22,7 +22,8 @@ from pydantic import Field
 from ..impedance import filtered_command
 from .base import Law, LawParameters
 
-__all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT", "eq22_polynomial"]
+__all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT", "eq22_polynomial",
+           "tmt_polynomial"]
 
 
 def k_eff(k, k_e):
@@ -93,11 +94,28 @@ def _steady_force(params, f_d, k, k_e, delta):
     return f_d if delta < f_d / k_e else k_eff(k, k_e) * (delta + f_d / k)
 
 
-def eq22_polynomial(params, m, b, k, k_e):
-    """Eq. (22): m s^2 + b s + (k + k_e)."""
+def eq22_polynomial(params, m, b, k, k_e, f_d=10.0, delta=0.0):
+    """Eq. (22): m s^2 + b s + (k + k_e), for a reference that does not
+    depend on the position (the known law: an x_e error only shifts it)."""
     return [m, b, k + k_e]
 
 
+def tmt_polynomial(params, m, b, k, k_e, f_d=10.0, delta=0.0):
+    """Eq. (22) with a surface-location error ``delta`` (m, estimate minus
+    true), valid while the compliance estimate stays positive (c < 1):
+
+        m (1 - c) s^2 + b (1 - c) s + k_e + k (1 - c),   c = delta k_e / f_d
+
+    Linearising eq. (18) at f_e = f_d gives ``d x_r / d x = c``, so with
+    x = x_c = x_r - x_a the filter state obeys x = -x_a/(1 - c) and eq. (2)
+    becomes ``m s^2 + b s + k + k_e/(1 - c)``, the same roots. Read in the
+    position: the stiffness is ``k_e + k(1 - c)`` (it changes by at most k)
+    while the apparent mass and damping scale by (1 - c). delta = 0 is eq.
+    (22)."""
+    c = delta * k_e / f_d
+    return [m * (1.0 - c), b * (1.0 - c), k_e + k * (1.0 - c)]
+
+
 TMT = Law("tmt", TmtParameters, ("x_a", "dx_a"), _update, needs=("x_e",), steady_force=_steady_force,
-          characteristic_polynomial=eq22_polynomial,
+          characteristic_polynomial=tmt_polynomial,
           summary="trajectory modification technique, eq. (18) (the paper)")

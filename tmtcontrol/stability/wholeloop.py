@@ -1,0 +1,214 @@
+"""Whole-loop linearisation of the sampled closed loop (beyond the paper).
+
+The 1-D models (``stability.sampled``, ``stability.lawloop``) explain the
+normal axis with an effective mass and an ideal robot. This module
+linearises the *simulated* loop itself: the one-period step that
+``Simulator`` compiles (``simulation.closedloop.build_step``: the full
+3-link PUMA of eq. (1), the controller's model D*^, h*^ of eq. (5) with any
+mass mismatch, the inner loop of eq. (6), the force filter, the law's own
+update, the computation delay), frozen at one point of the path (tangential
+reference held, velocity and acceleration zero, constant k_e).
+
+At that point the step is an autonomous map ``s -> s_next``. Its fixed
+point (Newton, started from the law's 1-D equilibrium, ``stability.lawloop``)
+is the steady state in contact; the Jacobian ``A = d s_next / d s`` there
+(CasADi, exact) and its spectral radius decide local stability of the
+sampled loop at that point. The controller's bookkeeping states (approach
+phase, approach command, f_d ramp, surface estimate) are constants in
+contact and are left out of ``A``. :func:`whole_loop_limit` bisects on k_e
+at several points of the path and takes the smallest limit. The plant is
+always integrated with the scenario's RK4 substeps (CVODES has no
+Jacobian here). Units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..control.laws import get_law
+from .continuous import AnalysisError
+from .lawloop import law_loop
+from .sampled import effective_mass
+
+__all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit"]
+
+_BOOKKEEPING = ("approach", "x_app", "ramp", "x_e_hat")
+
+
+@dataclass(frozen=True)
+class WholeLoop:
+    """The linearised sampled loop at one path point and stiffness.
+
+    ``path_time`` (s) locates the point on the circle; ``s_eq`` is the fixed
+    point of the step (the closed-loop state), ``f_eq`` the contact force
+    there (N), ``A`` the Jacobian over the dynamic states ``states``,
+    ``spectral_radius`` its largest eigenvalue magnitude (< 1: locally
+    stable), ``residual`` max |step(s_eq) - s_eq| and ``m_p`` the robot's
+    effective normal mass at the point (kg)."""
+    k_e: float
+    Ts: float
+    path_time: float
+    s_eq: np.ndarray
+    f_eq: float
+    A: np.ndarray
+    states: tuple[str, ...]
+    spectral_radius: float
+    residual: float
+    m_p: float
+
+    @property
+    def stable(self) -> bool:
+        return self.spectral_radius < 1.0
+
+
+class WholeLoopModel:
+    """The scenario's step, its Jacobian and its numbers, built once; call
+    :meth:`at` for a stiffness and a path point."""
+
+    def __init__(self, scenario):
+        from ..simulation.closedloop import LOG, state_layout
+        from ..simulation.simulator import Simulator, _path
+
+        if not get_law(scenario.controller.law.kind).linear_analysis:
+            raise AnalysisError(f"controller.law: {scenario.controller.law.kind!r} has no linear verdict "
+                                "(a continuum of equilibria)")
+        sc = scenario
+        if sc.simulation.integrator != "fixed":
+            sc = sc.replace(simulation={"integrator": "fixed", "substeps": sc.simulation.substeps})
+        sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "approach_gap": 0.0})
+        self.scenario = sc
+        sim = Simulator(sc, compile=False)
+        self.sim, self.law = sim, sim.law
+        self.layout = state_layout(sim.law, sim.delay)
+        self.path = _path(sim.plant, sc)
+        U, P, s0, t = sim._inputs(sc, self.path)
+        self.U, self.P, self.s0, self.t = U, P, s0, t
+        s = ca.SX.sym("s", self.layout.size)
+        u = ca.SX.sym("u", U.shape[0])
+        s_next, log = sim.step(s, u, ca.DM(P))
+        self.dynamic = np.array([i for name, sl in self.layout.slices.items() if name not in _BOOKKEEPING
+                                 for i in range(sl.start, sl.stop)])
+        self._f = ca.Function("whole_step", [s, u], [s_next, log[LOG["f_e"]]], ["s", "u"], ["s_next", "f_e"])
+        self._jac = ca.Function("whole_jacobian", [s, u], [ca.jacobian(s_next, s)], ["s", "u"], ["A"])
+        self._normal = sim.plant  # for the effective mass
+
+    def _u(self, i: int, k_e: float) -> np.ndarray:
+        from ..simulation.closedloop import INPUT
+
+        u = self.U[:, i].copy()
+        u[INPUT["vel_t"]] = 0.0
+        u[INPUT["acc_t"]] = 0.0
+        u[INPUT["k_e"]] = k_e
+        u[INPUT["noise"]] = 0.0
+        return u
+
+    def at(self, k_e: float, path_time: float = 0.0) -> WholeLoop:
+        """The linearised loop at stiffness ``k_e`` (N/m), the path frozen at
+        ``path_time`` (s, along the circle)."""
+        from ..simulation.environment import task_frame
+
+        sc = self.scenario
+        if not (np.isfinite(k_e) and k_e > 0):
+            raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
+        period = sc.trajectory.period
+        i = int(round((path_time % period) / sc.controller.Ts)) % self.t.size
+        u = self._u(i, k_e)
+        ctl = sc.controller
+        R = task_frame(sc.environment.tilt_deg)
+        n = R[:, 0]
+        # the tangential point and its joint angles on the surface
+        from ..simulation.trajectory import circle_reference
+
+        ref = circle_reference(np.array([self.t[i]]), sc.trajectory.radius, period)
+        c = np.asarray(sc.trajectory.center, dtype=float)
+        q_surface = self.sim.plant.inverse_kinematics(c + R @ np.r_[0.0, ref.pos[:, 0]])
+        m_p = effective_mass(np.asarray(self.sim.plant.cartesian_inertia(q_surface)), n)
+        # initial guess: the law's 1-D equilibrium at this effective mass
+        kd, kp = sc.impedance.gains
+        fc = sc.sensor.filter_cutoff
+        alpha = float(np.exp(-2 * np.pi * fc * ctl.Ts)) if fc > 0 else 0.0
+        one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=sc.impedance.b[0], k=sc.impedance.k[0],
+                         k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0], kp=kp[0],
+                         alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples, settle=0.5)
+        x_eq = float(one_d.z_eq[0])
+        q = self.sim.plant.inverse_kinematics(c + R @ np.r_[x_eq, ref.pos[:, 0]])
+        s = self.s0.copy()
+        L = self.layout
+        s[L["q"]] = q
+        s[L["dq"]] = 0.0
+        s[L["f_filt"]] = one_d.f_eq
+        s[L["law"]] = one_d.z_eq[3:3 + len(self.law.states)]
+        s_eq, residual = self._newton(s, u)
+        A_full = np.array(self._jac(s_eq, u))
+        d = self.dynamic
+        A = A_full[np.ix_(d, d)]
+        rho = float(np.max(np.abs(np.linalg.eigvals(A))))
+        names = tuple(f"{name}[{j}]" if sl.stop - sl.start > 1 else name
+                      for name, sl in L.slices.items() if name not in _BOOKKEEPING
+                      for j in range(sl.stop - sl.start))
+        if self.law.states:
+            names = names[:-len(self.law.states)] + tuple(self.law.states)
+        f_eq = float(self._f(s_eq, u)[1])
+        return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p)
+
+    def _newton(self, s, u, iters=30, tol=1e-11):
+        d = self.dynamic
+        eye = np.eye(d.size)
+        for _ in range(iters):
+            r = (np.ravel(np.array(self._f(s, u)[0])) - s)[d]
+            if not np.all(np.isfinite(r)):
+                break
+            if np.max(np.abs(r) / (1.0 + np.abs(s[d]))) < tol:
+                break
+            J = np.array(self._jac(s, u))[np.ix_(d, d)] - eye
+            s = s.copy()
+            s[d] += np.linalg.lstsq(J, -r, rcond=None)[0]
+        r = (np.ravel(np.array(self._f(s, u)[0])) - s)[d]
+        return s, float(np.max(np.abs(r)))
+
+
+def whole_loop(scenario, k_e: float, path_time: float = 0.0) -> WholeLoop:
+    """:meth:`WholeLoopModel.at` for one stiffness and path point."""
+    return WholeLoopModel(scenario).at(k_e, path_time)
+
+
+def whole_loop_limit(scenario, points: int = 8, rtol: float = 1e-4, model: WholeLoopModel | None = None,
+                     guess: float | None = None, k_lo: float = 10.0,
+                     k_hi: float = 1e9) -> tuple[float, list[tuple[float, float]]]:
+    """Largest k_e (N/m) for which the linearised whole loop is stable at
+    every one of ``points`` equally spaced path points. Per point: bracket
+    the first unstable stiffness (around ``guess``, e.g. the 1-D limit, when
+    that brackets it, else on a log grid from ``k_lo`` to ``k_hi``), then
+    bisect to ``rtol``. Returns the smallest limit and the list of
+    (path_time, limit); a point stable up to ``k_hi`` gives ``inf``."""
+    mdl = model or WholeLoopModel(scenario)
+    period = mdl.scenario.trajectory.period
+    limits = []
+    for j in range(points):
+        tp = j * period / points
+        stable = lambda ke: mdl.at(ke, tp).spectral_radius < 1.0
+        lo = hi = None
+        if guess is not None and np.isfinite(guess) and guess > 0 and stable(guess / 1.25) \
+                and not stable(guess * 1.25):
+            lo, hi = guess / 1.25, guess * 1.25
+        else:
+            grid = np.geomspace(k_lo, k_hi, 19)
+            if not stable(grid[0]):
+                limits.append((tp, 0.0))
+                continue
+            for a, b in zip(grid[:-1], grid[1:]):
+                if not stable(b):
+                    lo, hi = a, b
+                    break
+            if lo is None:
+                limits.append((tp, math.inf))
+                continue
+        while hi / lo > 1 + rtol:
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+        limits.append((tp, float(lo)))
+    return min(l for _, l in limits), limits
