@@ -11,6 +11,7 @@ SCRIPTS = {
     "paper_figures.py": ["--cycles", "0.5"],
     "damping_comparison.py": ["--cycles", "0.5"],
     "law_comparison.py": ["--cycles", "0.25"],
+    "first_contact.py": ["--points", "2"],
 }
 
 

@@ -16,15 +16,42 @@ from .simulator import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
            "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
-           "save_comparison_figures", "save_figures"]
+           "save_comparison_figures", "save_figures", "envelope"]
+
+DRAW_POINTS = 1200
+"""Buckets per time-series line: more than a figure has pixels across."""
+
+
+def envelope(t: np.ndarray, y: np.ndarray, buckets: int = DRAW_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """A long series reduced for drawing: per bucket of consecutive samples,
+    its minimum and maximum in time order, so every peak and dip stays
+    visible (a line drawn through them covers the same pixels as the full
+    series). NaN samples are dropped within a bucket; series shorter than
+    ``2 buckets`` are returned unchanged."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    n = y.size
+    if n <= 2 * buckets:
+        return t, y
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    ts, ys = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        seg = y[a:b]
+        ok = np.flatnonzero(np.isfinite(seg))
+        if ok.size == 0:
+            ts.append(t[a]), ys.append(np.nan)
+            continue
+        i, j = a + ok[np.argmin(seg[ok])], a + ok[np.argmax(seg[ok])]
+        for k in sorted({i, j}):
+            ts.append(t[k]), ys.append(y[k])
+    return np.array(ts), np.array(ys)
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
     """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
     fig = Figure(figsize=(7, 3.2), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(res.time, res.stiffness, label="true $k_e$")
-    ax.plot(res.time, res.stiffness_estimate, "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
+    ax.plot(*envelope(res.time, res.stiffness), label="true $k_e$")
+    ax.plot(*envelope(res.time, res.stiffness_estimate), "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
     ax.set(xlabel="time (s)", ylabel="stiffness (N/m)", title="Environment stiffness (Fig. 3)")
     ax.set_yscale("log")
     ax.legend()
@@ -36,8 +63,8 @@ def force_figure(res: SimulationResult) -> Figure:
     """Fig. 4: contact force against the desired force."""
     fig = Figure(figsize=(7, 3.2), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(res.time, res.contact_force, label="$f_e$")
-    ax.plot(res.time, res.desired_force, "k--", lw=1, label="$f_d$")
+    ax.plot(*envelope(res.time, res.contact_force), label="$f_e$")
+    ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="$f_d$")
     ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
     top = min(float(np.max(res.contact_force)), 6 * res.scenario.controller.f_d)
     ax.set_ylim(-0.05 * top, 1.1 * top)
@@ -51,8 +78,8 @@ def position_figure(res: SimulationResult) -> Figure:
     fig = Figure(figsize=(7, 5.5), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     for i, (ax, name) in enumerate(zip(axes, "xyz")):
-        ax.plot(res.time, res.position[i], label=name)
-        ax.plot(res.time, res.reference_position[i], "k--", lw=1, label=f"{name}$_r$")
+        ax.plot(*envelope(res.time, res.position[i]), label=name)
+        ax.plot(*envelope(res.time, res.reference_position[i]), "k--", lw=1, label=f"{name}$_r$")
         ax.set_ylabel(f"{name} (m)")
         ax.legend(loc="upper right")
         ax.grid(True, alpha=0.3)
@@ -74,8 +101,9 @@ def path_figure(res: SimulationResult) -> Figure:
     u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
     plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
     ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
-    ax.plot(*res.position, lw=1.5, label="wrist centre")
-    ax.plot(*res.reference_position, "k--", lw=0.8, label="reference $X_r$")
+    stride = max(1, res.time.size // (2 * DRAW_POINTS))     # a smooth curve: every stride-th sample
+    ax.plot(*res.position[:, ::stride], lw=1.5, label="wrist centre")
+    ax.plot(*res.reference_position[:, ::stride], "k--", lw=0.8, label="reference $X_r$")
     ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
     ax.legend()
     return fig
@@ -107,7 +135,7 @@ def comparison_force_figure(cmp) -> Figure:
     for name, run in cmp.runs.items():
         if run.result is None:
             continue
-        ax.plot(run.result.time, run.result.contact_force, lw=1, label=name)
+        ax.plot(*envelope(run.result.time, run.result.contact_force), lw=1, label=name)
         peak = max(peak, float(np.max(run.result.contact_force)))
         f_d = run.result.scenario.controller.f_d
         time = run.result.time
@@ -128,7 +156,8 @@ def comparison_error_figure(cmp) -> Figure:
     for name, run in cmp.runs.items():
         if run.result is None:
             continue
-        ax.semilogy(run.result.time, np.maximum(np.abs(run.result.force_error), 1e-6), lw=0.8, label=name)
+        ax.semilogy(*envelope(run.result.time, np.maximum(np.abs(run.result.force_error), 1e-6)), lw=0.8,
+                    label=name)
     ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 N")
     ax.set(xlabel="time (s)", ylabel="$|f_e - f_d|$ (N)", title="Force error, all laws")
     ax.legend(ncol=3, fontsize="small")

@@ -265,9 +265,11 @@ def x_e_error_force(f_d, k, k_e, delta, law="tmt", assumed_stiffness=None) -> fl
     longer depends on x_e^, so f_e = f_d is an equilibrium for any delta. It
     is the one reached while the compliance estimate stays non-negative,
     i.e. ``delta < f_d/k_e``; beyond, the estimate is clipped at 0 (see
-    reference.py) and ``f_e = k_eff (delta + f_d/k)``. The linearised loop
-    stiffness is ``k + k_e/(1 - delta k_e/f_d)``: an error towards the
-    surface stiffens the loop (check sampled stability!).
+    ``control.laws.tmt.tmt_reference``) and ``f_e = k_eff (delta + f_d/k)``.
+    The linearised loop is ``m(1-c) s^2 + b(1-c) s + k_e + k(1-c)`` with
+    ``c = delta k_e/f_d`` (``tmt_polynomial``): the stiffness changes by at
+    most k. Its sampled limit falls for delta < 0 (surface believed closer:
+    about -12 % at -10 mm, paper gains, 1 kHz); see docs/theory.md.
 
     Known law (eqs. 11-12): ``f_e = f_d k_eff(k_e)/k_eff(k_e^) + k_eff(k_e) delta``.
     """

@@ -1,0 +1,35 @@
+"""Figures draw long series reduced to their envelope without losing a peak."""
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tmtcontrol.simulation.figures import envelope
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(1, 20_000), st.integers(2, 500), st.integers(0, 2**32 - 1))
+def test_envelope_keeps_every_extreme(n, buckets, seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    y = np.cumsum(rng.standard_normal(n))
+    y[rng.integers(0, n)] = 1e3                      # a one-sample spike
+    te, ye = envelope(t, y, buckets)
+    assert te.size <= max(n, 2 * buckets)
+    assert np.all(np.diff(te) > 0)                   # time order, no duplicates
+    assert ye.max() == y.max() and ye.min() == y.min()
+    # every output point is a sample of the series
+    idx = np.round(te / 1e-3).astype(int)
+    assert np.array_equal(ye, y[idx])
+    # every bucket's extremes are kept: the max over any bucket equals the envelope's there
+    if n > 2 * buckets:
+        edges = np.linspace(0, n, buckets + 1).astype(int)
+        for a, b in zip(edges[:-1], edges[1:]):
+            inside = (idx >= a) & (idx < b)
+            assert ye[inside].max() == y[a:b].max() and ye[inside].min() == y[a:b].min()
+
+
+def test_envelope_skips_nan_and_keeps_empty_buckets_as_gaps():
+    t = np.arange(10_000.0)
+    y = np.where(t < 5_000, np.nan, t)
+    te, ye = envelope(t, y, 100)
+    assert np.isnan(ye[te < 5_000]).all() and ye[te >= 5_000].min() == 5_000 and np.nanmax(ye) == 9_999
