@@ -1,6 +1,8 @@
 """Shared fixtures: a private compile cache per test session, headless plots,
 and the paper scenario simulated once."""
+import fcntl
 import os
+import pickle
 
 import pytest
 
@@ -13,9 +15,7 @@ def _private_cache(tmp_path_factory):
     (the cache's atomic, verified writes make sharing safe), so each law's
     step is compiled once per run rather than once per worker."""
     old = os.environ.get("TMTCONTROL_CACHE")
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-    cache = shared / "tmtcontrol-cache"
+    cache = _shared_base(tmp_path_factory) / "tmtcontrol-cache"
     cache.mkdir(exist_ok=True)
     os.environ["TMTCONTROL_CACHE"] = str(cache)
     yield
@@ -23,6 +23,39 @@ def _private_cache(tmp_path_factory):
         os.environ.pop("TMTCONTROL_CACHE", None)
     else:
         os.environ["TMTCONTROL_CACHE"] = old
+
+
+def _shared_base(tmp_path_factory):
+    """The folder all xdist workers of this run share (the base of their temp folders)."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+@pytest.fixture(scope="session")
+def run_once(tmp_path_factory):
+    """``run_once(name, make) -> (out, value)``: ``make(out)`` writes into the fresh
+    folder ``out`` and returns a picklable value; across the xdist workers of a run it
+    runs once (the others wait on a file lock and read the stored value), so an
+    expensive command shared by several tests (a report, a comparison) is not
+    repeated on every worker."""
+    root = _shared_base(tmp_path_factory) / "run-once"
+    root.mkdir(exist_ok=True)
+
+    def once(name, make):
+        folder = root / name
+        with open(root / f"{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                stored = folder / "value.pickle"
+                if not stored.exists():
+                    folder.mkdir(exist_ok=True)
+                    value = make(folder / "out")
+                    stored.write_bytes(pickle.dumps(value))
+                return folder / "out", pickle.loads(stored.read_bytes())
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    return once
 
 
 @pytest.fixture(scope="session")

@@ -69,7 +69,7 @@ def _simulate_in(tmp, cache, name):
 
     env = {**os.environ, "TMTCONTROL_CACHE": str(cache)}
     return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
-                           str(tmp / name), "--set", "trajectory.cycles=0.05"],
+                           str(tmp / name), "--set", "trajectory.cycles=2.6"],   # 10,400 steps: compiled
                           capture_output=True, text=True, env=env)
 
 
@@ -107,7 +107,7 @@ def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
     blocker.write_text("x")
     monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker / "cache"))      # below a regular file
     with pytest.warns(RuntimeWarning, match="cannot write the compile cache .* TMTCONTROL_CACHE"):
-        sim = Simulator(paper_scenario())
+        sim = Simulator(paper_scenario(), compile=True)
     assert sim.rollout.how == "compiled" and not str(sim.rollout.library).startswith(str(blocker))
 
 
@@ -115,6 +115,6 @@ def test_no_compiler_uses_a_valid_cached_library(monkeypatch, tmp_path):
     from tmtcontrol import Simulator, paper_scenario
 
     monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
-    Simulator(paper_scenario())
+    Simulator(paper_scenario(), compile=True)
     monkeypatch.setattr(codegen, "compiler", lambda: None)
     assert Simulator(paper_scenario()).rollout.how == "cached"

@@ -187,10 +187,9 @@ def test_rls_needs_its_covariance_reset_at_a_stiffness_switch():
 # -- compare -------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def compared(tmp_path_factory):
-    out = tmp_path_factory.mktemp("cmp") / "c"
-    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "compare", "paper", "--out", str(out)],
-                       capture_output=True, text=True)
+def compared(run_once):
+    out, r = run_once("compare", lambda out: subprocess.run(
+        [sys.executable, "-m", "tmtcontrol.cli", "compare", "paper", "--out", str(out)], capture_output=True, text=True))
     return r, out
 
 

@@ -29,6 +29,9 @@ def test_miswired_law_selection_in_the_simulated_loop_fails(monkeypatch):
     import tmtcontrol.simulation.simulator as simulator_module
     from tmtcontrol.control.laws import get_law
 
+    import tmtcontrol.stability.wholeloop as wholeloop_module
+
+    monkeypatch.setattr(wholeloop_module, "_BUILT", {})                          # no step built before
     monkeypatch.setattr(simulator_module, "get_law", lambda name: get_law("tmt"))   # every law runs TMT
     assert "simulated loop runs the declared law" in _failed(run_loop_checks())
 

@@ -19,19 +19,18 @@ def make_report(out, *args):
 
 
 @pytest.fixture(scope="module")
-def paper_report(tmp_path_factory):
-    out = tmp_path_factory.mktemp("rep") / "paper"
-    r = make_report(out, "paper")
+def paper_report(run_once):
+    out, r = run_once("paper-report", lambda out: make_report(out, "paper"))
     assert r.returncode == 0, r.stderr
     return out, r
 
 
 @pytest.fixture(scope="module")
-def unstable_report(tmp_path_factory):
+def unstable_report(run_once):
     # Ts = 5 ms cannot hold 5e4 N/m with the paper gains (limit ~3.2e4 N/m)
-    out = tmp_path_factory.mktemp("rep") / "unstable"
-    r = make_report(out, "paper", "--set", "controller.rate=200", "--set",
-                    "environment.stiffness.values=[5e3, 5e4]", "--set", "trajectory.cycles=2")
+    out, r = run_once("unstable-report", lambda out: make_report(
+        out, "paper", "--set", "controller.rate=200", "--set", "environment.stiffness.values=[5e3, 5e4]",
+        "--set", "trajectory.cycles=2"))
     assert r.returncode == 1, r.stderr       # a report with a FAIL verdict exits 1
     return out, r
 

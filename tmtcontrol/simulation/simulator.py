@@ -165,9 +165,13 @@ class Simulator:
     ----------
     scenario : Scenario, optional
         Defaults to :func:`paper_scenario`.
-    compile : bool
-        Compile the rollout to C (cached on disk). ``False`` (or no
-        compiler, or ``integrator = "cvodes"``) runs on CasADi's virtual machine.
+    compile : bool or "auto"
+        Compile the rollout to C (cached on disk). ``"auto"`` (default): use
+        a cached library, else compile once this Simulator has run more than
+        :data:`~tmtcontrol.simulation.rollout.COMPILE_AFTER` steps (short
+        runs stay on the virtual machine; results are bit-identical either
+        way). ``True``: compile now. ``False`` (or no compiler, or
+        ``integrator = "cvodes"``) runs on CasADi's virtual machine.
 
     Examples
     --------
@@ -177,7 +181,7 @@ class Simulator:
     10.0001...
     """
 
-    def __init__(self, scenario: Scenario | None = None, compile: bool = True):
+    def __init__(self, scenario: Scenario | None = None, compile: bool | str = "auto"):
         self.scenario = scenario or paper_scenario()
         sc = self.scenario
         t0 = time.perf_counter()

@@ -38,6 +38,29 @@ __all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit"]
 
 _BOOKKEEPING = ("approach", "x_app", "ramp", "x_e_hat")
 
+_BUILT: dict = {}
+"""Symbolic step and Jacobian per closed-loop structure (numbers are inputs)."""
+
+
+def _build(sc):
+    """The step of ``sc``'s structure as ``(s, [u; p]) -> (s_next, f_e)`` and its
+    Jacobian in s, with the simulator that owns it and the dynamic states."""
+    from ..simulation.closedloop import LOG, state_layout
+    from ..simulation.simulator import Simulator
+
+    sim = Simulator(sc, compile=False)
+    layout = state_layout(sim.law, sim.delay)
+    s = ca.SX.sym("s", layout.size)
+    u = ca.SX.sym("u", sim.step.size1_in(1))
+    p = ca.SX.sym("p", sim.step.size1_in(2))
+    s_next, log = sim.step(s, u, p)
+    up = ca.vertcat(u, p)
+    dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
+                        for i in range(sl.start, sl.stop)])
+    f = ca.Function("whole_step", [s, up], [s_next, log[LOG["f_e"]]], ["s", "up"], ["s_next", "f_e"])
+    jac = ca.Function("whole_jacobian", [s, up], [ca.jacobian(s_next, s)], ["s", "up"], ["A"])
+    return sim, layout, dynamic, f, jac
+
 
 @dataclass(frozen=True)
 class WholeLoop:
@@ -70,8 +93,7 @@ class WholeLoopModel:
     :meth:`at` for a stiffness and a path point."""
 
     def __init__(self, scenario):
-        from ..simulation.closedloop import LOG, state_layout
-        from ..simulation.simulator import Simulator, _path
+        from ..simulation.simulator import _path, _structure
 
         if not get_law(scenario.controller.law.kind).linear_analysis:
             raise AnalysisError(f"controller.law: {scenario.controller.law.kind!r} has no linear verdict "
@@ -81,20 +103,16 @@ class WholeLoopModel:
             sc = sc.replace(simulation={"integrator": "fixed", "substeps": sc.simulation.substeps})
         sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "approach_gap": 0.0})
         self.scenario = sc
-        sim = Simulator(sc, compile=False)
-        self.sim, self.law = sim, sim.law
-        self.layout = state_layout(sim.law, sim.delay)
-        self.path = _path(sim.plant, sc)
-        U, P, s0, t = sim._inputs(sc, self.path)
-        self.U, self.P, self.s0, self.t = U, P, s0, t
-        s = ca.SX.sym("s", self.layout.size)
-        u = ca.SX.sym("u", U.shape[0])
-        s_next, log = sim.step(s, u, ca.DM(P))
-        self.dynamic = np.array([i for name, sl in self.layout.slices.items() if name not in _BOOKKEEPING
-                                 for i in range(sl.start, sl.stop)])
-        self._f = ca.Function("whole_step", [s, u], [s_next, log[LOG["f_e"]]], ["s", "u"], ["s_next", "f_e"])
-        self._jac = ca.Function("whole_jacobian", [s, u], [ca.jacobian(s_next, s)], ["s", "u"], ["A"])
-        self._normal = sim.plant  # for the effective mass
+        key = _structure(sc)
+        if key not in _BUILT:
+            if len(_BUILT) >= 16:
+                _BUILT.clear()
+            _BUILT[key] = _build(sc)
+        self.sim, self.layout, self.dynamic, self._f, self._jac = _BUILT[key]
+        self.law = self.sim.law
+        self.path = _path(self.sim.plant, sc)
+        self.U, self.P, self.s0, self.t = self.sim._inputs(sc, self.path)
+        self._warm: dict = {}
 
     def _u(self, i: int, k_e: float) -> np.ndarray:
         from ..simulation.closedloop import INPUT
@@ -116,7 +134,7 @@ class WholeLoopModel:
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         period = sc.trajectory.period
         i = int(round((path_time % period) / sc.controller.Ts)) % self.t.size
-        u = self._u(i, k_e)
+        u = np.r_[self._u(i, k_e), self.P]
         ctl = sc.controller
         R = task_frame(sc.environment.tilt_deg)
         n = R[:, 0]
@@ -127,22 +145,38 @@ class WholeLoopModel:
         c = np.asarray(sc.trajectory.center, dtype=float)
         q_surface = self.sim.plant.inverse_kinematics(c + R @ np.r_[0.0, ref.pos[:, 0]])
         m_p = effective_mass(np.asarray(self.sim.plant.cartesian_inertia(q_surface)), n)
-        # initial guess: the law's 1-D equilibrium at this effective mass
-        kd, kp = sc.impedance.gains
-        fc = sc.sensor.filter_cutoff
-        alpha = float(np.exp(-2 * np.pi * fc * ctl.Ts)) if fc > 0 else 0.0
-        one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=sc.impedance.b[0], k=sc.impedance.k[0],
-                         k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0], kp=kp[0],
-                         alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples, settle=0.5)
-        x_eq = float(one_d.z_eq[0])
-        q = self.sim.plant.inverse_kinematics(c + R @ np.r_[x_eq, ref.pos[:, 0]])
-        s = self.s0.copy()
         L = self.layout
-        s[L["q"]] = q
-        s[L["dq"]] = 0.0
-        s[L["f_filt"]] = one_d.f_eq
-        s[L["law"]] = one_d.z_eq[3:3 + len(self.law.states)]
-        s_eq, residual = self._newton(s, u)
+
+        def from_previous(s_prev, k_prev):
+            # the equilibrium found at this point for a nearby stiffness (bisection): the force and
+            # the law state carry over, the penetration scales as 1/k_e
+            s = s_prev.copy()
+            pen = float(n @ (np.asarray(self.sim.plant.fk(s[L["q"]])).ravel() - c))
+            s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[pen * k_prev / k_e, ref.pos[:, 0]])
+            return s
+
+        def from_1d():
+            # the law's 1-D equilibrium at this effective mass
+            kd, kp = sc.impedance.gains
+            fc = sc.sensor.filter_cutoff
+            alpha = float(np.exp(-2 * np.pi * fc * ctl.Ts)) if fc > 0 else 0.0
+            one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=sc.impedance.b[0], k=sc.impedance.k[0],
+                             k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0],
+                             kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,
+                             settle=0.5)
+            s = self.s0.copy()
+            s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]])
+            s[L["dq"]] = 0.0
+            s[L["f_filt"]] = one_d.f_eq
+            s[L["law"]] = one_d.z_eq[3:3 + len(self.law.states)]
+            return s
+
+        guesses = ([lambda: from_previous(*self._warm[i])] if i in self._warm else []) + [from_1d]
+        for guess in guesses:
+            s_eq, residual = self._newton(guess(), u)
+            if residual < 1e-8:
+                self._warm[i] = (s_eq, float(k_e))
+                break
         A_full = np.array(self._jac(s_eq, u))
         d = self.dynamic
         A = A_full[np.ix_(d, d)]
