@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-from tmtcontrol.stability.design import (DesignError, DesignInfeasible, DesignSpec, _ise_function, _objective, design_impedance,
+from tmtcontrol.stability.design import (sampled_overshoot, DesignError, DesignInfeasible, DesignSpec, _ise_function, _objective, design_impedance,
                                ise_closed_form, overshoot_closed_form)
 
 SPEC = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0, m_p=3.3)
@@ -36,18 +36,19 @@ def test_ise_matches_cvodes_quadrature(b, k_e):
 def test_optimum_is_constrained_and_beats_baseline(optimum):
     r = optimum
     assert r.status == "Solve_Succeeded"
-    # the overshoot bound is active at k_e_max: zeta = zeta(5 %) there
+    # the overshoot bound is active at k_e_max in the sampled loop (aimed 1e-3 inside it) ...
+    assert sampled_overshoot(SPEC, r.b, r.k, 2e4) == pytest.approx(5.0 * (1 - 1e-3), abs=1e-3)
+    # ... which at 1 kHz is close to eq. (22): zeta = zeta(5 %) there, to 2 %
     zeta_5 = -math.log(0.05) / math.sqrt(math.pi ** 2 + math.log(0.05) ** 2)
-    assert r.b == pytest.approx(2 * zeta_5 * math.sqrt(1.0 * (100 + 2e4)), rel=1e-3)
-    # verified between grid points with independent closed forms; sampling of
-    # the constrained response (0.05/omega_n) leaves < 0.01 %-points
+    assert r.b == pytest.approx(2 * zeta_5 * math.sqrt(1.0 * (100 + 2e4)), rel=0.02)
+    # verified between grid points by iterating the sampled loop
     assert r.worst_overshoot <= 5.0 + 1e-2
     assert r.dense_objective <= r.objective * (1 + 1e-6)
     assert r.objective < r.baseline_objective
     assert r.baseline_b == pytest.approx(2 * math.sqrt(100 + 2e4))
     # a neighbouring b is worse or infeasible (local optimality, scored by the same cost)
     assert _objective(SPEC, r.b * 1.05, r.k) > r.objective
-    assert overshoot_closed_form(1.0, r.b * 0.95, 100.0, 2e4) > 5.0
+    assert sampled_overshoot(SPEC, r.b * 0.95, 100.0, 2e4) > 5.0
     assert r.sampled_limit > 2 * SPEC.k_e_max
 
 
@@ -88,6 +89,29 @@ def test_infeasible_names_binding_constraint(kw, needle):
     base.update(kw)
     with pytest.raises(DesignInfeasible, match=needle):
         design_impedance(DesignSpec(**base))
+
+
+def test_coarse_rate_design_holds_in_the_full_simulation():
+    # Issue #13: at Ts = 5 ms the eq. (22) design (b = 167.6 N s/m for 10 %) overshoots 12.2 % in the
+    # simulated robot at 2e4 N/m. The design on the sampled loop must hold there: the full PUMA
+    # simulation's first-contact overshoot stays within the bound (the path's effective mass varies
+    # below the design's worst-case m_p = 3.72 kg: allow 0.3 percentage points).
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
+
+    spec = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=5e-3, max_overshoot=10.0, m_p=3.72)
+    r = design_impedance(spec)
+    assert r.verified and r.b > 170.0
+    assert r.info["continuous_overshoot"] < 10.0 - 1.0       # eq. (22) alone would under-damp
+    sc = apply_overrides(paper_scenario(), ["controller.rate=200", "environment.stiffness.values=[2e4]",
+                                            "trajectory.cycles=0.5", f"impedance.b=[{r.b!r}, 20.0, 20.0]"])
+    assert segment_metrics(Simulator(sc).run())[0].overshoot_pct <= 10.0 + 0.3
+
+
+def test_delay_needs_more_damping_and_is_verified():
+    base = dict(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=10.0, m_p=3.72)
+    plain, delayed = design_impedance(DesignSpec(**base)), design_impedance(DesignSpec(**base, delay=1))
+    assert delayed.verified and delayed.b > plain.b
+    assert delayed.sampled_limit < plain.sampled_limit / 2          # one sample of delay: ~3x lower
 
 
 def test_bad_spec_rejected():

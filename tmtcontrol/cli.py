@@ -112,6 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: largest along the paper path, the worst case)")
     p.add_argument("--margin", type=float, default=2.0,
                    help="sampled stability required up to margin x k_e_max (default 2)")
+    p.add_argument("--delay", type=int, default=0, help="computation delay, samples (default 0)")
+    p.add_argument("--filter-hz", type=float, default=0.0,
+                   help="first-order force-filter cut-off, Hz (default 0: no filter)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses to DIR")
     p.set_defaults(func=_design)
@@ -268,6 +271,15 @@ def _analyze(args) -> int:
     return 0 if stable else 1
 
 
+def _filter_pole(cutoff: float, Ts: float) -> float:
+    """The discrete pole of a first-order filter at ``cutoff`` Hz sampled at ``Ts`` (0: no filter)."""
+    import math
+
+    if not (math.isfinite(cutoff) and cutoff >= 0):
+        raise UsageError(f"--filter-hz: must be >= 0, got {cutoff}")
+    return math.exp(-2 * math.pi * cutoff * Ts) if cutoff > 0 and Ts > 0 else 0.0
+
+
 def _design(args) -> int:
     import json
 
@@ -278,7 +290,8 @@ def _design(args) -> int:
     spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
                       max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
                       m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),
-                      stiffness_margin=args.margin)
+                      stiffness_margin=args.margin, delay=args.delay,
+                      alpha=_filter_pole(args.filter_hz, args.ts))
     out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
     with out if out is not None else contextlib.nullcontext():
         result = design_impedance(spec)

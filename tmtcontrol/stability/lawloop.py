@@ -79,7 +79,9 @@ def _iterate(step: ca.Function, z0: np.ndarray, n: int) -> tuple[np.ndarray, np.
 
 
 def _step_function(law: Law, params: LawParameters, *, m, b, k, k_e, Ts, m_p, f_d, delta, kd, kp, alpha,
-                   d_e, delay):
+                   d_e, delay, inputs=()):
+    """The one-period map ``[z, *inputs] -> [z_next, f_e]``; numbers may be
+    CasADi SX symbols listed in ``inputs`` (the design makes b and k inputs)."""
     nl = len(law.states)
     z = ca.SX.sym("z", 3 + nl + 2 * delay)
     x, v, f_filt = z[0], z[1], z[2]
@@ -102,7 +104,8 @@ def _step_function(law: Law, params: LawParameters, *, m, b, k, k_e, Ts, m_p, f_
     xv_next = ca.mtimes(ca.DM(Phi), ca.vertcat(x, v)) + ca.mtimes(ca.DM(Gam), applied)
     z_next = ca.vertcat(xv_next, f_m, s_next, buf_next)
     names = ("x", "dx", "f_filt", *law.states, *(f"{w}[-{i}]" for i in range(delay, 0, -1) for w in ("U", "f")))
-    return ca.Function(f"loop_{law.name}", [z], [z_next, f_true], ["z"], ["z_next", "f_e"]), names
+    return (ca.Function(f"loop_{law.name}", [z, *inputs], [z_next, f_true],
+                        ["z", *(str(v) for v in inputs)], ["z_next", "f_e"]), names)
 
 
 def _newton(fun, jac, z, iters=60, tol=1e-12):
