@@ -12,6 +12,7 @@ SCRIPTS = {
     "damping_comparison.py": ["--cycles", "0.5"],
     "law_comparison.py": ["--cycles", "0.25"],
     "first_contact.py": ["--points", "2"],
+    "noise.py": ["--cycles", "0.5", "--sigmas", "0.2"],
 }
 
 

@@ -23,7 +23,7 @@ from ..impedance import filtered_command
 from .base import Law, LawParameters
 
 __all__ = ["k_eff", "known_reference", "tmt_delta", "tmt_reference", "TmtParameters", "TMT", "eq22_polynomial",
-           "tmt_polynomial"]
+           "tmt_polynomial", "compliance_estimate"]
 
 
 def k_eff(k, k_e):
@@ -60,12 +60,21 @@ def tmt_reference(x, f_e, x_e, f_d, k, force_threshold, min_stiffness):
     Where ``f_e >= 2 force_threshold`` and ``0 <= c <= 1/min_stiffness`` the
     value is exactly eq. (16)/(18).
     """
+    w, c = compliance_estimate(x, f_e, x_e, force_threshold, min_stiffness)
+    return x_e + f_d / k + w * f_d * c
+
+
+def compliance_estimate(x, f_e, x_e, force_threshold, min_stiffness):
+    """The safeguarded compliance estimate of eq. (14), ``c = (x - x_e)/f_e``
+    clipped to ``[0, 1/min_stiffness]``, and the weight ``w`` (0 below
+    ``force_threshold``, 1 from twice it, C1 smoothstep between) with which
+    eq. (18) uses it (see :func:`tmt_reference`)."""
     ratio = (f_e - force_threshold) / force_threshold
     w = ca.fmin(ca.fmax(ratio, 0), 1)
     w = w * w * (3 - 2 * w)
     f_safe = ca.fmax(f_e, force_threshold)
     c = ca.fmin(ca.fmax((x - x_e) / f_safe, 0), 1 / min_stiffness)
-    return x_e + f_d / k + w * f_d * c
+    return w, c
 
 
 class TmtParameters(LawParameters):
