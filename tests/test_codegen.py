@@ -58,6 +58,13 @@ def test_failing_compiler_warns_and_falls_back(monkeypatch, tmp_path):
 
 # -- a damaged or unwritable cache never crashes the process (issue #11) -------------------
 
+def SMALL():
+    """The paper scenario with one RK4 substep: a smaller step, so the compile tests compile faster."""
+    from tmtcontrol import apply_overrides, paper_scenario
+
+    return apply_overrides(paper_scenario(), ["simulation.substeps=1"])
+
+
 def _cached_lib(folder):
     return next(p for p in folder.iterdir() if p.suffix == ".so")
 
@@ -69,7 +76,8 @@ def _simulate_in(tmp, cache, name):
 
     env = {**os.environ, "TMTCONTROL_CACHE": str(cache)}
     return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--no-plots", "--out",
-                           str(tmp / name), "--set", "trajectory.cycles=2.6"],   # 10,400 steps: compiled
+                           str(tmp / name), "--set", "trajectory.cycles=2.6",    # 10,400 steps: compiled
+                           "--set", "simulation.substeps=1"],                     # a smaller step compiles faster
                           capture_output=True, text=True, env=env)
 
 
@@ -101,20 +109,20 @@ def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage, first_co
 
 
 def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
-    from tmtcontrol import Simulator, paper_scenario
+    from tmtcontrol import Simulator
 
     blocker = tmp_path / "file"
     blocker.write_text("x")
     monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker / "cache"))      # below a regular file
     with pytest.warns(RuntimeWarning, match="cannot write the compile cache .* TMTCONTROL_CACHE"):
-        sim = Simulator(paper_scenario(), compile=True)
+        sim = Simulator(SMALL(), compile=True)
     assert sim.rollout.how == "compiled" and not str(sim.rollout.library).startswith(str(blocker))
 
 
 def test_no_compiler_uses_a_valid_cached_library(monkeypatch, tmp_path):
-    from tmtcontrol import Simulator, paper_scenario
+    from tmtcontrol import Simulator
 
     monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
-    Simulator(paper_scenario(), compile=True)
+    Simulator(SMALL(), compile=True)
     monkeypatch.setattr(codegen, "compiler", lambda: None)
-    assert Simulator(paper_scenario()).rollout.how == "cached"
+    assert Simulator(SMALL()).rollout.how == "cached"
