@@ -123,6 +123,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
     p.set_defaults(func=_check)
 
+    p = sub.add_parser("sweep", help="many simulations over grids and random draws of scenario keys",
+                       formatter_class=_RAW,
+                       description="Runs every case of a sweep file (see `tmtcontrol sweep --example`) and writes\n"
+                                   "results.parquet, summary.json and figures to --out. Finished cases are kept in\n"
+                                   "OUT.partial/ as they complete; --resume runs only the missing ones.\n"
+                                   "Exit 1 if any case did not converge.",
+                       epilog="examples:\n  tmtcontrol sweep --example > robust.toml\n"
+                              "  tmtcontrol sweep robust.toml --workers 2\n"
+                              "  tmtcontrol sweep robust.toml --dask tcp://scheduler:8786 --resume")
+    p.add_argument("sweep", nargs="?", help="sweep TOML file")
+    p.add_argument("--out", default="tmt-sweep", help="output folder (default tmt-sweep)")
+    p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this process)")
+    p.add_argument("--dask", metavar="local|ADDRESS", help="run on Dask: 'local' starts a LocalCluster of "
+                   "--workers processes; an address (tcp://host:port) uses a running scheduler")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted sweep of the same file")
+    p.add_argument("--example", action="store_true", help="print a commented example sweep file and exit")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--max-steps", type=int, default=None, metavar="N",
+                   help="refuse cases longer than N control steps (default 1,000,000)")
+    p.set_defaults(func=_sweep)
+
     p = sub.add_parser("report", help="stability report of a scenario: report.html and report.pdf",
                        formatter_class=_RAW,
                        description="Runs the checks, the analysis, the simulation and the design for one scenario.\n"
@@ -320,6 +341,39 @@ def _check(args) -> int:
     else:
         print(format_checks(results))
     return 0 if all(r.passed for r in results) else 1
+
+
+def _sweep(args) -> int:
+    if args.example:
+        from .sweep.spec import EXAMPLE
+
+        print(EXAMPLE, end="")
+        return 0
+    if args.sweep is None:
+        raise UsageError("SWEEP: a sweep file is required (tmtcontrol sweep --example prints one)")
+    if args.workers < 1:
+        raise UsageError(f"--workers: must be >= 1, got {args.workers}")
+    if args.dask is not None and not (args.dask == "local" or "://" in args.dask):
+        raise UsageError(f"--dask: expected 'local' or a scheduler address like tcp://host:8786, got {args.dask!r}")
+    from .simulation.simulator import check_run_size
+    from .sweep import load_sweep, save_sweep
+
+    sweep = load_sweep(args.sweep)
+    for case in sweep.cases:
+        check_run_size(sweep.scenario(case), args.max_steps)
+    summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
+                         plots=not args.no_plots, max_steps=args.max_steps,
+                         command_line="tmtcontrol " + " ".join(sys.argv[1:]))
+    counts = summary["verdicts"]
+    print(f"{summary['cases']} cases over {', '.join(summary['axes'])}: "
+          + ", ".join(f"{n} {v}" for v, n in counts.items()) + f" ({summary['run']['seconds']:.1f} s)")
+    for b in summary["boundary"]:
+        print("boundary: " + ", ".join(f"{k} = {v}" for k, v in b.items()))
+    print(f"wrote {args.out}/")
+    bad = summary["cases"] - counts["converged"]
+    if bad:
+        print(f"not converged: {bad} of {summary['cases']} cases (see summary.json 'worst')", file=sys.stderr)
+    return 1 if bad else 0
 
 
 def _report(args) -> int:

@@ -1,0 +1,151 @@
+"""Robustness sweeps (issue #15): the sweep file, its cases, the runs on one or more
+workers or Dask, chunked results that survive an interruption, and --resume."""
+import json
+import re
+import subprocess
+import sys
+import tomllib
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from tmtcontrol.sweep import EXAMPLE, SweepError, load_sweep, run_sweep, save_sweep, sweep_from_dict
+from tmtcontrol.sweep.run import PartialFolder, case_row
+
+SMALL = """
+scenario = "paper"
+[grid]
+"environment.stiffness.values" = [[5000.0], [300000.0]]
+"trajectory.cycles" = [0.25]
+[random]
+samples = 2
+seed = 3
+"sensor.noise_std" = { uniform = [0.0, 0.05] }
+"""
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", *args], capture_output=True, text=True,
+                          cwd=cwd)
+
+
+def test_example_is_valid_and_its_draws_depend_only_on_the_seed():
+    sweep = sweep_from_dict(tomllib.loads(EXAMPLE))
+    assert len(sweep.cases) == 3 * 2 * 100 and sweep.axes == ["environment.stiffness.values",
+                                                             "controller.x_e_error", "sensor.noise_std"]
+    noise = [c.values["sensor.noise_std"] for c in sweep.cases]
+    assert all(0.0 <= v <= 0.2 for v in noise)
+    # each grid point sees the same 100 draws; the same file gives the same cases
+    assert noise[:100] == noise[100:200]
+    assert sweep.fingerprint == sweep_from_dict(tomllib.loads(EXAMPLE)).fingerprint
+    other = sweep_from_dict(tomllib.loads(EXAMPLE.replace("seed = 1", "seed = 2")))
+    assert [c.values["sensor.noise_std"] for c in other.cases[:100]] != noise[:100]
+    r = _cli("--example")
+    assert r.returncode == 0 and r.stdout == EXAMPLE
+
+
+@pytest.mark.parametrize("text,needle", [
+    ('[grid]\n"controller.f_dd" = [1.0]', r"grid\.controller\.f_dd\[0\] = 1\.0: controller\.f_dd"),
+    ('[grid]\n"controller.f_d" = [10.0, -1.0]', r"grid\.controller\.f_d\[1\] = -1\.0: controller\.f_d"),
+    ('[grid]\n"controller.f_d" = { linspace = [1, 2] }', r"grid\.controller\.f_d: expected a list of values, \{ linspace"),
+    ('[random]\n"sensor.noise_std" = { uniform = [0.0, 0.1] }', r"random\.samples: required"),
+    ('[random]\nsamples = 2\n"sensor.noise_std" = { gauss = [0.0, 0.1] }', r"random\.sensor\.noise_std: expected"),
+    ('[random]\nsamples = 2\n"sensor.noise_std" = { uniform = [-1.0, 0.1] }', r"case 0 .*sensor\.noise_std"),
+    ('scenario = "missing.toml"\n[grid]\n"controller.f_d" = [1.0]', r"scenario: .*missing\.toml"),
+    ('[grids]\n"controller.f_d" = [1.0]', r"grids: unknown key"),
+    ('scenario = "paper"', r"a sweep needs at least one axis"),
+])
+def test_bad_sweep_files_exit_2_naming_the_key(tmp_path, capsys, text, needle):
+    from tmtcontrol.cli import main
+
+    (tmp_path / "s.toml").write_text(text)
+    code = main(["sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert re.search(needle, lines[0]), lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]          # nothing written
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sweep") / "s.toml"
+    path.write_text(SMALL)
+    return load_sweep(path)
+
+
+def test_rows_have_the_swept_values_verdicts_and_segment_metrics(small):
+    df = run_sweep(small)
+    assert list(df["case"]) == [0, 1, 2, 3]
+    assert list(df["environment.stiffness.values"]) == [5000.0, 5000.0, 300000.0, 300000.0]
+    # 5e3 N/m converges; 3e5 N/m is past the sampled limit (1.6e5): the contact limit cycle
+    assert list(df["verdict"]) == ["converged", "converged", "limit_cycle", "limit_cycle"]
+    assert (df.loc[:1, "max_steady_error"] < 0.05).all() and (df.loc[2:, "max_steady_error"] > 1.0).all()
+    for col in ("seg1_verdict", "seg1_steady_state_error", "seg1_overshoot_pct", "first_contact_peak"):
+        assert col in df
+    # the row is the simulation's: same numbers as one case run directly
+    again = case_row(small.base, small.cases[1])
+    assert again["max_steady_error"] == df.loc[1, "max_steady_error"]
+
+
+def test_results_do_not_depend_on_workers_or_engine(small):
+    cols = lambda d: d.drop(columns=["run_time_s"])
+    one = cols(run_sweep(small))
+    two = cols(run_sweep(small, workers=2))
+    pd.testing.assert_frame_equal(one, two)
+    on_dask = cols(run_sweep(small, workers=2, dask="local"))
+    pd.testing.assert_frame_equal(one, on_dask)
+
+
+def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, tmp_path):
+    (tmp_path / "s.toml").write_text(SMALL)
+    r = _cli("s.toml", "--out", "o", cwd=tmp_path)
+    assert r.returncode == 1 and r.stderr.strip().splitlines()[-1].startswith("not converged: 2 of 4 cases")
+    out = tmp_path / "o"
+    table = pq.read_table(out / "results.parquet").to_pandas()
+    assert len(table) == 4 and set(table["verdict"]) == {"converged", "limit_cycle"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["verdicts"] == {"converged": 2, "limit_cycle": 2, "diverged": 0}
+    assert summary["worst"][0]["verdict"] == "limit_cycle"
+    # the analysis' limit for the paper loop lies between the converged and the failing stiffness
+    (pred,) = summary["predicted_stiffness_limit"]
+    assert 5000.0 < pred["limit"] < 300000.0
+    assert (out / "sweep_map.png").stat().st_size > 0
+    assert not (tmp_path / "o.partial").exists()
+
+
+def test_interrupted_sweep_resumes_with_only_the_missing_cases(small, tmp_path):
+    out = tmp_path / "o"
+    fresh = save_sweep(small, tmp_path / "ref", plots=False)
+    ref = pq.read_table(tmp_path / "ref" / "results.parquet").to_pandas()
+    # an interruption after the first chunk: its rows are on disk, nothing committed
+    partial = PartialFolder(out.resolve(), small, resume=False)
+    partial.write([case_row(small.base, c) for c in small.cases[:3]])
+    with pytest.raises(ValueError, match="--resume continues it"):
+        save_sweep(small, out, plots=False)
+    resumed = save_sweep(small, out, resume=True, plots=False)
+    assert resumed["run"]["resumed_cases"] == 3 and fresh["run"]["resumed_cases"] == 0
+    got = pq.read_table(out / "results.parquet").to_pandas()
+    pd.testing.assert_frame_equal(got.drop(columns="run_time_s"), ref.drop(columns="run_time_s"))
+    assert not partial.path.exists()
+
+
+def test_resume_refuses_another_sweep_and_a_foreign_folder(small, tmp_path):
+    other = sweep_from_dict(tomllib.loads(SMALL.replace("seed = 3", "seed = 4")))
+    PartialFolder((tmp_path / "o").resolve(), other, resume=False)
+    with pytest.raises(ValueError, match="holds a different sweep"):
+        save_sweep(small, tmp_path / "o", resume=True, plots=False)
+    (tmp_path / "mine.partial").mkdir()
+    (tmp_path / "mine.partial" / "notes.txt").write_text("a user's file")
+    with pytest.raises(ValueError, match="is not a tmtcontrol sweep's"):
+        save_sweep(small, tmp_path / "mine", plots=False)
+    assert (tmp_path / "mine.partial" / "notes.txt").read_text() == "a user's file"
+
+
+def test_law_axis_draws_the_distribution(tmp_path):
+    (tmp_path / "s.toml").write_text('[grid]\n"controller.law" = ["tmt", "integral"]\n"trajectory.cycles" = [0.25]\n')
+    r = _cli("s.toml", "--out", "o", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["figures"] == ["sweep_map.png", "law_distribution.png"]

@@ -1,0 +1,135 @@
+"""Robustness sweeps: thousands of simulations over the uncertainty a user will meet
+(stiffness, surface error, noise, model error, rate, delay, law), on local
+worker processes or a Dask cluster, with results in Parquet (see docs/sweeps.md)."""
+
+from __future__ import annotations
+
+import pathlib
+import time
+
+from ..files import OutputFolder, write_json
+from .run import PartialFolder, Progress, case_row, run_cases
+from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
+
+__all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
+           "sweep_summary", "EXAMPLE", "case_row"]
+
+
+def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps: int | None = None,
+              progress: bool = False):
+    """Run every case in memory and return a pandas DataFrame, one row per
+    case (for notebooks; ``tmtcontrol sweep`` writes the same rows to
+    ``results.parquet``)."""
+    import pandas as pd
+
+    rows: list[dict] = []
+    prog = Progress(len(sweep.cases)) if progress else None
+    try:
+        run_cases(sweep, list(sweep.cases), rows.extend, workers, dask, max_steps, prog)
+    finally:
+        if prog is not None:
+            prog.close()
+    return pd.DataFrame(sorted(rows, key=lambda r: r["case"]))
+
+
+def _predicted(sweep: Sweep, df) -> dict | None:
+    """The analysis' stiffness limit per value of the other map axis, when the
+    stiffness is one of the first two axes and the law has a linear verdict."""
+    from ..stability.analysis import scenario_stiffness_limit
+
+    axes = sweep.axes[:2]
+    key = "environment.stiffness.values"
+    if key not in axes:
+        return None
+    other = next((a for a in axes if a != key), None)
+    out = {}
+    groups = [None] if other is None else list(dict.fromkeys(df[other]))
+    for value in groups:
+        case = sweep.cases[int(df["case"].iloc[0] if other is None else df.loc[df[other] == value, "case"].iloc[0])]
+        try:
+            limit = scenario_stiffness_limit(sweep.scenario(case))
+        except Exception:           # an analysis that does not apply (e.g. no linear verdict)
+            limit = None
+        if limit is not None:
+            out[value] = float(limit)
+    return out or None
+
+
+def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
+    """Counts per verdict, the five worst cases and the boundary found along
+    the first axis (per value of the second)."""
+    import numpy as np
+
+    from ..simulation.metrics import VERDICTS
+
+    counts = {v: int((df["verdict"] == v).sum()) for v in VERDICTS}
+    order = df.assign(_e=df["max_steady_error"].astype(float).fillna(np.inf)).sort_values("_e", ascending=False)
+    worst = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+              for k, v in row.items() if k in ("case", "verdict", "max_steady_error", *sweep.axes)}
+             for row in order.head(5).drop(columns="_e").to_dict("records")]
+    boundary = []
+    axes = sweep.axes
+    first = axes[0]
+    other = axes[1] if len(axes) > 1 else None
+    groups = [(None, df)] if other is None else [(v, g) for v, g in df.groupby(other, sort=True)]
+    for value, g in groups:
+        try:
+            xs = sorted(set(g[first]))
+        except TypeError:
+            break
+        last_ok = first_bad = None
+        for x in xs:
+            if (g.loc[g[first] == x, "verdict"] == "converged").all() and first_bad is None:
+                last_ok = x
+            elif first_bad is None:
+                first_bad = x
+        boundary.append({**({other: value} if other else {}), f"largest {first} with every case converged": last_ok,
+                         f"smallest {first} with a case not converged": first_bad})
+    out = {"cases": int(len(df)), "axes": axes, "verdicts": counts, "worst": worst, "boundary": boundary}
+    if predicted:
+        out["predicted_stiffness_limit"] = [{"value": k, "limit": v} for k, v in predicted.items()]
+    return out
+
+
+def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: str | None = None,
+               resume: bool = False, plots: bool = True, max_steps: int | None = None,
+               command_line: str = "") -> dict:
+    """Run the sweep into ``out``: finished chunks go to ``OUT.partial/`` as
+    they complete; at the end ``results.parquet``, ``summary.json`` and the
+    figures are committed to ``out`` (replaced atomically) and the partial
+    folder is removed. Returns the summary."""
+    import pyarrow.parquet as pq
+
+    folder = OutputFolder(out, "--out")            # checked before anything runs
+    with folder:
+        partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume)
+        done = partial.done()
+        todo = [c for c in sweep.cases if c.index not in done]
+        prog = Progress(len(sweep.cases), len(done))
+        t0 = time.perf_counter()
+        try:
+            if todo:
+                run_cases(sweep, todo, partial.write, workers, dask, max_steps, prog)
+        finally:
+            prog.close()
+        table = partial.table()
+        pq.write_table(table, folder.path / "results.parquet")
+        df = table.to_pandas()
+        predicted = _predicted(sweep, df)
+        summary = sweep_summary(sweep, df, predicted)
+        summary.update({"run": {"workers": workers, "engine": dask or "local", "seconds": time.perf_counter() - t0,
+                                "resumed_cases": len(done), "command": command_line},
+                        "sweep": {"grid": sweep.grid, "random": sweep.random, "samples": sweep.samples,
+                                  "seed": sweep.seed, "fingerprint": sweep.fingerprint}})
+        if plots:
+            from ..simulation.figures import save_figures
+            from .figures import law_distribution_figure, sweep_map_figure
+
+            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted))]
+            if "controller.law" in sweep.axes:
+                makers.append(("law_distribution", law_distribution_figure))
+            summary["figures"] = [p.name for p in save_figures(makers, df, folder.path)]
+        write_json(folder.path / "summary.json", summary)
+        folder.commit()
+    partial.remove()
+    return summary

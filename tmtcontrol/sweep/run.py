@@ -1,0 +1,245 @@
+"""Running a sweep: many simulations on local worker processes or a Dask cluster.
+
+Each worker keeps one :class:`~tmtcontrol.Simulator` per closed-loop structure
+(law, robot options, integrator, delay), so it loads (or compiles) each
+compiled step once and then runs case after case; the path check is cached
+per distinct path. Cases go out in chunks; every finished chunk is written at
+once as ``part-NNNNNN.parquet`` in ``OUT.partial/`` beside the output folder,
+so Ctrl-C or a crash loses no finished case and ``--resume`` runs only the
+missing ones. A case's row depends only on its inputs (simulations are
+deterministic, and compiled and virtual-machine runs are bit-identical), so
+the results do not depend on the number of workers or on the engine.
+
+Local parallelism uses :mod:`concurrent.futures` worker processes; a
+distributed run uses ``dask.distributed`` (a ``LocalCluster`` or a running
+scheduler's address). No scheduling of our own.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import pathlib
+import shutil
+import sys
+import time
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..files import OutputError, check_interrupt
+from .spec import Case, Sweep, case_scenario
+
+__all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress"]
+
+SEGMENT_FIELDS = ("stiffness", "verdict", "steady_state_error", "steady_rms_error", "switch_jump",
+                  "overshoot_pct", "settling_time")
+"""Per-segment metrics in each row, as ``seg<i>_<field>`` (i from 1)."""
+
+_SIMS: dict = {}       # per worker process: one Simulator per closed-loop structure
+
+
+def _flat(value):
+    """A swept value as a table cell: a one-element list as its element, a longer list as text."""
+    if isinstance(value, list):
+        return value[0] if len(value) == 1 and isinstance(value[0], (int, float)) else json.dumps(value)
+    return value
+
+
+def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
+    """Simulate one case and return its row: the swept values (by dotted key),
+    the case verdict (the worst segment's; ``diverged`` if the simulation blew
+    up), ``max_steady_error`` (N, worst segment), the first contact and the
+    per-segment metrics."""
+    from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
+    from ..simulation.simulator import SimulationError, Simulator, _structure
+
+    sc = case_scenario(base, case.values)
+    key = _structure(sc)
+    if key not in _SIMS:
+        if len(_SIMS) >= 8:
+            _SIMS.clear()
+        _SIMS[key] = Simulator(sc)
+    row: dict[str, Any] = {"case": case.index, **{k: _flat(v) for k, v in case.values.items()}}
+    t0 = time.perf_counter()
+    try:
+        res = _SIMS[key].run(sc, max_steps=max_steps)
+    except SimulationError as exc:
+        row.update({"verdict": "diverged", "max_steady_error": math.inf, "first_contact_time": None,
+                    "first_contact_peak": None, "first_contact_ratio": None, "first_contact_bounces": None,
+                    "error": str(exc), "run_time_s": time.perf_counter() - t0})
+        return row
+    segs = segment_metrics(res)
+    fc = first_contact(res)
+    row.update({"verdict": max((s.verdict for s in segs), key=VERDICTS.index),
+                "max_steady_error": max(s.steady_state_error for s in segs),
+                "first_contact_time": fc.time, "first_contact_peak": fc.peak_force,
+                "first_contact_ratio": fc.peak_ratio, "first_contact_bounces": fc.bounces,
+                "error": "", "run_time_s": time.perf_counter() - t0})
+    for i, s in enumerate(segs, 1):
+        for f in SEGMENT_FIELDS:
+            row[f"seg{i}_{f}"] = getattr(s, f)
+    return row
+
+
+def run_chunk(base: dict, cases: list[Case], max_steps: int | None = None) -> list[dict]:
+    """The rows of a chunk of cases (runs in a worker)."""
+    return [case_row(base, c, max_steps) for c in cases]
+
+
+class PartialFolder:
+    """``OUT.partial/``: the finished chunks of a sweep, marked with the sweep's
+    fingerprint. Created by a fresh run, reused by ``--resume``, removed once
+    the results are committed; never touched if it is not a sweep's."""
+
+    MARK = "sweep.json"
+
+    def __init__(self, out: pathlib.Path, sweep: Sweep, resume: bool):
+        self.path = out.parent / (out.name + ".partial")
+        mark = self.path / self.MARK
+        if self.path.exists():
+            try:
+                fp = json.loads(mark.read_text())["fingerprint"]
+            except (OSError, ValueError, KeyError, TypeError):
+                raise OutputError(f"--out: {self.path} exists and is not a tmtcontrol sweep's; "
+                                  "move it or choose another --out") from None
+            if not resume:
+                raise OutputError(f"--out: an interrupted sweep is in {self.path}; --resume continues it "
+                                  "(or remove that folder)")
+            if fp != sweep.fingerprint:
+                raise OutputError(f"--resume: {self.path} holds a different sweep (other base scenario or cases)")
+        else:
+            try:
+                self.path.mkdir(parents=False)
+                mark.write_text(json.dumps({"fingerprint": sweep.fingerprint, "cases": len(sweep.cases)}) + "\n")
+            except OSError as exc:
+                raise OutputError(f"--out: cannot create {self.path} ({exc.strerror})") from None
+
+    def done(self) -> set[int]:
+        import pyarrow.parquet as pq
+
+        out = set()
+        for part in sorted(self.path.glob("part-*.parquet")):
+            try:
+                out.update(pq.read_table(part, columns=["case"]).column("case").to_pylist())
+            except Exception:      # a part cut short by a crash: its cases run again
+                part.unlink()
+        return out
+
+    def write(self, rows: list[dict]) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        first = min(r["case"] for r in rows)
+        tmp = self.path / f".part-{first:07d}.tmp"
+        pq.write_table(pa.Table.from_pylist(_uniform(rows)), tmp)
+        os.replace(tmp, self.path / f"part-{first:07d}.parquet")
+
+    def table(self):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        tables = [pq.read_table(p) for p in sorted(self.path.glob("part-*.parquet"))]
+        t = pa.concat_tables(tables, promote_options="permissive")
+        return t.sort_by("case")
+
+    def remove(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
+
+
+def _uniform(rows: list[dict]) -> list[dict]:
+    keys: dict[str, None] = {}
+    for r in rows:
+        keys.update(dict.fromkeys(r))
+    return [{k: r.get(k) for k in keys} for r in rows]
+
+
+class Progress:
+    """Progress on stderr: a tqdm bar (rate, ETA) on a terminal; otherwise one
+    line every ``every`` seconds and at the end."""
+
+    def __init__(self, total: int, done: int = 0, every: float = 10.0, stream=None):
+        self.stream = stream or sys.stderr
+        self.total, self.n, self.every = total, done, every
+        self.t0 = self.last = time.perf_counter()
+        self.start = done
+        self.bar = None
+        if getattr(self.stream, "isatty", lambda: False)():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, initial=done, unit="case", file=self.stream, dynamic_ncols=True)
+
+    def update(self, k: int) -> None:
+        self.n += k
+        if self.bar is not None:
+            self.bar.update(k)
+            return
+        now = time.perf_counter()
+        if now - self.last >= self.every or self.n == self.total:
+            self.last = now
+            rate = (self.n - self.start) / max(now - self.t0, 1e-9)
+            eta = (self.total - self.n) / rate if rate > 0 else math.inf
+            print(f"sweep: {self.n}/{self.total} cases ({100 * self.n / max(self.total, 1):.0f} %), "
+                  f"{rate:.1f} cases/s, ETA {eta:.0f} s", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _chunks(cases: list[Case], workers: int) -> list[list[Case]]:
+    size = max(1, min(25, math.ceil(len(cases) / max(1, 4 * workers))))
+    return [cases[i:i + size] for i in range(0, len(cases), size)]
+
+
+def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None], workers: int = 1,
+              dask: str | None = None, max_steps: int | None = None, progress: Progress | None = None) -> None:
+    """Run ``todo`` and hand every finished chunk's rows to ``write``, in
+    completion order: in this process (``workers == 1``, no Dask), on
+    ``workers`` local processes, or on Dask (``dask="local"``: a LocalCluster
+    of ``workers`` processes; else a scheduler address)."""
+    chunks = _chunks(todo, workers)
+    tick = progress.update if progress is not None else (lambda k: None)
+    if dask is None and workers == 1:
+        for chunk in chunks:
+            rows = run_chunk(sweep.base, chunk, max_steps)
+            check_interrupt()
+            write(rows)
+            tick(len(rows))
+        return
+    if dask is None:
+        import concurrent.futures as cf
+
+        # the platform's default start method (fork on Linux): a user's script or notebook needs no
+        # `if __name__ == "__main__"` guard
+        with cf.ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
+            try:
+                for fut in cf.as_completed(futures):
+                    rows = fut.result()
+                    write(rows)
+                    tick(len(rows))
+            except BaseException:
+                for f in futures:
+                    f.cancel()
+                raise
+        return
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    if dask == "local":
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=40)
+        client = Client(cluster)
+    else:
+        cluster, client = None, Client(dask, timeout="10s")
+    try:
+        futures = client.map(run_chunk, [sweep.base] * len(chunks), chunks, [max_steps] * len(chunks), pure=False)
+        for fut in as_completed(futures):
+            rows = fut.result()
+            write(rows)
+            tick(len(rows))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
