@@ -121,7 +121,7 @@ def test_interrupt_exits_cleanly_and_leaves_nothing(tmp_path, sig, code):
 
 def test_interrupt_during_design_is_not_a_result(tmp_path):
     p = subprocess.Popen(CLI + ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "20000",
-                                "--ts", "0.001", "--max-overshoot", "5", "--mp", "3.3", "--optimize-k",
+                                "--ts", "0.001", "--max-overshoot", "5", "--mp", "3.3", "--optimize-k", "--delay", "1",
                                 "--plot", str(tmp_path / "p")],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 30

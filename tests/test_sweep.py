@@ -149,3 +149,23 @@ def test_law_axis_draws_the_distribution(tmp_path):
     assert r.returncode == 0, r.stderr
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["figures"] == ["sweep_map.png", "law_distribution.png"]
+
+
+def test_predicted_boundary_agrees_with_the_simulated_verdicts(tmp_path):
+    # a k_e x Ts grid on the paper loop: every case at <= 0.9x the analysis' limit for its rate
+    # converges, every case at >= 1.1x does not (4 s at constant stiffness per case)
+    (tmp_path / "s.toml").write_text('[grid]\n"environment.stiffness.values" = { geomspace = [1e4, 4e5, 9] }\n'
+                                     '"controller.rate" = [1000.0, 250.0]\n"trajectory.cycles" = [1.0]\n')
+    summary = save_sweep(load_sweep(tmp_path / "s.toml"), tmp_path / "o", workers=2, plots=False)
+    limits = {p["value"]: p["limit"] for p in summary["predicted_stiffness_limit"]}
+    df = pq.read_table(tmp_path / "o" / "results.parquet").to_pandas()
+    checked = 0
+    for _, row in df.iterrows():
+        ratio = row["environment.stiffness.values"] / limits[row["controller.rate"]]
+        if ratio <= 0.9:
+            assert row["verdict"] == "converged", (row["controller.rate"], ratio)
+            checked += 1
+        elif ratio >= 1.1:
+            assert row["verdict"] != "converged", (row["controller.rate"], ratio)
+            checked += 1
+    assert checked >= 14 and set(df["verdict"]) >= {"converged", "limit_cycle"}

@@ -344,8 +344,15 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
                                                  "max_iter": 500})
     try:
         sol = opti.solve()
-    except RuntimeError:
+    except RuntimeError as exc:
         check_interrupt()        # CasADi turns Ctrl-C inside IPOPT into a solver failure
+        if opti.stats().get("return_status") == "User_Requested_Stop" or "KeyboardInterrupt" in str(exc):
+            # IPOPT's own SIGINT handler took the signal before Python's saw it
+            import signal
+
+            from ..files import Interrupted
+
+            raise Interrupted(signal.SIGINT) from None
         raise DesignInfeasible(f"IPOPT did not converge ({opti.stats()['return_status']}) although "
                                "the closed-form scan found a feasible b; try other bounds") from None
     check_interrupt()

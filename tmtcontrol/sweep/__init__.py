@@ -32,9 +32,18 @@ def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps
     return pd.DataFrame(sorted(rows, key=lambda r: r["case"]))
 
 
+def _facet_axis(sweep: Sweep, df) -> str | None:
+    """The third axis, when it has two to four values: the map gets one panel per value."""
+    if len(sweep.axes) < 3:
+        return None
+    third = sweep.axes[2]
+    return third if 2 <= df[third].nunique() <= 4 else None
+
+
 def _predicted(sweep: Sweep, df) -> dict | None:
-    """The analysis' stiffness limit per value of the other map axis, when the
-    stiffness is one of the first two axes and the law has a linear verdict."""
+    """The analysis' stiffness limit per value of the other map axis (and of
+    the facet axis: keys are then ``(other, facet)`` pairs), when the stiffness
+    is one of the first two axes and the law has a linear verdict."""
     from ..stability.analysis import scenario_stiffness_limit
 
     axes = sweep.axes[:2]
@@ -42,16 +51,19 @@ def _predicted(sweep: Sweep, df) -> dict | None:
     if key not in axes:
         return None
     other = next((a for a in axes if a != key), None)
+    facet = _facet_axis(sweep, df)
+    by = [a for a in (other, facet) if a is not None]
+    groups = [((), df)] if not by else [((k,) if not isinstance(k, tuple) else k, g)
+                                        for k, g in df.groupby(by if len(by) > 1 else by[0], sort=True)]
     out = {}
-    groups = [None] if other is None else list(dict.fromkeys(df[other]))
-    for value in groups:
-        case = sweep.cases[int(df["case"].iloc[0] if other is None else df.loc[df[other] == value, "case"].iloc[0])]
+    for k, g in groups:
+        case = sweep.cases[int(g["case"].iloc[0])]
         try:
             limit = scenario_stiffness_limit(sweep.scenario(case))
         except Exception:           # an analysis that does not apply (e.g. no linear verdict)
             limit = None
         if limit is not None:
-            out[value] = float(limit)
+            out[k[0] if len(k) == 1 else (k if k else None)] = float(limit)
     return out or None
 
 
@@ -87,7 +99,8 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
                          f"smallest {first} with a case not converged": first_bad})
     out = {"cases": int(len(df)), "axes": axes, "verdicts": counts, "worst": worst, "boundary": boundary}
     if predicted:
-        out["predicted_stiffness_limit"] = [{"value": k, "limit": v} for k, v in predicted.items()]
+        out["predicted_stiffness_limit"] = [{"value": list(k) if isinstance(k, tuple) else k, "limit": v}
+                                            for k, v in predicted.items()]
     return out
 
 
@@ -125,7 +138,8 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
             from ..simulation.figures import save_figures
             from .figures import law_distribution_figure, sweep_map_figure
 
-            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted))]
+            facet = _facet_axis(sweep, df)
+            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted, facet))]
             if "controller.law" in sweep.axes:
                 makers.append(("law_distribution", law_distribution_figure))
             summary["figures"] = [p.name for p in save_figures(makers, df, folder.path)]

@@ -16,51 +16,63 @@ def _numeric(values) -> bool:
     return all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in values)
 
 
-def sweep_map_figure(df, axes: list[str], predicted: dict | None = None) -> Figure:
+def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: str | None = None) -> Figure:
     """Verdict (marker) and worst steady-state error (colour, N) over the
-    first two axes (the first axis against the error if there is one axis);
-    ``predicted``: ``{other-axis value or None: stiffness limit (N/m)}`` drawn
-    as the analysis' boundary when the stiffness is an axis."""
-    fig = Figure(figsize=(7, 4.6), layout="constrained")
-    ax = fig.add_subplot()
-    x_key = axes[0]
-    y_key = axes[1] if len(axes) > 1 else "max_steady_error"
-    x, y = df[x_key].to_numpy(), df[y_key].to_numpy()
-    err = np.clip(df["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
+    first two axes (the first axis against the error if there is one axis),
+    one panel per value of ``facet`` (the third axis) if given;
+    ``predicted``: the analysis' stiffness limit (N/m) per value of the other
+    axis (keys ``(other, facet)`` with a facet), drawn as the predicted
+    boundary when the stiffness is one of the two axes."""
     import matplotlib as mpl
 
-    norm = mpl.colors.LogNorm(vmin=max(err.min(), 1e-6), vmax=max(err.max(), 1e-5))
+    panels = [(None, df)] if facet is None else list(df.groupby(facet, sort=True))
+    fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6), layout="constrained")
+    err_all = np.clip(df["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
+    norm = mpl.colors.LogNorm(vmin=max(np.nanmin(err_all), 1e-6), vmax=max(np.nanmax(err_all), 1e-5))
+    x_key = axes[0]
+    y_key = axes[1] if len(axes) > 1 else "max_steady_error"
     sc = None
-    for verdict, (marker, colour) in VERDICT_STYLE.items():
-        m = (df["verdict"] == verdict).to_numpy()
-        if m.any():
-            sc = ax.scatter(x[m], y[m], c=err[m], cmap="viridis", norm=norm, marker=marker, s=46,
-                            edgecolors=colour, linewidths=1.4, label=f"{verdict} ({int(m.sum())})")
+    ax0 = None
+    for j, (fv, d) in enumerate(panels):
+        ax = fig.add_subplot(1, len(panels), j + 1, sharex=ax0, sharey=ax0)
+        ax0 = ax0 or ax
+        x, y = d[x_key].to_numpy(), d[y_key].to_numpy()
+        err = np.clip(d["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
+        for verdict, (marker, colour) in VERDICT_STYLE.items():
+            m = (d["verdict"] == verdict).to_numpy()
+            if m.any():
+                sc = ax.scatter(x[m], y[m], c=err[m], cmap="viridis", norm=norm, marker=marker, s=46,
+                                edgecolors=colour, linewidths=1.4, label=f"{verdict} ({int(m.sum())})")
+        if predicted:
+            pts = {(k[0] if isinstance(k, tuple) else k): v for k, v in predicted.items()
+                   if facet is None or (isinstance(k, tuple) and k[-1] == fv)}
+            others = sorted(v for v in pts if v is not None)
+            line = dict(color="k", ls="--", lw=1.2, label="predicted limit (analysis)")
+            if x_key == "environment.stiffness.values":
+                if others and _numeric(others):
+                    ax.plot([pts[v] for v in others], others, **line)
+                elif None in pts:
+                    ax.axvline(pts[None], **line)
+            elif y_key == "environment.stiffness.values":
+                if others and _numeric(others):
+                    ax.plot(others, [pts[v] for v in others], **line)
+                elif None in pts:
+                    ax.axhline(pts[None], **line)
+        if j == 0:
+            xs, ys = df[x_key].to_numpy(), df[y_key].to_numpy()
+            if _numeric(xs) and np.all(np.asarray(xs, float) > 0) and np.max(xs) / np.min(xs) > 20:
+                ax.set_xscale("log")
+            if y_key == "max_steady_error" or (_numeric(ys) and np.all(np.asarray(ys, float) > 0)
+                                               and np.max(ys) / np.min(ys) > 20):
+                ax.set_yscale("log")
+        ax.set(xlabel=x_key, ylabel=(y_key if y_key != "max_steady_error" else "worst steady-state error (N)")
+               if j == 0 else "", title=f"{facet} = {fv}" if facet else "Sweep: verdict (marker), accuracy (colour)")
+        ax.legend(fontsize="small")
+        ax.grid(True, which="both", alpha=0.3)
     if sc is not None:
-        fig.colorbar(sc, ax=ax, label="worst steady-state |f_e - f_d| (N)")
-    if _numeric(x) and np.all(np.asarray(x, float) > 0) and np.ptp(np.asarray(x, float)) > 0 and \
-            np.max(x) / np.min(x) > 20:
-        ax.set_xscale("log")
-    if y_key == "max_steady_error" or (_numeric(y) and np.all(np.asarray(y, float) > 0) and np.ptp(
-            np.asarray(y, float)) > 0 and np.max(y) / np.min(y) > 20):
-        ax.set_yscale("log")
-    if predicted:
-        if x_key == "environment.stiffness.values":
-            ys = sorted(v for v in predicted if v is not None)
-            if ys and _numeric(ys):
-                ax.plot([predicted[v] for v in ys], ys, "k--", lw=1.2, label="predicted limit (analysis)")
-            elif None in predicted:
-                ax.axvline(predicted[None], color="k", ls="--", lw=1.2, label="predicted limit (analysis)")
-        elif y_key == "environment.stiffness.values":
-            xs = sorted(v for v in predicted if v is not None)
-            if xs and _numeric(xs):
-                ax.plot(xs, [predicted[v] for v in xs], "k--", lw=1.2, label="predicted limit (analysis)")
-            elif None in predicted:
-                ax.axhline(predicted[None], color="k", ls="--", lw=1.2, label="predicted limit (analysis)")
-    ax.set(xlabel=x_key, ylabel=y_key if y_key != "max_steady_error" else "worst steady-state error (N)",
-           title="Sweep: verdict (marker) and accuracy (colour)")
-    ax.legend(fontsize="small")
-    ax.grid(True, which="both", alpha=0.3)
+        fig.colorbar(sc, ax=fig.axes, label="worst steady-state |f_e - f_d| (N)")
+    if facet:
+        fig.suptitle("Sweep: verdict (marker) and accuracy (colour)")
     return fig
 
 

@@ -12,8 +12,9 @@ A sweep file (TOML)::
     "sensor.noise_std" = { uniform = [0.0, 0.2] }
 
 A grid value is what ``--set`` takes for that key (a list value for a list
-key, e.g. one stiffness ``[2000.0]``); ``{ linspace = [a, b, n] }`` and
-``{ geomspace = [a, b, n] }`` generate numbers. A random axis is
+key, e.g. one stiffness ``[2000.0]``; a number for a list key is a
+one-element list); ``{ linspace = [a, b, n] }`` and ``{ geomspace = [a, b,
+n] }`` generate numbers. A random axis is
 ``{ uniform = [a, b] }``, ``{ loguniform = [a, b] }`` or ``{ normal = [mean,
 std], bounds = [lo, hi] }`` (truncated by redrawing). The draws depend only
 on the seed, so identical files give identical cases. Every case goes through
@@ -91,9 +92,23 @@ class Sweep:
         return hashlib.sha256(blob.encode()).hexdigest()
 
 
+def _current(d: dict, key: str):
+    node = d
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
 def case_scenario(base: dict, values: dict) -> Scenario:
+    """The scenario of one case: ``base`` with each axis value set. A number
+    given for a list-valued key (e.g. a generated stiffness) is a one-element
+    list."""
     d = json.loads(json.dumps(base))
     for key, value in values.items():
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list):
+            value = [value]
         set_key(d, key, value)
     return scenario_from_dict(d)
 
