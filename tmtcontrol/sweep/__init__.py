@@ -33,8 +33,9 @@ def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps
 
 
 def _facet_axis(sweep: Sweep, df) -> str | None:
-    """The third axis, when it has two to four values: the map gets one panel per value."""
-    if len(sweep.axes) < 3:
+    """The third axis, when it is a grid axis with two to four values: the map
+    gets one panel per value (random draws are overlaid, not split)."""
+    if len(sweep.axes) < 3 or sweep.axes[2] not in sweep.grid:
         return None
     third = sweep.axes[2]
     return third if 2 <= df[third].nunique() <= 4 else None
