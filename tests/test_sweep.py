@@ -144,9 +144,10 @@ def test_resume_refuses_another_sweep_and_a_foreign_folder(small, tmp_path):
 
 
 def test_law_axis_draws_the_distribution(tmp_path):
+    from tmtcontrol.cli import main
+
     (tmp_path / "s.toml").write_text('[grid]\n"controller.law" = ["tmt", "integral"]\n"trajectory.cycles" = [0.25]\n')
-    r = _cli("s.toml", "--out", "o", cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
+    assert main(["sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o")]) == 0
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["figures"] == ["sweep_map.png", "law_distribution.png"]
 
@@ -156,7 +157,7 @@ def test_predicted_boundary_agrees_with_the_simulated_verdicts(tmp_path):
     # converges, every case at >= 1.1x does not (4 s at constant stiffness per case)
     (tmp_path / "s.toml").write_text('[grid]\n"environment.stiffness.values" = { geomspace = [1e4, 4e5, 9] }\n'
                                      '"controller.rate" = [1000.0, 250.0]\n"trajectory.cycles" = [1.0]\n')
-    summary = save_sweep(load_sweep(tmp_path / "s.toml"), tmp_path / "o", workers=2, plots=False)
+    summary = save_sweep(load_sweep(tmp_path / "s.toml"), tmp_path / "o", plots=False)
     limits = {p["value"]: p["limit"] for p in summary["predicted_stiffness_limit"]}
     df = pq.read_table(tmp_path / "o" / "results.parquet").to_pandas()
     checked = 0
