@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-from tmtcontrol.stability.design import (sampled_overshoot, DesignError, DesignInfeasible, DesignSpec, _ise_function, _objective, design_impedance,
-                               ise_closed_form, overshoot_closed_form)
+from tmtcontrol.stability.design import (DesignError, DesignInfeasible, DesignSpec, _ise_function, _objective,
+                                         design_impedance, ise_closed_form, sampled_overshoot)
 
 SPEC = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0, m_p=3.3)
 
@@ -96,8 +96,6 @@ def test_coarse_rate_design_holds_in_the_full_simulation():
     # simulated robot at 2e4 N/m. The design on the sampled loop must hold there: the full PUMA
     # simulation's first-contact overshoot stays within the bound (the path's effective mass varies
     # below the design's worst-case m_p = 3.72 kg: allow 0.3 percentage points).
-    from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
-
     spec = DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=5e-3, max_overshoot=10.0, m_p=3.72)
     r = design_impedance(spec)
     assert r.verified and r.b > 170.0

@@ -3,7 +3,6 @@ the damping sign in the analysed state space, the law wiring of the simulated lo
 sampled-data model, the TMT compliance clip."""
 import casadi as ca
 import numpy as np
-import pytest
 
 import tmtcontrol.control.laws.tmt as tmt_module
 from tmtcontrol.checks.loop import run_loop_checks

@@ -10,7 +10,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from tmtcontrol.sweep import EXAMPLE, SweepError, load_sweep, run_sweep, save_sweep, sweep_from_dict
+from tmtcontrol.sweep import EXAMPLE, load_sweep, run_sweep, save_sweep, sweep_from_dict
 from tmtcontrol.sweep.run import PartialFolder, case_row
 
 SMALL = """

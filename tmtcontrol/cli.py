@@ -293,12 +293,13 @@ def _analyze(args) -> int:
 
 
 def _filter_pole(cutoff: float, Ts: float) -> float:
-    """The discrete pole of a first-order filter at ``cutoff`` Hz sampled at ``Ts`` (0: no filter)."""
     import math
+
+    from .simulation.scenario import filter_pole
 
     if not (math.isfinite(cutoff) and cutoff >= 0):
         raise UsageError(f"--filter-hz: must be >= 0, got {cutoff}")
-    return math.exp(-2 * math.pi * cutoff * Ts) if cutoff > 0 and Ts > 0 else 0.0
+    return filter_pole(cutoff, Ts)
 
 
 def _design(args) -> int:

@@ -312,11 +312,21 @@ class ControllerSettings(_Section):
         return 1.0 / self.rate
 
 
+def filter_pole(cutoff: float, Ts: float) -> float:
+    """The discrete pole ``exp(-2 pi f_c Ts)`` of a first-order low-pass at
+    ``cutoff`` Hz sampled every ``Ts`` s; 0 (no filter) for a cut-off of 0."""
+    return float(math.exp(-2 * math.pi * cutoff * Ts)) if cutoff > 0 else 0.0
+
+
 class SensorSettings(_Section):
     """Force sensor along the normal."""
     noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0)
     seed: StrictInt = Field(0, ge=0, description="seed of the noise generator (an integer)")
     filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off; 0 = off", ge=0)
+
+    def pole(self, Ts: float) -> float:
+        """The force filter's discrete pole at control period ``Ts`` (0: no filter)."""
+        return filter_pole(self.filter_cutoff, Ts)
 
 
 class SimulationSettings(_Section):
@@ -559,6 +569,27 @@ def toml_document(d: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def read_toml(path: pathlib.Path, what: str, error: type[Exception]) -> dict:
+    """Parse the TOML file ``path``; every failure (missing, a folder, not
+    UTF-8, unreadable, malformed) raises ``error`` naming the file and
+    ``what`` it should have been."""
+    src = str(path)
+    try:
+        text = pathlib.Path(path).read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise error(f"{src}: no such {what} file") from None
+    except IsADirectoryError:
+        raise error(f"{src}: is a folder, expected a {what} TOML file") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{src}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise error(f"{src}: cannot read ({exc.strerror})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{src}: malformed TOML ({exc})") from None
+
+
 def load_scenario(path: str | pathlib.Path) -> Scenario:
     """Read and validate a scenario TOML file; the string ``"paper"`` gives
     :func:`paper_scenario`. A relative stiffness ``table`` file is resolved
@@ -567,20 +598,7 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
         return paper_scenario()
     path = pathlib.Path(path)
     src = str(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(f"{src}: no such scenario file") from None
-    except IsADirectoryError:
-        raise ScenarioError(f"{src}: is a folder, expected a scenario TOML file") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{src}: not UTF-8 text (byte {exc.start})") from None
-    except OSError as exc:
-        raise ScenarioError(f"{src}: cannot read ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{src}: malformed TOML ({exc})") from None
+    data = read_toml(path, "scenario", ScenarioError)
     if not data:
         raise ScenarioError(f"{src}: empty scenario; start from 'tmtcontrol scenario paper > {path.name}'")
     stiff = data.get("environment", {}).get("stiffness") if isinstance(data.get("environment"), dict) else None

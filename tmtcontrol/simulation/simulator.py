@@ -236,8 +236,7 @@ class Simulator:
         noise = sc.sensor.noise_std * rng.standard_normal(N) if sc.sensor.noise_std > 0 else np.zeros(N)
         U = np.vstack([ref.pos, ref.vel, ref.acc, k_e[None, :], noise[None, :]])
         kd, kp = sc.impedance.gains
-        fc = sc.sensor.filter_cutoff
-        alpha = float(np.exp(-2 * np.pi * fc * Ts)) if fc > 0 else 0.0
+        alpha = sc.sensor.pole(Ts)
         ctl, law = sc.controller, self.law
         sch = ctl.damping_schedule
         on = sch.kind == "zeta"

@@ -29,12 +29,11 @@ def scenario_parameters(scenario) -> dict:
     t = np.arange(0.0, sc.duration, sc.controller.Ts)
     k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
     kd, kp = sc.impedance.gains
-    fc = sc.sensor.filter_cutoff
     return {"m": sc.impedance.m[0], "b": sc.impedance.b[0], "k": sc.impedance.k[0],
             "f_d": sc.controller.f_d, "k_e_min": float(k_e.min()), "k_e_max": float(k_e.max()),
             "k_e_values": sorted({float(v) for v in k_e}) if len(set(k_e)) <= 20 else [],
             "Ts": sc.controller.Ts, "kd": kd[0], "kp": kp[0],
-            "alpha": float(np.exp(-2 * np.pi * fc * sc.controller.Ts)) if fc > 0 else 0.0,
+            "alpha": sc.sensor.pole(sc.controller.Ts),
             "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
             "law": sc.controller.law.kind, "delay": sc.controller.delay_samples,
             "x_e_error": sc.controller.x_e_error}

@@ -14,7 +14,7 @@ python-control objects or plain numbers; units are SI.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np

@@ -31,6 +31,7 @@ eq. (22) overshoot is reported alongside.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -169,6 +170,7 @@ def overshoot_closed_form(m, b, k, k_e) -> float:
 
 # -- the NLP ---------------------------------------------------------------------------------
 
+@functools.lru_cache(maxsize=128)
 def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Function:
     """``(b, k) -> f``: the contact force (N) of the sampled TMT loop at the
     samples of ``duration`` after first contact at rest (x = 0, f = 0), the
@@ -366,7 +368,6 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
                     for ke, w in zip(dense, spec.event_weights(dense)))
     worst_os = max(sampled_overshoot(spec, b_opt, k_opt, ke) for ke in dense)
     continuous_os = max(overshoot_closed_form(spec.m, b_opt, k_opt, ke) for ke in dense)
-    from .sampled import max_stable_stiffness
 
     return DesignResult(
         spec=spec, b=b_opt, k=k_opt, objective=_objective(spec, b_opt, k_opt),

@@ -158,8 +158,7 @@ class WholeLoopModel:
         def from_1d():
             # the law's 1-D equilibrium at this effective mass
             kd, kp = sc.impedance.gains
-            fc = sc.sensor.filter_cutoff
-            alpha = float(np.exp(-2 * np.pi * fc * ctl.Ts)) if fc > 0 else 0.0
+            alpha = sc.sensor.pole(ctl.Ts)
             one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=sc.impedance.b[0], k=sc.impedance.k[0],
                              k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0],
                              kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,

@@ -24,9 +24,8 @@ import pathlib
 import shutil
 import sys
 import time
-from typing import Any, Callable, Iterable
+from typing import Any, Callable
 
-import numpy as np
 
 from ..files import OutputError, check_interrupt
 from .spec import Case, Sweep, case_scenario

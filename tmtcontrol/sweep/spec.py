@@ -28,14 +28,13 @@ import itertools
 import json
 import math
 import pathlib
-import tomllib
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..simulation.scenario import (Scenario, ScenarioError, load_scenario, paper_scenario, scenario_from_dict,
-                                   scenario_to_dict, set_key)
+from ..simulation.scenario import (Scenario, ScenarioError, load_scenario, paper_scenario, read_toml,
+                                   scenario_from_dict, scenario_to_dict, set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "load_sweep", "sweep_from_dict", "EXAMPLE"]
 
@@ -241,14 +240,4 @@ def _describe(values: dict) -> str:
 def load_sweep(path: str | pathlib.Path) -> Sweep:
     """Read and validate a sweep TOML file."""
     path = pathlib.Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise SweepError(f"{path}: no such sweep file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SweepError(f"{path}: cannot read ({exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(f"{path}: invalid TOML ({exc})") from None
-    return sweep_from_dict(data, path.parent)
+    return sweep_from_dict(read_toml(path, "sweep", SweepError), path.parent)
