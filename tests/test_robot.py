@@ -145,6 +145,22 @@ def test_cartesian_form_reproduces_joint_dynamics():
         np.testing.assert_allclose(D, Jinv.T @ arr(r.mass_matrix(q)) @ Jinv, rtol=1e-9)
 
 
+def test_joint_torque_is_eq5_mapped_by_jacobian_transpose():
+    # two implementations of tau = J^T F, F from eq. (5): the Cartesian form
+    # (D*, h* formed) and the closed loop's joint form (one solve, no D*)
+    from tmtcontrol.control.impedance import control_force, joint_torque
+
+    r = Puma560(friction=True)
+    for q, dq, U in STATES:
+        if arr(r.condition_number(q)) > 1e3:
+            continue
+        F_e = U[::-1] * 10
+        J = arr(r.jacobian(q))
+        cart = J.T @ arr(control_force(r.cartesian_inertia(q), r.cartesian_bias(q, dq), U, F_e))
+        joint = arr(joint_torque(r.mass_matrix(q), r.bias(q, dq), r.jacobian(q), r.jacobian_dot(q, dq), U, F_e))
+        np.testing.assert_allclose(joint, cart, rtol=1e-9, atol=1e-9)   # rounding of cond <= 1e3 matrices
+
+
 def test_energy_conserved_without_torque_and_friction():
     r = Puma560(armature=True, friction=False)
     x = ca.SX.sym("x", 6)

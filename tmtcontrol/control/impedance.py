@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["impedance_acceleration", "command", "inner_loop", "control_force", "impedance_filter_step",
+__all__ = ["impedance_acceleration", "command", "inner_loop", "control_force", "joint_torque", "impedance_filter_step",
            "filtered_command"]
 
 
@@ -32,6 +32,16 @@ def inner_loop(ddX_c, dX_c, X_c, dX, X, kd, kp):
 def control_force(D_hat, h_hat, U, F_e):
     """Eq. (5): F = D*^ U + h*^ + F_e (all in one frame)."""
     return ca.mtimes(D_hat, U) + h_hat + F_e
+
+
+def joint_torque(M_hat, n_hat, J, Jdot_dq, U, F_e):
+    """Eq. (5) mapped to the joints, tau = J^T F, without forming D*^.
+
+    With D*^ = J^-T M^ J^-1 and h*^ = J^-T n^ - D*^ Jdot dq (the Cartesian
+    form of eq. 1), J^T F = M^ J^-1 (U - Jdot dq) + n^ + J^T F_e: one 3x3
+    solve instead of an inverse and two products (all vectors in the base
+    frame; n^ = C dq + g of the controller's model)."""
+    return ca.mtimes(M_hat, ca.solve(J, U - Jdot_dq, "symbolicqr")) + n_hat + ca.mtimes(J.T, F_e)
 
 
 def impedance_filter_step(x_a, dx_a, f, m, b, k, Ts, substeps: int = 4):

@@ -40,7 +40,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from ..control.impedance import control_force, inner_loop
+from ..control.impedance import inner_loop, joint_torque
 from ..control.laws import MEASUREMENTS, Law
 from ..model.puma560 import PUMA560_LINKS, Puma560
 from .environment import contact_force
@@ -142,31 +142,73 @@ def _task(robot: Puma560, q, dq, R, c):
     return p, J, ca.mtimes(R.T, p - c), ca.mtimes(R.T, ca.mtimes(J, dq))
 
 
-def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 4,
-               tol: float = 1e-10, delay: int = 0) -> ca.Function:
+def _rk4(ode, z, pz, n: int) -> ca.Function:
+    """``n`` classical Runge-Kutta steps over [0, 1]: ``(z, pz) -> (zf,
+    switched)``, ``switched`` = 1 if the contact state differs between the
+    stages (the period contains a kink of the contact force)."""
+    h = 1.0 / n
+    zf, states = z, []
+    for _ in range(n):
+        k1, c1 = ode(zf)
+        k2, c2 = ode(zf + h / 2 * k1)
+        k3, c3 = ode(zf + h / 2 * k2)
+        k4, c4 = ode(zf + h * k3)
+        zf = zf + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        states += [c1, c2, c3, c4]
+    on = sum(states)
+    switched = ca.logic_and(on > 0, on < len(states))
+    return ca.Function(f"plant_rk{n}", [z, pz], ca.cse([zf, switched]), ["z", "pz"], ["zf", "switched"])
+
+
+def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 1,
+               tol: float = 1e-10, delay: int = 0, contact_refine: int = 4) -> ca.Function:
     """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
     and a computation delay of ``delay`` samples.
 
-    ``integrator="fixed"``: CasADi 'rk' (RK4, ``substeps`` per period,
-    ``simplify``), the step expanded to SX so it can be compiled.
-    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
-    compilable; the accuracy reference).
+    ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
+    in which the contact force switches on or off is integrated again with
+    ``contact_refine`` times as many steps (a branch in the compiled code, so
+    it costs nothing elsewhere). The controller is expanded to SX and the
+    step can be compiled. ``"cvodes"``: CVODES with relative/absolute
+    tolerance ``tol`` (MX, not compilable; the accuracy reference).
     """
     # -- plant over one period, time scaled to [0, 1] so Ts is a parameter ----
     z = ca.SX.sym("z", 6)
-    q, dq = z[0:3], z[3:6]
     pz = ca.SX.sym("pz", 3 + 1 + 1 + 9 + 3 + 1)
     tau, k_e, d_e = pz[0:3], pz[3], pz[4]
     R = ca.reshape(pz[5:14], 3, 3)
     c, Ts = pz[14:17], pz[17]
-    _, J, X, dX = _task(plant, q, dq, R, c)
-    f_env = contact_force(X[0], dX[0], k_e, d_e)
-    F_env = R[:, 0] * f_env                                   # force on the environment, base frame
-    ddq = plant.forward_dynamics(q, dq, tau - ca.mtimes(J.T, F_env))   # eq. (1) in joint space
-    dae = {"x": z, "p": pz, "ode": Ts * ca.vertcat(dq, ddq)}
+
+    def ode(z):
+        """Eq. (1) in joint space with the unilateral contact; and whether the
+        contact pushes at z."""
+        q, dq = z[0:3], z[3:6]
+        _, J, X, dX = _task(plant, q, dq, R, c)
+        f_env = contact_force(X[0], dX[0], k_e, d_e)
+        F_env = R[:, 0] * f_env                                   # force on the environment, base frame
+        ddq = plant.forward_dynamics(q, dq, tau - ca.mtimes(J.T, F_env))
+        return Ts * ca.vertcat(dq, ddq), f_env > 0
+
+    dae = {"x": z, "p": pz, "ode": ode(z)[0]}
     if integrator == "fixed":
-        plant_flow = ca.integrator("plant", "rk", dae, 0.0, 1.0,
-                                   {"simplify": True, "number_of_finite_elements": int(substeps)})
+        coarse = _rk4(ode, z, pz, substeps)
+        if contact_refine <= 1:
+            plant_flow = ca.Function("plant", [z, pz], [coarse(z, pz)[0]], ["x0", "p"], ["xf"])
+        else:
+            # a period in which the contact force switches on or off (a kink of
+            # max(0, .) that a fixed step would straddle) is integrated again
+            # with contact_refine times more steps: the same coarse step called
+            # n times over Ts/n (little extra code to compile)
+            zm, z1, pm = ca.MX.sym("z", 6), ca.MX.sym("z1", 6), ca.MX.sym("pz", pz.numel())
+            n = int(contact_refine)
+            zr, p_sub = zm, ca.vertcat(pm[:-1], pm[-1] / n)
+            for _ in range(n):
+                zr = coarse(zr, p_sub)[0]
+            keep = ca.Function("keep", [zm, z1, pm], [z1])
+            refine = ca.Function("refine", [zm, z1, pm], [zr])
+            choose = ca.Function.conditional("refine_at_contact_switch", [keep], refine)
+            zc, switched = coarse(zm, pm)
+            plant_flow = ca.Function("plant", [zm, pm], [choose(switched, zm, zc, pm)], ["x0", "p"], ["xf"])
     elif integrator == "cvodes":
         plant_flow = ca.integrator("plant", "cvodes", dae, 0.0, 1.0,
                                    {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
@@ -206,9 +248,8 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
                         ca.vertcat(ddx_c, U_in["acc_t"]))                              # eq. (4)
     U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
     F_e = ca.vertcat(f_m, 0, 0)
-    F = control_force(model.cartesian_inertia(q), model.cartesian_bias(q, dq),
-                      ca.mtimes(R, U), ca.mtimes(R, F_e))                              # eq. (5)
-    tau = ca.mtimes(J.T, F) + model.friction(dq)
+    tau = joint_torque(model.mass_matrix(q), model.bias(q, dq), J, model.jacobian_dot(q, dq),
+                       ca.mtimes(R, U), ca.mtimes(R, F_e)) + model.friction(dq)        # eq. (5), J^T F
     if delay:           # apply the oldest waiting torque; queue this one
         queue = ca.vertcat(S["tau_wait"], tau)
         tau, tau_wait = queue[:3], queue[3:]
@@ -216,18 +257,22 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
         tau_wait = ca.MX(0, 1)
 
     pz_val = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], P["c"], P["Ts"])
-    zf = plant_flow(x0=ca.vertcat(q, dq), p=pz_val)["xf"]
+    z0 = ca.vertcat(q, dq)
+    zf = ca.MX.zeros(6) if integrator == "fixed" else plant_flow(x0=z0, p=pz_val)["xf"]
     ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
     x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
     s_next = ca.vertcat(zf, f_m, b_n, ca.if_else(engaged, 0, 1), x_app, ramp, x_e_hat, tau_wait, law_next)
     log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n, f_d, x_e_hat)
-    step = ca.Function(f"step_{law.name}" + (f"_delay{delay}" if delay else ""), [s, u, p], [s_next, log],
-                       ["s", "u", "p"], ["s_next", "log"])
+    name = f"step_{law.name}" + (f"_delay{delay}" if delay else "")
     if integrator != "fixed":
-        return step
-    # expanded to SX (compilable), then common subexpressions merged: a third fewer
-    # instructions for the virtual machine and the compiler, the same values
-    step = step.expand()
-    sx = [ca.SX.sym(n, step.size1_in(i)) for i, n in enumerate(("s", "u", "p"))]
-    s_next, log = ca.cse(step(*sx))
-    return ca.Function(step.name(), sx, [s_next, log], ["s", "u", "p"], ["s_next", "log"])
+        return ca.Function(name, [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
+    # the controller expanded to SX (compilable), common subexpressions merged: a
+    # third fewer instructions for the virtual machine and the compiler; the plant
+    # flow called once, its contact refinement a branch in the generated code
+    ctrl = ca.Function("ctrl", [s, u, p], [z0, pz_val, s_next[6:], log]).expand()
+    sx = [ca.SX.sym(n, ctrl.size1_in(i)) for i, n in enumerate(("s", "u", "p"))]
+    ctrl = ca.Function(f"{name}_ctrl", sx, ca.cse(ctrl(*sx)))
+    sm, um, pm = (ca.MX.sym(n, ctrl.size1_in(i)) for i, n in enumerate(("s", "u", "p")))
+    z0m, pzm, rest, logm = ctrl(sm, um, pm)
+    s_next_m = ca.vertcat(plant_flow(z0m, pzm), rest)
+    return ca.Function(name, [sm, um, pm], [s_next_m, logm], ["s", "u", "p"], ["s_next", "log"])

@@ -3,7 +3,7 @@ as C, compiled with the system compiler and cached on disk.
 
 ``Rollout(step)`` turns ``step: ["s","u","p"] -> ["s_next","log"]`` into a
 runner whose :meth:`Rollout.run` advances N periods with no Python per step:
-the per-step Function (already expanded to SX) is rolled out with
+the per-step Function (SX, or MX calling SX Functions) is rolled out with
 ``mapaccum`` over a fixed chunk of periods, that chunk is code-generated and
 compiled once, and the chunks are called directly on NumPy buffers through
 ``ctypes`` (CasADi's own Python call path converts every input and output and
@@ -16,9 +16,10 @@ a warm run generates no C. Each library is written fsync'ed under a
 temporary name and renamed into place, with its size and SHA-256 in a
 sidecar; a library that does not match its sidecar (a crash or a full disk
 during a write) is rebuilt, never loaded. An unwritable cache compiles into a
-private temporary folder; with no compiler a valid cached library is still used. Without a compiler, or when ``compile=False``, or for
-Functions that cannot be code-generated (CVODES), the same rollout runs on
-CasADi's virtual machine — slower, identical in result.
+private temporary folder; with no compiler a valid cached library is still
+used. Without a compiler, or when ``compile=False`` (the caller's choice for
+Functions that cannot be code-generated, such as CVODES), the same rollout
+runs on CasADi's virtual machine — slower, identical in result.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ import numpy as np
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
-_FLAGS = ["-O2", "-ffp-contract=off", "-fno-math-errno", "-march=native", "-fPIC", "-shared"]
+_FLAGS = ["-O3", "-fno-trapping-math", "-ffp-contract=off", "-fno-math-errno", "-march=native", "-fPIC", "-shared"]
 """-ffp-contract=off: no fused multiply-adds, so the compiled code computes
 bit for bit what CasADi's virtual machine computes (tests), and a result does
 not depend on whether its run was compiled."""
@@ -136,7 +137,7 @@ class Rollout:
         self._pending = None        # the chunk Function, compiled once enough steps have run
         self._steps = 0
         self.how = "vm"
-        if compile and step.is_a("SXFunction"):
+        if compile:
             chunked = step.mapaccum(f"{step.name()}_chunk", self.chunk)
             if compile == "auto" and not self._cached(chunked):
                 self._pending = chunked

@@ -330,10 +330,14 @@ class SensorSettings(_Section):
 
 
 class SimulationSettings(_Section):
-    """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period)
-    or ``cvodes`` (adaptive, accuracy reference, tolerance ``tol``)."""
+    """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period,
+    ``contact_refine`` times more in a period where the contact force
+    switches on or off) or ``cvodes`` (adaptive, accuracy reference,
+    tolerance ``tol``)."""
     integrator: Literal["fixed", "cvodes"] = Field("fixed", description="'fixed' (compiled RK4) or 'cvodes'")
-    substeps: StrictInt = Field(4, ge=1, le=1000, description="RK4 steps per control period (fixed)")
+    substeps: StrictInt = Field(1, ge=1, le=1000, description="RK4 steps per control period (fixed)")
+    contact_refine: StrictInt = Field(4, ge=1, le=64, description=(
+        "RK4 steps per substep in a period where the contact force switches on or off (fixed; 1: off)"))
     tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", gt=0, le=1e-2)
 
 

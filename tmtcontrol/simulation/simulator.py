@@ -77,7 +77,8 @@ def _structure(scenario: Scenario):
     """What changes the compiled step (everything else is a runtime input)."""
     r, s = scenario.robot, scenario.simulation
     return (r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
-            s.integrator, s.substeps if s.integrator == "fixed" else s.tol, scenario.controller.law.kind,
+            s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
+            scenario.controller.law.kind,
             scenario.controller.delay_samples)
 
 
@@ -191,8 +192,10 @@ class Simulator:
         self.law = get_law(sc.controller.law.kind)
         self.delay = sc.controller.delay_samples
         self.step = build_step(self.plant, self.model, self.law, sc.simulation.integrator,
-                               sc.simulation.substeps, sc.simulation.tol, self.delay)
-        self.rollout = Rollout(self.step, compile=compile)
+                               sc.simulation.substeps, sc.simulation.tol, self.delay,
+                               sc.simulation.contact_refine)
+        # CVODES cannot be code-generated: that reference runs on the virtual machine
+        self.rollout = Rollout(self.step, compile=compile if sc.simulation.integrator == "fixed" else False)
         self.build_time = time.perf_counter() - t0
         self._structure = _structure(sc)
 
