@@ -15,7 +15,6 @@ segment) and a force plot, and prints the table.
 """
 import argparse
 import csv
-import pathlib
 
 import numpy as np
 from matplotlib.figure import Figure

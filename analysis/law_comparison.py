@@ -15,7 +15,6 @@ and prints the table. Exit 1 if a law's run diverged.
 import argparse
 import json
 
-import numpy as np
 
 from tmtcontrol import apply_overrides, compare_laws, paper_scenario
 from tmtcontrol.files import OutputFolder

@@ -8,7 +8,6 @@ fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png plus the
 per-segment table (segments.txt).
 """
 import argparse
-import pathlib
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.simulation.metrics import format_table

@@ -1,7 +1,6 @@
 """The command line: outputs, exit codes, one-line errors, atomic output."""
 import csv
 import json
-import os
 import subprocess
 import sys
 

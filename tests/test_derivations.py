@@ -10,7 +10,6 @@ import pytest
 
 from tmtcontrol import stability
 from tmtcontrol.checks import derivations
-from tmtcontrol.control import impedance
 from tmtcontrol.control.laws import tmt as reference
 from tmtcontrol.cli import main
 from tmtcontrol.checks.derivations import Implementation, run_checks

@@ -1,7 +1,6 @@
 """Outputs never destroy a user's files; unwritable targets, interrupts and huge
 runs fail with one line; the compile cache survives damage."""
 import json
-import os
 import signal
 import subprocess
 import sys

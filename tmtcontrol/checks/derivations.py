@@ -207,7 +207,7 @@ def check_eq14_15(impl: Implementation, rng) -> CheckResult:
     """Eqs. (14)-(15): replacing k_e by f_e/(x - x_e) on the contact path."""
     res = 0.0
     for _ in range(40):
-        k, k_e, _x_e = rng.uniform(10, 1e3), 10 ** rng.uniform(2, 6), rng.normal() * 0.1
+        k, k_e, _ = rng.uniform(10, 1e3), 10 ** rng.uniform(2, 6), rng.normal() * 0.1
         u = rng.uniform(1e-5, 1e-2)
         f_e = k_e * u                                                         # eq. (13)
         k_hat = f_e / u                                                       # eq. (14)

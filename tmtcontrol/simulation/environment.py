@@ -10,7 +10,6 @@ the contact law reads, as in section III, ``f_e = k_e (x - x_e)`` with
 from __future__ import annotations
 
 import math
-import pathlib
 
 import casadi as ca
 import numpy as np
