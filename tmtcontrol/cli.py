@@ -150,6 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Exit 1 if any verdict is FAIL.",
                        epilog="example:\n  tmtcontrol report paper --out review")
     _add_scenario_args(p, "tmt-report")
+    p.add_argument("--format", default="html,pdf", metavar="html,pdf",
+                   help="which files to write: html, pdf or both (default: html,pdf)")
     p.set_defaults(func=_report)
 
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
@@ -381,24 +383,38 @@ def _report(args) -> int:
     import time
 
     from .files import OutputFolder
-    from .report import build_report, write_report
+    from .report import STAGES, build_report, write_report
     from .simulation.simulator import check_run_size
 
+    formats = _formats(args.format)
     sc = _load(args)
     check_run_size(sc, args.max_steps)
     t0 = time.perf_counter()
+    n = len(STAGES) + len(formats)
 
-    def progress(i, n, name):
-        print(f"[{i}/{n}] {name} ... ({time.perf_counter() - t0:.1f} s)", file=sys.stderr, flush=True)
+    def stage(i, name, seconds):
+        print(f"[{i}/{n}] {name}: {seconds:.1f} s", file=sys.stderr, flush=True)
 
     with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
-        rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]), progress=progress)
-        write_report(rep, out.path)
+        rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
+                           progress=lambda i, _n, name, s: stage(i, name, s))
+        done = iter(range(len(STAGES) + 1, n + 1))
+        files = write_report(rep, out.path, formats, progress=lambda name, s: stage(next(done), name, s))
         out.commit()
     for v in rep.verdicts:
         print(f"{'PASS' if v.passed else 'FAIL'}  {v.name}: {v.evidence}")
-    print(f"wrote {out.out}/report.html and report.pdf ({time.perf_counter() - t0:.1f} s)")
+    print(f"wrote {' and '.join(str(out.out / f.name) for f in files)} ({time.perf_counter() - t0:.1f} s)")
     return 0 if rep.passed else 1
+
+
+def _formats(text: str) -> tuple[str, ...]:
+    from .report import FORMATS
+
+    names = [f.strip() for f in text.split(",") if f.strip()]
+    bad = [f for f in names if f not in FORMATS]
+    if bad or not names:
+        raise UsageError(f"--format: expected a comma-separated list of {', '.join(FORMATS)}, got {text!r}")
+    return tuple(f for f in FORMATS if f in names)
 
 
 def _scenario(args) -> int:

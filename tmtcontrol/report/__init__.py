@@ -1,5 +1,40 @@
-"""The stability report: every stage of the data path for one scenario, as HTML and PDF."""
+"""The stability report: every stage of the data path for one scenario, as a
+document model (``document``) rendered to HTML and PDF (``render``)."""
 
-from .report import FORCE_TOLERANCE, Report, Verdict, build_report, write_report
+from __future__ import annotations
 
-__all__ = ["Verdict", "Report", "build_report", "write_report", "FORCE_TOLERANCE"]
+import pathlib
+import time
+from typing import Callable
+
+from .document import FORCE_TOLERANCE, STAGES, Report, Verdict, build_report, finish
+from .render import FORMATS, render_html, render_pdf
+
+__all__ = ["Verdict", "Report", "build_report", "write_report", "render_html", "render_pdf", "FORCE_TOLERANCE",
+           "STAGES", "FORMATS"]
+
+
+def write_report(rep: Report, folder, formats=FORMATS, progress: Callable | None = None) -> list[pathlib.Path]:
+    """Write ``report.html`` and/or ``report.pdf`` into ``folder`` (the PDF is
+    laid out from the same HTML). ``progress(name, seconds)`` is called after
+    each writing stage. Returns the files written."""
+    folder = pathlib.Path(folder)
+    say = progress or (lambda *a: None)
+    finish(rep)
+    t0 = time.perf_counter()
+    html = render_html(rep)
+    written = []
+    if "html" in formats:
+        path = folder / "report.html"
+        path.write_text(html, encoding="utf-8")
+        written.append(path)
+    rep.timings["writing HTML"] = time.perf_counter() - t0
+    say("writing HTML", rep.timings["writing HTML"])
+    if "pdf" in formats:
+        t0 = time.perf_counter()
+        path = folder / "report.pdf"
+        render_pdf(html, path)
+        written.append(path)
+        rep.timings["writing PDF"] = time.perf_counter() - t0
+        say("writing PDF", rep.timings["writing PDF"])
+    return written

@@ -14,7 +14,8 @@ from matplotlib.figure import Figure
 
 from .simulator import SimulationResult
 
-__all__ = ["stiffness_figure", "force_figure", "position_figure", "path_figure",
+__all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
+           "path_figure",
            "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
            "save_comparison_figures", "save_figures", "envelope"]
 
@@ -66,10 +67,52 @@ def force_figure(res: SimulationResult) -> Figure:
     ax.plot(*envelope(res.time, res.contact_force), label="$f_e$")
     ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="$f_d$")
     ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
-    top = min(float(np.max(res.contact_force)), 6 * res.scenario.controller.f_d)
-    ax.set_ylim(-0.05 * top, 1.1 * top)
+    top = float(np.max(res.contact_force))
+    ax.set_ylim(-0.05 * top, 1.08 * top)            # every peak visible; switch_figure zooms in
     ax.legend()
     ax.grid(True, alpha=0.3)
+    return fig
+
+
+def switch_figure(res: SimulationResult, window: float = 0.4) -> Figure:
+    """The force around each segment start (a stiffness switch or a new
+    cycle), one panel each, from 0.05 s before to ``window`` after: the jump
+    and the controller's response at a readable scale."""
+    from .metrics import segments
+
+    starts = [a for a, _ in segments(res)][1:] or [0]
+    f_d = res.scenario.controller.f_d
+    fig = Figure(figsize=(7, 2.4), layout="constrained")
+    axes = fig.subplots(1, len(starts), sharey=True, squeeze=False)[0]
+    for ax, i0 in zip(axes, starts):
+        t0 = res.time[i0]
+        m = (res.time >= t0 - 0.05) & (res.time <= t0 + window)
+        ax.plot(res.time[m] - t0, res.contact_force[m], label="$f_e$")
+        ax.plot(res.time[m] - t0, res.desired_force[m], "k--", lw=1, label="$f_d$")
+        ax.set_title(f"t = {t0:g} s, $k_e$ = {res.stiffness[i0]:,.0f} N/m", fontsize="small")
+        ax.set_xlabel("time after switch (s)")
+    axes[0].set_ylabel("force (N)")
+    axes[0].legend(fontsize="small")
+    lo = min(0.0, float(np.min(res.contact_force)))
+    axes[0].set_ylim(lo - 0.05 * f_d, max(2.2 * f_d, 1.05 * float(np.max(
+        [res.contact_force[max(i - 50, 0):i + int(window / res.Ts)].max() for i in starts]))))
+    return fig
+
+
+def tracking_error_figure(res: SimulationResult) -> Figure:
+    """The tracking errors: |f_e - f_d| on a log axis, and the tangential
+    position error (distance from X to X_r within the surface plane, mm);
+    X_r itself lies inside the surface (eq. 18), so X against X_r in the
+    normal direction is not an error."""
+    fig = Figure(figsize=(7, 4.2), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    err = np.abs(res.contact_force - res.desired_force)
+    ax1.plot(*envelope(res.time, np.maximum(err, 1e-7)), lw=1)
+    ax1.set_yscale("log")
+    ax1.set(ylabel="|f_e − f_d| (N)", title="Tracking errors")
+    tang = np.linalg.norm(res.position_task[1:] - res.reference_task[1:], axis=0) * 1e3
+    ax2.plot(*envelope(res.time, tang), lw=1, color="C2")
+    ax2.set(xlabel="time (s)", ylabel="tangential error (mm)")
     return fig
 
 

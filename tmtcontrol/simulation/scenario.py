@@ -21,6 +21,7 @@ import math
 import pathlib
 import re
 import tomllib
+from dataclasses import dataclass
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictInt, ValidationError,
@@ -36,7 +37,7 @@ __all__ = [
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "ControllerSettings", "SensorSettings",
     "SimulationSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
     "scenario_to_dict", "dump_scenario", "apply_overrides", "set_key", "scenario_json_schema",
-    "read_stiffness_table",
+    "read_stiffness_table", "SettingRow", "applicable_settings",
 ]
 
 
@@ -520,6 +521,60 @@ def scenario_to_dict(scenario: Scenario) -> dict:
             return [conv(x) for x in v]
         return v
     return conv(scenario.model_dump())
+
+
+@dataclass(frozen=True)
+class SettingRow:
+    """One applicable scenario key: dotted ``key``, its ``value`` (a Python
+    value), ``unit`` (SI, "1" for dimensionless, "" for none) and ``meaning``."""
+    key: str
+    value: Any
+    unit: str
+    meaning: str
+
+
+def _applies(sc: Scenario, key: str) -> bool:
+    """Whether ``key`` changes anything for the options ``sc`` chose (the
+    members of tagged unions already are the chosen kind's)."""
+    if key in ("controller.approach_speed", "controller.contact_threshold", "controller.force_ramp"):
+        return sc.trajectory.approach_gap > 0
+    if key == "sensor.seed":
+        return sc.sensor.noise_std > 0
+    if key in ("simulation.substeps", "simulation.contact_refine"):
+        return sc.simulation.integrator == "fixed"
+    if key == "simulation.tol":
+        return sc.simulation.integrator == "cvodes"
+    return True
+
+
+def applicable_settings(sc: Scenario) -> list[SettingRow]:
+    """The scenario's keys that apply to its options, with value, unit and
+    meaning (from the schema), in schema order. Unset optional values (the
+    inner-loop gains) are shown as their defaults' rule."""
+    rows = []
+
+    def walk(model: BaseModel, prefix: str):
+        for name, info in type(model).model_fields.items():
+            key, value = f"{prefix}{name}", getattr(model, name)
+            if isinstance(value, BaseModel):
+                walk(value, key + ".")
+                continue
+            if not _applies(sc, key):
+                continue
+            extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+            desc = info.description or ""
+            bracket = re.search(r" \[([^\]]*)\]$", desc)
+            trailing = re.search(r", (N/m|N s/m|N|m|s|Hz|kg|1/s|m/\(N s\))$", desc)   # the laws' style
+            unit = extra.get("unit") or (bracket.group(1) if bracket else trailing.group(1) if trailing else "")
+            desc = desc.replace(f" [{unit}]", "")
+            if trailing and not bracket:
+                desc = desc[:trailing.start()]
+            if value is None and name in ("kd", "kp"):
+                value = "B/M" if name == "kd" else "K/M"
+            rows.append(SettingRow(key, value, "" if unit == "–" else unit, desc))
+
+    walk(sc, "")
+    return rows
 
 
 def _toml_key(k) -> str:

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from ..simulation.figures import save_figures
 
-__all__ = ["root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
+__all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",
            "save_design_figures"]
 
@@ -95,6 +95,31 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
         ax.annotate(label, (Ts, ke), textcoords="offset points", xytext=(4, 4), fontsize=8)
     ax.set(xscale="log", yscale="log", xlabel="Ts (s)", ylabel="k_e (N/m)",
            title=f"Sampled-data stability (black: rho = 1), m_p = {m_p:.3g} kg")
+    return fig
+
+
+def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1-D sampled loop") -> Figure:
+    """The largest stable stiffness against the control period (log-log):
+    ``limits`` (N/m) at ``Ts_grid`` (s) as the boundary, the unstable side
+    hatched, the operating points ``[(Ts, k_e, label), ...]`` and the
+    whole-loop limit ``(Ts, k_e)`` at the scenario's period. Distance to the
+    boundary is the margin, readable at any Ts."""
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
+    ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable $k_e$ ({label})")
+    top = max(limits.max(), *(p[1] for p in points)) * 20 if points else limits.max() * 20
+    ax.fill_between(Ts_grid, limits, top, facecolor="none", hatch="///", edgecolor="0.6", lw=0,
+                    label="unstable")
+    for i, (Ts, ke, text) in enumerate(points):
+        ax.plot(Ts, ke, "o", color="C1", label="operating points" if i == 0 else None)
+        ax.annotate(text, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
+    if whole_loop is not None:
+        ax.plot(*whole_loop, "D", color="C2", ms=7, label="whole-loop limit at the scenario's Ts")
+    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness $k_e$ (N/m)",
+           ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
+           title="Sampled-data stability boundary")
+    ax.legend(loc="lower left", fontsize="small")
     return fig
 
 

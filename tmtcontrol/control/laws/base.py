@@ -116,7 +116,14 @@ class Law:
 
     def function(self, sym=ca.SX) -> ca.Function:
         """The update as a named CasADi Function
-        ``law_<name>: [y, p, s] -> [x_r, x_c, dx_c, ddx_c, s_next]``."""
+        ``law_<name>: [y, p, s] -> [x_r, x_c, dx_c, ddx_c, s_next]``
+        (built once per law declaration and symbol type)."""
+        key = (self.name, self.update, tuple(self.states), tuple(self.parameter_names), sym)
+        if key not in _FUNCTIONS:
+            _FUNCTIONS[key] = self._build_function(sym)
+        return _FUNCTIONS[key]
+
+    def _build_function(self, sym) -> ca.Function:
         y = sym.sym("y", len(MEASUREMENTS))
         p = sym.sym("p", len(self.parameter_names))
         s = sym.sym("s", len(self.states))
@@ -138,6 +145,8 @@ class Law:
 
 
 _REGISTRY: dict[str, Law] = {}
+_FUNCTIONS: dict = {}
+"""Built update Functions by declaration (a Function is immutable)."""
 _LISTENERS: list[Callable[[], None]] = []
 
 

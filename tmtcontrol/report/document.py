@@ -1,0 +1,523 @@
+"""The stability report as a document model: verdicts, sections of tables
+and figures, reproducibility data. Built once by :func:`build_report` and
+rendered by ``report.render`` to HTML and, from the same HTML, to PDF.
+
+The top of the data path: it calls the checks (``checks``), the analysis
+(``stability``: eq. 22 in continuous time, eq. 25, the sampled loop with
+delay and x_e error, the whole-loop linearisation), the simulator and its
+metrics, the law comparison, a small robustness sweep (``sweep``) and the
+damping design (``stability.design``). Every verdict is computed with the
+number behind it; a loop that is unstable shows "unstable" and its growth
+rate, never an overshoot.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import io
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..files import versions
+from ..plotstyle import styled
+from ..simulation.scenario import Scenario, applicable_settings, dump_scenario
+from . import fmt
+
+__all__ = ["Verdict", "Table", "FigureBlock", "Section", "Report", "build_report", "FORCE_TOLERANCE", "STAGES"]
+
+FORCE_TOLERANCE = 0.01
+"""Steady-state force tolerance of the tracking verdict, N."""
+
+STAGES = ("continuous-time analysis", "sampled-data analysis", "simulation", "law comparison", "robustness sweep",
+          "design", "derivation checks")
+"""The computing stages in the order they finish (writing HTML and PDF are
+stages of ``write_report``). The derivation checks run in a second process
+from the start, alongside the others; their stage time is the wait for them."""
+
+SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
+SWEEP_RATES = (1000.0, 500.0)
+SWEEP_CYCLES = 0.5
+"""The report's robustness sweep: constant k_e (N/m) x control rate (Hz), each
+case 0.5 cycle of the scenario's path."""
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One computed verdict: ``value`` is the number it rests on, ``check``
+    what was computed to get it."""
+    name: str
+    passed: bool
+    value: str
+    check: str
+
+    @property
+    def evidence(self) -> str:
+        return f"{self.value} ({self.check})"
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table: header cells carry their units; ``caption`` says what it shows."""
+    caption: str
+    head: list[str]
+    rows: list[list[str]]
+    verdict_column: int | None = None      # cells "PASS"/"FAIL"/verdict words, styled with a symbol
+
+
+@dataclass(frozen=True)
+class FigureBlock:
+    """A figure as SVG text with its caption."""
+    caption: str
+    svg: str
+
+
+@dataclass(frozen=True)
+class Paragraph:
+    text: str
+
+
+@dataclass
+class Section:
+    key: str
+    title: str
+    blocks: list = field(default_factory=list)
+
+
+@dataclass
+class Report:
+    """Everything the report shows."""
+    scenario: Scenario
+    command_line: str
+    verdicts: list[Verdict] = field(default_factory=list)
+    sections: list[Section] = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    data: dict = field(default_factory=dict)          # raw results, for tests and the API
+
+    @property
+    def passed(self) -> bool:
+        return all(v.passed for v in self.verdicts)
+
+    def section(self, key: str) -> Section:
+        return next(s for s in self.sections if s.key == key)
+
+
+def svg(fig) -> str:
+    """A Figure as SVG text (vector: crisp zoomed and printed)."""
+    buf = io.StringIO()
+    with styled():
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    return buf.getvalue()
+
+
+def figure(caption: str, make: Callable, *args, **kw) -> FigureBlock:
+    with styled():
+        fig = make(*args, **kw)
+    return FigureBlock(caption, svg(fig))
+
+
+def _mark(passed: bool) -> str:
+    return "PASS" if passed else "FAIL"
+
+
+def _stiffness_points(p: dict) -> list[float]:
+    pts = p["k_e_values"] or [p["k_e_min"], math.sqrt(p["k_e_min"] * p["k_e_max"]), p["k_e_max"]]
+    return sorted({float(v) for v in pts})
+
+
+def _response(a) -> tuple[str, str]:
+    """Overshoot and settling of a continuous analysis, or 'unstable' with
+    the growth rate."""
+    growth = float(np.max(a.poles.real))
+    if not a.bibo_stable:
+        return f"unstable (grows as e^{fmt.num(growth)}·t)", "–"
+    return fmt.pct(a.overshoot_pct), fmt.qty(a.settling_time, "s")
+
+
+# -- stages --------------------------------------------------------------------------------
+
+def _checks(rep: Report, pending):
+    checks = pending.result()
+    n_ok = sum(c.passed for c in checks)
+    rep.verdicts.append(Verdict("Derivation checks pass", n_ok == len(checks), f"{n_ok}/{len(checks)} pass",
+                                "the paper's equations, every law's claims and the loop, on the running code"))
+    rows = [[c.equation, c.name, c.claim + (f" Note: {c.note}" if c.note else ""), fmt.num(c.residual, 2),
+             _mark(c.passed)] for c in checks]
+    sec = Section("derivations", "Derivation checks", [
+        Paragraph("Each check evaluates an equation of the paper (or a law's documented claim) on the code "
+                  "that runs, against an independent computation; the residual is the largest relative "
+                  "difference found."),
+        Table("Derivation checks", ["equation", "check", "claim", "residual", "verdict"], rows, verdict_column=4)])
+    rep.data["checks"] = checks
+    return sec
+
+
+def _continuous(rep: Report, p: dict):
+    from ..stability import analyze_continuous, analyze_range
+    from ..stability import figures as sf
+
+    m, b, k, f_d = p["m"], p["b"], p["k"], p["f_d"]
+    points = _stiffness_points(p)
+    rng = analyze_range(m, b, k, p["k_e_min"], max(p["k_e_max"], p["k_e_min"]), f_d)
+    per_k = [analyze_continuous(m, b, k, ke, f_d) for ke in points]
+    worst_re = max(float(np.max(a.poles.real)) for a in per_k + [rng.at_min, rng.at_max])
+    stable = bool(rng.stable_for_all and all(a.bibo_stable for a in per_k))
+    rep.verdicts.append(Verdict(
+        "BIBO stable in continuous time (eq. 22)", stable,
+        f"largest pole real part {fmt.qty(worst_re, '1/s')}",
+        f"poles of eq. (22) over k_e ∈ [{fmt.qty(p['k_e_min'], 'N/m')}, {fmt.qty(p['k_e_max'], 'N/m')}]; "
+        f"worst damping ratio {fmt.num(rng.worst_damping_ratio)}"))
+    rows = []
+    for a in per_k:
+        over, settle = _response(a)
+        rows.append([fmt.num(a.k_e), ", ".join(f"{fmt.num(z.real)}{'+' if z.imag >= 0 else '−'}"
+                                               f"{fmt.num(abs(z.imag))}j" if abs(z.imag) > 0 else fmt.num(z.real)
+                                               for z in a.poles),
+                     fmt.num(a.natural_frequency), fmt.num(a.damping_ratio), over, settle,
+                     fmt.num(a.critical_damping), fmt.ratio(b / a.critical_damping),
+                     _mark(a.bibo_stable)])
+    lo, hi = p["k_e_min"], p["k_e_max"]
+    sec = Section("continuous", "Continuous-time analysis (eqs. 22, 25)", [
+        Paragraph(f"The force error dynamics of eq. (22), m ë + b ė + (k + k_e) e, with m = {fmt.qty(m, 'kg')}, "
+                  f"b = {fmt.qty(b, 'N s/m')}, k = {fmt.qty(k, 'N/m')}, at each operating stiffness. "
+                  "Eq. (25) is the damping for a critically damped response."),
+        Table("Continuous-time force error dynamics per stiffness",
+              ["k_e (N/m)", "poles (1/s)", "ω_n (rad/s)", "ζ", "overshoot", "settling 2 %", "b_crit eq. 25 (N s/m)",
+               "b / b_crit", "BIBO stable"], rows, verdict_column=8),
+        figure("Root locus of eq. (22) as k_e varies over the range (×/÷ 10).", sf.root_locus_figure, m, b, k,
+               lo / 10, hi * 10),
+        figure("Damping ratio and natural frequency of eq. (22) against k_e.", sf.damping_figure, m, b, k,
+               lo / 10, hi * 10),
+        figure("Force step responses of eq. (22) at the operating stiffnesses.", sf.step_figure, m, b, k, points, f_d)])
+    rep.data["continuous"] = {"range": rng, "points": per_k}
+    return sec
+
+
+def _sampled(rep: Report, sc: Scenario, p: dict):
+    from ..stability import analyze_scenario
+    from ..stability import figures as sf
+    from ..stability.analysis import scenario_stiffness_limit
+    from ..stability.sampled import max_stable_stiffness
+    from ..simulation.scenario import apply_overrides
+
+    a = analyze_scenario(sc)
+    limit_1d = a["max_stable_stiffness"]
+    whole = a.get("whole_loop_limit")
+    verdict_limit = whole if whole is not None else limit_1d
+    margin = verdict_limit / p["k_e_max"]
+    Ts = p["Ts"]
+    rep.verdicts.append(Verdict(
+        f"Stable in the sampled implementation (Ts = {fmt.qty(Ts, 's')})", bool(a["sampled_stable"]),
+        f"largest stable stiffness {fmt.qty(verdict_limit, 'N/m')} vs k_e max {fmt.qty(p['k_e_max'], 'N/m')} "
+        f"(margin {fmt.ratio(margin)})",
+        ("whole-loop linearisation of the compiled step at " f"{len(a.get('whole_loop_points', []))} path points"
+         if whole is not None else a["sampled_model"]) +
+        f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"))
+    rows = [[fmt.qty(w["path_time"], "s"), fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])]
+            for w in a.get("whole_loop_points", [])]
+    # the boundary against Ts: the same law loop at other rates
+    closed_form = (sc.controller.law.kind in ("tmt", "known") and sc.controller.delay_samples == 0
+                   and sc.controller.x_e_error == 0.0)
+    Ts_grid = np.geomspace(Ts / 8, Ts * 8, 13 if closed_form else 5)
+    limits = []
+    for T in Ts_grid:
+        if closed_form:         # the 1-D closed form (stability.sampled), milliseconds per point
+            kw = {"kd": p["kd"], "kp": p["kp"], "alpha": sc.sensor.pole(T), "d_e": p["d_e"], "law": p["law"]}
+            lim = min(max_stable_stiffness(p["m"], p["b"], p["k"], T, mp, **kw) for mp in (p["m_p_min"], p["m_p_max"]))
+        else:                   # the law's own loop with delay and x_e error, about a second per point
+            lim = scenario_stiffness_limit(apply_overrides(sc, [f"controller.rate={float(1 / T)!r}"]))
+        limits.append(np.nan if lim is None else lim)
+    points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
+    blocks = [
+        Paragraph("Two models of the sampled loop, side by side. The whole-loop linearisation takes the "
+                  "compiled step itself (robot, law, inner loop, delay, force filter) frozen at points of the "
+                  "path, finds its fixed point and the largest stiffness for which the Jacobian's spectral "
+                  "radius stays below 1; it decides the verdict. The 1-D model is the normal axis alone with "
+                  "the robot's effective mass, which explains the limit: it falls with the control period, "
+                  "the delay, a force filter and a surface located too shallow."),
+        Table("Sampled-data stability: the two models", ["model", "largest stable k_e (N/m)", "margin over k_e max"],
+              [["whole-loop linearisation (worst path point)", fmt.num(whole) if whole is not None else "–",
+                fmt.ratio(whole / p["k_e_max"]) if whole is not None else "–"],
+               [f"1-D: {a['sampled_model']}", fmt.num(limit_1d), fmt.ratio(limit_1d / p["k_e_max"])]]),
+    ]
+    if rows:
+        blocks.append(Table("Whole-loop stiffness limit along the path", ["path time", "largest stable k_e (N/m)",
+                                                                          "margin over k_e max"], rows))
+    blocks.append(figure(
+        "Largest stable stiffness against the control period (1-D loop of the scenario's law, with its delay, "
+        "filter and x_e error); the scenario's operating points and the whole-loop limit at its Ts. The margin "
+        "is the vertical distance to the boundary.",
+        sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, whole) if whole is not None else None,
+        label="1-D sampled loop"))
+    rep.data["sampled"] = a
+    return Section("sampled", "Sampled-data analysis", blocks)
+
+
+def _segment_row(i, s, unstable: bool) -> list[str]:
+    over = "diverged" if unstable else fmt.pct(s.overshoot_pct)
+    return [str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", fmt.num(s.stiffness), fmt.qty(s.switch_jump, "N"),
+            over, fmt.qty(s.settling_time, "s"), fmt.qty(s.steady_state_error, "N"),
+            fmt.qty(s.tangential_rms, "m"), s.verdict]
+
+
+def _simulation(rep: Report, sc: Scenario, p: dict):
+    from ..simulation import figures as simf
+    from ..simulation.metrics import first_contact, segment_metrics
+    from ..simulation.simulator import SimulationError, Simulator
+
+    sim = Simulator(sc)
+    blocks = []
+    try:
+        res = sim.run()
+    except SimulationError as exc:
+        rep.verdicts.append(Verdict("Force tracking within tolerance (simulation)", False, "diverged", str(exc)))
+        rep.data["simulation"] = {"result": None, "error": str(exc), "segments": []}
+        return Section("simulation", "Simulation", [Paragraph(f"The simulation diverged: {exc}")]), sim, None
+    segs = segment_metrics(res)
+    worst = max(s.steady_state_error for s in segs)
+    bad = [i for i, s in enumerate(segs, 1) if s.verdict != "converged"]
+    ok = bool(worst <= FORCE_TOLERANCE and not bad)
+    rep.verdicts.append(Verdict(
+        "Force tracking within tolerance (simulation)", ok,
+        f"worst steady-state |f_e − f_d| {fmt.qty(worst, 'N')} (tolerance {fmt.qty(FORCE_TOLERANCE, 'N')})",
+        f"{len(segs)} segments simulated, "
+        + (f"segment(s) {', '.join(map(str, bad))} not converged" if bad else "every segment converged")))
+    fc = first_contact(res)
+    blocks.append(Paragraph(
+        f"{fmt.qty(res.time[-1] + res.Ts, 's')} of the closed loop at {fmt.qty(1 / res.Ts, 'Hz')}, compiled, "
+        "integrated with RK4 (refined where the contact switches on or off). Per segment: the switch jump is "
+        "the force step the stiffness change causes on the current penetration (no controller can avoid it); "
+        "the overshoot is the controller's own, after the jump. A segment 'converged' when its last quarter "
+        "settles within the ripple band."))
+    blocks.append(Table(
+        "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "settling 2 %",
+                                "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
+        [_segment_row(i, s, False) for i, s in enumerate(segs, 1)], verdict_column=8))
+    blocks.append(Table("First contact", ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
+                        [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
+                          fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))
+    blocks += [
+        figure("Contact force and desired force over the run (Fig. 4 of the paper), full scale.",
+               simf.force_figure, res),
+        figure("The force just after each segment start, zoomed: switch jump, then the controller's response.",
+               simf.switch_figure, res),
+        figure("Tracking errors: |f_e − f_d| (log scale) and the tangential position error within the surface.",
+               simf.tracking_error_figure, res),
+        figure("Environment stiffness and the TMT estimate f_e/(x − x_e) (Fig. 3).", simf.stiffness_figure, res),
+        figure("Wrist position against the reference X_r (Fig. 5); X_r lies inside the surface by design "
+               "(eq. 18), so the normal offset is not an error.", simf.position_figure, res)]
+    rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
+    return Section("simulation", "Simulation", blocks), sim, res
+
+
+def _comparison(rep: Report, sc: Scenario):
+    from ..simulation import figures as simf
+    from ..simulation.compare import compare_laws
+
+    cmp = compare_laws(sc)
+    rows = []
+    for name, run in cmp.runs.items():
+        if run.result is None:
+            rows.append([name + (" (scenario's)" if name == sc.controller.law.kind else ""), "–", "–", "–", "–",
+                         "diverged"])
+            continue
+        segs = run.segments
+        rows.append([name + (" (scenario's)" if name == sc.controller.law.kind else ""),
+                     fmt.qty(max(s.steady_state_error for s in segs), "N"),
+                     fmt.pct(max(s.overshoot_pct for s in segs)),
+                     fmt.qty(max((s.settling_time for s in segs), key=lambda v: -1 if v != v else v), "s"),
+                     fmt.qty(max(s.tangential_rms for s in segs), "m"), run.verdict])
+    rep.data["comparison"] = cmp
+    return Section("comparison", "Law comparison", [
+        Paragraph("Every registered force-tracking law on the same scenario, each with its documented default "
+                  "parameters (the scenario's own law with the scenario's). Worst values over the segments."),
+        Table("Force-tracking laws on this scenario", ["law", "worst steady-state error", "worst overshoot",
+                                                      "worst settling 2 %", "worst tangential RMS", "verdict"],
+              rows, verdict_column=5),
+        figure("Contact force of every law.", simf.comparison_force_figure, cmp),
+        figure("Force error of every law (log scale).", simf.comparison_error_figure, cmp)])
+
+
+def _sweep(rep: Report, sc: Scenario):
+    from ..sweep import _predicted, run_sweep, sweep_summary
+    from ..sweep.figures import sweep_map_figure
+    from ..simulation.scenario import apply_overrides, scenario_to_dict
+    from ..sweep.spec import sweep_from_dict
+
+    cycles = min(sc.trajectory.cycles, SWEEP_CYCLES)
+    spec = sweep_from_dict({"grid": {"environment.stiffness.values": [[v] for v in SWEEP_STIFFNESS],
+                                     "controller.rate": list(SWEEP_RATES)}})
+    # the same axes on this scenario (shortened) instead of the paper's
+    spec = dataclasses.replace(spec, base=scenario_to_dict(apply_overrides(sc, [f"trajectory.cycles={cycles!r}"])))
+    df = run_sweep(spec)
+    pred = _predicted(spec, df)
+    counts = {v: n for v, n in sweep_summary(spec, df, pred)["verdicts"].items() if n}
+    rows = []
+    for rate in SWEEP_RATES:
+        d = df[df["controller.rate"] == rate]
+        for _, r in d.iterrows():
+            rows.append([fmt.qty(rate, "Hz"), fmt.num(r["environment.stiffness.values"]),
+                         fmt.qty(r["max_steady_error"], "N"), r["verdict"]])
+    rep.data["sweep"] = {"frame": df, "predicted": pred}
+    return Section("sweep", "Robustness sweep", [
+        Paragraph(f"{len(df)} simulations of {fmt.qty(cycles * sc.trajectory.period, 's')} each: constant "
+                  f"stiffness × control rate, everything else as in the scenario. Verdicts: "
+                  + ", ".join(f"{n} {v}" for v, n in counts.items()) + ". The dashed line is the analysis' "
+                  "predicted limit; a simulated verdict on the wrong side of it would show a model error. "
+                  "Larger sweeps: tmtcontrol sweep (see the Robustness sweeps page)."),
+        Table("Sweep cases", ["control rate", "k_e (N/m)", "worst steady-state error", "verdict"], rows,
+              verdict_column=3),
+        figure("Sweep map: verdict (marker) and steady-state error (colour) over stiffness and control rate, with "
+               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred)])
+
+
+def _design(rep: Report, sc: Scenario, p: dict, sim, res):
+    from ..simulation.metrics import segment_metrics
+    from ..simulation.simulator import SimulationError
+    from ..stability import figures as sf
+    from ..stability.design import DesignError, DesignInfeasible, DesignSpec, damping_alternatives, design_impedance
+
+    if not p["k_e_max"] > p["k_e_min"]:
+        return Section("design", "Damping design", [Paragraph("A single stiffness: no range to design over.")])
+    try:
+        d = design_impedance(DesignSpec(m=p["m"], k=p["k"], k_e_min=p["k_e_min"], k_e_max=p["k_e_max"], Ts=p["Ts"],
+                                        max_overshoot=5.0, f_d=p["f_d"], m_p=p["m_p_max"],
+                                        delay=sc.controller.delay_samples, alpha=p["alpha"]))
+    except (DesignError, DesignInfeasible) as exc:
+        rep.verdicts.append(Verdict("Robust damping design feasible", False, "no design", str(exc)))
+        return Section("design", "Damping design", [Paragraph(f"The design failed: {exc}")])
+    rep.verdicts.append(Verdict(
+        "Robust damping design verified", d.verified,
+        f"b = {fmt.qty(d.b, 'N s/m')}, worst first-contact overshoot {fmt.pct(d.worst_overshoot)} (bound 5 %)",
+        "IPOPT on the worst-case ISE over the range; verified on the sampled loop at 60 stiffnesses"
+        + ("" if d.verified else "; violated: " + "; ".join(d.violations))))
+    rows = [["optimal (IPOPT)", fmt.num(d.b), fmt.num(d.objective), fmt.pct(d.worst_overshoot)],
+            ["eq. (25) at k_e max", fmt.num(d.baseline_b), fmt.num(d.baseline_objective), "0 % (continuous)"]]
+    sim_rows = []
+    if res is not None:
+        for name, alt in damping_alternatives(sc, d).items():
+            try:
+                segs = segment_metrics(sim.run(alt))
+            except SimulationError:
+                sim_rows.append([name, "–", "–", "diverged"])
+                continue
+            verdict = max((s.verdict for s in segs), key=("converged", "limit_cycle", "diverged").index)
+            sim_rows.append([name, fmt.pct(max(s.overshoot_pct for s in segs)),
+                             fmt.qty(max(s.steady_state_error for s in segs), "N"), verdict])
+    blocks = [
+        Paragraph("The normal-axis damping b chosen to minimise the worst-case integral squared force error "
+                  "of the sampled loop over the stiffness range, with first-contact overshoot at most 5 %, "
+                  "against eq. (25)'s critical damping at the stiffest surface."),
+        Table("Damping designs", ["design", "b (N s/m)", "worst-case ISE (N² s)", "worst overshoot"], rows)]
+    if sim_rows:
+        blocks.append(Table("The designs simulated on this scenario",
+                            ["damping", "worst overshoot", "worst steady-state error", "verdict"], sim_rows,
+                            verdict_column=3))
+    blocks.append(figure("Worst-case cost against b; the optimum and the eq. (25) design marked.",
+                         sf.design_cost_figure, d))
+    rep.data["design"] = d
+    return Section("design", "Damping design", blocks)
+
+
+def _scenario_section(sc: Scenario) -> Section:
+    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"] for r in applicable_settings(sc)]
+    return Section("scenario", "Scenario", [
+        Paragraph("The keys that apply to this scenario's options (SI units)."),
+        Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])
+
+
+def _repro(rep: Report) -> Section:
+    sc = rep.scenario
+    rows = [["command", rep.command_line],
+            ["scenario SHA-256 (its TOML)", hashlib.sha256(dump_scenario(sc).encode()).hexdigest()],
+            ["sensor noise seed", str(sc.sensor.seed) if sc.sensor.noise_std > 0 else "no noise"],
+            ["derivation check seed", "2024"],
+            ["Python", sys.version.split()[0]],
+            *[[k, str(v)] for k, v in versions().items()],
+            *[[f"stage: {k}", fmt.qty(v, "s")] for k, v in rep.timings.items()]]
+    return Section("reproducibility", "Reproducibility", [
+        Paragraph("Run the command with the same package versions to reproduce every number; the scenario's "
+                  "TOML (tmtcontrol scenario) hashes to the value below."),
+        Table("Reproducibility", ["item", "value"], rows)])
+
+
+def _run_checks():
+    from ..checks import all_checks
+
+    return all_checks()
+
+
+@contextlib.contextmanager
+def _background():
+    """A second process for the derivation checks (a fresh interpreter: no
+    state shared with this one); in-process if processes are unavailable."""
+    import concurrent.futures
+    import multiprocessing
+
+    try:
+        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+    except (OSError, ImportError, NotImplementedError):
+        pool = concurrent.futures.ThreadPoolExecutor(1)
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _stages(rep: Report, sc: Scenario, p: dict, pending, out: dict, say: Callable) -> None:
+    sim = res = None
+    for i, name in enumerate(STAGES):
+        t0 = time.perf_counter()
+        if name == "continuous-time analysis":
+            out[name] = _continuous(rep, p)
+        elif name == "sampled-data analysis":
+            out[name] = _sampled(rep, sc, p)
+        elif name == "simulation":
+            out[name], sim, res = _simulation(rep, sc, p)
+        elif name == "law comparison":
+            out[name] = _comparison(rep, sc)
+        elif name == "robustness sweep":
+            out[name] = _sweep(rep, sc)
+        elif name == "design":
+            out[name] = _design(rep, sc, p, sim, res)
+        elif name == "derivation checks":
+            out[name] = _checks(rep, pending)
+        rep.timings[name] = time.perf_counter() - t0
+        say(i + 1, len(STAGES), name, rep.timings[name])
+
+
+def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None) -> Report:
+    """Run every stage for ``scenario`` and collect the document.
+
+    ``progress(i, n, name, seconds)`` is called as each stage ends, with the
+    stage's own time."""
+    from ..stability import scenario_parameters
+
+    rep = Report(scenario, command_line or " ".join(sys.argv))
+    say = progress or (lambda *a: None)
+    p = scenario_parameters(scenario)
+    rep.data["parameters"] = p
+    out: dict = {}
+    with _background() as pool:
+        pending = pool.submit(_run_checks)
+        _stages(rep, scenario, p, pending, out, say)
+    order = ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)"]
+    rep.verdicts.sort(key=lambda v: order.index(v.name) if v.name in order else len(order))
+    summary = Section("summary", "Verdict summary", [Table(
+        "Verdicts", ["verdict", "result", "number", "computed by"],
+        [[v.name, _mark(v.passed), v.value, v.check] for v in rep.verdicts], verdict_column=1)])
+    rep.sections = [summary, _scenario_section(scenario), out["derivation checks"], out["continuous-time analysis"],
+                    out["sampled-data analysis"], out["simulation"], out["law comparison"], out["robustness sweep"],
+                    out["design"]]
+    return rep
+
+
+def finish(rep: Report) -> None:
+    """Add the reproducibility section (after the timings are known)."""
+    rep.sections = [s for s in rep.sections if s.key != "reproducibility"] + [_repro(rep)]
