@@ -52,5 +52,8 @@ def test_removed_compliance_clip_fails(monkeypatch):
         w = w * w * (3 - 2 * w)
         return x_e + f_d / k + w * f_d * (x - x_e) / ca.fmax(f_e, force_threshold)   # c unclipped
 
+    import tmtcontrol.control.laws.base as base_module
+
+    monkeypatch.setattr(base_module, "_FUNCTIONS", {})                            # no update built before
     monkeypatch.setattr(tmt_module, "tmt_reference", no_clip)
     assert "tmt: steady state" in _failed(law_checks(get_law("tmt")))

@@ -155,11 +155,14 @@ def path_figure(res: SimulationResult) -> Figure:
 def save_figures(makers, data, folder: str | pathlib.Path, dpi: int = 120) -> list[pathlib.Path]:
     """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
     being ``make(data)``; return the paths."""
+    from ..plotstyle import styled
+
     folder = pathlib.Path(folder)
     out = []
     for name, make in makers:
         path = folder / f"{name}.png"
-        make(data).savefig(path, dpi=dpi)
+        with styled():                      # the package's one figure style
+            make(data).savefig(path, dpi=dpi)
         out.append(path)
     return out
 
