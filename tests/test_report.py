@@ -194,8 +194,9 @@ def test_unstable_configuration_fails_with_growth_not_overshoot(unstable_report)
     assert verdicts["BIBO stable in continuous time (eq. 22)"][1] == "✔ PASS"
     limit = number(sampled[2].split("largest stable stiffness")[1])
     assert 2.5e4 < limit < 4e4                                  # measured ~3.2e4 N/m at 200 Hz
-    segs = table(section(html, "simulation"), "Per-segment metrics")[2]
-    assert any(row[-1] in ("✘ diverged", "◐ limit cycle") for row in segs)
+    _, head, segs = table(section(html, "simulation"), "Per-segment metrics")
+    unsettled = [row for row in segs if row[-1] in ("✘ diverged", "◐ limit cycle")]
+    assert unsettled and all(row[head.index("overshoot")].startswith("– (") for row in unsettled)
     assert "FAIL  Stable in the sampled implementation" in r.stdout
 
 

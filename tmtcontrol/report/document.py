@@ -259,8 +259,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     return Section("sampled", "Sampled-data analysis", blocks)
 
 
-def _segment_row(i, s, unstable: bool) -> list[str]:
-    over = "diverged" if unstable else fmt.pct(s.overshoot_pct)
+def _segment_row(i, s) -> list[str]:
+    # an overshoot means nothing for a loop that does not settle
+    over = fmt.pct(s.overshoot_pct) if s.verdict == "converged" else f"– ({s.verdict.replace('_', ' ')})"
     return [str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", fmt.num(s.stiffness), fmt.qty(s.switch_jump, "N"),
             over, fmt.qty(s.settling_time, "s"), fmt.qty(s.steady_state_error, "N"),
             fmt.qty(s.tangential_rms, "m"), s.verdict]
@@ -298,7 +299,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     blocks.append(Table(
         "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "settling 2 %",
                                 "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
-        [_segment_row(i, s, False) for i, s in enumerate(segs, 1)], verdict_column=8))
+        [_segment_row(i, s) for i, s in enumerate(segs, 1)], verdict_column=8))
     blocks.append(Table("First contact", ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))
