@@ -189,7 +189,6 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
         ddq = plant.forward_dynamics(q, dq, tau - ca.mtimes(J.T, F_env))
         return Ts * ca.vertcat(dq, ddq), f_env > 0
 
-    dae = {"x": z, "p": pz, "ode": ode(z)[0]}
     if integrator == "fixed":
         coarse = _rk4(ode, z, pz, substeps)
         if contact_refine <= 1:
@@ -210,6 +209,7 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
             zc, switched = coarse(zm, pm)
             plant_flow = ca.Function("plant", [zm, pm], [choose(switched, zm, zc, pm)], ["x0", "p"], ["xf"])
     elif integrator == "cvodes":
+        dae = {"x": z, "p": pz, "ode": ode(z)[0]}
         plant_flow = ca.integrator("plant", "cvodes", dae, 0.0, 1.0,
                                    {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
     else:
