@@ -241,3 +241,13 @@ def test_an_unstable_continuous_loop_shows_its_growth_rate():
     growth = float(max(unstable.poles.real))
     assert over.startswith("unstable") and f"{growth:.0f}" in over and "%" not in over and settle == "–"
     assert math.isfinite(growth) and growth > 0
+
+
+def test_worst_settling_counts_a_segment_that_never_settles():
+    from types import SimpleNamespace
+
+    from tmtcontrol.report.document import _worst_settling
+
+    assert _worst_settling([SimpleNamespace(settling_time=0.12), SimpleNamespace(settling_time=0.3)]) == "300\u00a0ms"
+    assert _worst_settling([SimpleNamespace(settling_time=0.12), SimpleNamespace(settling_time=float("nan"))]) \
+        == "never"

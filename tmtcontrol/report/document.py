@@ -317,6 +317,13 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     return Section("simulation", "Simulation", blocks), sim, res
 
 
+def _worst_settling(segs) -> str:
+    """The longest 2 % settling time; "never" if a segment does not settle
+    (its settling time is NaN, which must not be skipped as the smallest)."""
+    times = [s.settling_time for s in segs]
+    return "never" if any(math.isnan(t) for t in times) else fmt.qty(max(times), "s")
+
+
 def _comparison(rep: Report, sc: Scenario):
     from ..simulation import figures as simf
     from ..simulation.compare import compare_laws
@@ -332,7 +339,7 @@ def _comparison(rep: Report, sc: Scenario):
         rows.append([name + (" (scenario's)" if name == sc.controller.law.kind else ""),
                      fmt.qty(max(s.steady_state_error for s in segs), "N"),
                      fmt.pct(max(s.overshoot_pct for s in segs)),
-                     fmt.qty(max((s.settling_time for s in segs), key=lambda v: -1 if v != v else v), "s"),
+                     _worst_settling(segs),
                      fmt.qty(max(s.tangential_rms for s in segs), "m"), run.verdict])
     rep.data["comparison"] = cmp
     return Section("comparison", "Law comparison", [
