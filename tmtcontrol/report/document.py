@@ -202,7 +202,7 @@ def _continuous(rep: Report, p: dict):
 def _sampled(rep: Report, sc: Scenario, p: dict):
     from ..stability import analyze_scenario
     from ..stability import figures as sf
-    from ..stability.analysis import scenario_stiffness_limit
+    from ..stability.analysis import closed_form_applies, scenario_stiffness_limit
     from ..stability.sampled import max_stable_stiffness
     from ..simulation.scenario import apply_overrides
 
@@ -222,8 +222,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     rows = [[fmt.qty(w["path_time"], "s"), fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])]
             for w in a.get("whole_loop_points", [])]
     # the boundary against Ts: the same law loop at other rates
-    closed_form = (sc.controller.law.kind in ("tmt", "known") and sc.controller.delay_samples == 0
-                   and sc.controller.x_e_error == 0.0)
+    closed_form = closed_form_applies(sc.controller.law.kind, sc.controller.delay_samples, sc.controller.x_e_error)
     Ts_grid = np.geomspace(Ts / 8, Ts * 8, 13 if closed_form else 5)
     limits = []
     for T in Ts_grid:

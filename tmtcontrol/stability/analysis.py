@@ -9,7 +9,7 @@ from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze
 from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
 
 __all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
-           "analyze_scenario", "format_analysis"]
+           "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
 
@@ -68,6 +68,13 @@ def paper_effective_mass(worst: bool = False) -> float:
     return scenario_parameters(paper_scenario())["m_p_max" if worst else "m_p_min"]
 
 
+def closed_form_applies(law: str, delay: int, x_e_error: float) -> bool:
+    """Whether the closed-form 1-D model (``stability.sampled``) is the law's
+    sampled loop: TMT or the known-stiffness law, no delay, no x_e error.
+    Otherwise the law's own loop (``stability.lawloop``) is needed."""
+    return law in ("tmt", "known") and delay == 0 and x_e_error == 0.0
+
+
 def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_p=None,
             kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt", delay=0, x_e_error=0.0, law_params=None) -> dict:
     """Everything ``tmtcontrol analyze`` reports, as a dict of plain values
@@ -117,7 +124,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         for v in masses:
             _pos("m_p", v)
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
-        if law in ("tmt", "known") and delay == 0 and x_e_error == 0.0:
+        if closed_form_applies(law, delay, x_e_error):
             kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
             limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
             rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
