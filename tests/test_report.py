@@ -251,3 +251,19 @@ def test_worst_settling_counts_a_segment_that_never_settles():
     assert _worst_settling([SimpleNamespace(settling_time=0.12), SimpleNamespace(settling_time=0.3)]) == "300\u00a0ms"
     assert _worst_settling([SimpleNamespace(settling_time=0.12), SimpleNamespace(settling_time=float("nan"))]) \
         == "never"
+
+
+@pytest.mark.parametrize("formats, files, stages", [
+    (("pdf",), ["report.pdf"], ["rendering HTML", "writing PDF"]),
+    (("html",), ["report.html"], ["writing HTML"]),
+    (("html", "pdf"), ["report.html", "report.pdf"], ["writing HTML", "writing PDF"])])
+def test_writing_stages_match_the_formats(tmp_path, formats, files, stages):
+    # the command numbers its stages with writing_stages(): every call must be counted
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.report import Report, write_report, writing_stages
+
+    seen = []
+    written = write_report(Report(paper_scenario(), "test"), tmp_path, formats,
+                           progress=lambda name, s: seen.append(name))
+    assert seen == stages and len(seen) == writing_stages(formats)
+    assert sorted(p.name for p in written) == sorted(p.name for p in tmp_path.iterdir()) == files

@@ -383,14 +383,14 @@ def _report(args) -> int:
     import time
 
     from .files import OutputFolder
-    from .report import STAGES, build_report, write_report
+    from .report import STAGES, build_report, write_report, writing_stages
     from .simulation.simulator import check_run_size
 
     formats = _formats(args.format)
     sc = _load(args)
     check_run_size(sc, args.max_steps)
     t0 = time.perf_counter()
-    n = len(STAGES) + len(formats)
+    n = len(STAGES) + writing_stages(formats)
 
     def stage(i, name, seconds):
         print(f"[{i}/{n}] {name}: {seconds:.1f} s", file=sys.stderr, flush=True)

@@ -11,25 +11,32 @@ from .document import FORCE_TOLERANCE, STAGES, Report, Verdict, build_report, fi
 from .render import FORMATS, render_html, render_pdf
 
 __all__ = ["Verdict", "Report", "build_report", "write_report", "render_html", "render_pdf", "FORCE_TOLERANCE",
-           "STAGES", "FORMATS"]
+           "STAGES", "FORMATS", "writing_stages"]
+
+
+def writing_stages(formats=FORMATS) -> int:
+    """How many stages :func:`write_report` reports: the HTML always, then the PDF."""
+    return 1 + ("pdf" in formats)
 
 
 def write_report(rep: Report, folder, formats=FORMATS, progress: Callable | None = None) -> list[pathlib.Path]:
     """Write ``report.html`` and/or ``report.pdf`` into ``folder`` (the PDF is
-    laid out from the same HTML). ``progress(name, seconds)`` is called after
-    each writing stage. Returns the files written."""
+    laid out from the same HTML, rendered even when only the PDF is asked
+    for). ``progress(name, seconds)`` is called after each of the
+    :func:`writing_stages`. Returns the files written."""
     folder = pathlib.Path(folder)
     say = progress or (lambda *a: None)
     finish(rep)
     t0 = time.perf_counter()
     html = render_html(rep)
     written = []
+    stage = "writing HTML" if "html" in formats else "rendering HTML"     # the PDF is laid out from it
     if "html" in formats:
         path = folder / "report.html"
         path.write_text(html, encoding="utf-8")
         written.append(path)
-    rep.timings["writing HTML"] = time.perf_counter() - t0
-    say("writing HTML", rep.timings["writing HTML"])
+    rep.timings[stage] = time.perf_counter() - t0
+    say(stage, rep.timings[stage])
     if "pdf" in formats:
         t0 = time.perf_counter()
         path = folder / "report.pdf"
