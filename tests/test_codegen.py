@@ -126,3 +126,46 @@ def test_no_compiler_uses_a_valid_cached_library(monkeypatch, tmp_path):
     Simulator(SMALL(), compile=True)
     monkeypatch.setattr(codegen, "compiler", lambda: None)
     assert Simulator(SMALL()).rollout.how == "cached"
+
+
+def test_a_cached_library_is_used_without_building_the_step():
+    built = []
+
+    def make():
+        built.append(1)
+        return toy_step()
+
+    U, S_ref = reference(2500)
+    first = Rollout(make, structure=("toy", "toy-structure-v1"))
+    assert first.how in ("compiled", "cached")
+    second = Rollout(make, structure=("toy", "toy-structure-v1"))
+    n_built = len(built)
+    S, L = second.run([0.0, 1.0], U, [P])
+    assert second.how == "cached" and len(built) == n_built        # nothing built for the cached run
+    assert (second.ns, second.nu, second.np, second.nl) == (2, 1, 1, 3)   # read from the library
+    np.testing.assert_array_equal(S, S_ref)
+    # another structure key is another library
+    assert Rollout(make, structure=("toy", "toy-structure-v2"), compile="auto").how == "vm"
+    with pytest.raises(ValueError, match="structure: required"):
+        Rollout(make)
+
+
+def test_simulator_structure_key_covers_every_structural_setting():
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.simulation.simulator import structure_key
+
+    sc = paper_scenario()
+    tmt = get_law("tmt")
+    base = structure_key(sc, tmt)
+    changed = ["robot.armature=false", "robot.friction=true", "robot.model_mass_scale=1.1",
+               "robot.compensate_friction=true", "simulation.substeps=2", "simulation.contact_refine=2",
+               "controller.delay_samples=1", "simulation.integrator=\"cvodes\""]
+    keys = {structure_key(apply_overrides(sc, [c]), tmt) for c in changed}
+    assert base not in keys and len(keys) == len(changed)
+    # numbers are inputs, not structure
+    assert structure_key(apply_overrides(sc, ["controller.f_d=5", "impedance.b=[80, 60, 60]"]), tmt) == base
+    # a law declared outside the package is keyed by the step's serialisation instead
+    import dataclasses
+    outside = dataclasses.replace(tmt, update=lambda y, p, s: tmt.update(y, p, s))
+    assert structure_key(sc, outside) is None

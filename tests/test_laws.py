@@ -14,7 +14,7 @@ from tmtcontrol.checks.laws import law_checks
 from tmtcontrol.control.impedance import filtered_command
 from tmtcontrol.control.laws import INTEGRAL, Law, LawParameters, get_law, laws, register_law, unregister_law
 from tmtcontrol.control.laws.adaptive_damping import sigma_bound
-from tmtcontrol.control.laws.tmt import k_eff
+from tmtcontrol.control.laws.tmt import k_eff, tmt_reference
 from tmtcontrol.stability import law_loop, law_stiffness_limit, max_stable_stiffness
 from tmtcontrol.stability.lawloop import stiffness_sequence
 
@@ -251,3 +251,52 @@ def test_docs_comparison_tables_are_the_generated_ones(compared):
     for name, entry in summary["laws"].items():
         cells = " | ".join(f"{s['steady_state_error']:.2g} N" for s in entry["segments"])
         assert f"| `{name}` | {cells} |" in paper, name
+
+
+def test_tmt_law_is_finite_near_zero_force():
+    # f_e -> 0, f_e = 0, negative noisy readings, negative penetration: finite and
+    # within f_d/k <= x_r - x_e <= f_d/k + f_d/k_min (the clip of the compliance)
+    for x, f in [(0.0, 0.0), (1e-9, 1e-12), (-1e-4, 0.3), (1e-3, -0.2), (-1e-3, 1e-6), (5e-4, 1e-3),
+                 (-1e-3, 5.0), (1.0, 1.5)]:
+        x_r = float(tmt_reference(x, f, 0.0, 10.0, 100.0, 0.5, 100.0))
+        assert np.isfinite(x_r)
+        assert 0.1 - 1e-12 <= x_r <= 0.1 + 10.0 / 100.0 + 1e-12
+    # below the threshold: exactly the paper's f_e = 0 branch, x_e + f_d/k
+    assert float(tmt_reference(2e-4, 0.4, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(0.1, abs=1e-15)
+    # above twice the threshold: exactly eq. (16)
+    x, f = 2e-3, 10.0
+    exact = 0.0 + 10.0 * (100.0 * x + f) / (100.0 * f)
+    assert float(tmt_reference(x, f, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(exact, rel=1e-14)
+
+
+@pytest.mark.parametrize("f, w", [(0.6, 0.2 ** 2 * (3 - 0.4)), (0.75, 0.5), (0.9, 0.8 ** 2 * (3 - 1.6)),
+                                  (1.0, 1.0), (0.5, 0.0)])
+def test_tmt_blend_is_the_c1_smoothstep_between_one_and_two_thresholds(f, w):
+    # threshold 0.5 N: w = 3 r^2 - 2 r^3 with r = (f - 0.5)/0.5, then x_r = x_e + f_d/k + w f_d c
+    x_e, x = 0.01, 0.01 + 2e-4               # c = 2e-4/f < 1/k_min: not clipped
+    x_r = float(tmt_reference(x, f, x_e, 10.0, 100.0, 0.5, 100.0))
+    assert x_r == pytest.approx(x_e + 0.1 + w * 10.0 * 2e-4 / f, rel=1e-14)
+
+
+def test_tmt_blend_has_no_kink():
+    # C1: the one-sided slopes of x_r(f) agree at both ends of the blend (a linear
+    # blend would jump from slope 0 to 1/0.5 N at the threshold)
+    def x_r(f):
+        return float(tmt_reference(0.01 + 2e-4, f, 0.01, 10.0, 100.0, 0.5, 100.0))
+    h = 1e-6
+    for f0 in (0.5, 1.0):
+        left, right = (x_r(f0) - x_r(f0 - h)) / h, (x_r(f0 + h) - x_r(f0)) / h
+        # C1: one-sided differences differ by about h |x''| <= 1e-6 * 0.05 (x'' from
+        # w'' = -24 /N^2 times f_d c = 2e-3 m); a kink would differ by ~4e-3 m/N
+        assert abs(left - right) < 1e-6
+
+
+def test_tmt_compliance_clip_closed_forms():
+    # x below the surface estimate at a real force: c clips to 0 (no negative compliance)
+    assert float(tmt_reference(-1e-3, 5.0, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(0.1, rel=1e-14)
+    # a huge ratio: c clips to 1/min_stiffness, x_r = x_e + f_d/k + f_d/k_min
+    assert float(tmt_reference(1.0, 1.5, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(0.2, rel=1e-14)
+    assert float(tmt_reference(1.0, 1.5, 0.0, 10.0, 100.0, 0.5, 400.0)) == pytest.approx(0.125, rel=1e-14)
+    # just inside the clip: eq. (18) itself
+    c = 0.9 / 100.0
+    assert float(tmt_reference(c * 1.5, 1.5, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(0.1 + 10 * c, rel=1e-14)

@@ -171,3 +171,29 @@ def test_json_schema_lists_every_kind_and_unit():
     assert defs["ControllerSettings"]["properties"]["f_d"]["unit"] == "N"
     assert defs["ControllerSettings"]["properties"]["f_d"]["exclusiveMinimum"] == 0
     assert defs["ControllerSettings"]["additionalProperties"] is False
+
+
+@pytest.mark.parametrize("rows,match", [
+    ("t,k_e\n", r"no data rows in"),
+    ("# only a comment\n\n", r"no data rows in"),
+    ("0,1e3\n4,nan\n", r"non-finite value in"),
+    ("0,1e3\ninf,2e3\n", r"non-finite value in"),
+    ("0,1e3\n4,0\n", r"stiffness must be > 0 in"),
+    ("0,1e3\n4,-2e3\n", r"stiffness must be > 0 in"),
+    ("0,1e3\n4,2e3\n4,3e3\n", r"times must be strictly increasing in"),
+    ("4,1e3\n0,2e3\n", r"times must be strictly increasing in"),
+])
+def test_every_stiffness_table_error_names_the_key_and_the_file(tmp_path, rows, match):
+    (tmp_path / "k.csv").write_text(rows)
+    path = tmp_path / "s.toml"
+    path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'k.csv'\n")
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: " + match + r" '.*k\.csv'") as info:
+        load_scenario(path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_missing_stiffness_table_is_named(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'absent.csv'\n")
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: no such file '.*absent\.csv'"):
+        load_scenario(path)

@@ -46,7 +46,7 @@ from ..model.puma560 import PUMA560_LINKS, Puma560
 from .environment import contact_force
 
 __all__ = ["INPUT", "LOG", "Layout", "state_layout", "param_layout", "controller_model",
-           "damping_schedule", "build_step"]
+           "damping_schedule", "build_step", "step_name"]
 
 
 class Layout:
@@ -160,6 +160,11 @@ def _rk4(ode, z, pz, n: int) -> ca.Function:
     return ca.Function(f"plant_rk{n}", [z, pz], ca.cse([zf, switched]), ["z", "pz"], ["zf", "switched"])
 
 
+def step_name(law: Law, delay: int = 0) -> str:
+    """The name of :func:`build_step`'s Function (and of its compiled library)."""
+    return f"step_{law.name}" + (f"_delay{delay}" if delay else "")
+
+
 def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 1,
                tol: float = 1e-10, delay: int = 0, contact_refine: int = 4) -> ca.Function:
     """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
@@ -263,7 +268,7 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
     s_next = ca.vertcat(zf, f_m, b_n, ca.if_else(engaged, 0, 1), x_app, ramp, x_e_hat, tau_wait, law_next)
     log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n, f_d, x_e_hat)
-    name = f"step_{law.name}" + (f"_delay{delay}" if delay else "")
+    name = step_name(law, delay)
     if integrator != "fixed":
         return ca.Function(name, [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
     # the controller expanded to SX (compilable), common subexpressions merged: a

@@ -113,10 +113,17 @@ class Rollout:
 
     Parameters
     ----------
-    step : casadi.Function
-        ``["s","u","p"] -> ["s_next","log"]``.
-    compile : bool
+    step : casadi.Function or callable
+        ``["s","u","p"] -> ["s_next","log"]``, or a function without
+        arguments that builds it (then ``structure`` is required, and the
+        step is only built when it is needed: a cache miss or the virtual
+        machine).
+    compile : bool or "auto"
         Try to generate and compile C (needs an SX Function and a compiler).
+    structure : (str, str), optional
+        The step's name and a key that identifies its structure (what the
+        caller knows changes the Function), used as the cache key instead of
+        the Function's serialisation, so a warm start builds nothing.
 
     Attributes
     ----------
@@ -124,51 +131,78 @@ class Rollout:
         ``"compiled"`` (built now), ``"cached"`` (library reused) or ``"vm"``.
     """
 
-    def __init__(self, step: ca.Function, compile: bool | str = True, chunk: int = _CHUNK):
+    def __init__(self, step, compile: bool | str = True, chunk: int = _CHUNK,
+                 structure: tuple[str, str] | None = None):
         if compile not in (True, False, "auto"):
             raise ValueError(f"compile: expected True, False or 'auto', got {compile!r}")
-        self.step = step
+        built = isinstance(step, ca.Function)
+        if not built and structure is None:
+            raise ValueError("structure: required when step is given as a function that builds it")
+        self._step, self._make = (step, None) if built else (None, step)
+        self._structure = structure[1] if structure else None
+        self.name = structure[0] if structure else step.name()
         self.chunk = int(chunk)
-        self.ns = step.size1_in(0)
-        self.nu = step.size1_in(1)
-        self.np = step.size1_in(2)
-        self.nl = step.size1_out(1)
+        self.ns = self.nu = self.np = self.nl = None
+        if built:
+            self._sizes_from(step)
         self._lib = None
-        self._pending = None        # the chunk Function, compiled once enough steps have run
+        self._pending = False       # compile once enough steps have run on the virtual machine
         self._steps = 0
         self.how = "vm"
         if compile:
-            chunked = step.mapaccum(f"{step.name()}_chunk", self.chunk)
-            if compile == "auto" and not self._cached(chunked):
-                self._pending = chunked
+            if compile == "auto" and not self._cached():
+                self._pending = True
             else:
-                self._compile(chunked)
+                self._compile()
 
-    def _compile(self, chunked: ca.Function) -> None:
-        self._pending = None
+    @property
+    def step(self) -> ca.Function:
+        """The per-period Function (built on first use if it was given lazily)."""
+        if self._step is None:
+            self._step = self._make()
+            self._sizes_from(self._step)
+        return self._step
+
+    def _sizes_from(self, step: ca.Function) -> None:
+        self.ns, self.nu, self.np, self.nl = (step.size1_in(0), step.size1_in(1), step.size1_in(2),
+                                              step.size1_out(1))
+
+    @property
+    def _chunk_name(self) -> str:
+        return f"{self.name}_chunk"
+
+    def _compile(self) -> None:
+        self._pending = False
         try:
-            self._load(chunked)
+            self._load()
         except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
             if compiler() is not None:
-                warnings.warn(f"tmtcontrol: compiling {self.step.name()} failed ({exc}); "
+                warnings.warn(f"tmtcontrol: compiling {self.name} failed ({exc}); "
                               "running on CasADi's virtual machine", RuntimeWarning, stacklevel=3)
 
-    def _cached(self, fn: ca.Function) -> bool:
-        return (cache_dir() / f"{fn.name()}_{self._key(fn)}.so").exists()
+    def _cached(self) -> bool:
+        return self._library_path().exists()
 
     # -- compilation --------------------------------------------------------------
-    def _key(self, fn: ca.Function) -> str:
-        """Cache key from the Function's structure (its serialisation), the
-        flags, the CasADi version and the CPU: no C is generated to look up."""
-        h = hashlib.sha256(fn.serialize().encode())
+    def _key(self) -> str:
+        """Cache key from the step's structure (the caller's structure key, or
+        the Function's serialisation), the flags, the CasADi version and the
+        CPU: no C is generated to look up."""
+        if self._structure is not None:
+            h = hashlib.sha256(b"structure:" + self._structure.encode())
+        else:
+            h = hashlib.sha256(self.step.mapaccum(self._chunk_name, self.chunk).serialize().encode())
         for part in (" ".join(_FLAGS), ca.__version__, _cpu_id(), str(self.chunk)):
             h.update(part.encode())
         return h.hexdigest()[:20]
 
-    def _load(self, fn: ca.Function):
-        name = fn.name()
+    def _library_path(self) -> pathlib.Path:
+        return cache_dir() / f"{self._chunk_name}_{self._key()}.so"
+
+    def _load(self):
+        name = self._chunk_name
         folder = cache_dir()
-        lib = folder / f"{name}_{self._key(fn)}.so"
+        lib = self._library_path()
         how = "cached"
         if lib.exists() and not _verify(lib):
             warnings.warn(f"tmtcontrol: cached library {lib} is damaged; rebuilding it", RuntimeWarning,
@@ -180,6 +214,10 @@ class Rollout:
             return
         if compiler() is None:
             raise OSError("no C compiler")
+        acc = self.step.mapaccum(name, self.chunk)
+        # named as the library is (mapaccum names its Function after the chunk's factors)
+        args = acc.mx_in()
+        fn = ca.Function(name, args, acc.call(args), acc.name_in(), acc.name_out())
         with tempfile.TemporaryDirectory(prefix="tmtcontrol-cg-") as tmp:
             gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             gen.add(fn)
@@ -209,6 +247,13 @@ class Rollout:
         if work(*[ctypes.byref(x) for x in sz]) != 0:
             raise RuntimeError(f"{name}_work failed")
         sz_arg, sz_res, sz_iw, sz_w = (x.value for x in sz)
+        if self.ns is None:         # the step was not built: its sizes are in the library
+            rows = []
+            for which, count in (("in", 3), ("out", 2)):
+                sparsity = getattr(dll, f"{name}_sparsity_{which}")
+                sparsity.argtypes, sparsity.restype = [ll], ctypes.POINTER(ll)
+                rows += [sparsity(i)[0] for i in range(count)]
+            self.ns, self.nu, self.np, _, self.nl = rows
         fn = getattr(dll, name)
         fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
         fn.restype = ctypes.c_int
@@ -226,13 +271,15 @@ class Rollout:
         Returns ``S`` (ns x N, the state after each period) and ``L`` (nl x N,
         the log at the start of each period).
         """
+        if self._lib is None:
+            self.step                               # the virtual machine needs the Function
         s0 = np.ascontiguousarray(s0, dtype=float).ravel()
         U = np.asarray(U, dtype=float).reshape(self.nu, -1)
         p = np.ascontiguousarray(p, dtype=float).ravel()
         N = U.shape[1]
         self._steps += N
-        if self._pending is not None and self._steps > COMPILE_AFTER:
-            self._compile(self._pending)
+        if self._pending and self._steps > COMPILE_AFTER:
+            self._compile()
         if self._lib is None:
             S, L = self.step.mapaccum("rollout", N)(s0, U, p)
             return np.array(S).reshape(self.ns, N), np.array(L).reshape(self.nl, N)

@@ -10,6 +10,9 @@ scenario of the same structure, without recompiling.
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import pathlib
 import time
 from dataclasses import dataclass, field
 
@@ -17,7 +20,7 @@ import numpy as np
 
 from ..files import VerdictFailed, check_interrupt
 from ..control.laws import get_law
-from .closedloop import INPUT, LOG, build_step, controller_model, param_layout, state_layout
+from .closedloop import INPUT, LOG, build_step, controller_model, param_layout, state_layout, step_name
 from .rollout import Rollout
 from .environment import stiffness_samples, task_frame
 from ..model.puma560 import Puma560
@@ -80,6 +83,27 @@ def _structure(scenario: Scenario):
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
             scenario.controller.law.kind,
             scenario.controller.delay_samples)
+
+
+@functools.lru_cache(maxsize=1)
+def _package_digest() -> str:
+    """SHA-256 of the package's Python sources: any change of the code that
+    builds the closed loop gives new cache keys."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def structure_key(scenario: Scenario, law) -> str | None:
+    """A key that identifies the compiled step of ``scenario`` without building
+    it: the package's sources, the structural settings and the law's
+    declaration. None for a law declared outside the package (its code is
+    not covered by the digest; the step's serialisation is the key then)."""
+    if not getattr(law.update, "__module__", "").startswith(__package__.split(".")[0] + "."):
+        return None
+    return repr((_package_digest(), _structure(scenario), law.name, law.states, law.parameter_names))
 
 
 def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
@@ -188,16 +212,34 @@ class Simulator:
         t0 = time.perf_counter()
         self.plant = Puma560(armature=sc.robot.armature,
                              friction="smooth" if sc.robot.friction else False)
-        self.model = controller_model(sc.robot.model_mass_scale, sc.robot.compensate_friction)
         self.law = get_law(sc.controller.law.kind)
         self.delay = sc.controller.delay_samples
-        self.step = build_step(self.plant, self.model, self.law, sc.simulation.integrator,
-                               sc.simulation.substeps, sc.simulation.tol, self.delay,
-                               sc.simulation.contact_refine)
         # CVODES cannot be code-generated: that reference runs on the virtual machine
-        self.rollout = Rollout(self.step, compile=compile if sc.simulation.integrator == "fixed" else False)
+        compile = compile if sc.simulation.integrator == "fixed" else False
+        key = structure_key(sc, self.law)
+        if key is None:
+            self.rollout = Rollout(self._build_step(), compile=compile)
+        else:           # a cached library is found without building the step
+            self.rollout = Rollout(self._build_step, compile=compile,
+                                   structure=(step_name(self.law, self.delay), key))
         self.build_time = time.perf_counter() - t0
         self._structure = _structure(sc)
+
+    @functools.cached_property
+    def model(self) -> Puma560:
+        """The controller's model of the robot (eq. 5's D*^, h*^)."""
+        sc = self.scenario
+        return controller_model(sc.robot.model_mass_scale, sc.robot.compensate_friction)
+
+    @property
+    def step(self):
+        """The closed-loop step Function (built on first use)."""
+        return self.rollout.step
+
+    def _build_step(self):
+        sc = self.scenario
+        return build_step(self.plant, self.model, self.law, sc.simulation.integrator, sc.simulation.substeps,
+                          sc.simulation.tol, self.delay, sc.simulation.contact_refine)
 
     def run(self, scenario: Scenario | None = None, max_steps: int | None = None) -> SimulationResult:
         """Simulate ``scenario`` (default: the one given at construction). It
