@@ -179,3 +179,11 @@ def test_schedule_settles_faster_than_paper_b(paper_result, scheduled):
     assert sched[1].settling_time < fixed[1].settling_time
     assert sched[3].settling_time < fixed[3].settling_time
     assert sched[0].overshoot_pct < fixed[0].overshoot_pct
+
+
+def test_event_weights_are_the_three_events_squared_force_errors():
+    # at k_e the design weighs (module docstring): first contact (error f_d), a switch
+    # from the softest surface (the force jumps to f_d k_e/k_e_min) and one from the
+    # stiffest (to f_d k_e/k_e_max): f_d^2 (1 + (k_e/k_min - 1)^2 + (k_e/k_max - 1)^2)
+    w = SPEC.event_weights(np.array([2e3, 6e3, 2e4]))
+    np.testing.assert_allclose(w, [100 * (1 + 0 + 0.81), 100 * (1 + 4 + 0.49), 100 * (1 + 81 + 0)], rtol=1e-14)

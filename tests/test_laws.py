@@ -157,6 +157,17 @@ def test_adaptive_sigma_bound_against_the_sampled_model():
     assert _sigma_limit(1e4) < _sigma_limit(1e3)
 
 
+@pytest.mark.parametrize("m, b, Ts", [(2.5, 40.0, 2e-3), (0.4, 150.0, 5e-4)])
+def test_adaptive_sigma_bound_is_the_hurwitz_boundary_of_the_continuous_loop(m, b, Ts):
+    # m s^3 + b s^2 + k_e s + k_e sigma/Ts (laws/adaptive_damping.py): its roots cross
+    # into the right half plane exactly at sigma = b Ts / m, for any k_e
+    bound = sigma_bound(m, b, Ts)
+    for k_e in (1e2, 1e4):
+        def largest_real(sigma):
+            return max(np.roots([m, b, k_e, k_e * sigma / Ts]).real)
+        assert largest_real(0.99 * bound) < 0 < largest_real(1.01 * bound)
+
+
 @pytest.mark.parametrize("factor, converges", [(0.8, True), (1.2, False)])
 def test_adaptive_sigma_bound_in_simulation(factor, converges):
     sigma = factor * sigma_bound(1.0, 60.0, 1e-3)

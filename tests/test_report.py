@@ -267,3 +267,88 @@ def test_writing_stages_match_the_formats(tmp_path, formats, files, stages):
                            progress=lambda name, s: seen.append(name))
     assert seen == stages and len(seen) == writing_stages(formats)
     assert sorted(p.name for p in written) == sorted(p.name for p in tmp_path.iterdir()) == files
+
+
+# -- verdicts both ways, on the stage functions ---------------------------------------------
+
+def _stage_report(*overrides):
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.report.document import Report
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = apply_overrides(paper_scenario(), list(overrides))
+    return Report(sc, "test"), sc, scenario_parameters(sc)
+
+
+@pytest.mark.parametrize("failing", [0, 1])
+def test_checks_verdict_fails_when_a_check_fails(failing):
+    from concurrent.futures import Future
+
+    from tmtcontrol.checks.derivations import CheckResult
+    from tmtcontrol.report.document import _checks
+
+    rep, _, _ = _stage_report()
+    results = [CheckResult(f"check {i}", "eq. (1)", "claim", "method", 0.0, i >= failing, 1e-9, "")
+               for i in range(3)]
+    done = Future()
+    done.set_result(results)
+    _checks(rep, done)
+    (v,) = rep.verdicts
+    assert v.name == "Derivation checks pass" and v.passed is (failing == 0)
+    assert v.value == f"{3 - failing}/3 pass"
+
+
+def test_force_verdict_fails_on_a_converged_but_biased_run():
+    # the known law with k_e assumed 50 % high converges f_d (1 - k_eff(5e3)/k_eff(7.5e3))
+    # = 0.065 N off f_d (eqs. 11-12): above the 0.01 N tolerance, so the verdict fails
+    # with that number (steady state within 2e-3 N, as in test_simulate)
+    from tmtcontrol.control.laws.tmt import k_eff
+    from tmtcontrol.report import fmt
+    from tmtcontrol.report.document import FORCE_TOLERANCE, _simulation
+
+    assert FORCE_TOLERANCE == 0.01
+    rep, sc, p = _stage_report("controller.law=known", "controller.law.assumed_stiffness=7500",
+                               "trajectory.cycles=1", "environment.stiffness.values=[5e3]")
+    _simulation(rep, sc, p)
+    (v,) = rep.verdicts
+    assert not v.passed and "every segment converged" in v.check
+    worst = rep.data["simulation"]["segments"][0].steady_state_error
+    assert worst == pytest.approx(10 * (1 - k_eff(100, 5e3) / k_eff(100, 7.5e3)), abs=2e-3)
+    assert v.value.startswith(f"worst steady-state |f_e − f_d| {fmt.qty(worst, 'N')}")
+
+
+def test_force_verdict_passes_on_the_paper_law():
+    from tmtcontrol.report.document import _simulation
+
+    rep, sc, p = _stage_report("trajectory.cycles=1", "environment.stiffness.values=[5e3]")
+    _simulation(rep, sc, p)
+    assert rep.verdicts[0].passed
+
+
+def test_a_diverging_simulation_fails_its_verdict_and_says_where():
+    # K_P Ts^2 = 100 >> 4: the sampled inner loop is unstable (as in test_simulate)
+    from tmtcontrol.report.document import _simulation
+
+    rep, sc, p = _stage_report("controller.rate=100", "trajectory.cycles=1", "impedance.k=[1e6, 1e6, 1e6]")
+    section, _, res = _simulation(rep, sc, p)
+    (v,) = rep.verdicts
+    assert res is None and not v.passed and v.value == "diverged" and "diverged at t = " in v.check
+    assert "The simulation diverged" in section.blocks[0].text
+
+
+@pytest.mark.parametrize("b, stable", [(0.0, False), (60.0, True)])
+def test_continuous_verdict_both_ways(b, stable):
+    # b = 0: eq. (22)'s poles sit on the imaginary axis (not BIBO stable) for every k_e
+    from tmtcontrol.report.document import _continuous
+
+    rep, _, p = _stage_report(f"impedance.b=[{b}, 60, 60]")
+    _continuous(rep, p)
+    (v,) = rep.verdicts
+    assert v.name == "BIBO stable in continuous time (eq. 22)" and v.passed is stable
+    assert v.value == f"largest pole real part {fmt_qty(-b / 2, '1/s')}"      # Re p = -b/(2m), m = 1 kg
+
+
+def fmt_qty(x, unit):
+    from tmtcontrol.report import fmt
+
+    return fmt.qty(x, unit)

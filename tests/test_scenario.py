@@ -197,3 +197,22 @@ def test_a_missing_stiffness_table_is_named(tmp_path):
     path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'absent.csv'\n")
     with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: no such file '.*absent\.csv'"):
         load_scenario(path)
+
+
+@pytest.mark.parametrize("key", ["armature", "friction", "compensate_friction"])
+@pytest.mark.parametrize("value", ["1", "0", "'yes'", "'true'", "1.0"])
+def test_every_boolean_takes_only_true_or_false(tmp_path, key, value):
+    path = tmp_path / "s.toml"
+    path.write_text(f"[robot]\n{key} = {value}\n")
+    with pytest.raises(ScenarioError, match=rf"robot\.{key}: expected true or false, got"):
+        load_scenario(path)
+    path.write_text(f"[robot]\n{key} = true\n")
+    assert getattr(load_scenario(path).robot, key) is True
+
+
+def test_repeated_knot_times_are_refused(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text("[environment.stiffness]\nkind = 'piecewise_linear'\ntimes = [0, 2, 2]\n"
+                    "values = [1e3, 2e3, 3e3]\n")
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.times: must be strictly increasing"):
+        load_scenario(path)

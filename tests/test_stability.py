@@ -206,3 +206,18 @@ def test_cli_bad_input(args, needle, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr
     assert not (tmp_path / "p").exists()
+
+
+@pytest.mark.parametrize("factor, stable", [(0.9, False), (1.1, True)])
+def test_scenario_verdict_follows_the_whole_loop_limit(monkeypatch, factor, stable):
+    # the whole-loop limit decides the sampled verdict even where the 1-D model says
+    # stable: a limit just below / above k_e max (20,000 N/m on the paper path) flips it
+    import tmtcontrol.stability.wholeloop as wholeloop
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.stability import analyze_scenario
+
+    monkeypatch.setattr(wholeloop, "whole_loop_limit",
+                        lambda sc, points, rtol, guess: (factor * 2e4, [(0.0, factor * 2e4)]))
+    a = analyze_scenario(paper_scenario())
+    assert a["max_stable_stiffness"] > 1e5                 # the 1-D model alone: stable
+    assert a["whole_loop_limit"] == factor * 2e4 and a["sampled_stable"] is stable
