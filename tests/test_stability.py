@@ -221,3 +221,26 @@ def test_scenario_verdict_follows_the_whole_loop_limit(monkeypatch, factor, stab
     a = analyze_scenario(paper_scenario())
     assert a["max_stable_stiffness"] > 1e5                 # the 1-D model alone: stable
     assert a["whole_loop_limit"] == factor * 2e4 and a["sampled_stable"] is stable
+
+
+def test_contact_damping_limit_agrees_across_the_three_models():
+    # with a contact damper (20 N s/m) the closed-form 1-D model, the law's own loop and
+    # the whole-loop linearisation give the same limit (measured: 218,031 / 218,022 /
+    # 218,222 N/m; the models differ by the path's mass variation, < 0.2 %), and the
+    # verdict is stable. The 1-D scan used to start at 1 N/m, where the damper dominates
+    # and the loop is unstable, and reported a limit of 0 (an unstable verdict).
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.stability import analyze_scenario, scenario_stiffness_limit
+    from tmtcontrol.stability.analysis import scenario_parameters
+    from tmtcontrol.stability.lawloop import law_stiffness_limit
+    from tmtcontrol.control.laws import get_law
+
+    sc = apply_overrides(paper_scenario(), ["environment.damping=20"])
+    a = analyze_scenario(sc)
+    assert a["sampled_stable"]
+    p = scenario_parameters(sc)
+    loop = min(law_stiffness_limit(get_law("tmt"), m=1.0, b=60.0, k=100.0, Ts=1e-3, f_d=10.0, m_p=mp, d_e=20.0)
+               for mp in (p["m_p_min"], p["m_p_max"]))
+    assert a["max_stable_stiffness"] == pytest.approx(loop, rel=5e-4)           # both bisect to ~1e-4
+    assert scenario_stiffness_limit(sc) == pytest.approx(loop, rel=5e-4)
+    assert a["whole_loop_limit"] == pytest.approx(loop, rel=2e-3)

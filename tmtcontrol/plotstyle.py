@@ -7,7 +7,7 @@ from __future__ import annotations
 import contextlib
 import pathlib
 
-__all__ = ["STYLE", "styled"]
+__all__ = ["STYLE", "styled", "fixed_layout"]
 
 STYLE = pathlib.Path(__file__).with_name("tmtcontrol.mplstyle")
 
@@ -18,3 +18,19 @@ def styled():
 
     with matplotlib.style.context(STYLE):
         yield
+
+
+def fixed_layout(fig, left: float = 0.7, right: float = 0.15, bottom: float = 0.48, top: float = 0.32,
+                 hgap: float = 0.25, wgap: float = 0.2):
+    """Place the axes with fixed margins and gaps (inches; for tick labels,
+    axis labels and a title in the house font sizes) instead of matplotlib's
+    constrained layout, which measures every text of a figure and costs
+    about half of its drawing time. Returns ``fig``."""
+    w, h = fig.get_size_inches()
+    grid = fig.axes[0].get_subplotspec().get_gridspec() if fig.axes else None
+    rows, cols = (grid.nrows, grid.ncols) if grid is not None else (1, 1)
+    height = (h - bottom - top - (rows - 1) * hgap) / rows
+    width = (w - left - right - (cols - 1) * wgap) / cols
+    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
+                        hspace=hgap / height, wspace=wgap / width)
+    return fig

@@ -37,9 +37,11 @@ FORCE_TOLERANCE = 0.01
 
 STAGES = ("continuous-time analysis", "sampled-data analysis", "simulation", "law comparison", "robustness sweep",
           "design", "derivation checks")
-"""The computing stages in the order they finish (writing HTML and PDF are
-stages of ``write_report``). The derivation checks run in a second process
-from the start, alongside the others; their stage time is the wait for them."""
+"""The computing stages (writing HTML and PDF are stages of ``write_report``).
+The law comparison, the sweep and the derivation checks run in a second
+process from the start (see :data:`REMOTE_STAGES`), so progress reports the
+stages as they end, each with its own time; the checks' time is the wait
+for them."""
 
 SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
 SWEEP_RATES = (1000.0, 500.0)
@@ -460,10 +462,24 @@ def _run_checks():
     return all_checks()
 
 
+REMOTE_STAGES = ("law comparison", "robustness sweep")
+"""Stages that need nothing from the others: they run in the second process
+(after the derivation checks are submitted there), the rest in this one."""
+
+
+def _remote_stage(name: str, sc: Scenario):
+    """Run an independent stage in a worker: its section, verdicts, data and time."""
+    rep = Report(sc, "")
+    t0 = time.perf_counter()
+    section = {"law comparison": _comparison, "robustness sweep": _sweep}[name](rep, sc)
+    return section, rep.verdicts, rep.data, time.perf_counter() - t0
+
+
 @contextlib.contextmanager
 def _background():
-    """A second process for the derivation checks (a fresh interpreter: no
-    state shared with this one); in-process if processes are unavailable."""
+    """A second process for the derivation checks and the independent stages
+    (a fresh interpreter: no state shared with this one); in-process if
+    processes are unavailable."""
     import concurrent.futures
     import multiprocessing
 
@@ -477,9 +493,23 @@ def _background():
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _stages(rep: Report, sc: Scenario, p: dict, pending, out: dict, say: Callable) -> None:
+def _stages(rep: Report, sc: Scenario, p: dict, pool, out: dict, say: Callable) -> None:
+    """Run the stages: the independent ones in ``pool`` (submitted first), the
+    others here in order; report each as it ends, with its own time."""
+    remote = {name: pool.submit(_remote_stage, name, sc) for name in REMOTE_STAGES}
+    checks = pool.submit(_run_checks)
     sim = res = None
-    for i, name in enumerate(STAGES):
+    done = 0
+
+    def finished(name, seconds):
+        nonlocal done
+        done += 1
+        rep.timings[name] = seconds
+        say(done, len(STAGES), name, seconds)
+
+    for name in STAGES:
+        if name in REMOTE_STAGES:
+            continue
         t0 = time.perf_counter()
         if name == "continuous-time analysis":
             out[name] = _continuous(rep, p)
@@ -487,16 +517,19 @@ def _stages(rep: Report, sc: Scenario, p: dict, pending, out: dict, say: Callabl
             out[name] = _sampled(rep, sc, p)
         elif name == "simulation":
             out[name], sim, res = _simulation(rep, sc, p)
-        elif name == "law comparison":
-            out[name] = _comparison(rep, sc)
-        elif name == "robustness sweep":
-            out[name] = _sweep(rep, sc)
         elif name == "design":
             out[name] = _design(rep, sc, p, sim, res)
         elif name == "derivation checks":
-            out[name] = _checks(rep, pending)
-        rep.timings[name] = time.perf_counter() - t0
-        say(i + 1, len(STAGES), name, rep.timings[name])
+            continue
+        finished(name, time.perf_counter() - t0)
+    for name, future in remote.items():
+        out[name], verdicts, data, seconds = future.result()
+        rep.verdicts += verdicts
+        rep.data.update(data)
+        finished(name, seconds)
+    t0 = time.perf_counter()
+    out["derivation checks"] = _checks(rep, checks)
+    finished("derivation checks", time.perf_counter() - t0)
 
 
 def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None) -> Report:
@@ -512,8 +545,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     rep.data["parameters"] = p
     out: dict = {}
     with _background() as pool:
-        pending = pool.submit(_run_checks)
-        _stages(rep, scenario, p, pending, out, say)
+        _stages(rep, scenario, p, pool, out, say)
     order = ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)"]
     rep.verdicts.sort(key=lambda v: order.index(v.name) if v.name in order else len(order))
     summary = Section("summary", "Verdict summary", [Table(

@@ -12,6 +12,7 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..plotstyle import fixed_layout
 from .simulator import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
@@ -34,22 +35,30 @@ def envelope(t: np.ndarray, y: np.ndarray, buckets: int = DRAW_POINTS) -> tuple[
     if n <= 2 * buckets:
         return t, y
     edges = np.linspace(0, n, buckets + 1).astype(int)
-    ts, ys = [], []
-    for a, b in zip(edges[:-1], edges[1:]):
-        seg = y[a:b]
-        ok = np.flatnonzero(np.isfinite(seg))
-        if ok.size == 0:
-            ts.append(t[a]), ys.append(np.nan)
-            continue
-        i, j = a + ok[np.argmin(seg[ok])], a + ok[np.argmax(seg[ok])]
-        for k in sorted({i, j}):
-            ts.append(t[k]), ys.append(y[k])
-    return np.array(ts), np.array(ys)
+    starts, sizes = edges[:-1], np.diff(edges)
+    bucket = np.repeat(np.arange(buckets), sizes)
+    finite = np.isfinite(y)
+
+    def first_where(values, extreme):
+        """Per bucket, the first sample holding the bucket's extreme (its first
+        sample if the bucket has no finite value)."""
+        hit = np.flatnonzero(values == np.repeat(extreme, sizes))
+        _, first = np.unique(bucket[hit], return_index=True)
+        return hit[first]
+
+    lo_vals, hi_vals = np.where(finite, y, np.inf), np.where(finite, y, -np.inf)
+    i = first_where(lo_vals, np.minimum.reduceat(lo_vals, starts))
+    j = first_where(hi_vals, np.maximum.reduceat(hi_vals, starts))
+    pairs = np.sort(np.column_stack([i, j]), axis=1)
+    keep = np.ones(pairs.shape, dtype=bool)
+    keep[:, 1] = pairs[:, 1] != pairs[:, 0]
+    idx = pairs[keep]                                  # row-major: time order
+    return t[idx], np.where(finite[idx], y[idx], np.nan)
 
 
 def stiffness_figure(res: SimulationResult) -> Figure:
     """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
-    fig = Figure(figsize=(7, 3.2), layout="constrained")
+    fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
     ax.plot(*envelope(res.time, res.stiffness), label="true $k_e$")
     ax.plot(*envelope(res.time, res.stiffness_estimate), "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
@@ -57,12 +66,12 @@ def stiffness_figure(res: SimulationResult) -> Figure:
     ax.set_yscale("log")
     ax.legend()
     ax.grid(True, which="both", alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def force_figure(res: SimulationResult) -> Figure:
     """Fig. 4: contact force against the desired force."""
-    fig = Figure(figsize=(7, 3.2), layout="constrained")
+    fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
     ax.plot(*envelope(res.time, res.contact_force), label="$f_e$")
     ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="$f_d$")
@@ -71,7 +80,7 @@ def force_figure(res: SimulationResult) -> Figure:
     ax.set_ylim(-0.05 * top, 1.08 * top)            # every peak visible; switch_figure zooms in
     ax.legend()
     ax.grid(True, alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def switch_figure(res: SimulationResult, window: float = 0.4) -> Figure:
@@ -82,7 +91,7 @@ def switch_figure(res: SimulationResult, window: float = 0.4) -> Figure:
 
     starts = [a for a, _ in segments(res)][1:] or [0]
     f_d = res.scenario.controller.f_d
-    fig = Figure(figsize=(7, 2.4), layout="constrained")
+    fig = Figure(figsize=(7, 2.4))
     axes = fig.subplots(1, len(starts), sharey=True, squeeze=False)[0]
     for ax, i0 in zip(axes, starts):
         t0 = res.time[i0]
@@ -96,7 +105,7 @@ def switch_figure(res: SimulationResult, window: float = 0.4) -> Figure:
     lo = min(0.0, float(np.min(res.contact_force)))
     axes[0].set_ylim(lo - 0.05 * f_d, max(2.2 * f_d, 1.05 * float(np.max(
         [res.contact_force[max(i - 50, 0):i + int(window / res.Ts)].max() for i in starts]))))
-    return fig
+    return fixed_layout(fig, wgap=0.12)
 
 
 def tracking_error_figure(res: SimulationResult) -> Figure:
@@ -104,7 +113,7 @@ def tracking_error_figure(res: SimulationResult) -> Figure:
     position error (distance from X to X_r within the surface plane, mm);
     X_r itself lies inside the surface (eq. 18), so X against X_r in the
     normal direction is not an error."""
-    fig = Figure(figsize=(7, 4.2), layout="constrained")
+    fig = Figure(figsize=(7, 4.2))
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     err = np.abs(res.contact_force - res.desired_force)
     ax1.plot(*envelope(res.time, np.maximum(err, 1e-7)), lw=1)
@@ -113,12 +122,12 @@ def tracking_error_figure(res: SimulationResult) -> Figure:
     tang = np.linalg.norm(res.position_task[1:] - res.reference_task[1:], axis=0) * 1e3
     ax2.plot(*envelope(res.time, tang), lw=1, color="C2")
     ax2.set(xlabel="time (s)", ylabel="tangential error (mm)")
-    return fig
+    return fixed_layout(fig)
 
 
 def position_figure(res: SimulationResult) -> Figure:
     """Fig. 5: x, y, z of the wrist centre against the reference (base frame)."""
-    fig = Figure(figsize=(7, 5.5), layout="constrained")
+    fig = Figure(figsize=(7, 5.5))
     axes = fig.subplots(3, 1, sharex=True)
     for i, (ax, name) in enumerate(zip(axes, "xyz")):
         ax.plot(*envelope(res.time, res.position[i]), label=name)
@@ -128,12 +137,12 @@ def position_figure(res: SimulationResult) -> Figure:
         ax.grid(True, alpha=0.3)
     axes[0].set_title("Position tracking (Fig. 5)")
     axes[-1].set_xlabel("time (s)")
-    return fig
+    return fixed_layout(fig)
 
 
 def path_figure(res: SimulationResult) -> Figure:
     """3-D view of the wrist path on the tilted plane."""
-    fig = Figure(figsize=(6, 5.5), layout="constrained")
+    fig = Figure(figsize=(6, 5.5))
     ax = fig.add_subplot(projection="3d")
     sc = res.scenario
     from .environment import task_frame
@@ -149,7 +158,7 @@ def path_figure(res: SimulationResult) -> Figure:
     ax.plot(*res.reference_position[:, ::stride], "k--", lw=0.8, label="reference $X_r$")
     ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
     ax.legend()
-    return fig
+    return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
 
 
 def save_figures(makers, data, folder: str | pathlib.Path, dpi: int = 120) -> list[pathlib.Path]:
@@ -175,7 +184,7 @@ def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -
 
 def comparison_force_figure(cmp) -> Figure:
     """Contact force of every law of a :class:`~.compare.Comparison` against f_d."""
-    fig = Figure(figsize=(7, 3.4), layout="constrained")
+    fig = Figure(figsize=(7, 3.4))
     ax = fig.add_subplot()
     peak = 0.0
     for name, run in cmp.runs.items():
@@ -192,12 +201,12 @@ def comparison_force_figure(cmp) -> Figure:
     ax.set(xlabel="time (s)", ylabel="normal force $f_e$ (N)", title="Force tracking, all laws")
     ax.legend(ncol=3, fontsize="small")
     ax.grid(True, alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def comparison_error_figure(cmp) -> Figure:
     """|f_e - f_d| of every law on a log axis (floor 1e-6 N), with the 0.01 N band."""
-    fig = Figure(figsize=(7, 3.4), layout="constrained")
+    fig = Figure(figsize=(7, 3.4))
     ax = fig.add_subplot()
     for name, run in cmp.runs.items():
         if run.result is None:
@@ -208,7 +217,7 @@ def comparison_error_figure(cmp) -> Figure:
     ax.set(xlabel="time (s)", ylabel="$|f_e - f_d|$ (N)", title="Force error, all laws")
     ax.legend(ncol=3, fontsize="small")
     ax.grid(True, which="both", alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def save_comparison_figures(cmp, folder: str | pathlib.Path) -> list[pathlib.Path]:

@@ -53,6 +53,12 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     law = get_law(scenario.controller.law.kind)
     if not law.linear_analysis:
         return None
+    ctl = scenario.controller
+    if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error):
+        # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
+        kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
+        return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, **kw)
+                   for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
               d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
     return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)

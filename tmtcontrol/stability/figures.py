@@ -11,6 +11,7 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..plotstyle import fixed_layout
 from ..simulation.figures import save_figures
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
@@ -25,7 +26,7 @@ def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
-    fig = Figure(figsize=(6, 4.5), layout="constrained")
+    fig = Figure(figsize=(6, 4.5))
     ax = fig.add_subplot()
     loci = sw["loci"]
     for j in range(loci.shape[1]):
@@ -36,7 +37,7 @@ def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     ax.set(xlabel="Re (1/s)", ylabel="Im (rad/s)", title="Root locus of eq. (22) in k_e")
     ax.legend()
     ax.grid(True, alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
@@ -44,7 +45,7 @@ def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
-    fig = Figure(figsize=(6.5, 4.5), layout="constrained")
+    fig = Figure(figsize=(6.5, 4.5))
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.semilogx(sw["k_e"], sw["damping_ratio"])
     ax1.axhline(1.0, color="k", ls="--", lw=0.8, label="critical (eq. 25)")
@@ -54,7 +55,7 @@ def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     ax2.set(xlabel="k_e (N/m)", ylabel="natural frequency (rad/s)")
     for ax in (ax1, ax2):
         ax.grid(True, which="both", alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
@@ -63,7 +64,7 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
 
     from .continuous import tmt_error_tf
 
-    fig = Figure(figsize=(6.5, 4), layout="constrained")
+    fig = Figure(figsize=(6.5, 4))
     ax = fig.add_subplot()
     for ke in stiffnesses:
         resp = ct.step_response(tmt_error_tf(m, b, k, ke) * f_d)
@@ -72,7 +73,7 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
     ax.set(xlabel="time (s)", ylabel="f_e (N)", title="Force step response, eq. (22)")
     ax.legend()
     ax.grid(True, alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) -> Figure:
@@ -104,7 +105,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     hatched, the operating points ``[(Ts, k_e, label), ...]`` and the
     whole-loop limit ``(Ts, k_e)`` at the scenario's period. Distance to the
     boundary is the margin, readable at any Ts."""
-    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.5, 4.2))
     ax = fig.add_subplot()
     Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
     ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable $k_e$ ({label})")
@@ -120,7 +121,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
            ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
            title="Sampled-data stability boundary")
     ax.legend(loc="lower left", fontsize="small")
-    return fig
+    return fixed_layout(fig)
 
 
 def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.Path]:
@@ -157,7 +158,7 @@ def design_cost_figure(result) -> Figure:
     spec = result.spec
     bs = np.geomspace(max(spec.b_bounds[0], result.b / 20), min(spec.b_bounds[1], result.b * 20), 120)
     J = [_objective(spec, b, result.k) for b in bs]
-    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.5, 4.2))
     ax = fig.add_subplot()
     ax.loglog(bs, J, label=f"worst-case J (k = {result.k:.4g} N/m)")
     ax.plot(result.b, result.objective, "o", label=f"optimal b = {result.b:.4g}")
@@ -165,7 +166,7 @@ def design_cost_figure(result) -> Figure:
     ax.set(xlabel="b (N s/m)", ylabel="J (N² s)", title="Robust damping design")
     ax.legend()
     ax.grid(True, which="both", alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def design_response_figure(result) -> Figure:
@@ -175,7 +176,7 @@ def design_response_figure(result) -> Figure:
     from .continuous import tmt_error_tf
 
     s = result.spec
-    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.5, 4.2))
     ax = fig.add_subplot()
     for b, k, name, ls in ((result.b, result.k, "optimal", "-"), (result.baseline_b, s.k, "eq. (25)", "--")):
         for ke in (s.k_e_min, s.k_e_max):
@@ -185,7 +186,7 @@ def design_response_figure(result) -> Figure:
     ax.set(xlabel="time (s)", ylabel="f_e (N)", title="First-contact force response, eq. (22)")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    return fig
+    return fixed_layout(fig)
 
 
 def save_design_figures(result, folder) -> list[pathlib.Path]:

@@ -136,12 +136,16 @@ def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
     return sampled_closed_loop(m, b, k, k_e, Ts, m_p, **kw).spectral_radius
 
 
-def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=1.0, k_hi=1e10, **kw) -> float:
+def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
     """Largest k_e for which the sampled loop is stable at Ts (N/m).
 
     Scans a log grid from ``k_lo`` for the first unstable stiffness, then
     bisects (relative precision 1e-6). Returns ``inf`` if stable up to
-    ``k_hi`` and 0 if unstable already at ``k_lo``."""
+    ``k_hi`` and 0 if unstable already at ``k_lo``. ``k_lo`` = 10 N/m as in
+    ``stability.lawloop``: below it a contact damper dominates the spring
+    (at d_e = 20 N s/m the TMT loop is unstable at 1 N/m, a surface that
+    would need 10 m of penetration for 10 N), which is not the limit
+    sought."""
     grid = np.geomspace(k_lo, k_hi, 121)
     rho = [spectral_radius(m, b, k, ke, Ts, m_p, **kw) for ke in grid]
     unstable = [i for i, r in enumerate(rho) if r >= 1.0]
