@@ -10,9 +10,12 @@ compiled once, and the chunks are called directly on NumPy buffers through
 would cost more than the simulation itself).
 
 Cache: ``$TMTCONTROL_CACHE`` if set, else ``$XDG_CACHE_HOME/tmtcontrol``
-(``~/.cache/tmtcontrol``), keyed by the SHA-256 of the Function's
-serialisation (its structure), the flags, the CasADi version and the CPU, so
-a warm run generates no C. Each library is written fsync'ed under a
+(``~/.cache/tmtcontrol``), keyed by the step's structure, the flags, the
+CasADi version and the CPU, so a warm run generates no C. The structure is
+the caller's key when it gives one (the Simulator's: the package's sources,
+the structural settings and the law, so a warm run does not even build the
+step; the library's own sparsity tables give the sizes), else the
+Function's serialisation. Each library is written fsync'ed under a
 temporary name and renamed into place, with its size and SHA-256 in a
 sidecar; a library that does not match its sidecar (a crash or a full disk
 during a write) is rebuilt, never loaded. An unwritable cache compiles into a

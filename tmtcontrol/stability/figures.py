@@ -120,6 +120,9 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness $k_e$ (N/m)",
            ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
            title="Sampled-data stability boundary")
+    from matplotlib.ticker import NullFormatter
+
+    ax.xaxis.set_minor_formatter(NullFormatter())     # over two decades the minor labels overlap
     ax.legend(loc="lower left", fontsize="small")
     return fixed_layout(fig)
 
