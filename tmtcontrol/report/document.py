@@ -474,7 +474,7 @@ def _run_checks():
 
 REMOTE_STAGES = ("law comparison", "robustness sweep")
 """Stages that need nothing from the others: they run in the second process
-(after the derivation checks are submitted there), the rest in this one."""
+(submitted first, then the derivation checks), the rest in this one."""
 
 
 def _remote_stage(name: str, sc: Scenario):
