@@ -205,8 +205,6 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     from ..stability import analyze_scenario
     from ..stability import figures as sf
     from ..stability.analysis import closed_form_applies, scenario_stiffness_limit
-    from ..stability.sampled import max_stable_stiffness
-    from ..simulation.scenario import apply_overrides
 
     a = analyze_scenario(sc)
     limit_1d = a["max_stable_stiffness"]
@@ -227,12 +225,8 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     closed_form = closed_form_applies(sc.controller.law.kind, sc.controller.delay_samples, sc.controller.x_e_error)
     Ts_grid = np.geomspace(Ts / 8, Ts * 8, 13 if closed_form else 5)
     limits = []
-    for T in Ts_grid:
-        if closed_form:         # the 1-D closed form (stability.sampled), milliseconds per point
-            kw = {"kd": p["kd"], "kp": p["kp"], "alpha": sc.sensor.pole(T), "d_e": p["d_e"], "law": p["law"]}
-            lim = min(max_stable_stiffness(p["m"], p["b"], p["k"], T, mp, **kw) for mp in (p["m_p_min"], p["m_p_max"]))
-        else:                   # the law's own loop with delay and x_e error, about a second per point
-            lim = scenario_stiffness_limit(apply_overrides(sc, [f"controller.rate={float(1 / T)!r}"]))
+    for T in Ts_grid:           # closed form where it applies (ms per point), else the law loop (~1 s)
+        lim = scenario_stiffness_limit(sc, dict(p, Ts=T, alpha=sc.sensor.pole(T)))
         limits.append(np.nan if lim is None else lim)
     points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
     blocks = [

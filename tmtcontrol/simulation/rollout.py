@@ -28,6 +28,7 @@ runs on CasADi's virtual machine — slower, identical in result.
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import json
 import os
@@ -187,10 +188,11 @@ class Rollout:
         return self._library_path().exists()
 
     # -- compilation --------------------------------------------------------------
+    @functools.cached_property
     def _key(self) -> str:
         """Cache key from the step's structure (the caller's structure key, or
         the Function's serialisation), the flags, the CasADi version and the
-        CPU: no C is generated to look up."""
+        CPU: no C is generated to look up; computed once per Rollout."""
         if self._structure is not None:
             h = hashlib.sha256(b"structure:" + self._structure.encode())
         else:
@@ -200,7 +202,7 @@ class Rollout:
         return h.hexdigest()[:20]
 
     def _library_path(self) -> pathlib.Path:
-        return cache_dir() / f"{self._chunk_name}_{self._key()}.so"
+        return cache_dir() / f"{self._chunk_name}_{self._key}.so"
 
     def _load(self):
         name = self._chunk_name
