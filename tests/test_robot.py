@@ -227,3 +227,22 @@ def test_closed_form_inverse_kinematics_round_trip(robot):
     assert robot.inverse_kinematics(P[:, 0]).shape == (3,)
     with pytest.raises(ValueError, match=r"point \[2.0, 0.0, 0.5\] m is outside the workspace"):
         robot.inverse_kinematics(np.array([[0.5, 2.0], [0.0, 0.0], [0.5, 0.5]]))
+
+
+
+def test_dh_twist_of_90_degrees_is_exact():
+    """A +-90 deg twist has cos = 6.1e-17 in floating point; the model takes it
+    as the exact 0 (the twisted axis rows are exactly 0 and +-1), so the
+    dynamics carry no 1e-17 terms, which constant folding could not drop."""
+    from tmtcontrol.model.puma560 import _dh
+
+    q = ca.SX.sym("q")
+    twisted = 0
+    for link in PUMA560_LINKS:
+        A = ca.Function("A", [q], [_dh(q, link)])(0.37).full()
+        expected = (math.cos(link.alpha), math.sin(link.alpha))
+        if abs(abs(link.alpha) - math.pi / 2) < 1e-12:
+            twisted += 1
+            expected = (0.0, math.copysign(1.0, link.alpha))
+        assert (A[2, 2], A[2, 1]) == expected            # exact, no tolerance
+    assert twisted == 2

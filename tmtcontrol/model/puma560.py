@@ -95,7 +95,9 @@ PUMA560_LINKS: tuple[LinkParameters, ...] = (
 def _dh(theta, link: LinkParameters):
     """Standard DH homogeneous transform A_i(theta) from frame i-1 to frame i."""
     ct, st = ca.cos(theta), ca.sin(theta)
-    ca_, sa = math.cos(link.alpha), math.sin(link.alpha)
+    # a twist of +-90 deg has cos = 6.1e-17 in floating point: taken as the
+    # exact 0 it is, so constant folding drops every term it multiplies
+    ca_, sa = (0.0 if abs(v) < 1e-15 else v for v in (math.cos(link.alpha), math.sin(link.alpha)))
     return ca.vertcat(
         ca.horzcat(ct, -st * ca_, st * sa, link.a * ct),
         ca.horzcat(st, ct * ca_, -ct * sa, link.a * st),
