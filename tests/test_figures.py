@@ -33,3 +33,35 @@ def test_envelope_skips_nan_and_keeps_empty_buckets_as_gaps():
     y = np.where(t < 5_000, np.nan, t)
     te, ye = envelope(t, y, 100)
     assert np.isnan(ye[te < 5_000]).all() and ye[te >= 5_000].min() == 5_000 and np.nanmax(ye) == 9_999
+
+
+def test_log_axis_labels_are_matplotlibs_in_plain_text():
+    """plain_log_labels keeps matplotlib's choice of labelled ticks and their
+    values (10^-4 .. 10^6, 2x10^3 minor labels over a short range) and writes
+    them without mathtext."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from tmtcontrol.plotstyle import plain_log_labels
+
+    matplotlib.use("Agg")
+    fig = Figure()
+    ax = fig.add_subplot()
+    ax.loglog([1e-3, 1e5], [2e3, 7e3])
+
+    def labels():
+        FigureCanvasAgg(fig).draw()
+        return [t.get_text() for t in ax.get_xticklabels() + ax.get_yticklabels() + ax.get_yticklabels(minor=True)
+                if t.get_text()]
+
+    before = labels()
+    after = labels() if plain_log_labels(fig) is fig else None
+    assert len(after) == len(before) and not any("$" in a for a in after)
+    sup = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")
+    as_numbers = [float(a.translate(sup).replace("×10", "e") if "×" in a else "1e" + a[2:].translate(sup))
+                  for a in after]
+    from_mathtext = [float(b.strip("$").removeprefix(r"\mathdefault{").removesuffix("}")
+                           .replace(r"\times10^{", "e").replace("10^{", "1e").replace("}", "")) for b in before]
+    assert as_numbers == from_mathtext
+    assert "10⁻³" in after and "2×10³" in after

@@ -37,7 +37,7 @@ def test_miswired_law_selection_in_the_simulated_loop_fails(monkeypatch):
 
 def test_changed_sampled_model_fails(monkeypatch):
     def euler(A, B, Ts):                                  # the mutation: Euler instead of the exact ZOH
-        return np.eye(A.shape[0]) + A * Ts, B * Ts
+        return np.eye(A.shape[-1]) + A * Ts, B * Ts
 
     monkeypatch.setattr(sampled, "_zoh", euler)
     assert "1-D sampled model vs the whole loop" in _failed(run_loop_checks())

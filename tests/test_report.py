@@ -282,17 +282,13 @@ def _stage_report(*overrides):
 
 @pytest.mark.parametrize("failing", [0, 1])
 def test_checks_verdict_fails_when_a_check_fails(failing):
-    from concurrent.futures import Future
-
     from tmtcontrol.checks.derivations import CheckResult
     from tmtcontrol.report.document import _checks
 
     rep, _, _ = _stage_report()
     results = [CheckResult(f"check {i}", "eq. (1)", "claim", "method", 0.0, i >= failing, 1e-9, "")
                for i in range(3)]
-    done = Future()
-    done.set_result(results)
-    _checks(rep, done)
+    _checks(rep, results)
     (v,) = rep.verdicts
     assert v.name == "Derivation checks pass" and v.passed is (failing == 0)
     assert v.value == f"{3 - failing}/3 pass"
@@ -352,3 +348,40 @@ def fmt_qty(x, unit):
     from tmtcontrol.report import fmt
 
     return fmt.qty(x, unit)
+
+
+def test_claims_hand_out_every_task_once_from_both_ends():
+    """The two report processes take tasks from the front (the second) and
+    the back (this one) of one shared range: every task exactly once,
+    whatever the interleaving, then None for both."""
+    import multiprocessing
+    import random
+
+    from tmtcontrol.report.document import _claim
+
+    for seed in range(20):
+        rng = random.Random(seed)
+        claims = multiprocessing.Array("i", [0, 5])
+        taken = []
+        while (i := _claim(claims, last=rng.random() < 0.5)) is not None:
+            taken.append(i)
+        assert sorted(taken) == [0, 1, 2, 3, 4]
+        assert _claim(claims) is None and _claim(claims, last=True) is None
+
+
+def test_the_report_ran_each_task_once_and_every_check_group(paper_report):
+    out, _ = paper_report
+    html = (out / "report.html").read_text()
+    from tmtcontrol.checks import CHECK_GROUPS, run_check_group
+
+    expected = sum(len(run_check_group(g)) for g in CHECK_GROUPS)
+    assert len(table(section(html, "derivations"), "Derivation checks")[2]) == expected
+    for key in ("comparison", "sweep"):
+        assert section(html, key).count("<table") == 1
+
+
+def test_unknown_check_group_is_refused():
+    from tmtcontrol.checks import run_check_group
+
+    with pytest.raises(ValueError, match="group: expected one of derivations, laws, loop"):
+        run_check_group("everything")

@@ -246,3 +246,15 @@ def test_dh_twist_of_90_degrees_is_exact():
             expected = (0.0, math.copysign(1.0, link.alpha))
         assert (A[2, 2], A[2, 1]) == expected            # exact, no tolerance
     assert twisted == 2
+
+
+def test_dynamics_built_on_first_use_and_unknown_attributes_refused():
+    """The kinematics are built with the model, the dynamics on first access
+    of any of their Functions (a simulator's path check needs only fk and J)."""
+    robot = Puma560()
+    assert "mass_matrix" not in vars(robot) and "fk" in vars(robot)
+    M = np.asarray(robot.mass_matrix([0.1, -0.5, 0.4]))
+    assert {"mass_matrix", "forward_dynamics", "expr"} <= set(vars(robot))
+    np.testing.assert_allclose(M, M.T, atol=1e-12)
+    with pytest.raises(AttributeError, match="no attribute 'mass_matrx'"):
+        robot.mass_matrx

@@ -126,6 +126,23 @@ def test_sampled_model_dc_gain_and_continuous_limit():
         assert np.min(np.abs(s_eig - p)) < 0.5
 
 
+def test_stacked_spectral_radii_match_one_at_a_time():
+    """The stiffness scan discretises a stack of loops at once: each must be the
+    loop of its own k_e (a mix-up of rows would pass a single-k_e test), and
+    the region map has k_e down the rows, Ts across. Same arithmetic per
+    matrix, so equal to 1e-12."""
+    from tmtcontrol.stability.sampled import spectral_radii, stability_region
+
+    k_e = np.geomspace(1e3, 1e6, 7)
+    kw = {"alpha": 0.3, "d_e": 5.0}
+    one_by_one = [sampled_closed_loop(1.0, 60.0, 100.0, ke, 1e-3, 3.5, **kw).spectral_radius for ke in k_e]
+    np.testing.assert_allclose(spectral_radii(1.0, 60.0, 100.0, k_e, 1e-3, 3.5, **kw), one_by_one, rtol=1e-12)
+    assert max(one_by_one) > 1.0 > min(one_by_one)          # the grid crosses the boundary
+    region = stability_region(1.0, 60.0, 100.0, 3.5, [5e-4, 1e-3], k_e, **kw)
+    assert region.shape == (7, 2)
+    np.testing.assert_allclose(region[:, 1], one_by_one, rtol=1e-12)
+
+
 @pytest.fixture(scope="module")
 def limit_case():
     base = apply_overrides(paper_scenario(), ["controller.rate=200", "trajectory.radius=0.0",

@@ -203,8 +203,9 @@ class OutputFolder:
 
 
 def versions() -> dict:
-    """Versions of Python and of the packages a result depends on (read from
-    the installed metadata: importing python-control alone takes ~1 s)."""
+    """Versions of Python and of the packages a result depends on: the loaded
+    module's own version if it is imported, else the installed metadata
+    (importing python-control only to ask would take ~1 s)."""
     from importlib.metadata import PackageNotFoundError, version
 
     from . import __version__
@@ -212,7 +213,7 @@ def versions() -> dict:
     out = {"tmtcontrol": __version__, "python": sys.version.split()[0]}
     for name in ("casadi", "control", "numpy", "scipy", "matplotlib", "pydantic"):
         try:
-            out[name] = version(name)
+            out[name] = getattr(sys.modules.get(name), "__version__", None) or version(name)
         except PackageNotFoundError:  # pragma: no cover
             out[name] = None
     return out

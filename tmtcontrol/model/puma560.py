@@ -169,10 +169,35 @@ class Puma560:
         ddq = ca.SX.sym("ddq", 3)
         tau = ca.SX.sym("tau", 3)
         self.q, self.dq, self.ddq, self.tau = q, dq, ddq, tau
+        self._coulomb_velocity = coulomb_velocity
+        # kinematics now (the simulator's path check needs nothing else); the
+        # dynamics on first use of any of their attributes (_DYNAMICS)
+        self._frame_list = self._frames(q)
+        self._p = (self._frame_list[-1] @ ca.vertcat(0, 0, WRIST_OFFSET, 1))[:3]
+        self._J = ca.jacobian(self._p, q)
+        self.fk = ca.Function("fk", [q], [self._p], ["q"], ["p"])
+        self.jacobian = ca.Function("jacobian", [q], [self._J], ["q"], ["J"])
+        self.condition_number = ca.Function(
+            "condition_number", [q], [ca.norm_fro(self._J) * ca.norm_fro(ca.inv(self._J))], ["q"], ["cond"])
+        self.manipulability = ca.Function("manipulability", [q], [ca.fabs(ca.det(self._J))], ["q"], ["w"])
 
-        frames = self._frames(q)
-        p = (frames[-1] @ ca.vertcat(0, 0, WRIST_OFFSET, 1))[:3]
-        J = ca.jacobian(p, q)
+    _DYNAMICS = frozenset({
+        "expr", "jacobian_dot", "mass_matrix", "coriolis", "coriolis_matrix", "gravity", "bias", "friction",
+        "smooth_friction", "inverse_dynamics", "forward_dynamics", "rnea", "cartesian_inertia",
+        "cartesian_bias", "cartesian_friction", "energy"})
+    """Attributes built together on first access (about 15 ms of symbolic work)."""
+
+    def __getattr__(self, name):
+        if name in Puma560._DYNAMICS:
+            self._build_dynamics()
+            return self.__dict__[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def _build_dynamics(self) -> None:
+        q, dq, ddq, tau = self.q, self.dq, self.ddq, self.tau
+        friction, coulomb_velocity = self.friction_model, self._coulomb_velocity
+        frames, p, J = self._frame_list, self._p, self._J
+
         M = self._mass_matrix_expr(q, frames)
         V = self._potential_expr(frames)
         g = ca.gradient(V, q)
@@ -203,8 +228,6 @@ class Puma560:
         self.expr = {"p": p, "J": J, "M": M, "C": C, "Cdq": Cdq, "g": g, "tau_f": tau_f,
                      "bias": bias,
                      "D": D, "h": h, "Jdot_dq": Jdot_dq, "V": V}
-        self.fk = ca.Function("fk", [q], [p], ["q"], ["p"])
-        self.jacobian = ca.Function("jacobian", [q], [J], ["q"], ["J"])
         self.jacobian_dot = ca.Function("jacobian_dot", [q, dq], [Jdot_dq], ["q", "dq"],
                                         ["Jdot_dq"])
         self.mass_matrix = ca.Function("mass_matrix", [q], [M], ["q"], ["M"])
@@ -228,10 +251,6 @@ class Puma560:
         self.cartesian_bias = ca.Function("cartesian_bias", [q, dq], [h], ["q", "dq"], ["h"])
         self.cartesian_friction = ca.Function("cartesian_friction", [q, dq], [Jinv.T @ tau_f],
                                               ["q", "dq"], ["F_f"])
-        self.condition_number = ca.Function(
-            "condition_number", [q], [ca.norm_fro(J) * ca.norm_fro(Jinv)], ["q"], ["cond"])
-        self.manipulability = ca.Function("manipulability", [q], [ca.fabs(ca.det(J))],
-                                          ["q"], ["w"])
         self.energy = ca.Function("energy", [q, dq], [0.5 * ca.dot(dq, M @ dq), V],
                                   ["q", "dq"], ["T", "V"])
 

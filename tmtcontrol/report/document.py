@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from ..files import versions
-from ..plotstyle import styled
+from ..plotstyle import plain_log_labels, styled
 from ..simulation.scenario import Scenario, applicable_settings, dump_scenario
 from . import fmt
 
@@ -38,10 +38,11 @@ FORCE_TOLERANCE = 0.01
 STAGES = ("continuous-time analysis", "sampled-data analysis", "simulation", "law comparison", "robustness sweep",
           "design", "derivation checks")
 """The computing stages (writing HTML and PDF are stages of ``write_report``).
-The law comparison, the sweep and the derivation checks run in a second
-process from the start (see :data:`REMOTE_STAGES`), so progress reports the
-stages as they end, each with its own time; the checks' time is the wait
-for them."""
+The law comparison, the sweep and the derivation checks (three groups) are
+handed to a second process from the start; this one takes back what that
+one has not started when its own stages are done (see :data:`REMOTE_TASKS`).
+Progress reports the stages as they end, each with its own computing time
+(the checks': their groups' sum)."""
 
 SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
 SWEEP_RATES = (1000.0, 500.0)
@@ -114,7 +115,7 @@ def svg(fig) -> str:
     """A Figure as SVG text (vector: crisp zoomed and printed)."""
     buf = io.StringIO()
     with styled():
-        fig.savefig(buf, format="svg", metadata={"Date": None})
+        plain_log_labels(fig).savefig(buf, format="svg", metadata={"Date": None})
     return buf.getvalue()
 
 
@@ -144,8 +145,7 @@ def _response(a) -> tuple[str, str]:
 
 # -- stages --------------------------------------------------------------------------------
 
-def _checks(rep: Report, pending):
-    checks = pending.result()
+def _checks(rep: Report, checks: list):
     n_ok = sum(c.passed for c in checks)
     rep.verdicts.append(Verdict("Derivation checks pass", n_ok == len(checks), f"{n_ok}/{len(checks)} pass",
                                 "the paper's equations, every law's claims and the loop, on the running code"))
@@ -459,50 +459,104 @@ def _one_blas_thread():
     return threadpool_limits(limits=1)
 
 
-def _run_checks():
-    from ..checks import all_checks
+REMOTE_TASKS = ("robustness sweep", "checks: loop", "checks: derivations", "checks: laws", "law comparison")
+"""Work that needs nothing from the other stages (the derivation checks as
+their three groups), longest first (0.7 to 0.4 s here). The second process
+takes them in this order, each when it is free; this one runs the other
+stages, then takes what is left, last first (see :func:`_claim`), so what
+remains at the end is short."""
 
-    with _one_blas_thread():
-        return all_checks()
+_PRELOAD = ("control", "tmtcontrol.stability.analysis", "tmtcontrol.stability.design", "tmtcontrol.stability.figures",
+            "tmtcontrol.simulation.compare", "tmtcontrol.simulation.figures", "tmtcontrol.checks.derivations",
+            "tmtcontrol.checks.laws", "tmtcontrol.checks.loop")
+"""Modules both processes need, imported before the second one is forked so
+that it inherits them (python-control alone takes ~1 s; it brings matplotlib)."""
 
 
-REMOTE_STAGES = ("law comparison", "robustness sweep")
-"""Stages that need nothing from the others: they run in the second process
-(submitted first, then the derivation checks), the rest in this one."""
+def _task(name: str, sc: Scenario):
+    """Run one of :data:`REMOTE_TASKS` (in either process): its output (a
+    section, or a check group's results), verdicts, data and time."""
+    from ..checks import run_check_group
 
-
-def _remote_stage(name: str, sc: Scenario):
-    """Run an independent stage in a worker: its section, verdicts, data and time."""
     rep = Report(sc, "")
     t0 = time.perf_counter()
     with _one_blas_thread():
-        section = {"law comparison": _comparison, "robustness sweep": _sweep}[name](rep, sc)
-    return section, rep.verdicts, rep.data, time.perf_counter() - t0
+        if name.startswith("checks: "):
+            output = run_check_group(name.removeprefix("checks: "))
+        else:
+            output = {"law comparison": _comparison, "robustness sweep": _sweep}[name](rep, sc)
+    return output, rep.verdicts, rep.data, time.perf_counter() - t0
+
+
+_CLAIMS = None
+"""Shared ``[first, end)`` of the :data:`REMOTE_TASKS` not yet taken (a
+process-shared array with its lock), set in each process by the pool's
+initializer."""
+
+
+def _share_claims(claims) -> None:
+    global _CLAIMS
+    _CLAIMS = claims
+
+
+def _claim(claims, last: bool = False) -> int | None:
+    """Take the first (or, ``last``, the last) task nobody has taken: its
+    index in :data:`REMOTE_TASKS`, or None if none is left."""
+    with claims.get_lock():
+        first, end = claims[0], claims[1]
+        if first >= end:
+            return None
+        if last:
+            claims[1] = end - 1
+            return end - 1
+        claims[0] = first + 1
+        return first
+
+
+def _pull(sc: Scenario):
+    """In the second process: run the next task nobody has taken, if any;
+    ``(name, output)`` or None."""
+    i = _claim(_CLAIMS)
+    return None if i is None else (REMOTE_TASKS[i], _task(REMOTE_TASKS[i], sc))
 
 
 @contextlib.contextmanager
 def _background():
-    """A second process for the derivation checks and the independent stages
-    (a fresh interpreter: no state shared with this one); in-process if
-    processes are unavailable."""
+    """A second process for :data:`REMOTE_TASKS` and the claims both
+    processes take them by: on Linux forked after :data:`_PRELOAD` is
+    imported (it inherits the imports and ends without an interpreter
+    teardown), elsewhere a fresh interpreter; a thread if processes are
+    unavailable."""
     import concurrent.futures
+    import importlib
     import multiprocessing
 
+    for module in _PRELOAD:
+        importlib.import_module(module)
+    linux_fork = sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if linux_fork else "spawn")
+    claims = ctx.Array("i", [0, len(REMOTE_TASKS)])
     try:
-        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=_share_claims,
+                                                      initargs=(claims,))
     except (OSError, ImportError, NotImplementedError):
-        pool = concurrent.futures.ThreadPoolExecutor(1)
+        pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share_claims, initargs=(claims,))
     try:
-        yield pool
+        yield pool, claims
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _stages(rep: Report, sc: Scenario, p: dict, pool, out: dict, say: Callable) -> None:
-    """Run the stages: the independent ones in ``pool`` (submitted first), the
-    others here in order; report each as it ends, with its own time."""
-    remote = {name: pool.submit(_remote_stage, name, sc) for name in REMOTE_STAGES}
-    checks = pool.submit(_run_checks)
+def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Callable,
+            idle: Callable | None) -> None:
+    """Run the stages: the second process takes :data:`REMOTE_TASKS` in
+    order, one when it is free, while this one runs the others; then this
+    one takes what is left, last first, and calls ``idle()`` if it must
+    wait. Each stage is reported as it ends, with its own time."""
+    import concurrent.futures
+
+    pool, claims = background
+    pulls = [pool.submit(_pull, sc) for _ in REMOTE_TASKS]      # each takes a task when it starts
     sim = res = None
     done = 0
 
@@ -513,8 +567,6 @@ def _stages(rep: Report, sc: Scenario, p: dict, pool, out: dict, say: Callable) 
         say(done, len(STAGES), name, seconds)
 
     for name in STAGES:
-        if name in REMOTE_STAGES:
-            continue
         t0 = time.perf_counter()
         if name == "continuous-time analysis":
             out[name] = _continuous(rep, p)
@@ -524,24 +576,46 @@ def _stages(rep: Report, sc: Scenario, p: dict, pool, out: dict, say: Callable) 
             out[name], sim, res = _simulation(rep, sc, p)
         elif name == "design":
             out[name] = _design(rep, sc, p, sim, res)
-        elif name == "derivation checks":
+        else:
             continue
         finished(name, time.perf_counter() - t0)
-    for name, future in remote.items():
-        out[name], verdicts, data, seconds = future.result()
+
+    results = {}
+    groups = [t for t in REMOTE_TASKS if t.startswith("checks: ")]
+
+    def arrived(task):
+        if task in groups:
+            if all(g in results for g in groups):
+                finished("derivation checks", sum(results[g][3] for g in groups))
+        else:
+            finished(task, results[task][3])
+
+    while (i := _claim(claims, last=True)) is not None:        # what nobody has taken, last first
+        results[REMOTE_TASKS[i]] = _task(REMOTE_TASKS[i], sc)
+        arrived(REMOTE_TASKS[i])
+    if idle is not None and not all(f.done() for f in pulls):
+        idle()
+    for f in concurrent.futures.as_completed(pulls):
+        if (taken := f.result()) is not None:
+            results[taken[0]] = taken[1]
+            arrived(taken[0])
+    for task in REMOTE_TASKS:                       # in a fixed order, whichever process ran them
+        output, verdicts, data, _ = results[task]
         rep.verdicts += verdicts
         rep.data.update(data)
-        finished(name, seconds)
-    t0 = time.perf_counter()
-    out["derivation checks"] = _checks(rep, checks)
-    finished("derivation checks", time.perf_counter() - t0)
+        if task not in groups:
+            out[task] = output
+    out["derivation checks"] = _checks(rep, [r for g in groups for r in results[g][0]])
 
 
-def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None) -> Report:
+def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None,
+                 idle: Callable | None = None) -> Report:
     """Run every stage for ``scenario`` and collect the document.
 
     ``progress(i, n, name, seconds)`` is called as each stage ends, with the
-    stage's own time."""
+    stage's own time. ``idle()`` (optional) is called once if this process
+    has finished its share and waits for the second one: the caller's chance
+    to prepare the writing."""
     from ..stability import scenario_parameters
 
     rep = Report(scenario, command_line or " ".join(sys.argv))
@@ -549,8 +623,8 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     p = scenario_parameters(scenario)
     rep.data["parameters"] = p
     out: dict = {}
-    with _background() as pool, _one_blas_thread():
-        _stages(rep, scenario, p, pool, out, say)
+    with _background() as background, _one_blas_thread():
+        _stages(rep, scenario, p, background, out, say, idle)
     order = ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)"]
     rep.verdicts.sort(key=lambda v: order.index(v.name) if v.name in order else len(order))
     summary = Section("summary", "Verdict summary", [Table(

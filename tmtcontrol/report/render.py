@@ -16,7 +16,7 @@ from importlib import resources
 
 from .document import FigureBlock, Paragraph, Report, Table
 
-__all__ = ["render_html", "render_pdf", "FORMATS"]
+__all__ = ["render_html", "render_pdf", "prepare_writing", "FORMATS"]
 
 FORMATS = ("html", "pdf")
 
@@ -73,6 +73,16 @@ def render_html(rep: Report) -> str:
                       mark=lambda ok: "✔ PASS" if ok else "✘ FAIL",
                       head_cell=_head_cell, verdict_class=lambda c: _VERDICT.get(c, ("", c))[0],
                       verdict_text=lambda c: _VERDICT.get(c, ("", c))[1])
+
+
+def prepare_writing(formats=FORMATS) -> None:
+    """Import the renderers ``formats`` need (WeasyPrint alone takes ~0.5 s),
+    for example as :func:`~.document.build_report`'s ``idle`` while it
+    waits for its second process."""
+    import importlib
+
+    for module in ("jinja2",) + (("weasyprint",) if "pdf" in formats else ()):
+        importlib.import_module(module)
 
 
 def render_pdf(html: str, path: str | pathlib.Path) -> None:

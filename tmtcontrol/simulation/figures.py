@@ -60,8 +60,8 @@ def stiffness_figure(res: SimulationResult) -> Figure:
     """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
     fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
-    ax.plot(*envelope(res.time, res.stiffness), label="true $k_e$")
-    ax.plot(*envelope(res.time, res.stiffness_estimate), "--", lw=1, label=r"TMT estimate $f_e/(x-x_e)$")
+    ax.plot(*envelope(res.time, res.stiffness), label="true k_e")
+    ax.plot(*envelope(res.time, res.stiffness_estimate), "--", lw=1, label="TMT estimate f_e/(x − x_e)")
     ax.set(xlabel="time (s)", ylabel="stiffness (N/m)", title="Environment stiffness (Fig. 3)")
     ax.set_yscale("log")
     ax.legend()
@@ -73,8 +73,8 @@ def force_figure(res: SimulationResult) -> Figure:
     """Fig. 4: contact force against the desired force."""
     fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
-    ax.plot(*envelope(res.time, res.contact_force), label="$f_e$")
-    ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="$f_d$")
+    ax.plot(*envelope(res.time, res.contact_force), label="f_e")
+    ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="f_d")
     ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
     top = float(np.max(res.contact_force))
     ax.set_ylim(-0.05 * top, 1.08 * top)            # every peak visible; switch_figure zooms in
@@ -96,9 +96,9 @@ def switch_figure(res: SimulationResult, window: float = 0.4) -> Figure:
     for ax, i0 in zip(axes, starts):
         t0 = res.time[i0]
         m = (res.time >= t0 - 0.05) & (res.time <= t0 + window)
-        ax.plot(res.time[m] - t0, res.contact_force[m], label="$f_e$")
-        ax.plot(res.time[m] - t0, res.desired_force[m], "k--", lw=1, label="$f_d$")
-        ax.set_title(f"t = {t0:g} s, $k_e$ = {res.stiffness[i0]:,.0f} N/m", fontsize="small")
+        ax.plot(res.time[m] - t0, res.contact_force[m], label="f_e")
+        ax.plot(res.time[m] - t0, res.desired_force[m], "k--", lw=1, label="f_d")
+        ax.set_title(f"t = {t0:g} s, k_e = {res.stiffness[i0]:,.0f} N/m", fontsize="small")
         ax.set_xlabel("time after switch (s)")
     axes[0].set_ylabel("force (N)")
     axes[0].legend(fontsize="small")
@@ -131,7 +131,7 @@ def position_figure(res: SimulationResult) -> Figure:
     axes = fig.subplots(3, 1, sharex=True)
     for i, (ax, name) in enumerate(zip(axes, "xyz")):
         ax.plot(*envelope(res.time, res.position[i]), label=name)
-        ax.plot(*envelope(res.time, res.reference_position[i]), "k--", lw=1, label=f"{name}$_r$")
+        ax.plot(*envelope(res.time, res.reference_position[i]), "k--", lw=1, label=f"{name}_r")
         ax.set_ylabel(f"{name} (m)")
         ax.legend(loc="upper right")
         ax.grid(True, alpha=0.3)
@@ -155,7 +155,7 @@ def path_figure(res: SimulationResult) -> Figure:
     ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
     stride = max(1, res.time.size // (2 * DRAW_POINTS))     # a smooth curve: every stride-th sample
     ax.plot(*res.position[:, ::stride], lw=1.5, label="wrist centre")
-    ax.plot(*res.reference_position[:, ::stride], "k--", lw=0.8, label="reference $X_r$")
+    ax.plot(*res.reference_position[:, ::stride], "k--", lw=0.8, label="reference X_r")
     ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
     ax.legend()
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
@@ -164,14 +164,14 @@ def path_figure(res: SimulationResult) -> Figure:
 def save_figures(makers, data, folder: str | pathlib.Path, dpi: int = 120) -> list[pathlib.Path]:
     """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
     being ``make(data)``; return the paths."""
-    from ..plotstyle import styled
+    from ..plotstyle import plain_log_labels, styled
 
     folder = pathlib.Path(folder)
     out = []
     for name, make in makers:
         path = folder / f"{name}.png"
         with styled():                      # the package's one figure style
-            make(data).savefig(path, dpi=dpi)
+            plain_log_labels(make(data)).savefig(path, dpi=dpi)
         out.append(path)
     return out
 
@@ -195,10 +195,10 @@ def comparison_force_figure(cmp) -> Figure:
         f_d = run.result.scenario.controller.f_d
         time = run.result.time
     if peak:
-        ax.plot(time, np.full_like(time, f_d), "k--", lw=0.8, label="$f_d$")
+        ax.plot(time, np.full_like(time, f_d), "k--", lw=0.8, label="f_d")
         top = min(peak, 6 * f_d)
         ax.set_ylim(-0.05 * top, 1.1 * top)
-    ax.set(xlabel="time (s)", ylabel="normal force $f_e$ (N)", title="Force tracking, all laws")
+    ax.set(xlabel="time (s)", ylabel="normal force f_e (N)", title="Force tracking, all laws")
     ax.legend(ncol=3, fontsize="small")
     ax.grid(True, alpha=0.3)
     return fixed_layout(fig)
@@ -214,7 +214,7 @@ def comparison_error_figure(cmp) -> Figure:
         ax.semilogy(*envelope(run.result.time, np.maximum(np.abs(run.result.force_error), 1e-6)), lw=0.8,
                     label=name)
     ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 N")
-    ax.set(xlabel="time (s)", ylabel="$|f_e - f_d|$ (N)", title="Force error, all laws")
+    ax.set(xlabel="time (s)", ylabel="|f_e − f_d| (N)", title="Force error, all laws")
     ax.legend(ncol=3, fontsize="small")
     ax.grid(True, which="both", alpha=0.3)
     return fixed_layout(fig)

@@ -11,7 +11,7 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..plotstyle import fixed_layout
+from ..plotstyle import fixed_layout, plain_log_labels
 from ..simulation.figures import save_figures
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
@@ -108,7 +108,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     fig = Figure(figsize=(6.5, 4.2))
     ax = fig.add_subplot()
     Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
-    ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable $k_e$ ({label})")
+    ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable k_e ({label})")
     top = max(limits.max(), *(p[1] for p in points)) * 20 if points else limits.max() * 20
     ax.fill_between(Ts_grid, limits, top, facecolor="none", hatch="///", edgecolor="0.6", lw=0,
                     label="unstable")
@@ -117,7 +117,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
         ax.annotate(text, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
     if whole_loop is not None:
         ax.plot(*whole_loop, "D", color="C2", ms=7, label="whole-loop limit at the scenario's Ts")
-    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness $k_e$ (N/m)",
+    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness k_e (N/m)",
            ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
            title="Sampled-data stability boundary")
     from matplotlib.ticker import NullFormatter
@@ -147,7 +147,7 @@ def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.P
     out = []
     for name, fig in figs.items():
         path = folder / f"{name}.png"
-        fig.savefig(path, dpi=110)
+        plain_log_labels(fig).savefig(path, dpi=110)
         out.append(path)
     return out
 

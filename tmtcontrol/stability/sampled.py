@@ -28,7 +28,7 @@ from .continuous import AnalysisError, _check, _pos
 if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of SampledModel.sys
     import control as ct
 
-__all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
+__all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius", "spectral_radii",
            "max_stable_stiffness", "stability_region", "switch_response"]
 
 
@@ -66,11 +66,52 @@ class SampledModel:
 
 
 def _zoh(A, B, Ts):
-    n, mi = A.shape[0], B.shape[1]
-    M = np.zeros((n + mi, n + mi))
-    M[:n, :n], M[:n, n:] = A, B
+    """Exact zero-order-hold discretisation of ``(A, B)`` over Ts; stacks of
+    matrices (leading axes) are discretised each on its own."""
+    n, mi = A.shape[-1], B.shape[-1]
+    M = np.zeros(A.shape[:-2] + (n + mi, n + mi))
+    M[..., :n, :n], M[..., :n, n:] = A, B
     E = expm(M * Ts)
-    return E[:n, :n], E[:n, n:]
+    return E[..., :n, :n], E[..., :n, n:]
+
+
+def _discrete_loop(m, b, k, k_e: np.ndarray, Ts, m_p, kd, kp, law, alpha, d_e):
+    """``(Ad, Bd, C)`` of the sampled normal-axis loop for each stiffness of
+    the 1-D array ``k_e``: shapes (n, 5, 5), (n, 5, 1), (n, 1, 5)."""
+    n = k_e.size
+    one, zero = np.ones(n), np.zeros(n)
+    # continuous part within a period: z = (x, v, xa, va), held inputs (U, f)
+    A = np.zeros((n, 4, 4))
+    A[:, 0, 1], A[:, 1, 0], A[:, 1, 1] = 1.0, -k_e / m_p, -d_e / m_p
+    A[:, 2, 3], A[:, 3, 2], A[:, 3, 3] = 1.0, -k / m, -b / m
+    B = np.broadcast_to(np.array([[0, 0], [1, 1 / m_p], [0, 0], [0, 1 / m]], dtype=float), (n, 4, 2))
+    Phi, Gam = _zoh(A, B, Ts)
+    # sample: f_m = alpha f_prev + (1 - alpha)(k_e x + d_e v)  -> row over (x, v, xa, va, f_prev)
+    fm = np.stack([(1 - alpha) * k_e, (1 - alpha) * d_e * one, zero, zero, alpha * one], axis=1)
+    # reference deviation: TMT dx_r = dx - df_m/k_e ; known: 0 ; plus f_d input
+    e = np.eye(5)
+    xr = (e[0] - fm / k_e[:, None]) if law == "tmt" else np.zeros((n, 5))
+    # x_r sensitivity to f_d at the equilibrium: d/df_d [f_d/k + f_d x/f_m] = 1/k + 1/k_e
+    xr_fd = 1 / k + 1 / k_e
+    aa = (fm - b * e[3] - k * e[2]) / m                                  # x_a''
+    xc, dxc = xr - e[2], -e[3]
+    U = -aa + kd * (dxc - e[1]) + kp * (xc - e[0])
+    Ad = np.zeros((n, 5, 5))
+    Bd = np.zeros((n, 5, 1))
+    Ad[:, :4] = Phi @ e[:4] + Gam @ np.stack([U, fm], axis=1)
+    Bd[:, :4, 0] = Gam[:, :, 0] * (kp * xr_fd)[:, None]
+    Ad[:, 4] = fm
+    C = np.stack([k_e, d_e * one, zero, zero, zero], axis=1)[:, None, :]
+    return Ad, Bd, C
+
+
+def _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law):
+    _check(m, b, k, k_e)
+    _pos("Ts", Ts)
+    _pos("m_p", m_p)
+    if law not in ("tmt", "known"):
+        raise AnalysisError(f"law: the 1-D sampled model covers 'tmt' and 'known', got {law!r}")
+    return (b / m if kd is None else kd), (k / m if kp is None else kp)
 
 
 def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0,
@@ -96,39 +137,20 @@ def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alph
     d_e : float
         Contact damping, N s/m.
     """
-    _check(m, b, k, k_e)
-    _pos("Ts", Ts)
-    _pos("m_p", m_p)
-    if law not in ("tmt", "known"):
-        raise AnalysisError(f"law: the 1-D sampled model covers 'tmt' and 'known', got {law!r}")
-    kd = b / m if kd is None else kd
-    kp = k / m if kp is None else kp
-    # continuous part within a period: z = (x, v, xa, va), held inputs (U, f)
-    A = np.array([[0, 1, 0, 0], [-k_e / m_p, -d_e / m_p, 0, 0], [0, 0, 0, 1], [0, 0, -k / m, -b / m]],
-                 dtype=float)
-    B = np.array([[0, 0], [1, 1 / m_p], [0, 0], [0, 1 / m]], dtype=float)
-    Phi, Gam = _zoh(A, B, Ts)
-    # sample: f_m = alpha f_prev + (1 - alpha)(k_e x + d_e v)  -> row over (x, v, xa, va, f_prev)
-    fm = np.array([(1 - alpha) * k_e, (1 - alpha) * d_e, 0, 0, alpha])
-    # reference deviation: TMT dx_r = dx - df_m/k_e ; known: 0 ; plus f_d input
-    e_x = np.array([1.0, 0, 0, 0, 0])
-    xr = (e_x - fm / k_e) if law == "tmt" else np.zeros(5)
-    # x_r sensitivity to f_d at the equilibrium: d/df_d [f_d/k + f_d x/f_m] = 1/k + 1/k_e
-    xr_fd = 1 / k + 1 / k_e
-    aa = (fm - b * np.array([0, 0, 0, 1.0, 0]) - k * np.array([0, 0, 1.0, 0, 0])) / m  # x_a''
-    xc = xr - np.array([0, 0, 1.0, 0, 0])
-    dxc = -np.array([0, 0, 0, 1.0, 0])
-    U = -aa + kd * (dxc - np.array([0, 1.0, 0, 0, 0])) + kp * (xc - e_x)
-    U_fd = kp * xr_fd
-    Ad = np.zeros((5, 5))
-    Bd = np.zeros((5, 1))
-    Ad[:4] = Phi @ np.vstack([np.eye(5)[:4]]) + Gam @ np.vstack([U, fm])
-    Bd[:4, 0] = Gam @ np.array([U_fd, 0.0])
-    Ad[4] = fm
-    C = np.array([[k_e, d_e, 0, 0, 0]])
+    kd, kp = _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law)
+    Ad, Bd, C = (x[0] for x in _discrete_loop(m, b, k, np.array([float(k_e)]), Ts, m_p, kd, kp, law, alpha, d_e))
     rho = float(np.max(np.abs(np.linalg.eigvals(Ad))))
     return SampledModel(Ts, k_e, Ad, Bd, C, rho, {"m": m, "b": b, "k": k, "m_p": m_p, "kd": kd, "kp": kp,
                                              "law": law, "alpha": alpha, "d_e": d_e})
+
+
+def spectral_radii(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0, d_e=0.0) -> np.ndarray:
+    """:func:`spectral_radius` for every stiffness of the array ``k_e`` at
+    once (the same matrices, discretised and solved as one stack)."""
+    k_e = np.asarray(k_e, dtype=float).ravel()
+    kd, kp = _loop_args(m, b, k, float(k_e.min()), Ts, m_p, kd, kp, law)
+    Ad = _discrete_loop(m, b, k, k_e, Ts, m_p, kd, kp, law, alpha, d_e)[0]
+    return np.abs(np.linalg.eigvals(Ad)).max(axis=1)
 
 
 def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
@@ -147,11 +169,10 @@ def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
     would need 10 m of penetration for 10 N), which is not the limit
     sought."""
     grid = np.geomspace(k_lo, k_hi, 121)
-    rho = [spectral_radius(m, b, k, ke, Ts, m_p, **kw) for ke in grid]
-    unstable = [i for i, r in enumerate(rho) if r >= 1.0]
-    if not unstable:
+    unstable = np.flatnonzero(spectral_radii(m, b, k, grid, Ts, m_p, **kw) >= 1.0)
+    if not unstable.size:
         return float("inf")
-    i = unstable[0]
+    i = int(unstable[0])
     if i == 0:
         return 0.0
     lo, hi = grid[i - 1], grid[i]
@@ -166,8 +187,7 @@ def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
 
 def stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> np.ndarray:
     """Spectral radius on a grid: array (len(k_e_grid), len(Ts_grid))."""
-    return np.array([[spectral_radius(m, b, k, ke, Ts, m_p, **kw) for Ts in Ts_grid]
-                     for ke in k_e_grid])
+    return np.array([spectral_radii(m, b, k, k_e_grid, Ts, m_p, **kw) for Ts in Ts_grid]).T
 
 
 def switch_response(m, b, k, k_old, k_new, Ts, m_p, f_d=10.0, duration=4.0, **kw) -> dict:
