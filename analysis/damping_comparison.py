@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.stability.design import DesignSpec, damping_alternatives, design_impedance
 from tmtcontrol.files import OutputFolder
+from tmtcontrol.plotstyle import styled
 from tmtcontrol.stability import scenario_parameters
 
 
@@ -57,13 +58,14 @@ def main(argv=None):
           "|---|---|---|---|---|---|"]
     md += [f"| {r['controller']} | {r['segment']} | {r['k_e']:.4g} | {r['overshoot_pct']} | "
            f"{r['settling_time_s']} | {r['min_force_N']} |" for r in rows]
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    for name, (res, _) in runs.items():
-        ax.plot(res.time, res.contact_force, lw=1, label=name)
-    ax.axhline(10.0, color="k", ls="--", lw=0.8)
-    ax.set(xlabel="time (s)", ylabel="f_e (N)", ylim=(-1, 25), title="Damping strategies on the paper profile")
-    ax.legend(fontsize=8)
+    with styled():                                      # the package's one figure style
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        ax = fig.add_subplot()
+        for name, (res, _) in runs.items():
+            ax.plot(res.time, res.contact_force, lw=1, label=name)
+        ax.axhline(10.0, color="k", ls="--", lw=0.8)
+        ax.set(xlabel="time (s)", ylabel="f_e (N)", ylim=(-1, 25), title="Damping strategies on the paper profile")
+        ax.legend(fontsize=8)
     with out:
         tmp = out.path
         with (tmp / "comparison.csv").open("w", newline="") as fh:
@@ -71,7 +73,8 @@ def main(argv=None):
             w.writeheader()
             w.writerows(rows)
         (tmp / "comparison.md").write_text("\n".join(md) + "\n")
-        fig.savefig(tmp / "force_comparison.png", dpi=110)
+        with styled():
+            fig.savefig(tmp / "force_comparison.png", dpi=110)
         out.commit()
     print("\n".join(md))
     print(f"wrote {args.out}/")

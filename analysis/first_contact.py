@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.files import OutputFolder
+from tmtcontrol.plotstyle import plain_log_labels, styled
 from tmtcontrol.simulation.metrics import first_contact
 
 
@@ -49,18 +50,19 @@ def main(argv=None):
     md += [f"| {r['k_e']:.3g} | {r['law']['peak_ratio']:.2f} | {r['law']['bounces']} | "
            f"{r['guarded']['peak_ratio']:.2f} | {r['guarded']['bounces']} | {r['guarded']['time']:.3f} |"
            for r in rows]
-    fig = Figure(figsize=(6, 3.4), layout="constrained")
-    ax = fig.add_subplot()
-    ks = [r["k_e"] for r in rows]
-    ax.semilogx(ks, [r["law"]["peak_ratio"] for r in rows], "o-", label="law from the start (eq. 18)")
-    ax.semilogx(ks, [r["guarded"]["peak_ratio"] for r in rows], "s-", label="guarded approach")
-    ax.axhline(1.5, color="k", ls=":", lw=0.8, label="1.5 $f_d$")
-    ax.set(xlabel="surface stiffness $k_e$ (N/m)", ylabel="first-contact peak / $f_d$",
-           title=f"First contact from a {args.gap * 1e3:g} mm gap")
-    ax.legend(fontsize="small")
-    ax.grid(True, which="both", alpha=0.3)
-    with out:
-        fig.savefig(out.path / "first_contact.png", dpi=110)
+    with styled():                                      # the package's one figure style
+        fig = Figure(figsize=(6, 3.4), layout="constrained")
+        ax = fig.add_subplot()
+        ks = [r["k_e"] for r in rows]
+        ax.semilogx(ks, [r["law"]["peak_ratio"] for r in rows], "o-", label="law from the start (eq. 18)")
+        ax.semilogx(ks, [r["guarded"]["peak_ratio"] for r in rows], "s-", label="guarded approach")
+        ax.axhline(1.5, color="k", ls=":", lw=0.8, label="1.5 f_d")
+        ax.set(xlabel="surface stiffness k_e (N/m)", ylabel="first-contact peak / f_d",
+               title=f"First contact from a {args.gap * 1e3:g} mm gap")
+        ax.legend(fontsize="small")
+        ax.grid(True, which="both", alpha=0.3)
+    with out, styled():
+        plain_log_labels(fig).savefig(out.path / "first_contact.png", dpi=110)
         (out.path / "table.md").write_text("\n".join(md) + "\n")
         (out.path / "summary.json").write_text(json.dumps({"gap_m": args.gap, "runs": rows}, indent=1) + "\n")
         out.commit()

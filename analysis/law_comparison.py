@@ -18,7 +18,7 @@ import json
 
 from tmtcontrol import apply_overrides, compare_laws, paper_scenario
 from tmtcontrol.files import OutputFolder
-from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure
+from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure, save_figures
 
 
 def main(argv=None):
@@ -36,8 +36,8 @@ def main(argv=None):
         md, summary, diverged = [], {}, False
         for case, sc in cases.items():
             cmp = compare_laws(sc)
-            comparison_force_figure(cmp).savefig(out.path / f"{case}_force.png", dpi=110)
-            comparison_error_figure(cmp).savefig(out.path / f"{case}_error.png", dpi=110)
+            save_figures(((f"{case}_force", comparison_force_figure), (f"{case}_error", comparison_error_figure)),
+                         cmp, out.path, dpi=110)
             summary[case] = {"x_e_error_m": sc.controller.x_e_error, **cmp.summary()}
             nseg = max(len(r.segments) for r in cmp.runs.values())
             md.append(f"\n### {case} (x_e error {sc.controller.x_e_error * 1e3:g} mm)\n")

@@ -74,6 +74,6 @@ def plain_log_labels(fig):
                               (axis.get_minor_formatter, axis.set_minor_formatter)):
                 old = get()
                 if type(old) is LogFormatterSciNotation:
-                    set_(cls(base=old._base, labelOnlyBase=old.labelOnlyBase,
-                             minor_thresholds=old.minor_thresholds, linthresh=old._linthresh))
+                    set_(cls(base=getattr(old, "_base", 10.0), labelOnlyBase=old.labelOnlyBase,
+                             minor_thresholds=old.minor_thresholds, linthresh=getattr(old, "_linthresh", None)))
     return fig
