@@ -398,7 +398,7 @@ def _report(args) -> int:
     with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
         rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
                            progress=lambda i, _n, name, s: stage(i, name, s),
-                           idle=lambda: prepare_writing(formats))
+                           prepare=lambda: prepare_writing(formats))
         done = iter(range(len(STAGES) + 1, n + 1))
         files = write_report(rep, out.path, formats, progress=lambda name, s: stage(next(done), name, s))
         out.commit()

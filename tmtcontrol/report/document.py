@@ -40,7 +40,7 @@ STAGES = ("continuous-time analysis", "sampled-data analysis", "simulation", "la
 """The computing stages (writing HTML and PDF are stages of ``write_report``).
 The law comparison, the sweep and the derivation checks (three groups) are
 handed to a second process from the start; this one takes back what that
-one has not started when its own stages are done (see :data:`REMOTE_TASKS`).
+one has not started when its own stages are done (see :func:`_remote_tasks`).
 Progress reports the stages as they end, each with its own computing time
 (the checks': their groups' sum)."""
 
@@ -459,12 +459,19 @@ def _one_blas_thread():
     return threadpool_limits(limits=1)
 
 
-REMOTE_TASKS = ("robustness sweep", "checks: loop", "checks: derivations", "checks: laws", "law comparison")
-"""Work that needs nothing from the other stages (the derivation checks as
-their three groups), longest first (0.7 to 0.4 s here). The second process
-takes them in this order, each when it is free; this one runs the other
-stages, then takes what is left, last first (see :func:`_claim`), so what
-remains at the end is short."""
+def _remote_tasks() -> list[str]:
+    """Work that needs nothing from the other stages: the sweep, the
+    derivation checks in their groups (one per law), the law comparison;
+    longest first (0.7 s to 0.1 s a law here). The second process takes them in
+    this order, each when it is free; this one runs the other stages, then
+    takes what is left, last first (see :func:`_claim`), so the two end
+    within about the shortest task of each other."""
+    from ..checks import check_groups
+
+    laws = [g for g in check_groups() if g not in ("loop", "derivations")]
+    return ["robustness sweep", "checks: loop", "checks: derivations", "law comparison",
+            *(f"checks: {g}" for g in laws)]
+
 
 _PRELOAD = ("control", "tmtcontrol.stability.analysis", "tmtcontrol.stability.design", "tmtcontrol.stability.figures",
             "tmtcontrol.simulation.compare", "tmtcontrol.simulation.figures", "tmtcontrol.checks.derivations",
@@ -474,7 +481,7 @@ that it inherits them (python-control alone takes ~1 s; it brings matplotlib).""
 
 
 def _task(name: str, sc: Scenario):
-    """Run one of :data:`REMOTE_TASKS` (in either process): its output (a
+    """Run one of :func:`_remote_tasks` (in either process): its output (a
     section, or a check group's results), verdicts, data and time."""
     from ..checks import run_check_group
 
@@ -488,20 +495,19 @@ def _task(name: str, sc: Scenario):
     return output, rep.verdicts, rep.data, time.perf_counter() - t0
 
 
-_CLAIMS = None
-"""Shared ``[first, end)`` of the :data:`REMOTE_TASKS` not yet taken (a
-process-shared array with its lock), set in each process by the pool's
-initializer."""
+_SHARED: dict = {}
+"""In each process: ``claims``, the shared ``[first, end)`` of the tasks not
+yet taken (a process-shared array with its lock), and ``tasks``, their names;
+set by the pool's initializer."""
 
 
-def _share_claims(claims) -> None:
-    global _CLAIMS
-    _CLAIMS = claims
+def _share(claims, tasks) -> None:
+    _SHARED.update(claims=claims, tasks=tasks)
 
 
 def _claim(claims, last: bool = False) -> int | None:
     """Take the first (or, ``last``, the last) task nobody has taken: its
-    index in :data:`REMOTE_TASKS`, or None if none is left."""
+    index in the task list, or None if none is left."""
     with claims.get_lock():
         first, end = claims[0], claims[1]
         if first >= end:
@@ -516,13 +522,13 @@ def _claim(claims, last: bool = False) -> int | None:
 def _pull(sc: Scenario):
     """In the second process: run the next task nobody has taken, if any;
     ``(name, output)`` or None."""
-    i = _claim(_CLAIMS)
-    return None if i is None else (REMOTE_TASKS[i], _task(REMOTE_TASKS[i], sc))
+    i = _claim(_SHARED["claims"])
+    return None if i is None else (_SHARED["tasks"][i], _task(_SHARED["tasks"][i], sc))
 
 
 @contextlib.contextmanager
 def _background():
-    """A second process for :data:`REMOTE_TASKS` and the claims both
+    """A second process for :func:`_remote_tasks`, and the claims both
     processes take them by: on Linux forked after :data:`_PRELOAD` is
     imported (it inherits the imports and ends without an interpreter
     teardown), elsewhere a fresh interpreter; a thread if processes are
@@ -535,28 +541,29 @@ def _background():
         importlib.import_module(module)
     linux_fork = sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("fork" if linux_fork else "spawn")
-    claims = ctx.Array("i", [0, len(REMOTE_TASKS)])
+    tasks = _remote_tasks()
+    claims = ctx.Array("i", [0, len(tasks)])
     try:
-        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=_share_claims,
-                                                      initargs=(claims,))
+        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=_share,
+                                                      initargs=(claims, tasks))
     except (OSError, ImportError, NotImplementedError):
-        pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share_claims, initargs=(claims,))
+        pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share, initargs=(claims, tasks))
     try:
-        yield pool, claims
+        yield pool, claims, tasks
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Callable,
-            idle: Callable | None) -> None:
-    """Run the stages: the second process takes :data:`REMOTE_TASKS` in
-    order, one when it is free, while this one runs the others; then this
-    one takes what is left, last first, and calls ``idle()`` if it must
-    wait. Each stage is reported as it ends, with its own time."""
+            prepare: Callable | None) -> None:
+    """Run the stages: the second process takes the remote tasks in order,
+    one when it is free, while this one runs the others; then this one takes
+    what is left, last first, after calling ``prepare()``. Each
+    stage is reported as it ends, with its own time."""
     import concurrent.futures
 
-    pool, claims = background
-    pulls = [pool.submit(_pull, sc) for _ in REMOTE_TASKS]      # each takes a task when it starts
+    pool, claims, tasks = background
+    pulls = [pool.submit(_pull, sc) for _ in tasks]      # each takes a task when it starts
     sim = res = None
     done = 0
 
@@ -581,7 +588,9 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Call
         finished(name, time.perf_counter() - t0)
 
     results = {}
-    groups = [t for t in REMOTE_TASKS if t.startswith("checks: ")]
+    from ..checks import check_groups
+
+    groups = [f"checks: {g}" for g in check_groups()]       # all_checks' order, whoever runs them
 
     def arrived(task):
         if task in groups:
@@ -590,16 +599,16 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Call
         else:
             finished(task, results[task][3])
 
+    if prepare is not None:                 # the caller's work, shared out like the rest
+        prepare()
     while (i := _claim(claims, last=True)) is not None:        # what nobody has taken, last first
-        results[REMOTE_TASKS[i]] = _task(REMOTE_TASKS[i], sc)
-        arrived(REMOTE_TASKS[i])
-    if idle is not None and not all(f.done() for f in pulls):
-        idle()
+        results[tasks[i]] = _task(tasks[i], sc)
+        arrived(tasks[i])
     for f in concurrent.futures.as_completed(pulls):
         if (taken := f.result()) is not None:
             results[taken[0]] = taken[1]
             arrived(taken[0])
-    for task in REMOTE_TASKS:                       # in a fixed order, whichever process ran them
+    for task in tasks:                              # in a fixed order, whichever process ran them
         output, verdicts, data, _ = results[task]
         rep.verdicts += verdicts
         rep.data.update(data)
@@ -609,13 +618,14 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Call
 
 
 def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None,
-                 idle: Callable | None = None) -> Report:
+                 prepare: Callable | None = None) -> Report:
     """Run every stage for ``scenario`` and collect the document.
 
     ``progress(i, n, name, seconds)`` is called as each stage ends, with the
-    stage's own time. ``idle()`` (optional) is called once if this process
-    has finished its share and waits for the second one: the caller's chance
-    to prepare the writing."""
+    stage's own time. ``prepare()`` (optional) is called once, when this
+    process has run its own stages and before it takes its share of the
+    second one's tasks: the caller's preparation for writing (such as
+    importing the PDF renderer), done while the other process computes."""
     from ..stability import scenario_parameters
 
     rep = Report(scenario, command_line or " ".join(sys.argv))
@@ -624,7 +634,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     rep.data["parameters"] = p
     out: dict = {}
     with _background() as background, _one_blas_thread():
-        _stages(rep, scenario, p, background, out, say, idle)
+        _stages(rep, scenario, p, background, out, say, prepare)
     order = ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)"]
     rep.verdicts.sort(key=lambda v: order.index(v.name) if v.name in order else len(order))
     summary = Section("summary", "Verdict summary", [Table(

@@ -77,8 +77,8 @@ def render_html(rep: Report) -> str:
 
 def prepare_writing(formats=FORMATS) -> None:
     """Import the renderers ``formats`` need (WeasyPrint alone takes ~0.5 s),
-    for example as :func:`~.document.build_report`'s ``idle`` while it
-    waits for its second process."""
+    for example as :func:`~.document.build_report`'s ``prepare``, while its
+    second process computes."""
     import importlib
 
     for module in ("jinja2",) + (("weasyprint",) if "pdf" in formats else ()):
