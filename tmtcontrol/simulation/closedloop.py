@@ -196,9 +196,8 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
 
     if integrator == "fixed":
         coarse = _rk4(ode, z, pz, substeps)
-        if contact_refine <= 1:
-            plant_flow = ca.Function("plant", [z, pz], [coarse(z, pz)[0]], ["x0", "p"], ["xf"])
-        else:
+        choose = None
+        if contact_refine > 1:
             # a period in which the contact force switches on or off (a kink of
             # max(0, .) that a fixed step would straddle) is integrated again
             # with contact_refine times more steps: the same coarse step called
@@ -211,8 +210,6 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
             keep = ca.Function("keep", [zm, z1, pm], [z1])
             refine = ca.Function("refine", [zm, z1, pm], [zr])
             choose = ca.Function.conditional("refine_at_contact_switch", [keep], refine)
-            zc, switched = coarse(zm, pm)
-            plant_flow = ca.Function("plant", [zm, pm], [choose(switched, zm, zc, pm)], ["x0", "p"], ["xf"])
     elif integrator == "cvodes":
         dae = {"x": z, "p": pz, "ode": ode(z)[0]}
         plant_flow = ca.integrator("plant", "cvodes", dae, 0.0, 1.0,
@@ -271,13 +268,18 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     name = step_name(law, delay)
     if integrator != "fixed":
         return ca.Function(name, [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
-    # the controller expanded to SX (compilable), common subexpressions merged: a
-    # third fewer instructions for the virtual machine and the compiler; the plant
-    # flow called once, its contact refinement a branch in the generated code
+    # the controller expanded to SX (compilable) and fused with the coarse plant
+    # step, common subexpressions merged: the controller's model at q_k and the
+    # plant's first stage share sin/cos of q_k (and, with an exact model, M, J
+    # and the kinematics); the contact refinement a branch in the generated code
     ctrl = ca.Function("ctrl", [s, u, p], [z0, pz_val, s_next[6:], log]).expand()
     sx = [ca.SX.sym(n, ctrl.size1_in(i)) for i, n in enumerate(("s", "u", "p"))]
-    ctrl = ca.Function(f"{name}_ctrl", sx, ca.cse(ctrl(*sx)))
-    sm, um, pm = (ca.MX.sym(n, ctrl.size1_in(i)) for i, n in enumerate(("s", "u", "p")))
-    z0m, pzm, rest, logm = ctrl(sm, um, pm)
-    s_next_m = ca.vertcat(plant_flow(z0m, pzm), rest)
+    z0s, pzs, rest, logs = ctrl(*sx)
+    zc, switched = coarse(z0s, pzs)
+    if choose is None:
+        return ca.Function(name, sx, ca.cse([ca.vertcat(zc, rest), logs]), ["s", "u", "p"], ["s_next", "log"])
+    fused = ca.Function(f"{name}_ctrl", sx, ca.cse([z0s, pzs, zc, switched, rest, logs]))
+    sm, um, pm = (ca.MX.sym(n, fused.size1_in(i)) for i, n in enumerate(("s", "u", "p")))
+    z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
+    s_next_m = ca.vertcat(choose(sw, z0m, zcm, pzm), restm)
     return ca.Function(name, [sm, um, pm], [s_next_m, logm], ["s", "u", "p"], ["s_next", "log"])
