@@ -172,9 +172,9 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
 
     ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
     in which the contact force switches on or off is integrated again with
-    ``contact_refine`` times as many steps (a branch in the compiled code, so
-    it costs nothing elsewhere). The controller is expanded to SX and the
-    step can be compiled. ``"cvodes"``: CVODES with relative/absolute
+    ``contact_refine`` times as many steps (a branch in the compiled code:
+    the refined steps run only in those periods). The controller is expanded
+    to SX, fused with the coarse plant step, and the step can be compiled. ``"cvodes"``: CVODES with relative/absolute
     tolerance ``tol`` (MX, not compilable; the accuracy reference).
     """
     # -- plant over one period, time scaled to [0, 1] so Ts is a parameter ----
