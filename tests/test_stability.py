@@ -138,6 +138,10 @@ def test_stacked_spectral_radii_match_one_at_a_time():
     one_by_one = [sampled_closed_loop(1.0, 60.0, 100.0, ke, 1e-3, 3.5, **kw).spectral_radius for ke in k_e]
     np.testing.assert_allclose(spectral_radii(1.0, 60.0, 100.0, k_e, 1e-3, 3.5, **kw), one_by_one, rtol=1e-12)
     assert max(one_by_one) > 1.0 > min(one_by_one)          # the grid crosses the boundary
+    with pytest.raises(AnalysisError, match="k_e: expected at least one stiffness"):
+        spectral_radii(1.0, 60.0, 100.0, [], 1e-3, 3.5)
+    with pytest.raises(AnalysisError, match="k_e"):
+        spectral_radii(1.0, 60.0, 100.0, [1e3, -1.0], 1e-3, 3.5)
     region = stability_region(1.0, 60.0, 100.0, 3.5, [5e-4, 1e-3], k_e, **kw)
     assert region.shape == (7, 2)
     np.testing.assert_allclose(region[:, 1], one_by_one, rtol=1e-12)

@@ -174,8 +174,9 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     in which the contact force switches on or off is integrated again with
     ``contact_refine`` times as many steps (a branch in the compiled code:
     the refined steps run only in those periods). The controller is expanded
-    to SX, fused with the coarse plant step, and the step can be compiled. ``"cvodes"``: CVODES with relative/absolute
-    tolerance ``tol`` (MX, not compilable; the accuracy reference).
+    to SX, fused with the coarse plant step, and the step can be compiled.
+    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
+    compilable; the accuracy reference).
     """
     # -- plant over one period, time scaled to [0, 1] so Ts is a parameter ----
     z = ca.SX.sym("z", 6)
@@ -278,7 +279,7 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     zc, switched = coarse(z0s, pzs)
     if choose is None:
         return ca.Function(name, sx, ca.cse([ca.vertcat(zc, rest), logs]), ["s", "u", "p"], ["s_next", "log"])
-    fused = ca.Function(f"{name}_ctrl", sx, ca.cse([z0s, pzs, zc, switched, rest, logs]))
+    fused = ca.Function(f"{name}_ctrl_plant", sx, ca.cse([z0s, pzs, zc, switched, rest, logs]))
     sm, um, pm = (ca.MX.sym(n, fused.size1_in(i)) for i, n in enumerate(("s", "u", "p")))
     z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
     s_next_m = ca.vertcat(choose(sw, z0m, zcm, pzm), restm)

@@ -148,6 +148,8 @@ def spectral_radii(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0
     """:func:`spectral_radius` for every stiffness of the array ``k_e`` at
     once (the same matrices, discretised and solved as one stack)."""
     k_e = np.asarray(k_e, dtype=float).ravel()
+    if not k_e.size:
+        raise AnalysisError("k_e: expected at least one stiffness")
     kd, kp = _loop_args(m, b, k, float(k_e.min()), Ts, m_p, kd, kp, law)
     Ad = _discrete_loop(m, b, k, k_e, Ts, m_p, kd, kp, law, alpha, d_e)[0]
     return np.abs(np.linalg.eigvals(Ad)).max(axis=1)
