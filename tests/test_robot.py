@@ -253,7 +253,9 @@ def test_dynamics_built_on_first_use_and_unknown_attributes_refused():
     of any of their Functions (a simulator's path check needs only fk and J)."""
     robot = Puma560()
     assert "mass_matrix" not in vars(robot) and "fk" in vars(robot)
+    before = set(vars(robot))
     M = np.asarray(robot.mass_matrix([0.1, -0.5, 0.4]))
+    assert set(vars(robot)) - before == Puma560._DYNAMICS     # every attribute built there is declared
     assert {"mass_matrix", "forward_dynamics", "expr"} <= set(vars(robot))
     np.testing.assert_allclose(M, M.T, atol=1e-12)
     with pytest.raises(AttributeError, match="no attribute 'mass_matrx'"):
