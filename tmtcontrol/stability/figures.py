@@ -11,7 +11,7 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..plotstyle import fixed_layout, plain_log_labels
+from ..plotstyle import fixed_layout
 from ..simulation.figures import save_figures
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
@@ -130,26 +130,20 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
 def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.Path]:
     """Figures for an :func:`~tmtcontrol.stability.analyze` result: root locus,
     damping versus k_e, step responses and (with Ts) the stability region."""
-    folder = pathlib.Path(folder)
     m, b, k, f_d = d["m"], d["b"], d["k"], d["f_d"]
     lo, hi = (d["k_e_min"], d["k_e_max"]) if "k_e_min" in d else (d["k_e"], d["k_e"])
     span_lo, span_hi = lo / 10, hi * 10
-    figs = {"root_locus": root_locus_figure(m, b, k, span_lo, span_hi),
-            "damping_vs_stiffness": damping_figure(m, b, k, span_lo, span_hi),
-            "step_responses": step_figure(m, b, k, sorted({lo, np.sqrt(lo * hi), hi}), f_d)}
+    makers = [("root_locus", lambda _: root_locus_figure(m, b, k, span_lo, span_hi)),
+              ("damping_vs_stiffness", lambda _: damping_figure(m, b, k, span_lo, span_hi)),
+              ("step_responses", lambda _: step_figure(m, b, k, sorted({lo, np.sqrt(lo * hi), hi}), f_d))]
     if "Ts" in d:
         Ts = d["Ts"]
         pts = [(Ts, ke, f"{ke:.3g}") for ke in sorted({lo, hi})]
-        figs["stability_region"] = stability_region_figure(
+        makers.append(("stability_region", lambda _: stability_region_figure(
             m, b, k, min(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 25),
             np.geomspace(span_lo, max(span_hi, 10 * d["max_stable_stiffness"])
-                         if np.isfinite(d["max_stable_stiffness"]) else span_hi, 25), pts)
-    out = []
-    for name, fig in figs.items():
-        path = folder / f"{name}.png"
-        plain_log_labels(fig).savefig(path, dpi=110)
-        out.append(path)
-    return out
+                         if np.isfinite(d["max_stable_stiffness"]) else span_hi, 25), pts)))
+    return save_figures(makers, d, folder, dpi=110)
 
 
 # -- design figures ------------------------------------------------------------------------
