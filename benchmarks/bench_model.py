@@ -6,13 +6,12 @@ Prints the median build time and its ratio to a plain reference run in the same
 process (building just forward kinematics with CasADi), so the number can be
 compared across machines.
 """
-import statistics
-import time
-
 import casadi as ca
 
 from tmtcontrol import Puma560
 from tmtcontrol.model.puma560 import PUMA560_LINKS, _dh
+
+from bench_all import median_time      # this folder is on the path when run as a script
 
 
 def reference():
@@ -23,19 +22,10 @@ def reference():
     return ca.Function("fk", [q], [T[:3, 3]])
 
 
-def timed(fn, repeat=7):
-    out = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return statistics.median(out)
-
-
 if __name__ == "__main__":
-    t_kin = timed(lambda: Puma560(armature=True, friction=True))
-    t_model = timed(lambda: Puma560(armature=True, friction=True).mass_matrix)
+    t_kin = median_time(lambda: Puma560(armature=True, friction=True), 7)
+    t_model = median_time(lambda: Puma560(armature=True, friction=True).mass_matrix, 7)
     print(f"Puma560() kinematics: {t_kin * 1e3:.1f} ms")
-    t_ref = timed(reference)
+    t_ref = median_time(reference, 7)
     print(f"Puma560() with its dynamics: {t_model * 1e3:.1f} ms (target <= 1000 ms)")
     print(f"reference (fk only): {t_ref * 1e3:.2f} ms; ratio {t_model / t_ref:.0f}x")
