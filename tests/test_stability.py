@@ -37,6 +37,20 @@ def test_eq22_poles_and_steady_state_closed_form(m, b, k, k_e):
     assert zeta[0] == pytest.approx(min(a.damping_ratio, 1.0), rel=1e-6, abs=1e-9)
 
 
+def test_analysis_pickles_and_builds_its_systems_from_its_numbers():
+    """The report's second process sends its analyses back pickled; the
+    systems, built on access, are eq. (22)'s: poles and DC gain in closed form."""
+    import pickle
+
+    r = pickle.loads(pickle.dumps(analyze_range(1.0, 60.0, 100.0, 2e3, 2e4)))
+    a = r.at_max
+    assert (a.m, a.b, a.k, a.k_e) == (1.0, 60.0, 100.0, 2e4)
+    closed = np.sort_complex(np.roots([1.0, 60.0, 100.0 + 2e4]))
+    np.testing.assert_allclose(np.sort_complex(a.ss.poles()), closed, rtol=1e-12)   # round-off of 2x2 eig
+    np.testing.assert_allclose(np.sort_complex(a.tf.poles()), closed, rtol=1e-12)
+    assert float(np.real(ct.dcgain(a.ss))) == pytest.approx(1.0, rel=1e-12)
+
+
 def test_zero_damping_is_not_bibo_stable():
     a = analyze_continuous(1.0, 0.0, 100.0, 5e3)
     assert not a.bibo_stable and math.isnan(a.settling_time)

@@ -85,14 +85,15 @@ def damping_ratio(m, b, k, k_e) -> float:
 
 @dataclass(frozen=True)
 class ContinuousAnalysis:
-    """Eq. (22) at one stiffness: systems, poles and verdicts."""
+    """Eq. (22) at one stiffness: systems, poles and verdicts. The systems
+    are built from (m, b, k, k_e) when asked for, so the analysis holds only
+    numbers (python-control's state-space objects cannot be pickled: an
+    analysis can be sent to another process)."""
     m: float
     b: float
     k: float
     k_e: float
     f_d: float
-    tf: ct.TransferFunction
-    ss: ct.StateSpace
     poles: np.ndarray
     natural_frequency: float      # rad/s
     damping_ratio: float
@@ -101,6 +102,16 @@ class ContinuousAnalysis:
     critical_damping: float       # N s/m, eq. (25)
     overshoot_pct: float
     settling_time: float          # s, 2 %
+
+    @property
+    def tf(self) -> ct.TransferFunction:
+        """Eq. (22) as a transfer function (:func:`tmt_error_tf`)."""
+        return tmt_error_tf(self.m, self.b, self.k, self.k_e)
+
+    @property
+    def ss(self) -> ct.StateSpace:
+        """Eq. (22) in state space (:func:`tmt_error_ss`)."""
+        return tmt_error_ss(self.m, self.b, self.k, self.k_e)
 
     def as_dict(self) -> dict:
         return {"m": self.m, "b": self.b, "k": self.k, "k_e": self.k_e, "f_d": self.f_d,
@@ -185,7 +196,7 @@ def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
     else:
         overshoot = settling = float("nan")
         ss_force = float("nan")
-    return ContinuousAnalysis(m, b, k, k_e, f_d, G, S, poles, wn, damping_ratio(m, b, k, k_e),
+    return ContinuousAnalysis(m, b, k, k_e, f_d, poles, wn, damping_ratio(m, b, k, k_e),
                               stable, ss_force, critical_damping(m, k, k_e), overshoot, settling)
 
 
