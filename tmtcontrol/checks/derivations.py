@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import casadi as ca
-import control as ct
 import numpy as np
 
 from .. import stability
@@ -317,6 +316,8 @@ def check_eq19_22(impl: Implementation, rng) -> CheckResult:
 
 def check_eq23_24(impl: Implementation, rng) -> CheckResult:
     """Eqs. (23)-(24): the steady state of the derived loop is f_e = f_d."""
+    import control as ct                    # here, not at the top: the law and loop checks import this module
+
     f = _eq22_residual_function(impl)
     eps = ca.SX.sym("eps")
     p = ca.SX.sym("p", 6)
