@@ -92,6 +92,10 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     assert head == ["verdict", "result", "number", "computed by"]
     verdicts = {row[0]: row for row in rows}
     assert all(row[1] == "✔ PASS" for row in rows) and r.stdout.count("PASS ") == len(rows) == 5
+    # in the order of the stages behind them, whichever process ran each stage
+    assert [row[0] for row in rows] == ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)",
+                                        "Stable in the sampled implementation (Ts = 1\xa0ms)",
+                                        "Force tracking within tolerance (simulation)", "Robust damping design verified"]
     # derivation checks: n/N = the PASS rows of the checks table
     _, _, check_rows = table(section(html, "derivations"), "Derivation checks")
     n = len(check_rows)
@@ -367,6 +371,32 @@ def test_claims_hand_out_every_task_once_from_both_ends():
             taken.append(i)
         assert sorted(taken) == [0, 1, 2, 3, 4]
         assert _claim(claims) is None and _claim(claims, last=True) is None
+
+
+def test_this_process_leaves_the_tasks_below_the_floor_to_the_other():
+    """This process takes last first but none below ``floor`` (the tasks that
+    use python-control); the other takes first first until none is left:
+    every task exactly once, this one's all at or above the floor."""
+    import multiprocessing
+    import random
+
+    from tmtcontrol.report.document import _claim
+
+    for seed in range(20):
+        rng = random.Random(seed)
+        claims = multiprocessing.Array("i", [0, 7])
+        front, back, back_done = [], [], False
+        while True:
+            if not back_done and rng.random() < 0.5:
+                i = _claim(claims, last=True, floor=3)
+                back_done = i is None
+                back += [] if i is None else [i]
+            elif (i := _claim(claims)) is not None:
+                front.append(i)
+            else:
+                break
+        assert sorted(front + back) == list(range(7)) and all(i >= 3 for i in back)
+        assert _claim(claims, last=True, floor=3) is None
 
 
 def test_the_report_ran_each_task_once_and_every_check_group(paper_report):

@@ -38,11 +38,15 @@ FORCE_TOLERANCE = 0.01
 STAGES = ("continuous-time analysis", "sampled-data analysis", "simulation", "law comparison", "robustness sweep",
           "design", "derivation checks")
 """The computing stages (writing HTML and PDF are stages of ``write_report``).
-The law comparison, the sweep and the derivation checks (three groups) are
-handed to a second process from the start; this one takes back what that
-one has not started when its own stages are done (see :func:`_remote_tasks`).
-Progress reports the stages as they end, each with its own computing time
-(the checks': their groups' sum)."""
+This process runs the simulation and the design; the others (the
+derivation checks in groups) are tasks that a second process takes from the
+start, this one taking its share when its own stages are done (see
+:func:`_remote_tasks`). Progress reports the stages as they end, each with
+its own computing time (the checks': their groups' sum)."""
+
+_LOCAL = ("simulation", "design")
+"""The stages this process runs itself, in order (the design simulates its
+alternatives with the simulation's compiled simulator)."""
 
 SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
 SWEEP_RATES = (1000.0, 500.0)
@@ -250,7 +254,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         "is the vertical distance to the boundary.",
         sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, whole) if whole is not None else None,
         label="1-D sampled loop"))
-    rep.data["sampled"] = a
+    # python-control's state-space objects cannot be pickled (python-control#1162), and this stage may run in
+    # the second process: the numbers only (analyze_scenario(sc)["systems"] rebuilds the systems)
+    rep.data["sampled"] = {key: v for key, v in a.items() if key != "systems"}
     return Section("sampled", "Sampled-data analysis", blocks)
 
 
@@ -459,30 +465,44 @@ def _one_blas_thread():
     return threadpool_limits(limits=1)
 
 
+_CONTROL_TASKS = ("sampled-data analysis", "checks: loop", "checks: derivations", "continuous-time analysis")
+"""The tasks that use python-control, longest first (0.8 s to 0.3 s here).
+Importing it takes ~0.8 s; only the second process does."""
+
+
 def _remote_tasks() -> list[str]:
-    """Work that needs nothing from the other stages: the sweep, the
-    derivation checks in their groups (one per law), the law comparison;
-    longest first (0.7 s to 0.1 s a law here). The second process takes them in
-    this order, each when it is free; this one runs the other stages, then
-    takes what is left, last first (see :func:`_claim`), so the two end
-    within about the shortest task of each other."""
+    """Work that needs nothing from this process' stages, in the order the
+    second process takes it: first :data:`_CONTROL_TASKS`, then the others
+    (one check group per law, ~0.1 s each, the law comparison, the sweep)
+    shortest first. This process runs its own stages, then takes tasks last
+    first (the longest of the others first; see :func:`_claim`), but none of
+    :data:`_CONTROL_TASKS`: it never imports python-control. The two meet
+    among the short tasks, so they end within about one of each other."""
     from ..checks import check_groups
 
-    laws = [g for g in check_groups() if g not in ("loop", "derivations")]
-    return ["robustness sweep", "checks: loop", "checks: derivations", "law comparison",
-            *(f"checks: {g}" for g in laws)]
+    laws = [f"checks: {g}" for g in check_groups() if g.startswith("law: ")]
+    return [*_CONTROL_TASKS, *laws, "law comparison", "robustness sweep"]
 
 
-_PRELOAD = ("control", "tmtcontrol.stability.analysis", "tmtcontrol.stability.design", "tmtcontrol.stability.figures",
-            "tmtcontrol.simulation.compare", "tmtcontrol.simulation.figures", "tmtcontrol.checks.derivations",
-            "tmtcontrol.checks.laws", "tmtcontrol.checks.loop")
+_PRELOAD = ("matplotlib.figure", "matplotlib.backends.backend_svg", "tmtcontrol.stability.analysis",
+            "tmtcontrol.stability.design", "tmtcontrol.stability.figures", "tmtcontrol.simulation.compare",
+            "tmtcontrol.simulation.figures", "tmtcontrol.sweep", "tmtcontrol.sweep.figures",
+            "tmtcontrol.checks.derivations", "tmtcontrol.checks.laws", "tmtcontrol.checks.loop")
 """Modules both processes need, imported before the second one is forked so
-that it inherits them (python-control alone takes ~1 s; it brings matplotlib)."""
+that it inherits them (not python-control: only the second process uses it)."""
+
+_TASKS: dict[str, Callable] = {
+    "continuous-time analysis": lambda rep, sc, p: _continuous(rep, p),
+    "sampled-data analysis": lambda rep, sc, p: _sampled(rep, sc, p),
+    "law comparison": lambda rep, sc, p: _comparison(rep, sc),
+    "robustness sweep": lambda rep, sc, p: _sweep(rep, sc),
+}
 
 
-def _task(name: str, sc: Scenario):
-    """Run one of :func:`_remote_tasks` (in either process): its output (a
-    section, or a check group's results), verdicts, data and time."""
+def _task(name: str, sc: Scenario, p: dict):
+    """Run one of :func:`_remote_tasks` (in either process) on the scenario
+    ``sc`` with its analysis parameters ``p``: its output (a section, or a
+    check group's results), verdicts, data and time."""
     from ..checks import run_check_group
 
     rep = Report(sc, "")
@@ -491,7 +511,7 @@ def _task(name: str, sc: Scenario):
         if name.startswith("checks: "):
             output = run_check_group(name.removeprefix("checks: "))
         else:
-            output = {"law comparison": _comparison, "robustness sweep": _sweep}[name](rep, sc)
+            output = _TASKS[name](rep, sc, p)
     return output, rep.verdicts, rep.data, time.perf_counter() - t0
 
 
@@ -505,12 +525,13 @@ def _share(claims, tasks) -> None:
     _SHARED.update(claims=claims, tasks=tasks)
 
 
-def _claim(claims, last: bool = False) -> int | None:
+def _claim(claims, last: bool = False, floor: int = 0) -> int | None:
     """Take the first (or, ``last``, the last) task nobody has taken: its
-    index in the task list, or None if none is left."""
+    index in the task list, or None if none is left (taking the last: none
+    at an index of at least ``floor``)."""
     with claims.get_lock():
         first, end = claims[0], claims[1]
-        if first >= end:
+        if first >= end or (last and end - 1 < floor):
             return None
         if last:
             claims[1] = end - 1
@@ -519,11 +540,11 @@ def _claim(claims, last: bool = False) -> int | None:
         return first
 
 
-def _pull(sc: Scenario):
+def _pull(sc: Scenario, p: dict):
     """In the second process: run the next task nobody has taken, if any;
     ``(name, output)`` or None."""
     i = _claim(_SHARED["claims"])
-    return None if i is None else (_SHARED["tasks"][i], _task(_SHARED["tasks"][i], sc))
+    return None if i is None else (_SHARED["tasks"][i], _task(_SHARED["tasks"][i], sc, p))
 
 
 @contextlib.contextmanager
@@ -554,17 +575,17 @@ def _background():
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Callable,
+def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts: dict, say: Callable,
             prepare: Callable | None) -> None:
     """Run the stages: the second process takes the remote tasks in order,
-    one when it is free, while this one runs the others; then this one takes
-    what is left, last first, after calling ``prepare()``. Each
-    stage is reported as it ends, with its own time."""
+    one when it is free, while this one runs :data:`_LOCAL`; then this one
+    takes what is left, last first, after calling ``prepare()``. Each
+    stage is reported as it ends, with its own time; its verdicts go to
+    ``verdicts[stage]``."""
     import concurrent.futures
 
     pool, claims, tasks = background
-    pulls = [pool.submit(_pull, sc) for _ in tasks]      # each takes a task when it starts
-    sim = res = None
+    pulls = [pool.submit(_pull, sc, p) for _ in tasks]      # each takes a task when it starts
     done = 0
 
     def finished(name, seconds):
@@ -573,18 +594,14 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Call
         rep.timings[name] = seconds
         say(done, len(STAGES), name, seconds)
 
-    for name in STAGES:
+    for name in _LOCAL:
         t0 = time.perf_counter()
-        if name == "continuous-time analysis":
-            out[name] = _continuous(rep, p)
-        elif name == "sampled-data analysis":
-            out[name] = _sampled(rep, sc, p)
-        elif name == "simulation":
+        n_verdicts = len(rep.verdicts)
+        if name == "simulation":
             out[name], sim, res = _simulation(rep, sc, p)
-        elif name == "design":
-            out[name] = _design(rep, sc, p, sim, res)
         else:
-            continue
+            out[name] = _design(rep, sc, p, sim, res)
+        verdicts[name] = rep.verdicts[n_verdicts:]
         finished(name, time.perf_counter() - t0)
 
     results = {}
@@ -601,20 +618,27 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, say: Call
 
     if prepare is not None:                 # the caller's work, shared out like the rest
         prepare()
-    while (i := _claim(claims, last=True)) is not None:        # what nobody has taken, last first
-        results[tasks[i]] = _task(tasks[i], sc)
+    # what nobody has taken, last first, short of the tasks that use python-control
+    while (i := _claim(claims, last=True, floor=len(_CONTROL_TASKS))) is not None:
+        results[tasks[i]] = _task(tasks[i], sc, p)
         arrived(tasks[i])
     for f in concurrent.futures.as_completed(pulls):
         if (taken := f.result()) is not None:
             results[taken[0]] = taken[1]
             arrived(taken[0])
     for task in tasks:                              # in a fixed order, whichever process ran them
-        output, verdicts, data, _ = results[task]
-        rep.verdicts += verdicts
+        output, task_verdicts, data, _ = results[task]
         rep.data.update(data)
         if task not in groups:
-            out[task] = output
+            out[task], verdicts[task] = output, task_verdicts
+    n_verdicts = len(rep.verdicts)
     out["derivation checks"] = _checks(rep, [r for g in groups for r in results[g][0]])
+    verdicts["derivation checks"] = rep.verdicts[n_verdicts:]
+
+
+_VERDICT_ORDER = ("derivation checks", "continuous-time analysis", "sampled-data analysis", "simulation", "design",
+                  "law comparison", "robustness sweep")
+"""The order of the verdict summary: by stage, whichever process ran it."""
 
 
 def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None,
@@ -633,10 +657,10 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     p = scenario_parameters(scenario)
     rep.data["parameters"] = p
     out: dict = {}
+    verdicts: dict = {}
     with _background() as background, _one_blas_thread():
-        _stages(rep, scenario, p, background, out, say, prepare)
-    order = ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)"]
-    rep.verdicts.sort(key=lambda v: order.index(v.name) if v.name in order else len(order))
+        _stages(rep, scenario, p, background, out, verdicts, say, prepare)
+    rep.verdicts = [v for stage in sorted(verdicts, key=_VERDICT_ORDER.index) for v in verdicts[stage]]
     summary = Section("summary", "Verdict summary", [Table(
         "Verdicts", ["verdict", "result", "number", "computed by"],
         [[v.name, _mark(v.passed), v.value, v.check] for v in rep.verdicts], verdict_column=1)])
