@@ -527,8 +527,8 @@ def _share(claims, tasks) -> None:
 
 def _claim(claims, last: bool = False, floor: int = 0) -> int | None:
     """Take the first (or, ``last``, the last) task nobody has taken: its
-    index in the task list, or None if none is left (taking the last: none
-    at an index of at least ``floor``)."""
+    index in the task list, or None if none is left (with ``last``, also if
+    the last one left has an index below ``floor``)."""
     with claims.get_lock():
         first, end = claims[0], claims[1]
         if first >= end or (last and end - 1 < floor):
