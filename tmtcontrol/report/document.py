@@ -43,11 +43,6 @@ derivation checks in groups) are tasks that a second process takes from the
 start, this one taking its share when its own stages are done (see
 :func:`_remote_tasks`). Progress reports the stages as they end, each with
 its own computing time (the checks': their groups' sum)."""
-
-_LOCAL = ("simulation", "design")
-"""The stages this process runs itself, in order (the design simulates its
-alternatives with the simulation's compiled simulator)."""
-
 SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
 SWEEP_RATES = (1000.0, 500.0)
 SWEEP_CYCLES = 0.5
@@ -499,20 +494,27 @@ _TASKS: dict[str, Callable] = {
 }
 
 
+def _on_own(sc: Scenario, stage: Callable, *args):
+    """Run ``stage(report, *args)`` on a report of its own: its return value,
+    the verdicts it added and its data (merged by the caller, whichever
+    process ran it)."""
+    own = Report(sc, "")
+    return stage(own, *args), own.verdicts, own.data
+
+
 def _task(name: str, sc: Scenario, p: dict):
     """Run one of :func:`_remote_tasks` (in either process) on the scenario
     ``sc`` with its analysis parameters ``p``: its output (a section, or a
     check group's results), verdicts, data and time."""
     from ..checks import run_check_group
 
-    rep = Report(sc, "")
     t0 = time.perf_counter()
     with _one_blas_thread():
         if name.startswith("checks: "):
-            output = run_check_group(name.removeprefix("checks: "))
+            output, verdicts, data = run_check_group(name.removeprefix("checks: ")), [], {}
         else:
-            output = _TASKS[name](rep, sc, p)
-    return output, rep.verdicts, rep.data, time.perf_counter() - t0
+            output, verdicts, data = _on_own(sc, _TASKS[name], sc, p)
+    return output, verdicts, data, time.perf_counter() - t0
 
 
 _SHARED: dict = {}
@@ -578,10 +580,11 @@ def _background():
 def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts: dict, say: Callable,
             prepare: Callable | None) -> None:
     """Run the stages: the second process takes the remote tasks in order,
-    one when it is free, while this one runs :data:`_LOCAL`; then this one
-    takes what is left, last first, after calling ``prepare()``. Each
-    stage is reported as it ends, with its own time; its verdicts go to
-    ``verdicts[stage]``."""
+    one when it is free, while this one runs the simulation and then the
+    design (which simulates its alternatives with the simulation's compiled
+    simulator); then this one takes what is left, last first, after calling
+    ``prepare()``. Each stage is reported as it ends, with its own time; its
+    verdicts go to ``verdicts[stage]``, its data to ``rep.data``."""
     import concurrent.futures
 
     pool, claims, tasks = background
@@ -594,15 +597,14 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts:
         rep.timings[name] = seconds
         say(done, len(STAGES), name, seconds)
 
-    for name in _LOCAL:
-        t0 = time.perf_counter()
-        n_verdicts = len(rep.verdicts)
-        if name == "simulation":
-            out[name], sim, res = _simulation(rep, sc, p)
-        else:
-            out[name] = _design(rep, sc, p, sim, res)
-        verdicts[name] = rep.verdicts[n_verdicts:]
-        finished(name, time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    (out["simulation"], sim, res), verdicts["simulation"], data = _on_own(sc, _simulation, sc, p)
+    rep.data.update(data)
+    finished("simulation", time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    out["design"], verdicts["design"], data = _on_own(sc, _design, sc, p, sim, res)
+    rep.data.update(data)
+    finished("design", time.perf_counter() - t0)
 
     results = {}
     from ..checks import check_groups
@@ -631,9 +633,9 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts:
         rep.data.update(data)
         if task not in groups:
             out[task], verdicts[task] = output, task_verdicts
-    n_verdicts = len(rep.verdicts)
-    out["derivation checks"] = _checks(rep, [r for g in groups for r in results[g][0]])
-    verdicts["derivation checks"] = rep.verdicts[n_verdicts:]
+    out["derivation checks"], verdicts["derivation checks"], data = _on_own(
+        sc, _checks, [r for g in groups for r in results[g][0]])
+    rep.data.update(data)
 
 
 _VERDICT_ORDER = ("derivation checks", "continuous-time analysis", "sampled-data analysis", "simulation", "design",
