@@ -17,8 +17,9 @@ import json
 
 
 from tmtcontrol import apply_overrides, compare_laws, paper_scenario
+from tmtcontrol.drawing import save_figures
 from tmtcontrol.files import OutputFolder
-from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure, save_figures
+from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure
 
 
 def main(argv=None):

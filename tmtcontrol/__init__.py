@@ -14,12 +14,22 @@ Data path (one way; nothing imports a later stage)::
 """
 __version__ = "0.1.0"
 
-from .model import PUMA560_LINKS, LinkParameters, Puma560
-from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,
-                       paper_scenario)
-from .simulation.simulator import SimulationError, SimulationResult, Simulator
-from .simulation.metrics import SegmentMetrics, segment_metrics
-from .simulation.compare import Comparison, LawRun, compare_laws
+import importlib
+from typing import TYPE_CHECKING
+
+_EXPORTS = {
+    "tmtcontrol.model": ("Puma560", "PUMA560_LINKS", "LinkParameters"),
+    "tmtcontrol.simulation.scenario": ("Scenario", "ScenarioError", "paper_scenario", "load_scenario",
+                                       "dump_scenario", "apply_overrides"),
+    "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError"),
+    "tmtcontrol.simulation.metrics": ("SegmentMetrics", "segment_metrics"),
+    "tmtcontrol.simulation.compare": ("compare_laws", "Comparison", "LawRun"),
+}
+"""The public API by defining module. Imported on first access (PEP 562), so
+``import tmtcontrol`` and the command line's start cost no CasADi, NumPy or
+pydantic until a command needs them."""
+
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 
 __all__ = [
     "__version__", "Puma560", "PUMA560_LINKS", "LinkParameters", "Scenario", "ScenarioError",
@@ -27,3 +37,25 @@ __all__ = [
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
     "LawRun",
 ]
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'tmtcontrol' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from .model import PUMA560_LINKS, LinkParameters, Puma560
+    from .simulation.compare import Comparison, LawRun, compare_laws
+    from .simulation.metrics import SegmentMetrics, segment_metrics
+    from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,
+                                      paper_scenario)
+    from .simulation.simulator import SimulationError, SimulationResult, Simulator

@@ -172,6 +172,14 @@ def _load(args):
 
 
 def _simulate(args) -> int:
+    from .drawing import FigureWorkers
+
+    # matplotlib is imported by the figure processes while this one loads CasADi and simulates
+    with FigureWorkers("tmtcontrol.simulation.figures", processes=0 if args.no_plots else 2) as workers:
+        return _simulate_with(args, workers)
+
+
+def _simulate_with(args, workers) -> int:
     from .files import OutputFolder
     from .simulation.metrics import first_contact, format_table, segment_metrics
     from .simulation.output import save_simulation
@@ -181,7 +189,7 @@ def _simulate(args) -> int:
     check_run_size(sc, args.max_steps)
     with OutputFolder(args.out, "--out") as out:
         res = Simulator(sc).run(max_steps=args.max_steps)
-        save_simulation(res, out.path, plots=not args.no_plots)
+        save_simulation(res, out.path, plots=not args.no_plots, workers=workers)
         out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           f"{sc.simulation.integrator} integrator ({res.info['code']}), "

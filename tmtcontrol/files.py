@@ -27,7 +27,6 @@ import signal
 import sys
 import tempfile
 
-import numpy as np
 
 __all__ = ["MANIFEST", "OutputError", "OutputFolder", "Interrupted", "VerdictFailed", "install_signal_handlers",
            "check_interrupt", "versions", "jsonable", "write_json"]
@@ -221,19 +220,24 @@ def versions() -> dict:
 
 def jsonable(obj):
     """``obj`` with NumPy types converted and NaN/inf as None, for ``json.dumps``."""
-    if isinstance(obj, dict):
-        return {k: jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    return obj
+    import numpy as np        # here, not at the top: the command line starts without NumPy
+
+    def convert(obj):
+        if isinstance(obj, dict):
+            return {k: convert(v) for k, v in obj.items()}
+        if isinstance(obj, (list, tuple)):
+            return [convert(v) for v in obj]
+        if isinstance(obj, (np.floating, float)):
+            return float(obj) if np.isfinite(obj) else None
+        if isinstance(obj, np.integer):
+            return int(obj)
+        if isinstance(obj, np.bool_):
+            return bool(obj)
+        if isinstance(obj, np.ndarray):
+            return convert(obj.tolist())
+        return obj
+
+    return convert(obj)
 
 
 def write_json(path: str | pathlib.Path, obj) -> None:

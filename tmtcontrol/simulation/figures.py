@@ -2,23 +2,33 @@
 
 Built on ``matplotlib.figure.Figure`` directly (no pyplot, no GUI backend),
 so they work headless and in tests. Each function returns the Figure;
-:func:`save_simulation_figures` writes all of them as PNG.
+:func:`save_simulation_figures` writes Figs. 3-5 and the path as PNG. Those
+four take a :class:`~tmtcontrol.SimulationResult` or its
+:class:`~.traces.SimulationTraces`; this module imports nothing of the
+simulator, so a process with only matplotlib loaded can draw them.
 """
 
 from __future__ import annotations
 
 import pathlib
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..drawing import save_figures
 from ..plotstyle import fixed_layout
-from .simulator import SimulationResult
+
+from .output import SIMULATION_FIGURES
+from .traces import SimulationTraces
+
+if TYPE_CHECKING:
+    from .simulator import SimulationResult
 
 __all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
            "path_figure",
            "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
-           "save_comparison_figures", "save_figures", "envelope"]
+           "save_comparison_figures", "envelope"]
 
 DRAW_POINTS = 1200
 """Buckets per time-series line: more than a figure has pixels across."""
@@ -56,7 +66,11 @@ def envelope(t: np.ndarray, y: np.ndarray, buckets: int = DRAW_POINTS) -> tuple[
     return t[idx], np.where(finite[idx], y[idx], np.nan)
 
 
-def stiffness_figure(res: SimulationResult) -> Figure:
+def _traces(res: SimulationResult | SimulationTraces) -> SimulationTraces:
+    return res if isinstance(res, SimulationTraces) else res.traces
+
+
+def stiffness_figure(res: SimulationResult | SimulationTraces) -> Figure:
     """Fig. 3: the environment stiffness k_e(t) and the TMT estimate f_e/(x - x_e)."""
     fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
@@ -69,7 +83,7 @@ def stiffness_figure(res: SimulationResult) -> Figure:
     return fixed_layout(fig)
 
 
-def force_figure(res: SimulationResult) -> Figure:
+def force_figure(res: SimulationResult | SimulationTraces) -> Figure:
     """Fig. 4: contact force against the desired force."""
     fig = Figure(figsize=(7, 3.2))
     ax = fig.add_subplot()
@@ -125,7 +139,7 @@ def tracking_error_figure(res: SimulationResult) -> Figure:
     return fixed_layout(fig)
 
 
-def position_figure(res: SimulationResult) -> Figure:
+def position_figure(res: SimulationResult | SimulationTraces) -> Figure:
     """Fig. 5: x, y, z of the wrist centre against the reference (base frame)."""
     fig = Figure(figsize=(7, 5.5))
     axes = fig.subplots(3, 1, sharex=True)
@@ -140,16 +154,12 @@ def position_figure(res: SimulationResult) -> Figure:
     return fixed_layout(fig)
 
 
-def path_figure(res: SimulationResult) -> Figure:
+def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     """3-D view of the wrist path on the tilted plane."""
+    res = _traces(res)
     fig = Figure(figsize=(6, 5.5))
     ax = fig.add_subplot(projection="3d")
-    sc = res.scenario
-    from .environment import task_frame
-
-    R = task_frame(sc.environment.tilt_deg)
-    c = np.asarray(sc.trajectory.center)
-    r = 1.4 * sc.trajectory.radius
+    R, c, r = res.surface_frame, res.center, 1.4 * res.radius
     u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
     plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
     ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
@@ -161,25 +171,10 @@ def path_figure(res: SimulationResult) -> Figure:
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
 
 
-def save_figures(makers, data, folder: str | pathlib.Path, dpi: int = 120) -> list[pathlib.Path]:
-    """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
-    being ``make(data)``; return the paths."""
-    from ..plotstyle import plain_log_labels, styled
-
-    folder = pathlib.Path(folder)
-    out = []
-    for name, make in makers:
-        path = folder / f"{name}.png"
-        with styled():                      # the package's one figure style
-            plain_log_labels(make(data)).savefig(path, dpi=dpi)
-        out.append(path)
-    return out
-
-
-def save_simulation_figures(res: SimulationResult, folder: str | pathlib.Path) -> list[pathlib.Path]:
+def save_simulation_figures(res: SimulationResult | SimulationTraces, folder: str | pathlib.Path,
+                            ) -> list[pathlib.Path]:
     """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
-    return save_figures((("fig3_stiffness", stiffness_figure), ("fig4_force", force_figure),
-                         ("fig5_position", position_figure), ("path3d", path_figure)), res, folder)
+    return save_figures([(name, globals()[make]) for name, make in SIMULATION_FIGURES], _traces(res), folder)
 
 
 def comparison_force_figure(cmp) -> Figure:

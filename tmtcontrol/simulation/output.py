@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
 
 import numpy as np
 
 from ..files import versions, write_json
 
-__all__ = ["TIMESERIES_COLUMNS", "save_simulation", "write_timeseries"]
+__all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries"]
 
 
 TIMESERIES_COLUMNS = (
@@ -16,6 +17,12 @@ TIMESERIES_COLUMNS = (
     "x", "y", "z", "x_ref", "y_ref", "z_ref", "x_cmd", "y_cmd", "z_cmd",
     "q1", "q2", "q3", "dq1", "dq2", "dq3", "tau1", "tau2", "tau3")
 """Columns of timeseries.csv (SI: s, N, N/m, m, rad, rad/s, N m)."""
+
+FIGURE_MODULE = "tmtcontrol.simulation.figures"
+SIMULATION_FIGURES = (("fig5_position", "position_figure"), ("fig3_stiffness", "stiffness_figure"),
+                      ("path3d", "path_figure"), ("fig4_force", "force_figure"))
+"""The figures of a run: (file name, function of :data:`FIGURE_MODULE`),
+longest to draw first, so that two processes sharing them end together."""
 
 
 def write_timeseries(result, path: str | pathlib.Path) -> None:
@@ -31,28 +38,37 @@ def write_timeseries(result, path: str | pathlib.Path) -> None:
         fh.write("\n")
 
 
-def save_simulation(result, folder: str | pathlib.Path, plots: bool = True) -> dict:
+def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, workers=None) -> dict:
     """Write ``timeseries.csv``, ``summary.json`` and (``plots``) the figures of
-    a :class:`~tmtcontrol.SimulationResult` into ``folder``; return the summary."""
+    a :class:`~tmtcontrol.SimulationResult` into ``folder``; return the summary.
+
+    ``workers``: a :class:`~tmtcontrol.drawing.FigureWorkers` for
+    :data:`FIGURE_MODULE`, started before the run, draws the figures while
+    this process writes the tables; without it they are drawn here."""
+    from ..drawing import FigureWorkers
     from .metrics import first_contact, segment_metrics
     from .scenario import scenario_to_dict
 
     folder = pathlib.Path(folder)
     r = result
-    write_timeseries(r, folder / "timeseries.csv")
-    segs = segment_metrics(result)
-    summary = {
-        "scenario": scenario_to_dict(r.scenario),
-        "versions": versions(),
-        "run": r.info,
-        "path": {"condition_number_min": float(r.path.condition_number.min()),
-                 "condition_number_max": r.path.max_condition},
-        "segments": [s.as_dict() for s in segs],
-        "first_contact": first_contact(result).as_dict(),
-    }
+    drawing = None
     if plots:
-        from .figures import save_simulation_figures
-
-        summary["figures"] = [p.name for p in save_simulation_figures(result, folder)]
-    write_json(folder / "summary.json", summary)
+        drawing = (workers or FigureWorkers(FIGURE_MODULE, processes=0)).draw(SIMULATION_FIGURES, r.traces, folder)
+    with contextlib.ExitStack() as stack:
+        if drawing is not None:
+            stack.callback(drawing.cancel)          # on any error: no worker writes into folder after it
+        write_timeseries(r, folder / "timeseries.csv")
+        segs = segment_metrics(r)
+        summary = {
+            "scenario": scenario_to_dict(r.scenario),
+            "versions": versions(),
+            "run": r.info,
+            "path": {"condition_number_min": float(r.path.condition_number.min()),
+                     "condition_number_max": r.path.max_condition},
+            "segments": [s.as_dict() for s in segs],
+            "first_contact": first_contact(r).as_dict(),
+        }
+        if drawing is not None:
+            summary["figures"] = [p.name for p in drawing.result()]
+        write_json(folder / "summary.json", summary)
     return summary

@@ -26,6 +26,7 @@ from .environment import stiffness_samples, task_frame
 from ..model.puma560 import Puma560
 from .scenario import Scenario, ScenarioError, paper_scenario
 from .trajectory import circle_reference
+from .traces import SimulationTraces
 
 __all__ = ["Simulator", "SimulationResult", "SimulationError", "PathReport", "check_path",
            "check_run_size", "MAX_STEPS"]
@@ -181,6 +182,17 @@ class SimulationResult:
     def force_error(self) -> np.ndarray:
         """f_e - f_d, N."""
         return self.contact_force - self.desired_force
+
+    @property
+    def traces(self) -> SimulationTraces:
+        """The series the figures draw and the surface under them, without
+        the scenario (the arrays are shared, not copied)."""
+        sc = self.scenario
+        return SimulationTraces(
+            time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
+            stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
+            reference_position=self.reference_position, surface_frame=task_frame(sc.environment.tilt_deg),
+            center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius))
 
 
 class Simulator:

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..plotstyle import fixed_layout
-from ..simulation.figures import save_figures
+from ..drawing import save_figures
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",

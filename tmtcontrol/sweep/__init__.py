@@ -136,7 +136,7 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
                         "sweep": {"grid": sweep.grid, "random": sweep.random, "samples": sweep.samples,
                                   "seed": sweep.seed, "fingerprint": sweep.fingerprint}})
         if plots:
-            from ..simulation.figures import save_figures
+            from ..drawing import save_figures
             from .figures import law_distribution_figure, sweep_map_figure
 
             facet = _facet_axis(sweep, df)

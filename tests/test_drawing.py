@@ -1,0 +1,170 @@
+"""Figures drawn by forked workers: the same files as drawn here, failures
+reported, and nothing written once the caller stops them."""
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from tmtcontrol.drawing import FigureProcessError, FigureWorkers
+from tmtcontrol.simulation.output import FIGURE_MODULE, SIMULATION_FIGURES
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the workers fork on Linux only")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_forked_workers_write_the_files_drawing_here_writes(paper_result, tmp_path):
+    """Agg output is deterministic: the PNGs of the two workers equal, byte for
+    byte, those drawn in this process from the full result (not its traces)."""
+    from tmtcontrol.simulation.figures import save_simulation_figures
+
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir(), there.mkdir()
+    expected = save_simulation_figures(paper_result, here)
+    with FigureWorkers(FIGURE_MODULE) as workers:
+        assert workers.forked
+        got = workers.draw(SIMULATION_FIGURES, paper_result.traces, there).result()
+    assert [p.name for p in got] == [f"{name}.png" for name, _ in SIMULATION_FIGURES]
+    assert sorted(p.name for p in got) == sorted(p.name for p in expected)
+    for p in got:
+        assert p.parent == there and p.read_bytes() == (here / p.name).read_bytes(), p.name
+
+
+@pytest.fixture
+def figure_module(tmp_path, monkeypatch):
+    """A module of figure functions: one that works, one that raises, one slow."""
+    (tmp_path / "mod").mkdir()
+    (tmp_path / "mod" / "figs_under_test.py").write_text(textwrap.dedent("""
+        import time
+        from matplotlib.figure import Figure
+
+        def good(data):
+            fig = Figure(figsize=(2, 1))
+            fig.add_subplot().plot(data)
+            return fig
+
+        def bad(data):
+            raise ZeroDivisionError("figure function failed on purpose")
+
+        def slow(data):
+            time.sleep(0.4)
+            return good(data)
+        """))
+    monkeypatch.syspath_prepend(str(tmp_path / "mod"))      # the workers inherit sys.path
+    out = tmp_path / "out"
+    out.mkdir()
+    return "figs_under_test", out
+
+
+def test_a_failing_figure_raises_with_its_traceback(figure_module):
+    module, out = figure_module
+    with FigureWorkers(module) as workers:
+        drawing = workers.draw([("a", "good"), ("b", "bad"), ("c", "good")], [1, 2, 3], out)
+        with pytest.raises(FigureProcessError, match="ZeroDivisionError: figure function failed on purpose"):
+            drawing.result()
+
+
+def test_a_missing_module_raises_and_names_it(tmp_path):
+    with FigureWorkers("no_such_module_for_figures") as workers:
+        with pytest.raises(FigureProcessError, match="No module named 'no_such_module_for_figures'"):
+            workers.draw([("a", "good")], [1], tmp_path).result()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_stopped_workers_write_nothing_and_are_reaped(figure_module):
+    """Stopped while drawing (each figure takes 0.4 s): no file appears after
+    stop() returns, and no worker is left."""
+    module, out = figure_module
+    workers = FigureWorkers(module)
+    pid = workers._pid
+    drawing = workers.draw([(f"f{i}", "slow") for i in range(6)], [1, 2], out)
+    time.sleep(0.6)                 # the workers are drawing (imports take ~0.4 s here)
+    drawing.cancel()
+    left = sorted(p.name for p in out.iterdir())
+    time.sleep(1.0)                 # longer than one more figure would take
+    assert sorted(p.name for p in out.iterdir()) == left
+    assert len(left) < 6            # stopped before the end: the test tested something
+    assert not _alive(pid)
+    drawing.cancel()                # twice is harmless
+
+
+def test_unused_workers_are_stopped_at_exit(tmp_path):
+    with FigureWorkers(FIGURE_MODULE) as workers:
+        pid = workers._pid
+        assert _alive(pid)
+    assert not _alive(pid) and list(tmp_path.iterdir()) == []
+
+
+def test_processes_zero_draws_here(figure_module):
+    module, out = figure_module
+    workers = FigureWorkers(module, processes=0)
+    assert not workers.forked
+    paths = workers.draw([("a", "good")], [1, 2], out).result()
+    assert [p.name for p in paths] == ["a.png"] and paths[0].stat().st_size > 0
+    with pytest.raises(ValueError, match="processes"):
+        FigureWorkers(module, processes=3)
+
+
+def test_simulate_interrupted_with_figure_workers_leaves_no_process_and_no_file(tmp_path):
+    """SIGTERM while the run computes and the workers wait with matplotlib
+    loaded: exit 143, nothing written, and no process of the command left
+    (a forked worker has the command line of its parent)."""
+    import signal
+
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "tmtcontrol.cli", "simulate", "--set", "trajectory.cycles=200", "--out", str(out)]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 30
+    while time.time() < deadline and not any(tmp_path.iterdir()):   # the staging folder: running now
+        time.sleep(0.05)
+    time.sleep(0.3)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143, err
+    assert list(tmp_path.iterdir()) == []
+    time.sleep(0.2)
+    left = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/cmdline", "rb") as fh:
+                    if str(out).encode() in fh.read():
+                        left.append(d)
+            except OSError:
+                pass
+    assert left == []
+
+
+def test_the_package_and_the_command_line_start_without_numpy_casadi_or_matplotlib():
+    """The top-level API resolves on first access (PEP 562), so the command
+    line can fork its figure workers before the heavy imports; every name of
+    ``__all__`` resolves to the object of its defining module."""
+    code = textwrap.dedent("""
+        import sys
+        import tmtcontrol, tmtcontrol.cli, tmtcontrol.drawing, tmtcontrol.files
+        heavy = sorted(m for m in ("numpy", "casadi", "matplotlib", "pydantic") if m in sys.modules)
+        assert heavy == [], heavy
+        from tmtcontrol import *
+        import tmtcontrol.simulation.simulator as s
+        assert Simulator is s.Simulator and tmtcontrol.SimulationResult is s.SimulationResult
+        assert set(tmtcontrol.__all__) == {"__version__", *tmtcontrol._WHERE}
+        for name in tmtcontrol.__all__:
+            assert getattr(tmtcontrol, name) is not None, name
+        try:
+            tmtcontrol.no_such_name
+        except AttributeError as e:
+            assert "no_such_name" in str(e)
+        else:
+            raise AssertionError("no AttributeError")
+        """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr

@@ -1,0 +1,281 @@
+"""Writing figures as PNG files (:func:`save_figures`), here or by two
+processes forked before the work that feeds them (:class:`FigureWorkers`).
+
+Importing matplotlib costs about 0.3-0.4 s and drawing a simulation's four
+PNGs about as much again, all on one core. :class:`FigureWorkers`, created
+first thing, forks a process that imports matplotlib and the figure module
+while this one imports CasADi and simulates; that process then forks a
+second, which inherits the imports. Given the data, both draw, taking the
+figures one at a time from a shared queue (one byte per figure in a pipe),
+while this process writes its tables. The two run in a process group of
+their own, so they are killed together when this process stops waiting for
+them (an error, Ctrl-C, SIGTERM); they never write outside the folder given.
+
+On platforms without a safe ``fork`` (anything but Linux) or with
+``processes=0``, the figures are drawn here when their result is asked for:
+the same files either way.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import threading
+import traceback
+from collections.abc import Sequence
+
+__all__ = ["save_figures", "FigureWorkers", "Drawing", "FigureProcessError"]
+
+
+def save_figures(makers, data, folder, dpi: int = 120) -> list:
+    """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
+    being ``make(data)``, in the house style; return the paths."""
+    import pathlib
+
+    from .plotstyle import plain_log_labels, styled
+
+    folder = pathlib.Path(folder)
+    out = []
+    for name, make in makers:
+        path = folder / f"{name}.png"
+        with styled():                      # the package's one figure style
+            plain_log_labels(make(data)).savefig(path, dpi=dpi)
+        out.append(path)
+    return out
+
+
+class FigureProcessError(RuntimeError):
+    """A figure process failed: its traceback, or how it ended."""
+
+
+def _can_fork() -> bool:
+    return sys.platform.startswith("linux") and hasattr(os, "fork")
+
+
+def _read_all(fd: int) -> bytes:
+    chunks = []
+    while chunk := os.read(fd, 1 << 20):
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+class FigureWorkers:
+    """Processes that import ``module`` now and draw its figures later.
+
+    Parameters
+    ----------
+    module : str
+        The module whose functions draw the figures (each takes the data and
+        returns a matplotlib Figure); imported by the workers at once.
+    processes : int
+        0: draw in this process when asked; otherwise 2 (one per core here).
+
+    Use as a context manager: leaving it stops the workers that are still
+    running. :meth:`draw` hands them the data and returns a :class:`Drawing`.
+    """
+
+    def __init__(self, module: str, processes: int = 2):
+        if processes not in (0, 2):
+            raise ValueError(f"processes: 0 or 2, got {processes!r}")
+        self.module = module
+        self._pid: int | None = None
+        self._jobs: list[int] = []        # write ends: one job message per worker
+        self._results: list[int] = []     # read ends: one result message per worker
+        self._tokens: int | None = None   # write end of the shared queue
+        self._sender: threading.Thread | None = None
+        if processes and _can_fork():
+            self._start(processes)
+
+    def _start(self, processes: int) -> None:
+        jobs = [os.pipe() for _ in range(processes)]
+        results = [os.pipe() for _ in range(processes)]
+        tokens = os.pipe()
+        pid = os.fork()
+        if pid == 0:                                          # pragma: no cover - runs in the worker
+            _worker(self.module, jobs, results, tokens)
+        self._pid = pid
+        os.close(tokens[0])
+        self._tokens = tokens[1]
+        for (r, w), (rr, rw) in zip(jobs, results):
+            os.close(r)
+            os.close(rw)
+            self._jobs.append(w)
+            self._results.append(rr)
+
+    @property
+    def forked(self) -> bool:
+        """True if the figures are drawn by forked processes."""
+        return self._pid is not None
+
+    def draw(self, figures: Sequence[tuple[str, str]], data, folder) -> Drawing:
+        """Start writing ``folder/NAME.png`` for each ``(NAME, FUNCTION)`` of
+        ``figures`` (longest to draw first), the figure being
+        ``module.FUNCTION(data)``; ``data`` must pickle with what the
+        workers have imported. Once per instance."""
+        figures = list(figures)
+        if self.forked:
+            if self._tokens is None:
+                raise RuntimeError("FigureWorkers.draw: the workers have been given their figures already")
+            if len(figures) > 255:
+                raise ValueError(f"figures: at most 255 per drawing, got {len(figures)}")
+            _write_all(self._tokens, bytes(range(len(figures))))      # the shared queue
+            os.close(self._tokens)
+            self._tokens = None
+            message = pickle.dumps((figures, data, str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
+            # a pipe holds 64 kB: a thread writes, so this process does not wait for the workers to read
+            self._sender = threading.Thread(target=self._send, args=(message,), name="tmtcontrol-figures",
+                                            daemon=True)
+            self._sender.start()
+        return Drawing(self, figures, data, folder)
+
+    def _send(self, message: bytes) -> None:
+        """The job to every worker; closes the job pipes (only here, so no
+        descriptor is closed while it is written to)."""
+        jobs, self._jobs = self._jobs, []
+        for fd in jobs:
+            try:
+                _write_all(fd, message)
+            except OSError:              # the worker is gone (stopped, or failed: its result says)
+                pass
+            finally:
+                os.close(fd)
+
+    def stop(self) -> None:
+        """Kill the workers unless they have finished, and release their
+        pipes. Nothing is written by them after this returns."""
+        if self._pid is None:
+            return
+        try:
+            os.killpg(self._pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        if self._sender is not None:
+            self._sender.join()          # its writes fail at once: the readers are gone
+        for fd in [*self._jobs, *self._results, *([self._tokens] if self._tokens is not None else [])]:
+            os.close(fd)
+        self._jobs, self._results, self._tokens = [], [], None
+        try:
+            os.waitpid(self._pid, 0)
+        except ChildProcessError:
+            pass
+        self._pid = None
+
+    def __enter__(self) -> FigureWorkers:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+class Drawing:
+    """Figures being drawn; :meth:`result` waits for their paths."""
+
+    def __init__(self, workers: FigureWorkers, figures: list[tuple[str, str]], data, folder):
+        self._workers, self._figures, self._data, self._folder = workers, figures, data, folder
+
+    def cancel(self) -> None:
+        """Stop the workers unless they have finished (a no-op after
+        :meth:`result`): nothing is written into the folder after this."""
+        self._workers.stop()
+
+    def result(self) -> list:
+        """The paths written, in the order of ``figures``. Raises
+        :class:`FigureProcessError` if a worker failed."""
+        import importlib
+        import pathlib
+
+        w = self._workers
+        if not w.forked:
+            module = importlib.import_module(w.module)
+            return save_figures([(n, getattr(module, f)) for n, f in self._figures], self._data, self._folder)
+        written, errors = {}, []
+        for fd in w._results:
+            raw = _read_all(fd)
+            if not raw:
+                errors.append("a figure process ended without a result")
+                continue
+            status, value = pickle.loads(raw)
+            if status == "ok":
+                written.update(value)
+            else:
+                errors.append(value)
+        w.stop()
+        if errors:
+            raise FigureProcessError("drawing the figures failed:\n" + "\n".join(errors))
+        missing = [n for n, _ in self._figures if n not in written]
+        if missing:
+            raise FigureProcessError(f"figures not drawn: {', '.join(missing)}")
+        return [pathlib.Path(written[n]) for n, _ in self._figures]
+
+
+def _worker(module, jobs, results, tokens):               # pragma: no cover - runs in the worker
+    """The first worker: own process group, import, fork the second, draw."""
+    code = 1
+    try:
+        os.setpgid(0, 0)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_DFL)
+        signal.signal(signal.SIGCHLD, signal.SIG_IGN)     # the second worker is reaped by the kernel
+        os.close(tokens[1])
+        for (r, w), (rr, rw) in zip(jobs, results):
+            os.close(w)
+            os.close(rr)
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")    # small arrays: no BLAS threads to fork
+        try:
+            import importlib
+
+            for name in (module, "tmtcontrol.plotstyle", "matplotlib.style"):   # before the fork: both have them
+                importlib.import_module(name)
+        except BaseException:
+            _report(results[0][1], ("error", traceback.format_exc()))
+            os._exit(1)
+        me = 0
+        for i in range(1, len(jobs)):
+            if os.fork() == 0:
+                me = i
+                break
+        for i, ((r, _), (_, rw)) in enumerate(zip(jobs, results)):
+            if i != me:
+                os.close(r)
+                os.close(rw)
+        code = _draw(module, jobs[me][0], results[me][1], tokens[0])
+    finally:
+        os._exit(code)
+
+
+def _draw(module, job_fd, result_fd, token_fd) -> int:      # pragma: no cover - runs in the worker
+    """Read the job, draw the figures this process takes from the queue,
+    report ``("ok", {name: path})`` or ``("error", traceback)``."""
+    raw = _read_all(job_fd)
+    if not raw:                                              # nothing to draw: the caller stopped
+        return 0
+    try:
+        import importlib
+
+        figures, data, folder = pickle.loads(raw)
+        functions = importlib.import_module(module)
+        written = {}
+        while token := os.read(token_fd, 1):
+            name, function = figures[token[0]]
+            written[name] = str(save_figures([(name, getattr(functions, function))], data, folder)[0])
+    except BaseException:
+        _report(result_fd, ("error", traceback.format_exc()))
+        return 1
+    _report(result_fd, ("ok", written))
+    return 0
+
+
+def _report(fd: int, message) -> None:                     # pragma: no cover - runs in the worker
+    try:
+        _write_all(fd, pickle.dumps(message))
+        os.close(fd)
+    except OSError:
+        pass
