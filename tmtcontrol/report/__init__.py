@@ -7,7 +7,7 @@ import pathlib
 import time
 from typing import Callable
 
-from .document import FORCE_TOLERANCE, STAGES, Report, Verdict, build_report, finish
+from .document import FORCE_TOLERANCE, STAGES, Report, Verdict, build_report, finish, frozen_gc
 from .render import FORMATS, prepare_writing, render_html, render_pdf
 
 __all__ = ["Verdict", "Report", "build_report", "write_report", "render_html", "render_pdf", "FORCE_TOLERANCE",
@@ -40,7 +40,8 @@ def write_report(rep: Report, folder, formats=FORMATS, progress: Callable | None
     if "pdf" in formats:
         t0 = time.perf_counter()
         path = folder / "report.pdf"
-        render_pdf(html, path)
+        with frozen_gc():           # the document and its results live on: the layout's collections skip them
+            render_pdf(html, path)
         written.append(path)
         rep.timings["writing PDF"] = time.perf_counter() - t0
         say("writing PDF", rep.timings["writing PDF"])

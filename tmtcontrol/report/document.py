@@ -111,11 +111,14 @@ class Report:
 
 
 def svg(fig) -> str:
-    """A Figure as SVG text (vector: crisp zoomed and printed)."""
+    """A Figure as SVG text (vector: crisp zoomed and printed), slimmed for
+    drawing (:func:`~.slimsvg.slim_svg`)."""
+    from .slimsvg import slim_svg
+
     buf = io.StringIO()
     with styled():
         plain_log_labels(fig).savefig(buf, format="svg", metadata={"Date": None})
-    return buf.getvalue()
+    return slim_svg(buf.getvalue())
 
 
 def figure(caption: str, make: Callable, *args, **kw) -> FigureBlock:
@@ -482,7 +485,8 @@ def _remote_tasks() -> list[str]:
 _PRELOAD = ("matplotlib.figure", "matplotlib.backends.backend_svg", "tmtcontrol.stability.analysis",
             "tmtcontrol.stability.design", "tmtcontrol.stability.figures", "tmtcontrol.simulation.compare",
             "tmtcontrol.simulation.figures", "tmtcontrol.sweep", "tmtcontrol.sweep.figures",
-            "tmtcontrol.checks.derivations", "tmtcontrol.checks.laws", "tmtcontrol.checks.loop")
+            "tmtcontrol.checks.derivations", "tmtcontrol.checks.laws", "tmtcontrol.checks.loop",
+            "tmtcontrol.report.slimsvg")
 """Modules both processes need, imported before the second one is forked so
 that it inherits them (not python-control: only the second process uses it)."""
 
@@ -550,12 +554,30 @@ def _pull(sc: Scenario, p: dict):
 
 
 @contextlib.contextmanager
+def frozen_gc():
+    """For the block, the objects alive now are out of the cyclic garbage
+    collector's reach (``gc.freeze``; ``gc.unfreeze`` after). A report's
+    imports and results live until it is written: walking them again at
+    every full collection cost 0.3-0.5 s per process. Before a fork it is
+    also what the ``gc`` documentation advises (the child's collections do
+    not write to the parent's pages)."""
+    import gc
+
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+@contextlib.contextmanager
 def _background():
     """A second process for :func:`_remote_tasks`, and the claims both
     processes take them by: on Linux forked after :data:`_PRELOAD` is
     imported (it inherits the imports and ends without an interpreter
     teardown), elsewhere a fresh interpreter; a thread if processes are
-    unavailable."""
+    unavailable. The imports are frozen out of the collector's reach
+    (:func:`frozen_gc`) until the block ends."""
     import concurrent.futures
     import importlib
     import multiprocessing
@@ -566,15 +588,16 @@ def _background():
     ctx = multiprocessing.get_context("fork" if linux_fork else "spawn")
     tasks = _remote_tasks()
     claims = ctx.Array("i", [0, len(tasks)])
-    try:
-        pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=_share,
-                                                      initargs=(claims, tasks))
-    except (OSError, ImportError, NotImplementedError):
-        pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share, initargs=(claims, tasks))
-    try:
-        yield pool, claims, tasks
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    with frozen_gc():
+        try:
+            pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=_share,
+                                                          initargs=(claims, tasks))
+        except (OSError, ImportError, NotImplementedError):
+            pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share, initargs=(claims, tasks))
+        try:
+            yield pool, claims, tasks
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts: dict, say: Callable,
