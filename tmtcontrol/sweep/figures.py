@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..plotstyle import fixed_layout
+
 __all__ = ["sweep_map_figure", "law_distribution_figure", "VERDICT_STYLE"]
 
 VERDICT_STYLE = {"converged": ("o", "#0072B2"), "limit_cycle": ("^", "#E69F00"), "diverged": ("X", "#D55E00")}
@@ -26,7 +28,7 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
     import matplotlib as mpl
 
     panels = [(None, df)] if facet is None else list(df.groupby(facet, sort=True))
-    fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6), layout="constrained")
+    fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6))
     err_all = np.clip(df["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
     norm = mpl.colors.LogNorm(vmin=max(np.nanmin(err_all), 1e-6), vmax=max(np.nanmax(err_all), 1e-5))
     x_key = axes[0]
@@ -69,10 +71,18 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
                if j == 0 else "", title=f"{facet} = {fv}" if facet else "Sweep: verdict (marker), accuracy (colour)")
         ax.legend(fontsize="small")
         ax.grid(True, which="both", alpha=0.3)
-    if sc is not None:
-        fig.colorbar(sc, ax=fig.axes, label="worst steady-state |f_e - f_d| (N)")
+        if j > 0:
+            ax.tick_params(labelleft=False)         # shared with the first panel
     if facet:
         fig.suptitle("Sweep: verdict (marker) and accuracy (colour)")
+    # fixed margins (constrained layout measured every text: half the figure's time), the colour
+    # bar in the right margin beside the last panel
+    fixed_layout(fig, right=1.25 if sc is not None else 0.15, top=0.6 if facet else 0.32)
+    if sc is not None:
+        w, _ = fig.get_size_inches()
+        box = fig.axes[-1].get_position()
+        cax = fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height))
+        fig.colorbar(sc, cax=cax, label="worst steady-state |f_e - f_d| (N)")
     return fig
 
 
