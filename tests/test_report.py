@@ -399,6 +399,37 @@ def test_this_process_leaves_the_tasks_below_the_floor_to_the_other():
         assert _claim(claims, last=True, floor=3) is None
 
 
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+
+def test_both_report_processes_compute_with_one_blas_thread():
+    """The report's matrices are small: BLAS threads on two busy processes
+    made the sampled stage 3x slower, so each process uses one, this one
+    within the stages and the second for its life."""
+    import threadpoolctl
+
+    from tmtcontrol.report.document import _background, _one_blas_thread
+
+    if not [i for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]:
+        pytest.fail("no BLAS library found by threadpoolctl")
+    import multiprocessing
+
+    from tmtcontrol.report.document import _share
+
+    with threadpoolctl.threadpool_limits(limits=2):           # not 1 to begin with, so the test can fail
+        assert _blas_threads() == [2]
+        with _background() as (pool, _, _), _one_blas_thread():
+            assert pool.submit(_blas_threads).result() == [1]
+            assert _blas_threads() == [1]
+        assert _blas_threads() == [2]
+        # the second process' initializer sets it itself (a spawned process inherits nothing)
+        _share(multiprocessing.Array("i", [0, 0]), [])
+        assert _blas_threads() == [1]
+
+
 def test_the_report_ran_each_task_once_and_every_check_group(paper_report):
     out, _ = paper_report
     html = (out / "report.html").read_text()

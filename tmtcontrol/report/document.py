@@ -513,11 +513,10 @@ def _task(name: str, sc: Scenario, p: dict):
     from ..checks import run_check_group
 
     t0 = time.perf_counter()
-    with _one_blas_thread():
-        if name.startswith("checks: "):
-            output, verdicts, data = run_check_group(name.removeprefix("checks: ")), [], {}
-        else:
-            output, verdicts, data = _on_own(sc, _TASKS[name], sc, p)
+    if name.startswith("checks: "):
+        output, verdicts, data = run_check_group(name.removeprefix("checks: ")), [], {}
+    else:
+        output, verdicts, data = _on_own(sc, _TASKS[name], sc, p)
     return output, verdicts, data, time.perf_counter() - t0
 
 
@@ -528,7 +527,12 @@ set by the pool's initializer."""
 
 
 def _share(claims, tasks) -> None:
+    """The second process' initializer: the claims, and one BLAS thread for
+    its lifetime (this process holds :func:`_one_blas_thread` around the
+    stages; setting it per task cost 12 ms each, threadpoolctl scanning the
+    loaded libraries)."""
     _SHARED.update(claims=claims, tasks=tasks)
+    _one_blas_thread()
 
 
 def _claim(claims, last: bool = False, floor: int = 0) -> int | None:
