@@ -39,6 +39,22 @@ def test_forked_workers_write_the_files_drawing_here_writes(paper_result, tmp_pa
         assert p.parent == there and p.read_bytes() == (here / p.name).read_bytes(), p.name
 
 
+def test_traces_carry_the_surface_the_wrist_presses_on(paper_result):
+    """The plane the path figure draws (through the circle's centre, normal
+    e_n = first column of surface_frame) is the surface of eq. (13): in
+    contact the wrist's depth below it is f_e / k_e (the paper scenario has
+    no environment damping), to rounding."""
+    import numpy as np
+
+    tr = paper_result.traces
+    depth = (tr.position - tr.center[:, None]).T @ tr.surface_frame[:, 0]
+    touching = tr.contact_force > 0
+    assert touching.mean() > 0.9
+    np.testing.assert_allclose(depth[touching], tr.contact_force[touching] / tr.stiffness[touching],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tr.surface_frame.T @ tr.surface_frame, np.eye(3), atol=1e-15)
+
+
 @pytest.fixture
 def figure_module(tmp_path, monkeypatch):
     """A module of figure functions: one that works, one that raises, one slow."""
