@@ -184,3 +184,21 @@ def test_the_package_and_the_command_line_start_without_numpy_casadi_or_matplotl
         """)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("args,code,needle", [
+    (["--set", "nope.x=1"], 2, "nope: unknown key"),
+    (["--set", "trajectory.center=[3.0, 0.0, 0.5]"], 2, "unreachable"),
+    (["--set", "controller.rate=100", "--set", "impedance.k=[1e6, 1e6, 1e6]", "--set", "trajectory.cycles=0.5"],
+     1, "diverged at t ="),
+])
+def test_simulate_with_figure_workers_fails_in_one_line_and_writes_nothing(tmp_path, args, code, needle):
+    """With the figure workers running (no --no-plots): bad input exits 2 and a
+    diverging run 1, in one line, with no folder, file or worker left."""
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--out", str(out), *args],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == code, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, r.stderr
+    assert r.stdout == "" and list(tmp_path.iterdir()) == []
