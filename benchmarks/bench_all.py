@@ -15,6 +15,11 @@ Rows (median of repeats, this machine, warm compile cache unless said):
 Prints a table and writes the same rows as JSON (``--json``, default
 ``benchmarks/results.json``) with the machine's CPU and core count. No row
 asserts anything: the targets are beside the figures for a person to read.
+
+On a shared machine the same work takes up to 1.5x longer in a busy hour.
+The host's speed is printed before and after the rows: the time of a fixed
+CPU-bound Python loop (0.29 s on the reference machine when it is quiet),
+so a reader can tell a slow host from a slow change.
 """
 import argparse
 import json
@@ -43,6 +48,15 @@ def cpu() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine()
+
+
+def host_speed() -> float:
+    """Seconds for a fixed CPU-bound pure-Python loop (the host's speed now)."""
+    t0 = time.perf_counter()
+    total = 0
+    for i in range(6_000_000):
+        total += i * i
+    return time.perf_counter() - t0
 
 
 def median_time(fn, repeat):
@@ -94,6 +108,7 @@ def main():
     # as installed by pip, which compiles the bytecode (an editable checkout run
     # with PYTHONDONTWRITEBYTECODE would otherwise compile every module each run)
     compileall.compile_dir(str(ROOT / "tmtcontrol"), quiet=1)
+    speed_before = host_speed()
     rows = []
     rollout_rows(rows)
     with tempfile.TemporaryDirectory(prefix="tmt-bench-") as tmp:
@@ -121,10 +136,12 @@ def main():
                      "accuracy": r.stdout.strip().splitlines()[-1] if r.stdout.strip() else f"exit {r.returncode}"})
     for row in rows:
         row["target_s"] = TARGETS[row["row"]]
-    out = {"machine": {"cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version()},
-           "rows": rows}
+    speed = [speed_before, host_speed()]
+    out = {"machine": {"cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
+                       "host_speed_loop_s": speed}, "rows": rows}
     pathlib.Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
-    print(f"{out['machine']['cpu']}, {out['machine']['cores']} cores, Python {out['machine']['python']}")
+    print(f"{out['machine']['cpu']}, {out['machine']['cores']} cores, Python {out['machine']['python']}; "
+          f"host speed (fixed loop, 0.29 s when quiet): {speed[0]:.2f} s before, {speed[1]:.2f} s after")
     print(f"{'what':<58} {'time':>10} {'target':>9}  note")
     for row in rows:
         t = row["seconds"]
