@@ -126,8 +126,19 @@ def test_processes_zero_draws_here(figure_module):
     assert not workers.forked
     paths = workers.draw([("a", "good")], [1, 2], out).result()
     assert [p.name for p in paths] == ["a.png"] and paths[0].stat().st_size > 0
-    with pytest.raises(ValueError, match="processes"):
-        FigureWorkers(module, processes=3)
+    for bad in (-1, 9, 1.5, True):
+        with pytest.raises(ValueError, match="processes"):
+            FigureWorkers(module, processes=bad)
+
+
+def test_one_process_or_three_draw_every_figure_once(figure_module):
+    module, out = figure_module
+    for n in (1, 3):
+        with FigureWorkers(module, processes=n) as workers:
+            drawing = workers.draw([(f"f{n}_{i}", "good") for i in range(5)], [1, 2], out)
+            paths = drawing.result()
+            assert drawing.result() is paths            # waited for once
+    assert sorted(p.name for p in out.iterdir()) == sorted(f"f{n}_{i}.png" for n in (1, 3) for i in range(5))
 
 
 def test_simulate_interrupted_with_figure_workers_leaves_no_process_and_no_file(tmp_path):
@@ -166,7 +177,7 @@ def test_the_package_and_the_command_line_start_without_numpy_casadi_or_matplotl
     ``__all__`` resolves to the object of its defining module."""
     code = textwrap.dedent("""
         import sys
-        import tmtcontrol, tmtcontrol.cli, tmtcontrol.drawing, tmtcontrol.files
+        import tmtcontrol, tmtcontrol.cli, tmtcontrol.drawing, tmtcontrol.files, tmtcontrol.simulation.output
         heavy = sorted(m for m in ("numpy", "casadi", "matplotlib", "pydantic") if m in sys.modules)
         assert heavy == [], heavy
         from tmtcontrol import *

@@ -173,9 +173,10 @@ def _load(args):
 
 def _simulate(args) -> int:
     from .drawing import FigureWorkers
+    from .simulation.output import FIGURE_MODULE
 
     # matplotlib is imported by the figure processes while this one loads CasADi and simulates
-    with FigureWorkers("tmtcontrol.simulation.figures", processes=0 if args.no_plots else 2) as workers:
+    with FigureWorkers(FIGURE_MODULE, processes=0 if args.no_plots else 2) as workers:
         return _simulate_with(args, workers)
 
 

@@ -76,15 +76,19 @@ class FigureWorkers:
         The module whose functions draw the figures (each takes the data and
         returns a matplotlib Figure); imported by the workers at once.
     processes : int
-        0: draw in this process when asked; otherwise 2 (one per core here).
+        How many processes draw (default 2, one per core of the reference
+        machine); 0 draws in this process when the result is asked for.
 
     Use as a context manager: leaving it stops the workers that are still
     running. :meth:`draw` hands them the data and returns a :class:`Drawing`.
+    Made for the command line, which forks before it starts any thread; in
+    a process that already runs threads (a notebook, a server) forking is
+    unsafe: use ``processes=0`` there.
     """
 
     def __init__(self, module: str, processes: int = 2):
-        if processes not in (0, 2):
-            raise ValueError(f"processes: 0 or 2, got {processes!r}")
+        if isinstance(processes, bool) or not isinstance(processes, int) or not 0 <= processes <= 8:
+            raise ValueError(f"processes: an integer from 0 to 8, got {processes!r}")
         self.module = module
         self._pid: int | None = None
         self._jobs: list[int] = []        # write ends: one job message per worker
@@ -180,6 +184,7 @@ class Drawing:
 
     def __init__(self, workers: FigureWorkers, figures: list[tuple[str, str]], data, folder):
         self._workers, self._figures, self._data, self._folder = workers, figures, data, folder
+        self._paths: list | None = None
 
     def cancel(self) -> None:
         """Stop the workers unless they have finished (a no-op after
@@ -187,8 +192,14 @@ class Drawing:
         self._workers.stop()
 
     def result(self) -> list:
-        """The paths written, in the order of ``figures``. Raises
-        :class:`FigureProcessError` if a worker failed."""
+        """The paths written, in the order of ``figures`` (waits for them
+        once; the same list after). Raises :class:`FigureProcessError` if a
+        worker failed."""
+        if self._paths is None:
+            self._paths = self._wait()
+        return self._paths
+
+    def _wait(self) -> list:
         import importlib
         import pathlib
 

@@ -18,7 +18,6 @@ from matplotlib.figure import Figure
 
 from ..drawing import save_figures
 from ..plotstyle import fixed_layout
-
 from .output import SIMULATION_FIGURES
 from .traces import SimulationTraces
 

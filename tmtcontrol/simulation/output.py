@@ -5,8 +5,6 @@ from __future__ import annotations
 import contextlib
 import pathlib
 
-import numpy as np
-
 from ..files import versions, write_json
 
 __all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries"]
@@ -27,12 +25,15 @@ longest to draw first, so that two processes sharing them end together."""
 
 def write_timeseries(result, path: str | pathlib.Path) -> None:
     """Write the :data:`TIMESERIES_COLUMNS` of a result as CSV."""
+    import numpy as np        # here: the command line reads FIGURE_MODULE before NumPy is loaded
+
     r = result
     data = np.column_stack([r.time, r.contact_force, r.measured_force, r.desired_force, r.stiffness,
                             r.stiffness_estimate, r.position.T, r.reference_position.T,
                             r.command_position.T, r.q.T, r.dq.T, r.tau.T])
     row = ",".join(["%.9g"] * data.shape[1])
-    # as np.savetxt(fmt="%.9g"), in one formatting call over every row (half savetxt's time)
+    # np.savetxt(fmt="%.9g")'s text (tested), in one formatting call over every row: a fifth
+    # faster than row by row, which was already faster than savetxt
     body = "\n".join([row] * data.shape[0]) % tuple(data.ravel().tolist())
     with open(path, "w", newline="\n") as fh:
         fh.write(",".join(TIMESERIES_COLUMNS) + "\n")
