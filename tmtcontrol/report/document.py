@@ -560,11 +560,13 @@ def _pull(sc: Scenario, p: dict):
 @contextlib.contextmanager
 def frozen_gc():
     """For the block, the objects alive now are out of the cyclic garbage
-    collector's reach (``gc.freeze``; ``gc.unfreeze`` after). A report's
-    imports and results live until it is written: walking them again at
-    every full collection cost 0.3-0.5 s per process. Before a fork it is
-    also what the ``gc`` documentation advises (the child's collections do
-    not write to the parent's pages)."""
+    collector's reach (``gc.freeze``; ``gc.unfreeze`` after, which also
+    returns anything frozen earlier: tmtcontrol freezes only here and, for
+    good, at the command line's exit). A report's imports and results live
+    until it is written: walking them again at every full collection cost
+    0.3-0.5 s per process. Before a fork it is also what the ``gc``
+    documentation advises (the child's collections do not write to the
+    parent's pages)."""
     import gc
 
     gc.freeze()
