@@ -52,6 +52,29 @@ def test_whole_loop_and_1d_model_agree_on_the_paper_path():
     assert max(limits) / min(limits) > 1.02
 
 
+def test_whole_loop_jacobian_is_the_derivative_of_the_step_and_far_warm_starts_fall_back():
+    """The whole loop's A is the derivative of its step: central differences
+    of the step at the equilibrium agree to 1e-6 (relative to A's largest
+    entry; the difference step 1e-7 leaves truncation and rounding well below
+    that). A stiffness 500x softer than the last one at the same point scales
+    the warm start out of the workspace: the 1-D guess takes over."""
+    from tmtcontrol.stability.wholeloop import WholeLoopModel
+
+    m = WholeLoopModel(paper_scenario())
+    w = m.at(5000.0)
+    u = np.r_[m._u(0, 5000.0), m.P]
+    d, h = m.dynamic, 1e-7
+    fd = np.empty((d.size, d.size))
+    for j, col in enumerate(d):
+        e = np.zeros(w.s_eq.size)
+        e[col] = h * (1.0 + abs(w.s_eq[col]))
+        plus, minus = (np.ravel(np.array(m._f(w.s_eq + sgn * e, u)[0])) for sgn in (1, -1))
+        fd[:, j] = (plus - minus)[d] / (2 * e[col])
+    assert np.max(np.abs(fd - w.A)) < 1e-6 * np.max(np.abs(w.A))
+    soft = m.at(10.0)                                # warm start from 5000 N/m would leave the workspace
+    assert soft.residual < 1e-8 and soft.stable
+
+
 def test_delay_of_one_sample_lowers_the_limit_and_simulation_agrees_within_2_percent():
     law, mp = get_law("tmt"), paper_effective_mass(worst=True)
     no_delay = law_stiffness_limit(law, **PAPER, Ts=1e-3, m_p=mp)

@@ -58,7 +58,13 @@ def _build(sc):
     dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
                         for i in range(sl.start, sl.stop)])
     f = ca.Function("whole_step", [s, up], [s_next, log[LOG["f_e"]]], ["s", "up"], ["s_next", "f_e"])
-    jac = ca.Function("whole_jacobian", [s, up], [ca.jacobian(s_next, s)], ["s", "up"], ["A"])
+    # The Jacobian by algorithmic differentiation through the step Function (MX), not expanded
+    # into one SX graph: that graph had 205,000 operations (20x the step), took as long to build
+    # as everything else here and evaluated 2-3x slower than the forward sweeps it replaces.
+    s_mx, up_mx = ca.MX.sym("s", layout.size), ca.MX.sym("up", up.numel())
+    nu = u.numel()
+    s_next_mx = sim.step(s_mx, up_mx[:nu], up_mx[nu:])[0]
+    jac = ca.Function("whole_jacobian", [s_mx, up_mx], [ca.jacobian(s_next_mx, s_mx)], ["s", "up"], ["A"])
     return sim, layout, dynamic, f, jac
 
 
@@ -172,7 +178,11 @@ class WholeLoopModel:
 
         guesses = ([lambda: from_previous(*self._warm[i])] if i in self._warm else []) + [from_1d]
         for guess in guesses:
-            s_eq, residual = self._newton(guess(), u)
+            try:
+                start = guess()
+            except ValueError:       # scaled from a far stiffness, the guess left the workspace
+                continue
+            s_eq, residual = self._newton(start, u)
             if residual < 1e-8:
                 self._warm[i] = (s_eq, float(k_e))
                 break
