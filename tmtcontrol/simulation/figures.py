@@ -170,8 +170,8 @@ def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
 
 
-def save_simulation_figures(res: SimulationResult | SimulationTraces, folder: str | pathlib.Path,
-                            ) -> list[pathlib.Path]:
+def save_simulation_figures(res: SimulationResult | SimulationTraces,
+                            folder: str | pathlib.Path) -> list[pathlib.Path]:
     """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
     return save_figures([(name, globals()[make]) for name, make in SIMULATION_FIGURES], _traces(res), folder)
 
