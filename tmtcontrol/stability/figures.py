@@ -88,7 +88,7 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     from matplotlib.colors import TwoSlopeNorm
 
     cs = ax.contourf(T, K, np.clip(rho, 0.9, 1.5), levels=np.r_[np.linspace(0.9, 1.0, 6), np.linspace(1.05, 1.5, 10)],
-                     cmap="RdYlGn_r", norm=TwoSlopeNorm(vmin=0.9, vcenter=1.0, vmax=1.5))
+                     cmap="RdBu_r", norm=TwoSlopeNorm(vmin=0.9, vcenter=1.0, vmax=1.5))   # ColorBrewer: colour-blind safe
     ax.contour(T, K, rho, levels=[1.0], colors="k", linewidths=2)
     fig.colorbar(cs, ax=ax, label="spectral radius")
     for Ts, ke, label in points:
