@@ -118,6 +118,7 @@ def test_the_cascade_order_and_what_must_stay():
     "<svg xmlns='http://www.w3.org/2000/svg'><style>path {fill: red}</style><g><path d='M 0 0'/></g></svg>",
     "<svg xmlns='http://www.w3.org/2000/svg'><style>*{fill: red}</style><style>*{stroke: red}</style></svg>",
     "<svg xmlns='http://www.w3.org/2000/svg'><style>*{fill: red; -webkit-x: 1}</style></svg>",
+    "<svg xmlns='http://www.w3.org/2000/svg'><g><path d='M 0 0' style='fill: red !important'/></g></svg>",
     "not xml at all <",
 ])
 def test_anything_else_is_returned_unchanged(text):

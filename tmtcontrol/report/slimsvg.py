@@ -18,7 +18,8 @@ applies the cascade once, here:
 
 The result draws the same in WeasyPrint and in browsers (tested element by
 element against the cascade of the original). An SVG whose stylesheet is
-anything but that one universal rule is returned unchanged.
+anything but that one universal rule, or with ``!important``, is returned
+unchanged.
 """
 
 from __future__ import annotations
@@ -80,6 +81,8 @@ def slim_svg(text: str) -> str:
     """``text`` (an SVG written by matplotlib) with its cascade applied and
     its plain groups removed; unchanged if its stylesheet is not the single
     universal rule matplotlib writes."""
+    if "!important" in text:             # a cascade this function does not apply
+        return text
     ET.register_namespace("", _SVG)       # serialise as matplotlib does: SVG the default namespace,
     ET.register_namespace("xlink", _XLINK)   # xlink: for href
     try:
