@@ -58,13 +58,11 @@ def _build(sc):
     dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
                         for i in range(sl.start, sl.stop)])
     f = ca.Function("whole_step", [s, up], [s_next, log[LOG["f_e"]]], ["s", "up"], ["s_next", "f_e"])
-    # The Jacobian by algorithmic differentiation through the step Function (MX), not expanded
-    # into one SX graph: that graph had 205,000 operations (20x the step), took as long to build
-    # as everything else here and evaluated 2-3x slower than the forward sweeps it replaces.
+    # The Jacobian by algorithmic differentiation through f (MX), not expanded into one SX
+    # graph: that graph had 205,000 operations (20x the step), took as long to build as
+    # everything else here and evaluated 2-3x slower than the forward sweeps it replaces.
     s_mx, up_mx = ca.MX.sym("s", layout.size), ca.MX.sym("up", up.numel())
-    nu = u.numel()
-    s_next_mx = sim.step(s_mx, up_mx[:nu], up_mx[nu:])[0]
-    jac = ca.Function("whole_jacobian", [s_mx, up_mx], [ca.jacobian(s_next_mx, s_mx)], ["s", "up"], ["A"])
+    jac = ca.Function("whole_jacobian", [s_mx, up_mx], [ca.jacobian(f(s_mx, up_mx)[0], s_mx)], ["s", "up"], ["A"])
     return sim, layout, dynamic, f, jac
 
 
