@@ -164,3 +164,69 @@ def test_timeseries_csv_is_what_numpy_savetxt_writes(paper_result, tmp_path):
     assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "ref.csv").read_bytes()
     back = np.loadtxt(tmp_path / "ours.csv", delimiter=",", skiprows=1)
     np.testing.assert_allclose(back, data, rtol=1e-8, atol=0)         # '%.9g': relative 5e-9
+
+
+def _children() -> list[int]:
+    import os
+    import pathlib
+
+    me = str(os.getpid())
+    out = []
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if fields[1] == me:                                   # the parent pid
+            out.append(int(stat.parent.name))
+    return out
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the forked half is Linux-only (else: one process)")
+def test_timeseries_in_two_processes_is_the_same_file(paper_result, tmp_path, monkeypatch):
+    """processes=2 (the second half of the rows formatted by a forked
+    process) writes the same bytes as one process, also when the fork fails
+    or the forked process dies (its half is then formatted here), and
+    leaves no process behind."""
+    import os
+
+    import tmtcontrol.drawing
+    from tmtcontrol.simulation.output import write_timeseries
+
+    write_timeseries(paper_result, tmp_path / "one.csv")
+    one = (tmp_path / "one.csv").read_bytes()
+    write_timeseries(paper_result, tmp_path / "two.csv", processes=2)
+    assert (tmp_path / "two.csv").read_bytes() == one
+    assert _children() == []
+
+    def dies(fd, data):                       # what the forked process calls to hand its half back
+        os._exit(3)
+
+    monkeypatch.setattr(tmtcontrol.drawing, "_write_all", dies)
+    write_timeseries(paper_result, tmp_path / "died.csv", processes=2)
+    assert (tmp_path / "died.csv").read_bytes() == one
+
+    def no_fork():
+        raise OSError("no process to spare")
+
+    monkeypatch.setattr(os, "fork", no_fork)
+    write_timeseries(paper_result, tmp_path / "unforked.csv", processes=2)
+    assert (tmp_path / "unforked.csv").read_bytes() == one
+    with pytest.raises(ValueError, match="processes: 1 or 2, got 3"):
+        write_timeseries(paper_result, tmp_path / "x.csv", processes=3)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the forked half is Linux-only")
+def test_forked_half_is_killed_when_the_writer_stops_early():
+    """An error (or Ctrl-C) in this process while the forked half is being
+    formatted kills and reaps that process: nothing is left running."""
+    import numpy as np
+
+    from tmtcontrol.simulation.output import _formatted_elsewhere
+
+    data = np.arange(2_000_000.0).reshape(-1, 4)              # ~0.5 s of formatting: still running
+    with pytest.raises(RuntimeError, match="stopped"):
+        with _formatted_elsewhere(data, "%.9g,%.9g,%.9g,%.9g"):
+            assert len(_children()) == 1
+            raise RuntimeError("stopped")
+    assert _children() == []

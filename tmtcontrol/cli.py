@@ -190,7 +190,9 @@ def _simulate_with(args, workers) -> int:
     check_run_size(sc, args.max_steps)
     with OutputFolder(args.out, "--out") as out:
         res = Simulator(sc).run(max_steps=args.max_steps)
-        save_simulation(res, out.path, plots=not args.no_plots, workers=workers)
+        # without figures the second core is free for half of the CSV
+        save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
+                        csv_processes=2 if args.no_plots else 1)
         out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           f"{sc.simulation.integrator} integrator ({res.info['code']}), "

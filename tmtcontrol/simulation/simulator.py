@@ -289,8 +289,10 @@ class Simulator:
         k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
         if not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):
             raise ScenarioError("environment.stiffness: profile must stay finite and > 0")
-        rng = np.random.default_rng(sc.sensor.seed)
-        noise = sc.sensor.noise_std * rng.standard_normal(N) if sc.sensor.noise_std > 0 else np.zeros(N)
+        if sc.sensor.noise_std > 0:         # numpy.random only then: importing it takes ~6 ms
+            noise = sc.sensor.noise_std * np.random.default_rng(sc.sensor.seed).standard_normal(N)
+        else:
+            noise = np.zeros(N)
         U = np.vstack([ref.pos, ref.vel, ref.acc, k_e[None, :], noise[None, :]])
         kd, kp = sc.impedance.gains
         alpha = sc.sensor.pole(Ts)
