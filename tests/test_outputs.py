@@ -217,16 +217,40 @@ def test_timeseries_in_two_processes_is_the_same_file(paper_result, tmp_path, mo
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the forked half is Linux-only")
-def test_forked_half_is_killed_when_the_writer_stops_early():
+def test_forked_half_is_killed_when_the_writer_stops_early(tmp_path, monkeypatch):
     """An error (or Ctrl-C) in this process while the forked half is being
-    formatted kills and reaps that process: nothing is left running."""
-    import numpy as np
+    formatted kills that process (it is not waited for) and reaps it. The
+    forked process here formats forever; a watchdog kills it after 20 s if
+    the writer waited for it instead."""
+    import os
+    import threading
 
-    from tmtcontrol.simulation.output import _formatted_elsewhere
+    import tmtcontrol.simulation.output as output
 
-    data = np.arange(2_000_000.0).reshape(-1, 4)              # ~0.5 s of formatting: still running
+    started = tmp_path / "pid"
+
+    def forever(data, row):                   # what the forked process formats with
+        started.write_text(str(os.getpid()))
+        while True:
+            signal.pause()
+
+    monkeypatch.setattr(output, "_rows", forever)
+    waited = []
+
+    def watchdog():
+        waited.append(True)
+        os.kill(int(started.read_text()), signal.SIGKILL)
+
+    timer = threading.Timer(20.0, watchdog)
     with pytest.raises(RuntimeError, match="stopped"):
-        with _formatted_elsewhere(data, "%.9g,%.9g,%.9g,%.9g"):
+        with output._formatted_elsewhere(None, "%.9g"):
+            for _ in range(2000):             # until the forked process is formatting (at most 20 s)
+                if started.exists() and started.read_text():
+                    break
+                time.sleep(0.01)
             assert len(_children()) == 1
+            timer.start()
             raise RuntimeError("stopped")
+    timer.cancel()
+    assert not waited, "the writer waited for the forked process instead of killing it"
     assert _children() == []
