@@ -213,6 +213,39 @@ def test_bad_input_exit_2_nothing_written(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+class _NoPango:
+    """A meta-path finder under which ``import weasyprint`` fails as it does
+    on a machine without Pango: OSError from cffi's dlopen, at import."""
+
+    def find_spec(self, name, path=None, target=None):
+        import importlib.util
+
+        return importlib.util.spec_from_loader(name, self) if name == "weasyprint" else None
+
+    def create_module(self, spec):
+        return None
+
+    def exec_module(self, module):
+        raise OSError("cannot load library 'libpango-1.0-0': libpango-1.0-0: cannot open shared object file\n"
+                      "Additionally, ctypes.util.find_library() did not manage to locate it")
+
+
+def test_pdf_without_weasyprints_libraries_is_one_clear_error(monkeypatch, tmp_path):
+    from tmtcontrol.report import RendererUnavailable, prepare_writing, render_pdf
+
+    monkeypatch.delitem(sys.modules, "weasyprint", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [_NoPango(), *sys.meta_path])
+    prepare_writing(("html",))                       # the HTML needs no PDF engine
+    for call in (lambda: prepare_writing(("html", "pdf")), lambda: render_pdf("<p>x</p>", tmp_path / "r.pdf")):
+        with pytest.raises(RendererUnavailable) as err:
+            call()
+        msg = str(err.value)
+        assert "\n" not in msg and msg.startswith("--format pdf:") and "libpango-1.0-0" in msg
+        assert "docs/install.md" in msg and "--format html" in msg
+    assert isinstance(err.value, ValueError)          # the command line's one-line exit 2
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("value, sig, text", [
     (163559.0, 3, "164,000"), (12.5, 3, "12.5"), (0.0312, 3, "0.0312"), (3.14159e-5, 2, "3.1\u00a0×\u00a010⁻⁵"),
     (-30.0, 3, "−30"), (1e10, 3, "1\u00a0×\u00a010¹⁰"), (9.996e-4, 3, "1\u00a0×\u00a010⁻³"), (0.0, 3, "0"),

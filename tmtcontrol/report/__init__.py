@@ -8,10 +8,10 @@ import time
 from typing import Callable
 
 from .document import FORCE_TOLERANCE, STAGES, Report, Verdict, build_report, finish, frozen_gc
-from .render import FORMATS, prepare_writing, render_html, render_pdf
+from .render import FORMATS, RendererUnavailable, prepare_writing, render_html, render_pdf
 
 __all__ = ["Verdict", "Report", "build_report", "write_report", "render_html", "render_pdf", "FORCE_TOLERANCE",
-           "STAGES", "FORMATS", "writing_stages", "prepare_writing"]
+           "STAGES", "FORMATS", "writing_stages", "prepare_writing", "RendererUnavailable"]
 
 
 def writing_stages(formats=FORMATS) -> int:

@@ -16,9 +16,14 @@ from importlib import resources
 
 from .document import FigureBlock, Paragraph, Report, Table
 
-__all__ = ["render_html", "render_pdf", "prepare_writing", "FORMATS"]
+__all__ = ["render_html", "render_pdf", "prepare_writing", "FORMATS", "RendererUnavailable"]
 
 FORMATS = ("html", "pdf")
+
+
+class RendererUnavailable(ValueError):
+    """A format's renderer cannot be loaded: for the PDF, WeasyPrint or the
+    system libraries it loads at import (Pango, HarfBuzz; see docs/install.md)."""
 
 _VERDICT = {"PASS": ("pass", "✔ PASS"), "FAIL": ("fail", "✘ FAIL"), "converged": ("pass", "✔ converged"),
             "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
@@ -79,18 +84,29 @@ def prepare_writing(formats=FORMATS) -> None:
     """Import the renderers ``formats`` need (WeasyPrint alone takes ~0.5 s),
     for example as :func:`~.document.build_report`'s ``prepare``, while its
     second process computes."""
-    import importlib
+    import jinja2  # noqa: F401
 
-    for module in ("jinja2",) + (("weasyprint",) if "pdf" in formats else ()):
-        importlib.import_module(module)
+    if "pdf" in formats:
+        _weasyprint()
+
+
+def _weasyprint():
+    """WeasyPrint, or :class:`RendererUnavailable` in one line if it (or a
+    system library it opens at import, such as Pango) cannot be loaded."""
+    try:
+        import weasyprint
+    except (ImportError, OSError) as exc:
+        why = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise RendererUnavailable(f"--format pdf: WeasyPrint did not load ({why}); install its system libraries "
+                                  "(docs/install.md) or write only the HTML with --format html") from None
+    return weasyprint
 
 
 def render_pdf(html: str, path: str | pathlib.Path) -> None:
     """The PDF of ``html`` (the same document, laid out by WeasyPrint for A4 print)."""
     import logging
 
-    import weasyprint
-
+    weasyprint = _weasyprint()
     logging.getLogger("weasyprint").setLevel(logging.ERROR)
     logging.getLogger("fontTools").setLevel(logging.ERROR)
     weasyprint.HTML(string=html, base_url=None).write_pdf(str(path))
