@@ -115,6 +115,29 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     assert len(segs) == 4 and all(row[-1] == "✔ converged" for row in segs)
 
 
+def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
+    html = (paper_report[0] / "report.html").read_text()
+    _, head, rows = table(section(html, "comparison"), "Force-tracking laws")
+    err, within = head.index("worst steady-state error"), head.index("within 10\xa0mN")
+    assert len(rows) == 5 and all((row[within] == "yes") == (number(row[err]) <= 0.01) for row in rows)
+    by_law = {row[0].split()[0]: row for row in rows}
+    # "known" settles (converged) on the force its nominal k_e gives, not on f_d (eqs. 11-12)
+    assert by_law["known"][within] == "no" and by_law["known"][-1] == "✔ converged"
+    assert by_law["tmt"][within] == "yes"
+
+
+def test_design_tables_name_which_overshoot(paper_report):
+    html = (paper_report[0] / "report.html").read_text()
+    assert "worst first-contact overshoot" in table(section(html, "design"), "Damping designs")[1]
+    assert "worst overshoot after a switch" in table(section(html, "design"), "designs simulated")[1]
+
+
+def test_reproducibility_lists_each_item_once(paper_report):
+    html = (paper_report[0] / "report.html").read_text()
+    items = [row[0].lower() for row in table(section(html, "reproducibility"), "Reproducibility")[2]]
+    assert len(items) == len(set(items)) and "python" in items and "casadi" in items
+
+
 def test_every_figure_is_numbered_with_a_caption_and_inline_svg(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     figures = re.findall(r"<figure[^>]*>(.*?)</figure>", html, flags=re.S)
@@ -178,10 +201,11 @@ def test_pdf_is_the_same_document_paginated(paper_report):
     for i, (cap, head, _) in enumerate(tables(html)):
         label = cap.split(".")[0] + "."
         assert label in text
-        # the header row follows the caption, in order (spaces ignored: cells wrap)
+        # the header row follows the caption, in order (white space ignored: cells wrap, and the
+        # PDF's text has plain spaces where the HTML has no-break ones, as in "10 mN")
         after = text.split(label, 1)[1]
         segment = after.split(caps[i + 1].split(".")[0] + ".", 1)[0] if i + 1 < len(caps) else after
-        assert "".join(c.replace(" ", "") for c in head) in segment.replace(" ", ""), (label, head)
+        assert re.sub(r"\s", "", "".join(head)) in re.sub(r"\s", "", segment), (label, head)
     n_fig = len(re.findall(r"<figure", html))
     for i in range(1, n_fig + 1):
         assert f"Figure {i}." in text
