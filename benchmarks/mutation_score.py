@@ -226,6 +226,12 @@ MUTATIONS = [
     M("report-verdict-order", "report/document.py",
       "for stage in sorted(verdicts, key=_VERDICT_ORDER.index)", "for stage in verdicts",
       "tests/test_report.py", "the verdict summary in the order the processes happened to finish"),
+    M("report-comparison-tolerance", "report/document.py",
+      '"yes" if worst <= FORCE_TOLERANCE else "no"', '"yes"', "tests/test_report.py",
+      "the law comparison says a biased law (known, wrong k_e) tracks f_d within the tolerance"),
+    M("report-renderer-traceback", "report/render.py", "except (ImportError, OSError) as exc:",
+      "except ImportError as exc:", "tests/test_report.py",
+      "a machine without Pango gets a traceback from report --format pdf instead of one line, exit 2"),
 ]
 
 
