@@ -25,6 +25,7 @@ class RendererUnavailable(ValueError):
     """A format's renderer cannot be loaded: for the PDF, WeasyPrint or the
     system libraries it loads at import (Pango, HarfBuzz; see docs/install.md)."""
 
+
 _VERDICT = {"PASS": ("pass", "✔ PASS"), "FAIL": ("fail", "✘ FAIL"), "converged": ("pass", "✔ converged"),
             "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
 
