@@ -249,7 +249,8 @@ def _verdict_exit(sc, segs) -> int:
     from .stability.analysis import scenario_stiffness_limit
 
     limit = scenario_stiffness_limit(sc)
-    lim = f"predicted limit {limit:.4g} N/m" if limit is not None else "no linear prediction for this law"
+    lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario)"
+           if limit is not None else "no linear prediction for this law")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}",
               file=sys.stderr)
