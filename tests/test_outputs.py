@@ -40,7 +40,6 @@ def test_user_folder_is_never_touched(tmp_path, args, flag):
     user = tmp_path / "mine"
     user.mkdir()
     (user / "thesis.tex").write_text("precious")
-    t0 = time.perf_counter()
     r = run([*args, flag, str(user)])
     assert r.returncode == 2
     line = one_line(r.stderr)
@@ -48,8 +47,8 @@ def test_user_folder_is_never_touched(tmp_path, args, flag):
     assert (user / "thesis.tex").read_text() == "precious"
     assert sorted(p.name for p in user.iterdir()) == ["thesis.tex"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]
-    if args[0] == "report":     # refused before anything is computed
-        assert "[1/" not in r.stderr and time.perf_counter() - t0 < 10
+    if args[0] == "report":     # refused before anything is computed: no stage reported (no timing here)
+        assert "[1/" not in r.stderr
 
 
 def test_out_dot_and_empty_are_refused(tmp_path):
