@@ -59,6 +59,16 @@ def host_speed() -> float:
     return time.perf_counter() - t0
 
 
+def pdf_font_subsetter() -> str:
+    """Which library WeasyPrint subsets the PDF's fonts with here (HarfBuzz-Subset
+    is a system library, docs/install.md; without it fontTools does, slower)."""
+    try:
+        from weasyprint.text.ffi import harfbuzz_subset
+    except (ImportError, OSError) as exc:
+        return f"none: WeasyPrint does not load ({type(exc).__name__})"
+    return "HarfBuzz-Subset" if harfbuzz_subset is not None else "fontTools (libharfbuzz-subset0 not found)"
+
+
 def median_time(fn, repeat):
     times = []
     for _ in range(repeat):
@@ -145,10 +155,11 @@ def main():
         row["target_s"] = TARGETS[row["row"]]
     speed = [speed_before, host_speed()]
     out = {"machine": {"cpu": cpu(), "cores": os.cpu_count(), "python": platform.python_version(),
-                       "host_speed_loop_s": speed}, "rows": rows}
+                       "host_speed_loop_s": speed, "pdf_font_subsetter": pdf_font_subsetter()}, "rows": rows}
     pathlib.Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{out['machine']['cpu']}, {out['machine']['cores']} cores, Python {out['machine']['python']}; "
-          f"host speed (fixed loop, 0.29 s when quiet): {speed[0]:.2f} s before, {speed[1]:.2f} s after")
+          f"host speed (fixed loop, 0.29 s when quiet): {speed[0]:.2f} s before, {speed[1]:.2f} s after; "
+          f"PDF fonts subset by {out['machine']['pdf_font_subsetter']}")
     print(f"{'what':<58} {'time':>10} {'target':>9}  note")
     for row in rows:
         t = row["seconds"]
