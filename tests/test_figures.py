@@ -1,4 +1,5 @@
 """Figures draw long series reduced to their envelope without losing a peak."""
+import pytest
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -65,3 +66,32 @@ def test_log_axis_labels_are_matplotlibs_in_plain_text():
                            .replace(r"\times10^{", "e").replace("10^{", "1e").replace("}", "")) for b in before]
     assert as_numbers == from_mathtext
     assert "10⁻³" in after and "2×10³" in after
+
+
+@pytest.mark.parametrize("value, text", [
+    (2e3, "2,000"), (2e5, "200,000"), (163559.0, "164,000"), (12.5, "12.5"), (30.0, "30"), (-30.0, "-30"),
+    (0.0312, "0.0312"), (999.6, "1,000"), (0.00099996, "0.001"), (0.0, "0"), (1.0, "1")])
+def test_plain_number_reads_without_exponent(value, text):
+    from tmtcontrol.plotstyle import plain_number
+
+    assert plain_number(value) == text
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(min_value=1e-4, max_value=1e9) | st.floats(min_value=-1e9, max_value=-1e-4))
+def test_plain_number_keeps_three_significant_digits(value):
+    from tmtcontrol.plotstyle import plain_number
+
+    text = plain_number(value)
+    assert "e" not in text
+    # 3 significant digits: within half a unit of the third digit (relative 5e-3), rounding included
+    assert abs(float(text.replace(",", "")) - value) <= 5e-3 * abs(value) * (1 + 1e-12)
+
+
+def test_stability_legends_read_stiffness_without_exponent():
+    from tmtcontrol.stability.figures import root_locus_figure, step_figure
+
+    labels = [t.get_text() for fig in (root_locus_figure(1.0, 60.0, 100.0, 200.0, 2e5),
+                                       step_figure(1.0, 60.0, 100.0, [2e3, 2e4]))
+              for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["k_e = 200 N/m", "k_e = 200,000 N/m", "k_e = 2,000 N/m", "k_e = 20,000 N/m"]
