@@ -1,6 +1,6 @@
 """Figures draw long series reduced to their envelope without losing a peak."""
-import pytest
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
