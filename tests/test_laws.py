@@ -80,6 +80,22 @@ def test_every_registered_law_passes_its_checks():
             assert r.passed, (r.name, r.residual, r.note)
 
 
+def test_tracking_note_names_the_impedance_filter_pole_when_it_bounds_the_radius():
+    import math
+
+    from tmtcontrol.checks.laws import _radius_note
+
+    # eq. (3) with the paper's M = 1, B = 60, K = 100: the slow root of s^2 + 60 s + 100 is
+    # -30 + sqrt(800) = -1.7157 1/s, so at 1 kHz the filter's pole is exp(-1.7157e-3)
+    slow = math.exp(1e-3 * (-30.0 + math.sqrt(800.0)))
+    assert "filter's slow pole" in _radius_note(slow, 1e-3)
+    assert "filter" not in _radius_note(slow + 1e-6, 1e-3)
+    # and the eigenvalues of the running law's sampled loop reach exactly it (tmt's faster modes below)
+    tmt = {r.name: r for r in law_checks(get_law("tmt"))}["tmt: tracks the paper's stiffness sequence"]
+    assert tmt.passed and tmt.note == f"largest spectral radius {slow:.6f} (the impedance filter's slow pole, " \
+        "the same for every k_e)"
+
+
 def test_broken_law_fails_its_checks():
     failed = {r.name for r in law_checks(_flipped_integral()) if not r.passed}
     assert "integral: tracks the paper's stiffness sequence" in failed
