@@ -275,7 +275,7 @@ def test_pdf_without_weasyprints_libraries_is_one_clear_error(monkeypatch, tmp_p
     (-30.0, 3, "−30"), (1e10, 3, "1\u00a0×\u00a010¹⁰"), (9.996e-4, 3, "1\u00a0×\u00a010⁻³"), (0.0, 3, "0"),
     (float("nan"), 3, "–"), (float("inf"), 3, "∞"), (1234, 3, "1,234")])
 def test_numbers_formatted_by_meaning(value, sig, text):
-    from tmtcontrol.report.fmt import num
+    from tmtcontrol.fmt import num
 
     assert num(value, sig) == text
 
@@ -284,7 +284,7 @@ def test_numbers_formatted_by_meaning(value, sig, text):
     (0.001, "s", "1\u00a0ms"), (1.63e-4, "N", "163\u00a0µN"), (0.01, "N", "10\u00a0mN"), (1000.0, "Hz", "1\u00a0kHz"),
     (163559.0, "N/m", "164,000\u00a0N/m"), (2.5, "1", "2.5"), (float("nan"), "s", "–")])
 def test_quantities_with_si_prefixes(value, unit, text):
-    from tmtcontrol.report.fmt import qty
+    from tmtcontrol.fmt import qty
 
     assert qty(value, unit) == text
 
@@ -360,7 +360,7 @@ def test_force_verdict_fails_on_a_converged_but_biased_run():
     # = 0.065 N off f_d (eqs. 11-12): above the 0.01 N tolerance, so the verdict fails
     # with that number (steady state within 2e-3 N, as in test_simulate)
     from tmtcontrol.control.laws.tmt import k_eff
-    from tmtcontrol.report import fmt
+    from tmtcontrol import fmt
     from tmtcontrol.report.document import FORCE_TOLERANCE, _simulation
 
     assert FORCE_TOLERANCE == 0.01
@@ -406,7 +406,7 @@ def test_continuous_verdict_both_ways(b, stable):
 
 
 def fmt_qty(x, unit):
-    from tmtcontrol.report import fmt
+    from tmtcontrol import fmt
 
     return fmt.qty(x, unit)
 

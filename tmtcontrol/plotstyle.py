@@ -6,11 +6,10 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import math
 import pathlib
 import re
 
-__all__ = ["STYLE", "styled", "fixed_layout", "plain_log_labels", "plain_number"]
+__all__ = ["STYLE", "styled", "fixed_layout", "plain_log_labels"]
 
 STYLE = pathlib.Path(__file__).with_name("tmtcontrol.mplstyle")
 
@@ -43,21 +42,6 @@ _SUPERSCRIPT = str.maketrans("0123456789-.", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻·")
 
 
 @functools.cache
-def plain_number(value: float, sig: int = 3) -> str:
-    """``value`` to ``sig`` significant digits as a label reads it: no
-    exponent, thousands separators, no trailing zeros (``2,000``,
-    ``200,000``, ``12.5``, ``30``, ``0.0312``), where ``f"{value:.3g}"``
-    gives ``2e+03``."""
-    def decimals(v):
-        return sig - 1 - math.floor(math.log10(abs(v)))
-
-    if value == 0 or not math.isfinite(value):
-        return f"{value:g}"
-    rounded = round(value, decimals(value))        # 999.6 -> 1000.0: one digit more before the point
-    text = f"{rounded:,.{max(decimals(rounded), 0)}f}"
-    return text.rstrip("0").rstrip(".") if "." in text else text
-
-
 def _unicode_log_formatter():
     from matplotlib.ticker import LogFormatterSciNotation
 

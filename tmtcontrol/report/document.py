@@ -28,7 +28,7 @@ import numpy as np
 from ..files import versions
 from ..plotstyle import plain_log_labels, styled
 from ..simulation.scenario import Scenario, applicable_settings, dump_scenario
-from . import fmt
+from .. import fmt
 
 __all__ = ["Verdict", "Table", "FigureBlock", "Section", "Report", "build_report", "FORCE_TOLERANCE", "STAGES"]
 

@@ -11,8 +11,9 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..plotstyle import fixed_layout, plain_number
 from ..drawing import save_figures
+from ..fmt import num
+from ..plotstyle import fixed_layout
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",
@@ -31,8 +32,8 @@ def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
     loci = sw["loci"]
     for j in range(loci.shape[1]):
         ax.plot(loci[:, j].real, loci[:, j].imag, "-", lw=1.5)
-    ax.plot(loci[0].real, loci[0].imag, "o", label=f"k_e = {plain_number(k_e_min)} N/m")
-    ax.plot(loci[-1].real, loci[-1].imag, "x", ms=9, label=f"k_e = {plain_number(k_e_max)} N/m")
+    ax.plot(loci[0].real, loci[0].imag, "o", label=f"k_e = {num(k_e_min)} N/m")
+    ax.plot(loci[-1].real, loci[-1].imag, "x", ms=9, label=f"k_e = {num(k_e_max)} N/m")
     ax.axvline(0, color="k", lw=0.8)
     ax.set(xlabel="Re (1/s)", ylabel="Im (rad/s)", title="Root locus of eq. (22) in k_e")
     ax.legend()
@@ -68,7 +69,7 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
     ax = fig.add_subplot()
     for ke in stiffnesses:
         resp = ct.step_response(tmt_error_tf(m, b, k, ke) * f_d)
-        ax.plot(resp.time, np.squeeze(resp.outputs), label=f"k_e = {plain_number(ke)} N/m")
+        ax.plot(resp.time, np.squeeze(resp.outputs), label=f"k_e = {num(ke)} N/m")
     ax.axhline(f_d, color="k", ls="--", lw=0.8)
     ax.set(xlabel="time (s)", ylabel="f_e (N)", title="Force step response, eq. (22)")
     ax.legend()

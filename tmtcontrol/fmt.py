@@ -1,6 +1,7 @@
-"""Numbers formatted by meaning for the report: significant digits, SI units,
-thousands separators, powers of ten for the very small and the very large,
-and words for what a number cannot say (non-finite, not applicable)."""
+"""Numbers formatted by meaning, for the report's tables and the figures'
+labels: significant digits, SI units, thousands separators, powers of ten for
+the very small and the very large, and words for what a number cannot say
+(non-finite, not applicable)."""
 
 from __future__ import annotations
 
