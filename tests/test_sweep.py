@@ -89,6 +89,18 @@ def test_rows_have_the_swept_values_verdicts_and_segment_metrics(small):
     assert again["max_steady_error"] == df.loc[1, "max_steady_error"]
 
 
+def test_axes_carry_their_schema_units_into_the_map(small):
+    sweep = sweep_from_dict({"grid": {"environment.stiffness.values": [[1e3], [1e4]], "controller.rate": [1e3, 5e2],
+                                      "controller.law": ["tmt", "known"]}})
+    assert sweep.units == {"environment.stiffness.values": "N/m", "controller.rate": "Hz", "controller.law": ""}
+    assert small.units == {"environment.stiffness.values": "N/m", "trajectory.cycles": "", "sensor.noise_std": "N"}
+    from tmtcontrol.sweep.figures import sweep_map_figure
+
+    df = run_sweep(small)
+    ax = sweep_map_figure(df, small.axes[:2], units=small.units).axes[0]
+    assert ax.get_xlabel() == "environment.stiffness.values (N/m)" and ax.get_ylabel() == "trajectory.cycles"
+
+
 def test_results_do_not_depend_on_workers_or_engine(small):
     cols = lambda d: d.drop(columns=["run_time_s"])
     one = cols(run_sweep(small))

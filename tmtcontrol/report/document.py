@@ -382,7 +382,7 @@ def _sweep(rep: Report, sc: Scenario):
         Table("Sweep cases", ["control rate", "k_e (N/m)", "worst steady-state error", "verdict"], rows,
               verdict_column=3),
         figure("Sweep map: verdict (marker) and steady-state error (colour) over stiffness and control rate, with "
-               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred)])
+               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred, units=spec.units)])
 
 
 def _design(rep: Report, sc: Scenario, p: dict, sim, res):

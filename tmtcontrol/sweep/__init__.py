@@ -140,7 +140,7 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
             from .figures import law_distribution_figure, sweep_map_figure
 
             facet = _facet_axis(sweep, df)
-            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted, facet))]
+            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted, facet, sweep.units))]
             if "controller.law" in sweep.axes:
                 makers.append(("law_distribution", law_distribution_figure))
             summary["figures"] = [p.name for p in save_figures(makers, df, folder.path)]

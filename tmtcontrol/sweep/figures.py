@@ -18,14 +18,20 @@ def _numeric(values) -> bool:
     return all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in values)
 
 
-def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: str | None = None) -> Figure:
+def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: str | None = None,
+                     units: dict[str, str] | None = None) -> Figure:
     """Verdict (marker) and worst steady-state error (colour, N) over the
     first two axes (the first axis against the error if there is one axis),
     one panel per value of ``facet`` (the third axis) if given;
     ``predicted``: the analysis' stiffness limit (N/m) per value of the other
     axis (keys ``(other, facet)`` with a facet), drawn as the predicted
-    boundary when the stiffness is one of the two axes."""
+    boundary when the stiffness is one of the two axes; ``units``: each
+    axis' unit for its label (:attr:`~.spec.Sweep.units`)."""
     import matplotlib as mpl
+
+    def label(key):
+        unit = (units or {}).get(key, "")
+        return f"{key} ({unit})" if unit else key
 
     panels = [(None, df)] if facet is None else list(df.groupby(facet, sort=True))
     fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6))
@@ -67,8 +73,9 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
             if y_key == "max_steady_error" or (_numeric(ys) and np.all(np.asarray(ys, float) > 0)
                                                and np.max(ys) / np.min(ys) > 20):
                 ax.set_yscale("log")
-        ax.set(xlabel=x_key, ylabel=(y_key if y_key != "max_steady_error" else "worst steady-state error (N)")
-               if j == 0 else "", title=f"{facet} = {fv}" if facet else "Sweep: verdict (marker), accuracy (colour)")
+        ax.set(xlabel=label(x_key), ylabel=(label(y_key) if y_key != "max_steady_error" else "worst steady-state "
+                                            "error (N)") if j == 0 else "",
+               title=f"{facet} = {fv}" if facet else "Sweep: verdict (marker), accuracy (colour)")
         ax.legend(fontsize="small")
         ax.grid(True, which="both", alpha=0.3)
         if j > 0:

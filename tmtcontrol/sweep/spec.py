@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from ..simulation.scenario import (Scenario, ScenarioError, load_scenario, paper_scenario, read_toml,
-                                   scenario_from_dict, scenario_to_dict, set_key)
+from ..simulation.scenario import (Scenario, ScenarioError, applicable_settings, load_scenario, paper_scenario,
+                                   read_toml, scenario_from_dict, scenario_to_dict, set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "load_sweep", "sweep_from_dict", "EXAMPLE"]
 
@@ -83,6 +83,13 @@ class Sweep:
 
     def scenario(self, case: Case) -> Scenario:
         return case_scenario(self.base, case.values)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Each axis' SI unit from the scenario schema ("" where it has none,
+        such as a law's name), as the first case's scenario applies it."""
+        rows = {r.key: r.unit for r in applicable_settings(self.scenario(self.cases[0]))} if self.cases else {}
+        return {axis: "" if rows.get(axis, "") == "1" else rows.get(axis, "") for axis in self.axes}
 
     @property
     def fingerprint(self) -> str:
