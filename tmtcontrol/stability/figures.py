@@ -78,25 +78,44 @@ def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
 
 
 def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) -> Figure:
-    """Sampled-data stability region: spectral radius over (Ts, k_e), the
-    rho = 1 boundary, and operating points ``[(Ts, k_e, label), ...]``."""
-    from .sampled import stability_region
+    """Sampled-data stability over (Ts, k_e), drawn as the distance to the
+    boundary: the stiffness margin log10(limit(Ts) / k_e) in colour (decades;
+    blue stable, red unstable), the boundary limit(Ts)
+    (:func:`~.sampled.max_stable_stiffness` at each Ts) and the operating
+    points ``[(Ts, k_e, label), ...]``. The spectral radius itself is no
+    margin: on the stable side it is the impedance filter's slow pole, which
+    no k_e moves. Its rho = 1 contour on the same grid is drawn too (dotted):
+    it lies on the boundary unless the loop turns stable again at a larger
+    k_e, which the margin could not show."""
+    from matplotlib.ticker import NullFormatter
 
+    from .sampled import max_stable_stiffness, stability_region
+
+    Ts_grid, k_e_grid = np.asarray(Ts_grid, float), np.asarray(k_e_grid, float)
+    limits = np.array([max_stable_stiffness(m, b, k, Ts, m_p, **kw) for Ts in Ts_grid])
     rho = stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw)
-    fig = Figure(figsize=(6.5, 4.8), layout="constrained")
-    ax = fig.add_subplot()
     T, K = np.meshgrid(Ts_grid, k_e_grid)
-    from matplotlib.colors import TwoSlopeNorm
-
-    cs = ax.contourf(T, K, np.clip(rho, 0.9, 1.5), levels=np.r_[np.linspace(0.9, 1.0, 6), np.linspace(1.05, 1.5, 10)],
-                     cmap="RdBu_r", norm=TwoSlopeNorm(vmin=0.9, vcenter=1.0, vmax=1.5))   # ColorBrewer: colour-blind safe
-    ax.contour(T, K, rho, levels=[1.0], colors="k", linewidths=2)
-    fig.colorbar(cs, ax=ax, label="spectral radius")
-    for Ts, ke, label in points:
-        ax.plot(Ts, ke, "o", color="tab:blue")
-        ax.annotate(label, (Ts, ke), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set(xscale="log", yscale="log", xlabel="Ts (s)", ylabel="k_e (N/m)",
-           title=f"Sampled-data stability (black: rho = 1), m_p = {m_p:.3g} kg")
+    with np.errstate(divide="ignore"):
+        margin = np.clip(np.log10(limits[None, :] / K), -2.0, 2.0)      # a limit of 0 or inf: the clip
+    fig = Figure(figsize=(6.5, 4.6))
+    ax = fig.add_subplot()
+    cs = ax.contourf(T, K, margin, levels=np.linspace(-2.0, 2.0, 17), cmap="RdBu")  # ColorBrewer: colour-blind safe
+    finite = np.isfinite(limits) & (limits > 0)
+    ax.plot(Ts_grid[finite], limits[finite], "k", lw=2, label="largest stable k_e")
+    ax.contour(T, K, rho, levels=[1.0], colors="0.15", linewidths=1.2, linestyles=":")
+    ax.plot([], [], ls=":", color="0.15", label="spectral radius = 1 (grid)")
+    for i, (Ts, ke, label) in enumerate(points):
+        ax.plot(Ts, ke, "o", color="k", mfc="white", label="operating points" if i == 0 else None)
+        ax.annotate(label, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
+    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness k_e (N/m)",
+           ylim=(k_e_grid[0], k_e_grid[-1]), title=f"Sampled-data stability margin, m_p = {num(m_p)} kg")
+    ax.xaxis.set_minor_formatter(NullFormatter())     # over two decades the minor labels overlap
+    ax.legend(loc="lower left", fontsize="small")
+    fixed_layout(fig, right=1.3)             # the colour bar in the right margin
+    w, _ = fig.get_size_inches()
+    box = ax.get_position()
+    fig.colorbar(cs, cax=fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height)),
+                 label="stiffness margin log10(limit / k_e)", ticks=np.arange(-2, 3))
     return fig
 
 
@@ -139,11 +158,11 @@ def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.P
               ("step_responses", lambda _: step_figure(m, b, k, sorted({lo, np.sqrt(lo * hi), hi}), f_d))]
     if "Ts" in d:
         Ts = d["Ts"]
-        pts = [(Ts, ke, f"{ke:.3g}") for ke in sorted({lo, hi})]
+        pts = [(Ts, ke, num(ke)) for ke in sorted({lo, hi})]
         makers.append(("stability_region", lambda _: stability_region_figure(
-            m, b, k, min(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 25),
+            m, b, k, min(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 41),
             np.geomspace(span_lo, max(span_hi, 10 * d["max_stable_stiffness"])
-                         if np.isfinite(d["max_stable_stiffness"]) else span_hi, 25), pts)))
+                         if np.isfinite(d["max_stable_stiffness"]) else span_hi, 81), pts)))
     return save_figures(makers, d, folder, dpi=110)
 
 
