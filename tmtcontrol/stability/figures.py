@@ -83,8 +83,8 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     blue stable, red unstable), the boundary limit(Ts)
     (:func:`~.sampled.max_stable_stiffness` at each Ts) and the operating
     points ``[(Ts, k_e, label), ...]``. The spectral radius itself is no
-    margin: on the stable side it is the impedance filter's slow pole, which
-    no k_e moves. Its rho = 1 contour on the same grid is drawn too (dotted):
+    margin: on the stable side it is often the impedance filter's slow pole
+    (so with the paper's gains), which no k_e moves. Its rho = 1 contour on the same grid is drawn too (dotted):
     it lies on the boundary unless the loop turns stable again at a larger
     k_e, which the margin could not show."""
     from matplotlib.ticker import NullFormatter
