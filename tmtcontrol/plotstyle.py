@@ -9,7 +9,7 @@ import functools
 import pathlib
 import re
 
-__all__ = ["STYLE", "styled", "fixed_layout", "plain_log_labels"]
+__all__ = ["STYLE", "styled", "fixed_layout", "margin_colorbar", "plain_log_labels"]
 
 STYLE = pathlib.Path(__file__).with_name("tmtcontrol.mplstyle")
 
@@ -36,6 +36,14 @@ def fixed_layout(fig, left: float = 0.7, right: float = 0.15, bottom: float = 0.
     fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
                         hspace=hgap / height, wspace=wgap / width)
     return fig
+
+
+def margin_colorbar(fig, ax, mappable, **kw):
+    """A colour bar for ``mappable`` in the right margin beside ``ax``, after
+    :func:`fixed_layout` left about 1.3 in there (``kw``: ``Figure.colorbar``'s)."""
+    w, _ = fig.get_size_inches()
+    box = ax.get_position()
+    return fig.colorbar(mappable, cax=fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height)), **kw)
 
 
 _SUPERSCRIPT = str.maketrans("0123456789-.", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻·")

@@ -22,8 +22,6 @@ one of them; the tests register such a law and see it fail.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..control.laws import Law, laws
@@ -99,8 +97,7 @@ def _radius_note(rho: float, Ts: float) -> str:
     """The largest spectral radius, and whether it is the impedance filter's
     slow pole (eq. 3: m s^2 + b s + k = 0), which no stiffness moves: then the
     k_e-dependent modes are faster and the number says nothing about k_e."""
-    m, b, k = _IMPEDANCE["m"], _IMPEDANCE["b"], _IMPEDANCE["k"]
-    slow = math.exp(Ts * (-b + math.sqrt(b * b - 4 * m * k)) / (2 * m))
+    slow = float(np.max(np.abs(np.exp(Ts * np.roots([_IMPEDANCE["m"], _IMPEDANCE["b"], _IMPEDANCE["k"]])))))
     text = f"largest spectral radius {rho:.6f}"
     return text + (" (the impedance filter's slow pole, the same for every k_e)" if abs(rho - slow) < 1e-9 else "")
 

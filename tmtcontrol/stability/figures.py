@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from ..drawing import save_figures
 from ..fmt import num
-from ..plotstyle import fixed_layout
+from ..plotstyle import fixed_layout, margin_colorbar
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",
@@ -84,9 +84,9 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     (:func:`~.sampled.max_stable_stiffness` at each Ts) and the operating
     points ``[(Ts, k_e, label), ...]``. The spectral radius itself is no
     margin: on the stable side it is often the impedance filter's slow pole
-    (so with the paper's gains), which no k_e moves. Its rho = 1 contour on the same grid is drawn too (dotted):
-    it lies on the boundary unless the loop turns stable again at a larger
-    k_e, which the margin could not show."""
+    (so with the paper's gains), which no k_e moves. Its rho = 1 contour on
+    the same grid is drawn too (dotted): it lies on the boundary unless the
+    loop turns stable again at a larger k_e, which the margin could not show."""
     from matplotlib.ticker import NullFormatter
 
     from .sampled import max_stable_stiffness, stability_region
@@ -111,11 +111,8 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
            ylim=(k_e_grid[0], k_e_grid[-1]), title=f"Sampled-data stability margin, m_p = {num(m_p)} kg")
     ax.xaxis.set_minor_formatter(NullFormatter())     # over two decades the minor labels overlap
     ax.legend(loc="lower left", fontsize="small")
-    fixed_layout(fig, right=1.3)             # the colour bar in the right margin
-    w, _ = fig.get_size_inches()
-    box = ax.get_position()
-    fig.colorbar(cs, cax=fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height)),
-                 label="stiffness margin log10(limit / k_e)", ticks=np.arange(-2, 3))
+    margin_colorbar(fixed_layout(fig, right=1.3), ax, cs, label="stiffness margin log10(limit / k_e)",
+                    ticks=np.arange(-2, 3))
     return fig
 
 

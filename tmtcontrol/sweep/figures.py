@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..plotstyle import fixed_layout
+from ..plotstyle import fixed_layout, margin_colorbar
 
 __all__ = ["sweep_map_figure", "law_distribution_figure", "VERDICT_STYLE"]
 
@@ -86,10 +86,7 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
     # bar in the right margin beside the last panel
     fixed_layout(fig, right=1.25 if sc is not None else 0.15, top=0.6 if facet else 0.32)
     if sc is not None:
-        w, _ = fig.get_size_inches()
-        box = fig.axes[-1].get_position()
-        cax = fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height))
-        fig.colorbar(sc, cax=cax, label="worst steady-state |f_e - f_d| (N)")
+        margin_colorbar(fig, fig.axes[-1], sc, label="worst steady-state |f_e - f_d| (N)")
     return fig
 
 
