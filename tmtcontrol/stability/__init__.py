@@ -10,7 +10,7 @@ from .continuous import (AnalysisError, ContinuousAnalysis, RangeAnalysis, analy
                          bibo_stable, critical_damping, damping_for_range, damping_ratio, internally_stable,
                          minimal_realization, stiffness_sweep, tmt_error_ss, tmt_error_tf, x_e_error_force)
 from .sampled import (SampledModel, effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radii,
-                      spectral_radius, stability_region, switch_response)
+                      spectral_radius, stability_region, stiffness_margin, switch_response)
 from .wholeloop import WholeLoop, WholeLoopModel, whole_loop, whole_loop_limit
 
 __all__ = [
@@ -18,7 +18,8 @@ __all__ = [
     "internally_stable", "tmt_error_tf", "tmt_error_ss", "analyze_continuous",
     "critical_damping", "damping_ratio", "damping_for_range", "RangeAnalysis", "analyze_range",
     "stiffness_sweep", "x_e_error_force", "SampledModel", "sampled_closed_loop",
-    "spectral_radius", "spectral_radii", "max_stable_stiffness", "stability_region", "switch_response",
+    "spectral_radius", "spectral_radii", "max_stable_stiffness", "stability_region", "stiffness_margin",
+    "switch_response",
     "effective_mass", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
     "format_analysis", "scenario_stiffness_limit", "LawLoop", "law_loop", "law_stiffness_limit",
     "continuous_limit", "stiffness_sequence", "analyze_scenario", "WholeLoop", "WholeLoopModel", "whole_loop",

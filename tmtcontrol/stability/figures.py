@@ -81,7 +81,7 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     """Sampled-data stability over (Ts, k_e), drawn as the distance to the
     boundary: the stiffness margin log10(limit(Ts) / k_e) in colour (decades;
     blue stable, red unstable), the boundary limit(Ts)
-    (:func:`~.sampled.max_stable_stiffness` at each Ts) and the operating
+    (:func:`~.sampled.stiffness_margin`) and the operating
     points ``[(Ts, k_e, label), ...]``. The spectral radius itself is no
     margin: on the stable side it is often the impedance filter's slow pole
     (so with the paper's gains), which no k_e moves. Its rho = 1 contour on
@@ -89,14 +89,13 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     loop turns stable again at a larger k_e, which the margin could not show."""
     from matplotlib.ticker import NullFormatter
 
-    from .sampled import max_stable_stiffness, stability_region
+    from .sampled import stability_region, stiffness_margin
 
     Ts_grid, k_e_grid = np.asarray(Ts_grid, float), np.asarray(k_e_grid, float)
-    limits = np.array([max_stable_stiffness(m, b, k, Ts, m_p, **kw) for Ts in Ts_grid])
+    limits, margin = stiffness_margin(m, b, k, m_p, Ts_grid, k_e_grid, **kw)
+    margin = np.clip(margin, -2.0, 2.0)                 # a limit of 0 or inf: the ends of the scale
     rho = stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw)
     T, K = np.meshgrid(Ts_grid, k_e_grid)
-    with np.errstate(divide="ignore"):
-        margin = np.clip(np.log10(limits[None, :] / K), -2.0, 2.0)      # a limit of 0 or inf: the clip
     fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
     cs = ax.contourf(T, K, margin, levels=np.linspace(-2.0, 2.0, 17), cmap="RdBu")  # ColorBrewer: colour-blind safe

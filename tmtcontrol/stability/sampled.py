@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of
     import control as ct
 
 __all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius", "spectral_radii",
-           "max_stable_stiffness", "stability_region", "switch_response"]
+           "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
 
 
 
@@ -190,6 +190,20 @@ def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
 def stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> np.ndarray:
     """Spectral radius on a grid: array (len(k_e_grid), len(Ts_grid))."""
     return np.array([spectral_radii(m, b, k, k_e_grid, Ts, m_p, **kw) for Ts in Ts_grid]).T
+
+
+def stiffness_margin(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> tuple[np.ndarray, np.ndarray]:
+    """The distance to the stability boundary on a grid: ``(limits, margin)``
+    with ``limits[j]`` the largest stable stiffness at ``Ts_grid[j]``
+    (:func:`max_stable_stiffness`, N/m) and ``margin[i, j] =
+    log10(limits[j] / k_e_grid[i])`` in decades (> 0 stable; +inf where the
+    loop is stable at any stiffness, -inf where at none). Unlike the spectral
+    radius, which on the stable side is often the impedance filter's slow pole
+    whatever k_e, the margin says how far k_e may grow."""
+    limits = np.array([max_stable_stiffness(m, b, k, Ts, m_p, **kw) for Ts in Ts_grid])
+    with np.errstate(divide="ignore"):
+        margin = np.log10(limits[None, :] / np.asarray(k_e_grid, float)[:, None])
+    return limits, margin
 
 
 def switch_response(m, b, k, k_old, k_new, Ts, m_p, f_d=10.0, duration=4.0, **kw) -> dict:
