@@ -226,6 +226,10 @@ MUTATIONS = [
     M("report-verdict-order", "report/document.py",
       "for stage in sorted(verdicts, key=_VERDICT_ORDER.index)", "for stage in verdicts",
       "tests/test_report.py", "the verdict summary in the order the processes happened to finish"),
+    M("continuous-import-before-check", "stability/continuous.py",
+      "    _check(m, b, k, k_e, f_d)       # before importing python-control (~1 s): bad input is refused at once\n"
+      "    import control as ct\n", "    import control as ct\n    _check(m, b, k, k_e, f_d)\n",
+      "tests/test_stability.py", "a typo in analyze's input waits for python-control's 1 s import before its error"),
     M("stability-margin-sign", "stability/sampled.py",
       "margin = np.log10(limits[None, :] / np.asarray(k_e_grid, float)[:, None])",
       "margin = np.log10(np.asarray(k_e_grid, float)[:, None] / limits[None, :])", "tests/test_stability.py",

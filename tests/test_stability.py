@@ -270,6 +270,24 @@ def test_cli_bad_input(args, needle, tmp_path):
     assert not (tmp_path / "p").exists()
 
 
+def test_bad_analysis_input_is_refused_before_python_control_is_imported():
+    # a typo is answered at once: the checks run before the ~1 s import of python-control
+    code = """
+import sys
+from tmtcontrol.stability import AnalysisError, analyze
+for kw in ({"k_e": 0.0}, {"k_e": 5e3, "Ts": 0.0}, {"k_e": 5e3, "Ts": 1e-3, "m_p": -1.0},
+           {"k_e_min": 5e3, "k_e_max": 1e3}, {"k_e": float("nan")}):
+    try:
+        analyze(1.0, 60.0, 100.0, **kw)
+    except AnalysisError as exc:
+        print(str(exc).split(":")[0])
+print("control" in sys.modules)
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["k_e", "Ts", "m_p", "k_e_min", "k_e", "False"]
+
+
 @pytest.mark.parametrize("factor, stable", [(0.9, False), (1.1, True)])
 def test_scenario_verdict_follows_the_whole_loop_limit(monkeypatch, factor, stable):
     # the whole-loop limit decides the sampled verdict even where the 1-D model says

@@ -182,8 +182,9 @@ def internally_stable(sys: ct.LTI) -> bool:
 def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
     """Poles, natural frequency, damping, BIBO verdict, steady state and step
     metrics of eq. (22) at one stiffness."""
+    _check(m, b, k, k_e, f_d)       # before importing python-control (~1 s): bad input is refused at once
     import control as ct
-    _check(m, b, k, k_e, f_d)
+
     G = tmt_error_tf(m, b, k, k_e)
     S = tmt_error_ss(m, b, k, k_e)
     poles = np.sort_complex(np.linalg.eigvals(S.A))
