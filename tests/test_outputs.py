@@ -165,7 +165,10 @@ def test_timeseries_csv_is_what_numpy_savetxt_writes(paper_result, tmp_path):
     np.testing.assert_allclose(back, data, rtol=1e-8, atol=0)         # '%.9g': relative 5e-9
 
 
-def _children() -> list[int]:
+def _children(ignore: set[int] = frozenset()) -> list[int]:
+    """This process' children, less ``ignore`` (those alive before the code
+    under test ran, such as multiprocessing's resource tracker that an
+    earlier test in this worker started and that lives as long as it)."""
     import os
     import pathlib
 
@@ -176,7 +179,7 @@ def _children() -> list[int]:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue
-        if fields[1] == me:                                   # the parent pid
+        if fields[1] == me and int(stat.parent.name) not in ignore:      # the parent pid
             out.append(int(stat.parent.name))
     return out
 
@@ -192,11 +195,12 @@ def test_timeseries_in_two_processes_is_the_same_file(paper_result, tmp_path, mo
     import tmtcontrol.drawing
     from tmtcontrol.simulation.output import write_timeseries
 
+    before = set(_children())
     write_timeseries(paper_result, tmp_path / "one.csv")
     one = (tmp_path / "one.csv").read_bytes()
     write_timeseries(paper_result, tmp_path / "two.csv", processes=2)
     assert (tmp_path / "two.csv").read_bytes() == one
-    assert _children() == []
+    assert _children(before) == []
 
     def dies(fd, data):                       # what the forked process calls to hand its half back
         os._exit(3)
@@ -241,15 +245,16 @@ def test_forked_half_is_killed_when_the_writer_stops_early(tmp_path, monkeypatch
         os.kill(int(started.read_text()), signal.SIGKILL)
 
     timer = threading.Timer(20.0, watchdog)
+    before = set(_children())
     with pytest.raises(RuntimeError, match="stopped"):
         with output._formatted_elsewhere(None, "%.9g"):
             for _ in range(2000):             # until the forked process is formatting (at most 20 s)
                 if started.exists() and started.read_text():
                     break
                 time.sleep(0.01)
-            assert len(_children()) == 1
+            assert len(_children(before)) == 1
             timer.start()
             raise RuntimeError("stopped")
     timer.cancel()
     assert not waited, "the writer waited for the forked process instead of killing it"
-    assert _children() == []
+    assert _children(before) == []
