@@ -226,6 +226,10 @@ MUTATIONS = [
     M("report-verdict-order", "report/document.py",
       "for stage in sorted(verdicts, key=_VERDICT_ORDER.index)", "for stage in verdicts",
       "tests/test_report.py", "the verdict summary in the order the processes happened to finish"),
+    M("metrics-contact-lost-from-start", "simulation/metrics.py",
+      "lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size",
+      "lost = np.count_nonzero(f <= 0.0)", "tests/test_simulate.py",
+      "the approach before first contact counts as a contact lost"),
     M("continuous-import-before-check", "stability/continuous.py",
       "    _check(m, b, k, k_e, f_d)       # before importing python-control (~1 s): bad input is refused at once\n"
       "    import control as ct\n", "    import control as ct\n    _check(m, b, k, k_e, f_d)\n",

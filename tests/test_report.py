@@ -115,6 +115,17 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     assert len(segs) == 4 and all(row[-1] == "✔ converged" for row in segs)
 
 
+def test_segment_table_shows_the_contact_lost_behind_a_100_percent_overshoot(paper_report):
+    html = (paper_report[0] / "report.html").read_text()
+    _, head, segs = table(section(html, "simulation"), "Per-segment metrics")
+    lost, over = head.index("contact lost"), head.index("overshoot")
+    # the switches up (5e3 -> 2e4 and 2e3 -> 1e4 N/m) overshoot the penetration: the force falls to
+    # zero for a while; the first segment starts at zero force (x = x_e) and is not a loss
+    assert [row[lost] != "no" for row in segs] == [False, True, False, True]
+    assert all((number(row[over]) == 100.0) == (row[lost] != "no") for row in segs)
+    assert all(row[lost].endswith("ms") for row in segs if row[lost] != "no")
+
+
 def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     _, head, rows = table(section(html, "comparison"), "Force-tracking laws")

@@ -375,7 +375,19 @@ def test_segment_metrics_closed_forms():
     assert s2.tangential_rms == pytest.approx(3e-6, rel=1e-12)
     assert s3.contact_lost_steady and s3.steady_state_error == 10.0 and s3.verdict == "limit_cycle"
     assert s3.overshoot_pct == 0.0 and s3.settling_time == pytest.approx(0.901, abs=1e-12)
+    assert s1.contact_lost_time == s2.contact_lost_time == 0.0
+    assert s3.contact_lost_time == pytest.approx(1e-3, abs=1e-15)        # the one sample at zero force
     # a segment still outside the band at its last sample never settles
     g = np.full(1000, 10.0)
     g[-1] = 11.0
     assert np.isnan(segment_metrics(_synthetic_result(g, np.full(1000, 5e3)))[0].settling_time)
+    # contact lost: counted from the first sample in contact (an approach from zero force is no loss),
+    # every sample at zero after it; a segment that never touches has lost it all along
+    h = np.full(1000, 10.0)
+    h[:40] = 0.0                    # not yet in contact
+    h[500:517] = 0.0                # lost for 17 samples
+    h[700:703] = 0.0                # and again for 3
+    never = np.zeros(1000)
+    lost, untouched = segment_metrics(_synthetic_result(np.r_[h, never], np.repeat([2e4, 1e4], 1000)))
+    assert lost.contact_lost_time == pytest.approx(0.020, abs=1e-15)
+    assert untouched.contact_lost_time == pytest.approx(1.0, abs=1e-15)

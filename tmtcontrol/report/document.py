@@ -261,8 +261,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
 def _segment_row(i, s) -> list[str]:
     # an overshoot means nothing for a loop that does not settle
     over = fmt.pct(s.overshoot_pct) if s.verdict == "converged" else f"– ({s.verdict.replace('_', ' ')})"
+    lost = fmt.qty(s.contact_lost_time, "s") if s.contact_lost_time > 0 else "no"
     return [str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", fmt.num(s.stiffness), fmt.qty(s.switch_jump, "N"),
-            over, fmt.qty(s.settling_time, "s"), fmt.qty(s.steady_state_error, "N"),
+            over, lost, fmt.qty(s.settling_time, "s"), fmt.qty(s.steady_state_error, "N"),
             fmt.qty(s.tangential_rms, "m"), s.verdict]
 
 
@@ -293,12 +294,13 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         f"{fmt.qty(res.time[-1] + res.Ts, 's')} of the closed loop at {fmt.qty(1 / res.Ts, 'Hz')}, compiled, "
         "integrated with RK4 (refined where the contact switches on or off). Per segment: the switch jump is "
         "the force step the stiffness change causes on the current penetration (no controller can avoid it); "
-        "the overshoot is the controller's own, after the jump. A segment 'converged' when its last quarter "
-        "settles within the ripple band."))
+        "the overshoot is the controller's own, after the jump (after a jump above f_d, how far the force then "
+        "falls below f_d: 100 % is a contact lost, for the time in the next column). A segment 'converged' "
+        "when its last quarter settles within the ripple band."))
     blocks.append(Table(
-        "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "settling 2 %",
-                                "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
-        [_segment_row(i, s) for i, s in enumerate(segs, 1)], verdict_column=8))
+        "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost",
+                                "settling 2 %", "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
+        [_segment_row(i, s) for i, s in enumerate(segs, 1)], verdict_column=9))
     blocks.append(Table("First contact", ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))

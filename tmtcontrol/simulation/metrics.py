@@ -44,6 +44,10 @@ class SegmentMetrics:
       for older summaries); ``tangential_rms``: RMS distance between X and
       X_r in the surface plane over the last quarter;
     * ``contact_lost_steady``: f_e <= 0 somewhere in the last quarter;
+    * ``contact_lost_time``: how long f_e <= 0 after the segment's first
+      sample in contact (s; the whole segment if it never touches): the
+      contact an upward stiffness switch loses, behind an overshoot of
+      100 % (the force fell to zero);
     * ``verdict``: :func:`segment_verdict`.
     """
     start: float
@@ -60,6 +64,7 @@ class SegmentMetrics:
     max_steady_error: float
     tangential_rms: float
     contact_lost_steady: bool
+    contact_lost_time: float
     verdict: str
 
     def as_dict(self) -> dict:
@@ -141,6 +146,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         after = f[1:] if f.size > 1 else f
         overshoot = (max(0.0, f_d - float(after.min())) if f[0] > f_d else max(0.0, float(after.max()) - f_d))
         ss_err = float(np.abs(err[ss]).max())
+        touching = np.flatnonzero(f > 0.0)
+        lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
@@ -152,6 +159,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             max_steady_error=ss_err,
             tangential_rms=float(tang),
             contact_lost_steady=bool(np.any(f[ss] <= 0.0)),
+            contact_lost_time=float(lost * result.Ts),
             verdict=segment_verdict(f, f_d, band),
         ))
     return out
