@@ -106,8 +106,10 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         raise AnalysisError("k_e: give either k_e or both k_e_min and k_e_max")
     if Ts is not None:                  # checked before any analysis (python-control's import takes ~1 s)
         _pos("Ts", Ts)
-        for v in (() if m_p is None else tuple(m_p) if isinstance(m_p, (tuple, list)) else (m_p,)):
-            _pos("m_p", v)
+        if m_p is not None:
+            m_p = tuple(m_p) if isinstance(m_p, (tuple, list)) else (m_p,)
+            for v in m_p:
+                _pos("m_p", v)
     if k_e is not None:
         cont = analyze_continuous(m, b, k, k_e, f_d)
         out = cont.as_dict()
@@ -127,9 +129,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                     key=lambda f: abs(f - f_d))
         out.update({"x_e_error": x_e_error, "steady_state_force_x_e_error": float(worst)})
     if Ts is not None:
-        if m_p is None:
-            m_p = (paper_effective_mass(), paper_effective_mass(worst=True))
-        masses = tuple(m_p) if isinstance(m_p, (tuple, list)) else (m_p,)
+        masses = m_p if m_p is not None else (paper_effective_mass(), paper_effective_mass(worst=True))
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
         if closed_form_applies(law, delay, x_e_error):
             kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
