@@ -46,7 +46,8 @@ from ..model.puma560 import PUMA560_LINKS, Puma560
 from .environment import contact_force
 
 __all__ = ["INPUT", "LOG", "Layout", "state_layout", "param_layout", "controller_model",
-           "damping_schedule", "build_step", "step_name"]
+           "damping_schedule", "build_step", "step_name", "build_plant", "build_controller",
+           "controller_state_layout", "controller_param_layout", "MEASUREMENT", "command_layout", "DIAGNOSTICS"]
 
 
 class Layout:
@@ -160,30 +161,71 @@ def _rk4(ode, z, pz, n: int) -> ca.Function:
     return ca.Function(f"plant_rk{n}", [z, pz], ca.cse([zf, switched]), ["z", "pz"], ["zf", "switched"])
 
 
-def step_name(law: Law, delay: int = 0) -> str:
-    """The name of :func:`build_step`'s Function (and of its compiled library)."""
-    return f"step_{law.name}" + (f"_delay{delay}" if delay else "")
+def _control(model: Puma560, law: Law, S: dict, P: dict, ref: dict, R, q, dq, J, X, dX, f_sensor,
+             delay: int, torque: bool = True) -> dict:
+    """The controller at t_k from the sampled measurements, as MX expressions:
+    the normal force through the sensor filter, the guarded approach, the
+    (scheduled) damping, the law's command of eq. (4), and (``torque``) the
+    inner loop (eq. 6) and control force (eq. 5) as joint torques, with the
+    computation delay's queue. ``S``/``P`` are the state and parameter slices
+    by name, ``ref`` the tangential reference (pos_t, vel_t, acc_t), ``q, dq,
+    J, X, dX`` the joints and the task-frame kinematics of the encoders and
+    ``f_sensor`` the normal force read this period (N, before the filter).
+    Used by :func:`build_step` (the simulation) and :func:`build_controller`
+    (the exported controller): one set of expressions for both."""
+    f_m = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * f_sensor   # measured normal force
+    # guarded approach: contact detected now ends it; the surface estimate becomes the contact point
+    approaching = S["approach"] > 0
+    detect = ca.logic_and(approaching, f_m > P["f_contact"])
+    engaged = ca.logic_not(ca.logic_and(approaching, ca.logic_not(detect)))
+    x_e_hat = ca.if_else(detect, X[0] + P["x_e_hat"], S["x_e_hat"])
+    f_d = P["f_d"] * S["ramp"]
+    # normal damping: fixed, or scheduled from the stiffness estimate (K_D = B/M kept, eq. 9)
+    b_sched = damping_schedule(S["b_n"], f_m, X[0] - x_e_hat, P["m"][0], P["k"][0], P)
+    b_n = ca.if_else(P["sched"] > 0, b_sched, P["b"][0])
+    kd_vec = ca.vertcat(ca.if_else(P["sched"] > 0, b_n / P["m"][0], P["kd"][0]), P["kd"][1:])
+    y = {"x": X[0], "dx": dX[0], "f_m": f_m, "f_d": f_d, "x_e_hat": x_e_hat, "Ts": P["Ts"],
+         "m": P["m"][0], "b": b_n, "k": P["k"][0]}
+    x_r, x_c, dx_c, ddx_c, law_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
+                                                     P["law"], S["law"])
+    x_r, x_c, dx_c, ddx_c = (ca.if_else(engaged, a, b) for a, b in
+                             ((x_r, S["x_app"]), (x_c, S["x_app"]), (dx_c, P["v_app"]), (ddx_c, 0)))
+    law_next = ca.if_else(engaged, law_next, S["law"])
+    X_r = ca.vertcat(x_r, ref["pos_t"])
+    X_c, dX_c, ddX_c = (ca.vertcat(x_c, ref["pos_t"]), ca.vertcat(dx_c, ref["vel_t"]),
+                        ca.vertcat(ddx_c, ref["acc_t"]))                              # eq. (4)
+    ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
+    x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
+    out = {"f_m": f_m, "engaged": engaged, "x_e_hat": x_e_hat, "f_d": f_d, "b_n": b_n, "law_next": law_next,
+           "X_r": X_r, "X_c": X_c, "dX_c": dX_c, "ddX_c": ddX_c, "ramp": ramp, "x_app": x_app,
+           "tau": None, "tau_wait": None}
+    if not torque:
+        return out
+    U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
+    F_e = ca.vertcat(f_m, 0, 0)
+    tau = joint_torque(model.mass_matrix(q), model.bias(q, dq), J, model.jacobian_dot(q, dq),
+                       ca.mtimes(R, U), ca.mtimes(R, F_e)) + model.friction(dq)        # eq. (5), J^T F
+    if delay:           # apply the oldest waiting torque; queue this one
+        queue = ca.vertcat(S["tau_wait"], tau)
+        tau, tau_wait = queue[:3], queue[3:]
+    else:
+        tau_wait = ca.MX(0, 1)
+    out.update(tau=tau, tau_wait=tau_wait)
+    return out
 
 
-def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 1,
-               tol: float = 1e-10, delay: int = 0, contact_refine: int = 4) -> ca.Function:
-    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
-    and a computation delay of ``delay`` samples.
-
-    ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
-    in which the contact force switches on or off is integrated again with
-    ``contact_refine`` times as many steps (a branch in the compiled code:
-    the refined steps run only in those periods). The controller is expanded
-    to SX, fused with the coarse plant step, and the step can be compiled.
-    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
-    compilable; the accuracy reference).
-    """
-    # -- plant over one period, time scaled to [0, 1] so Ts is a parameter ----
+def _plant_step(plant: Puma560, integrator: str, substeps: int, tol: float, contact_refine: int):
+    """The plant over one period, time scaled to [0, 1] so Ts is a parameter:
+    ``(coarse, choose, plant_flow)``; ``coarse`` (fixed step) is ``(z, pz) ->
+    (zf, switched)``, ``choose`` the contact refinement (or None),
+    ``plant_flow`` the CVODES integrator (``integrator="cvodes"``).
+    ``pz = [tau (N m), k_e (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``."""
     z = ca.SX.sym("z", 6)
     pz = ca.SX.sym("pz", 3 + 1 + 1 + 9 + 3 + 1)
     tau, k_e, d_e = pz[0:3], pz[3], pz[4]
     R = ca.reshape(pz[5:14], 3, 3)
     c, Ts = pz[14:17], pz[17]
+    coarse = choose = plant_flow = None
 
     def ode(z):
         """Eq. (1) in joint space with the unilateral contact; and whether the
@@ -197,7 +239,6 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
 
     if integrator == "fixed":
         coarse = _rk4(ode, z, pz, substeps)
-        choose = None
         if contact_refine > 1:
             # a period in which the contact force switches on or off (a kink of
             # max(0, .) that a fixed step would straddle) is integrated again
@@ -218,6 +259,29 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     else:
         raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
 
+    return coarse, choose, plant_flow
+
+
+def step_name(law: Law, delay: int = 0) -> str:
+    """The name of :func:`build_step`'s Function (and of its compiled library)."""
+    return f"step_{law.name}" + (f"_delay{delay}" if delay else "")
+
+
+def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 1,
+               tol: float = 1e-10, delay: int = 0, contact_refine: int = 4) -> ca.Function:
+    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
+    and a computation delay of ``delay`` samples.
+
+    ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
+    in which the contact force switches on or off is integrated again with
+    ``contact_refine`` times as many steps (a branch in the compiled code:
+    the refined steps run only in those periods). The controller is expanded
+    to SX, fused with the coarse plant step, and the step can be compiled.
+    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
+    compilable; the accuracy reference).
+    """
+    coarse, choose, plant_flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
+
     # -- controller at t_k -------------------------------------------------------
     STATE, PARAM = state_layout(law, delay), param_layout(law)
     s = ca.MX.sym("s", STATE.size)
@@ -228,42 +292,13 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     q, dq = S["q"], S["dq"]
     pos, J, X, dX = _task(model, q, dq, R, P["c"])            # encoders through fk
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    f_m = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * (f_true + U_in["noise"])   # measured normal force
-    # guarded approach: contact detected now ends it; the surface estimate becomes the contact point
-    approaching = S["approach"] > 0
-    detect = ca.logic_and(approaching, f_m > P["f_contact"])
-    engaged = ca.logic_not(ca.logic_and(approaching, ca.logic_not(detect)))
-    x_e_hat = ca.if_else(detect, X[0] + P["x_e_hat"], S["x_e_hat"])
-    f_d = P["f_d"] * S["ramp"]
-    # normal damping: fixed, or scheduled from the stiffness estimate (K_D = B/M kept, eq. 9)
-    b_sched = damping_schedule(S["b_n"], f_m, X[0] - x_e_hat, P["m"][0], P["k"][0], P)
-    b_n = ca.if_else(P["sched"] > 0, b_sched, P["b"][0])
-    kd_vec = ca.vertcat(ca.if_else(P["sched"] > 0, b_n / P["m"][0], P["kd"][0]), P["kd"][1:])
-    y = {"x": X[0], "dx": dX[0], "f_m": f_m, "f_d": f_d, "x_e_hat": x_e_hat, "Ts": P["Ts"],
-         "m": P["m"][0], "b": b_n, "k": P["k"][0]}
-    x_r, x_c, dx_c, ddx_c, law_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
-                                                     P["law"], S["law"])
-    x_r, x_c, dx_c, ddx_c = (ca.if_else(engaged, a, b) for a, b in
-                             ((x_r, S["x_app"]), (x_c, S["x_app"]), (dx_c, P["v_app"]), (ddx_c, 0)))
-    law_next = ca.if_else(engaged, law_next, S["law"])
-    X_r = ca.vertcat(x_r, U_in["pos_t"])
-    X_c, dX_c, ddX_c = (ca.vertcat(x_c, U_in["pos_t"]), ca.vertcat(dx_c, U_in["vel_t"]),
-                        ca.vertcat(ddx_c, U_in["acc_t"]))                              # eq. (4)
-    U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
-    F_e = ca.vertcat(f_m, 0, 0)
-    tau = joint_torque(model.mass_matrix(q), model.bias(q, dq), J, model.jacobian_dot(q, dq),
-                       ca.mtimes(R, U), ca.mtimes(R, F_e)) + model.friction(dq)        # eq. (5), J^T F
-    if delay:           # apply the oldest waiting torque; queue this one
-        queue = ca.vertcat(S["tau_wait"], tau)
-        tau, tau_wait = queue[:3], queue[3:]
-    else:
-        tau_wait = ca.MX(0, 1)
-
+    c = _control(model, law, S, P, U_in, R, q, dq, J, X, dX, f_true + U_in["noise"], delay)
+    f_m, b_n, engaged, x_e_hat, f_d = c["f_m"], c["b_n"], c["engaged"], c["x_e_hat"], c["f_d"]
+    tau, tau_wait, law_next, X_r, X_c = c["tau"], c["tau_wait"], c["law_next"], c["X_r"], c["X_c"]
+    ramp, x_app = c["ramp"], c["x_app"]
     pz_val = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], P["c"], P["Ts"])
     z0 = ca.vertcat(q, dq)
     zf = ca.MX.zeros(6) if integrator == "fixed" else plant_flow(x0=z0, p=pz_val)["xf"]
-    ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
-    x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
     s_next = ca.vertcat(zf, f_m, b_n, ca.if_else(engaged, 0, 1), x_app, ramp, x_e_hat, tau_wait, law_next)
     log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n, f_d, x_e_hat)
     name = step_name(law, delay)
@@ -284,3 +319,90 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
     s_next_m = ca.vertcat(choose(sw, z0m, zcm, pzm), restm)
     return ca.Function(name, [sm, um, pm], [s_next_m, logm], ["s", "u", "p"], ["s_next", "log"])
+
+
+# -- the same loop split at the sensors: plant and controller as two Functions --------------------
+# (software-in-the-loop: tmtcontrol.export generates C from build_controller and steps build_plant)
+
+def build_plant(plant: Puma560, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+                contact_refine: int = 4) -> ca.Function:
+    """The plant of :func:`build_step` alone over one period: ``["z","pz"] ->
+    ["zf"]``, joints ``z = [q, dq]`` (rad, rad/s) and ``pz = [tau (N m), k_e
+    (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``, with the same
+    integrator and contact refinement."""
+    coarse, choose, plant_flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
+    z, pz = ca.MX.sym("z", 6), ca.MX.sym("pz", 18)
+    if plant_flow is not None:
+        zf = plant_flow(x0=z, p=pz)["xf"]
+    else:
+        zc, switched = coarse(z, pz)
+        zf = zc if choose is None else choose(switched, z, zc, pz)
+    return ca.Function("plant", [z, pz], [zf], ["z", "pz"], ["zf"])
+
+
+def controller_state_layout(law: Law, delay: int = 0, torque: bool = True) -> Layout:
+    """The controller's own state: :func:`state_layout` without the joints
+    (the delay queue only with ``torque``)."""
+    full = state_layout(law, delay if torque else 0)
+    return Layout(*((n, s.stop - s.start) for n, s in full.slices.items() if n not in ("q", "dq")))
+
+
+def controller_param_layout(law: Law) -> Layout:
+    """The controller's parameters: :func:`param_layout` without the
+    environment's damping ``d_e`` (a property of the simulated surface)."""
+    full = param_layout(law)
+    return Layout(*((n, s.stop - s.start) for n, s in full.slices.items() if n != "d_e"))
+
+
+MEASUREMENT = Layout(("q", 3), ("dq", 3), ("force", 3), ("pos_t", 2), ("vel_t", 2), ("acc_t", 2))
+"""The controller's inputs each period: joint positions (rad) and velocities
+(rad/s); the contact force on the tool (N, base frame; its normal component
+is ``-R[:, 0] . force``); the tangential reference position (m), velocity
+(m/s) and acceleration (m/s^2) on task axes 2 and 3."""
+
+
+def command_layout(torque: bool = True) -> Layout:
+    """The controller's outputs: the command of eq. (4) X_c, dX_c, ddX_c
+    (task frame: m, m/s, m/s^2), the commanded wrist position p_c = R X_c + c
+    (base frame, m), the joint position and velocity commands q_c = q +
+    J^-1 (p_c - p), dq_c = J^-1 R dX_c (rad, rad/s; one resolved-rate step
+    from the measured joints), and with ``torque`` the joint torques of eqs.
+    (5)-(6) (N m)."""
+    return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", 3), ("dq_c", 3),
+                  ("tau", 3 if torque else 0))
+
+
+DIAGNOSTICS = Layout(("X", 3), ("dX", 3), ("X_r", 3), ("p", 3), ("f_m", 1), ("b_n", 1), ("f_d", 1),
+                     ("x_e_hat", 1))
+"""What the controller computed on the way: task position and velocity
+(m, m/s), reference X_r (m, task frame), wrist position p (m, base frame),
+filtered normal force f_m (N), normal damping b_n (N s/m), desired force in
+use f_d (N) and the surface estimate x_e_hat (m, task normal)."""
+
+
+def build_controller(model: Puma560, law: Law, delay: int = 0, torque: bool = True) -> ca.Function:
+    """The controller of :func:`build_step` alone (the same expressions,
+    :func:`_control`), expanded to SX: ``tmt_controller: ["s","y","p"] ->
+    ["s_next","cmd","diag"]`` with the state :func:`controller_state_layout`,
+    the measurement :data:`MEASUREMENT`, the parameters
+    :func:`controller_param_layout`, the command :func:`command_layout` and
+    :data:`DIAGNOSTICS`. ``torque=False`` leaves out the inner loop (eqs.
+    5-6) and the delay queue: the command for a position-controlled robot."""
+    STATE, PARAM = controller_state_layout(law, delay, torque), controller_param_layout(law)
+    s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEASUREMENT.size), ca.MX.sym("p", PARAM.size)
+    S, Y, P = STATE.split(s), MEASUREMENT.split(y), PARAM.split(p)
+    R = ca.reshape(P["R"], 3, 3)
+    q, dq = Y["q"], Y["dq"]
+    pos, J, X, dX = _task(model, q, dq, R, P["c"])
+    f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
+    c = _control(model, law, S, P, Y, R, q, dq, J, X, dX, f_sensor, delay if torque else 0, torque)
+    p_c = ca.mtimes(R, c["X_c"]) + P["c"]
+    q_c = q + ca.solve(J, p_c - pos, "symbolicqr")
+    dq_c = ca.solve(J, ca.mtimes(R, c["dX_c"]), "symbolicqr")
+    queue = c["tau_wait"] if torque else ca.MX(0, 1)
+    s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],
+                        c["x_e_hat"], queue, c["law_next"])
+    cmd = ca.vertcat(c["X_c"], c["dX_c"], c["ddX_c"], p_c, q_c, dq_c, c["tau"] if torque else ca.MX(0, 1))
+    diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"])
+    return ca.Function("tmt_controller", [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],
+                       ["s_next", "cmd", "diag"]).expand()
