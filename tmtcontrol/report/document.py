@@ -463,10 +463,11 @@ def _repro(rep: Report) -> Section:
 def _one_blas_thread():
     """The report's linear algebra is on small matrices, where BLAS threads
     only cost: with two processes busy, spinning BLAS threads on 2 cores made
-    the sampled stage 3x slower. One thread per process."""
-    from threadpoolctl import threadpool_limits
+    the sampled stage 3x slower. One thread per process, for the block
+    (:func:`tmtcontrol.processes.blas_threads_limited`)."""
+    from ..processes import blas_threads_limited
 
-    return threadpool_limits(limits=1)
+    return blas_threads_limited()
 
 
 _CONTROL_TASKS = ("sampled-data analysis", "checks: loop", "checks: derivations", "continuous-time analysis")
@@ -533,12 +534,16 @@ set by the pool's initializer."""
 
 
 def _share(claims, tasks) -> None:
-    """The second process' initializer: the claims, and one BLAS thread for
-    its lifetime (this process holds :func:`_one_blas_thread` around the
-    stages; setting it per task cost 12 ms each, threadpoolctl scanning the
-    loaded libraries)."""
+    """The second process' initializer: it dies with this one, even one
+    killed by SIGKILL, and has one BLAS thread for its lifetime
+    (:func:`tmtcontrol.processes.worker_init`; this process holds
+    :func:`_one_blas_thread` around the stages; setting it per task cost
+    12 ms each, threadpoolctl scanning the loaded libraries); then the
+    claims."""
+    from ..processes import worker_init
+
+    worker_init()
     _SHARED.update(claims=claims, tasks=tasks)
-    _one_blas_thread()
 
 
 def _claim(claims, last: bool = False, floor: int = 0) -> int | None:

@@ -8,7 +8,7 @@ import pathlib
 import time
 
 from ..files import OutputFolder, write_json
-from .run import PartialFolder, Progress, case_row, run_cases
+from .run import PartialFolder, Progress, SchedulerUnavailable, case_row, check_dask, run_cases
 from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
@@ -114,6 +114,7 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
     folder is removed. Returns the summary."""
     import pyarrow.parquet as pq
 
+    check_dask(dask)                               # a scheduler address that answers nothing: refused first
     folder = OutputFolder(out, "--out")            # checked before anything runs
     with folder:
         partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume)
@@ -124,6 +125,10 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         try:
             if todo:
                 run_cases(sweep, todo, partial.write, workers, dask, max_steps, prog)
+        except SchedulerUnavailable:
+            if partial.fresh:                      # nothing ran: leave nothing behind
+                partial.remove()
+            raise
         finally:
             prog.close()
         table = partial.table()

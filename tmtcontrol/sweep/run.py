@@ -12,11 +12,15 @@ the results do not depend on the number of workers or on the engine.
 
 Local parallelism uses :mod:`concurrent.futures` worker processes; a
 distributed run uses ``dask.distributed`` (a ``LocalCluster`` or a running
-scheduler's address). No scheduling of our own.
+scheduler's address). No scheduling of our own. Every worker runs with one
+BLAS thread, and local workers die with the process that started them, even
+one killed by SIGKILL (:mod:`tmtcontrol.processes`). A scheduler address is
+checked (:func:`check_dask`) before anything is created.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -28,9 +32,17 @@ from typing import Any, Callable
 
 
 from ..files import OutputError, check_interrupt
+from ..processes import blas_threads_limited, worker_init
 from .spec import Case, Sweep, case_scenario
 
-__all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress"]
+__all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
+           "SchedulerUnavailable"]
+
+CONNECT_TIMEOUT = 3.0
+"""Seconds to wait for a Dask scheduler's TCP port to accept a connection."""
+
+CLIENT_TIMEOUT = "10s"
+"""How long the Dask client may take to reach a scheduler whose port answered."""
 
 SEGMENT_FIELDS = ("stiffness", "verdict", "steady_state_error", "steady_rms_error", "switch_jump",
                   "overshoot_pct", "settling_time")
@@ -83,8 +95,46 @@ def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
 
 
 def run_chunk(base: dict, cases: list[Case], max_steps: int | None = None) -> list[dict]:
-    """The rows of a chunk of cases (runs in a worker)."""
-    return [case_row(base, c, max_steps) for c in cases]
+    """The rows of a chunk of cases (runs in a worker, with one BLAS thread)."""
+    with blas_threads_limited():
+        return [case_row(base, c, max_steps) for c in cases]
+
+
+class SchedulerUnavailable(ValueError):
+    """``--dask ADDRESS`` names no running scheduler (exit code 2 in the CLI)."""
+
+
+def check_dask(dask: str | None, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Raise :class:`SchedulerUnavailable` (one line naming the address) unless
+    ``dask`` is None, ``"local"``, a non-TCP address, or a host and port that
+    accept a TCP connection within ``timeout`` seconds. Called before the
+    sweep creates anything, so a wrong address leaves nothing behind."""
+    import socket
+    import urllib.parse
+
+    if dask is None or dask == "local":
+        return
+    parts = urllib.parse.urlsplit(dask if "://" in dask else "tcp://" + dask)
+    if parts.scheme not in ("tcp", "tls"):
+        return                           # inproc://, ucx://, ...: the client says
+    try:
+        host, port = parts.hostname, parts.port or 8786
+    except ValueError:
+        raise SchedulerUnavailable(f"--dask {dask}: not a host:port address") from None
+    if not host:
+        raise SchedulerUnavailable(f"--dask {dask}: no host in the address")
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except ConnectionRefusedError:
+        raise SchedulerUnavailable(f"--dask {dask}: no scheduler answered (connection refused)") from None
+    except socket.gaierror as exc:
+        raise SchedulerUnavailable(f"--dask {dask}: unknown host {host} ({exc.strerror})") from None
+    except TimeoutError:
+        raise SchedulerUnavailable(f"--dask {dask}: no scheduler answered within {timeout:g} s") from None
+    except OSError as exc:
+        raise SchedulerUnavailable(f"--dask {dask}: no scheduler answered "
+                                   f"({exc.strerror or exc.__class__.__name__})") from None
 
 
 class PartialFolder:
@@ -96,6 +146,7 @@ class PartialFolder:
 
     def __init__(self, out: pathlib.Path, sweep: Sweep, resume: bool):
         self.path = out.parent / (out.name + ".partial")
+        self.fresh = False                   # True if this run created it
         mark = self.path / self.MARK
         if self.path.exists():
             try:
@@ -111,6 +162,7 @@ class PartialFolder:
         else:
             try:
                 self.path.mkdir(parents=False)
+                self.fresh = True
                 mark.write_text(json.dumps({"fingerprint": sweep.fingerprint, "cases": len(sweep.cases)}) + "\n")
             except OSError as exc:
                 raise OutputError(f"--out: cannot create {self.path} ({exc.strerror})") from None
@@ -182,6 +234,13 @@ class Progress:
             print(f"sweep: {self.n}/{self.total} cases ({100 * self.n / max(self.total, 1):.0f} %), "
                   f"{rate:.1f} cases/s, ETA {eta:.0f} s", file=self.stream, flush=True)
 
+    def say(self, line: str) -> None:
+        """One line on the stream (above the bar on a terminal)."""
+        if self.bar is not None:
+            self.bar.write(line, file=self.stream)
+        else:
+            print(line, file=self.stream, flush=True)
+
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
@@ -200,20 +259,23 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
     of ``workers`` processes; else a scheduler address)."""
     chunks = _chunks(todo, workers)
     tick = progress.update if progress is not None else (lambda k: None)
+    say = progress.say if progress is not None else (lambda line: None)
     if dask is None and workers == 1:
-        for chunk in chunks:
-            rows = run_chunk(sweep.base, chunk, max_steps)
-            check_interrupt()
-            write(rows)
-            tick(len(rows))
+        with blas_threads_limited():
+            for chunk in chunks:
+                rows = run_chunk(sweep.base, chunk, max_steps)
+                check_interrupt()
+                write(rows)
+                tick(len(rows))
         return
     if dask is None:
         import concurrent.futures as cf
 
         # the platform's default start method (fork on Linux): a user's script or notebook needs no
-        # `if __name__ == "__main__"` guard
-        with cf.ProcessPoolExecutor(max_workers=workers) as pool:
+        # `if __name__ == "__main__"` guard; each worker dies with this process and pins BLAS to one thread
+        with cf.ProcessPoolExecutor(max_workers=workers, initializer=worker_init) as pool:
             futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
+            say(f"sweep: {len(todo)} cases running on {workers} worker processes")
             try:
                 for fut in cf.as_completed(futures):
                     rows = fut.result()
@@ -226,19 +288,54 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
         return
     from dask.distributed import Client, LocalCluster, as_completed
 
+    check_dask(dask)
     if dask == "local":
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                                silence_logs=40)
         client = Client(cluster)
     else:
-        cluster, client = None, Client(dask, timeout="10s")
+        cluster = None
+        try:
+            client = Client(dask, timeout=CLIENT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerUnavailable(f"--dask {dask}: no Dask scheduler answered within {CLIENT_TIMEOUT} "
+                                       f"({str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__})"
+                                       ) from None
+    interrupted = False
     try:
         futures = client.map(run_chunk, [sweep.base] * len(chunks), chunks, [max_steps] * len(chunks), pure=False)
+        say(f"sweep: {len(todo)} cases running on Dask ({dask})")
         for fut in as_completed(futures):
             rows = fut.result()
             write(rows)
             tick(len(rows))
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with _quiet_dask() if interrupted else contextlib.nullcontext():
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+@contextlib.contextmanager
+def _quiet_dask():
+    """Silence distributed's (and its event loop's) loggers while a cluster is
+    shut down after Ctrl-C: the workers' "task cancelled", "stream closed"
+    and nanny messages are the expected consequence of the interruption, which
+    the command reports in one line."""
+    import logging
+
+    roots = ("distributed", "tornado", "asyncio", "bokeh")
+    names = [n for n in list(logging.root.manager.loggerDict)
+             if n in roots or n.startswith(tuple(r + "." for r in roots))]
+    loggers = [logging.getLogger(n) for n in {*roots, *names}]
+    saved = [(lg, lg.disabled) for lg in loggers]
+    for lg in loggers:
+        lg.disabled = True          # each one: a child's records reach its parents' handlers regardless
+    try:
+        yield
+    finally:
+        for lg, disabled in saved:
+            lg.disabled = disabled

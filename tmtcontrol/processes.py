@@ -1,0 +1,172 @@
+"""Worker-process lifetime: workers that die with their parent, one BLAS
+thread per process, and Ctrl-C that never lands in a finalizer.
+
+tmtcontrol starts worker processes in two places: ``tmtcontrol sweep
+--workers N`` (a :class:`concurrent.futures.ProcessPoolExecutor`) and the
+report's second process (:mod:`tmtcontrol.report.document`). Both call
+:func:`worker_init` first thing in the child:
+
+* **They die with their parent.** If the parent is killed by a signal it
+  cannot catch (``kill -9``, the OOM killer, a CI hard timeout), nothing tells
+  a pool worker to stop: it would stay blocked on its task pipe for ever,
+  holding the terminal's stdout and stderr open (so ``tmtcontrol sweep ... |
+  tee log`` and ``subprocess.communicate`` hang). On Linux the child asks the
+  kernel for SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)``), then
+  checks that the parent is still the one that started it (it may have died
+  between the fork and the ``prctl``). On every platform (the portable
+  fallback, and a second guard on Linux) a daemon thread waits on
+  :func:`multiprocessing.parent_process`'s sentinel, which becomes ready when
+  the parent ends (a pipe whose write end only the parent holds; on Windows
+  the parent's process handle), and then ends the worker with
+  ``os._exit(1)``. Caveat of ``PR_SET_PDEATHSIG``: the signal follows the
+  *thread* that forked the child; tmtcontrol forks its workers from the main
+  thread, so it follows the process.
+* **One BLAS/OpenMP thread per process** (:func:`one_blas_thread`, by
+  threadpoolctl): the numerical work is many small problems (3x3 and 8x8
+  matrices), where BLAS threads only spin; on a busy 2-core machine
+  ``OPENBLAS_NUM_THREADS=1`` made a sweep 3x faster (benchmarks/bench_threads.py).
+
+:func:`defer_in_finalizers` wraps the command line's SIGINT/SIGTERM handlers so
+that a signal arriving while a weakref callback or a ``__del__`` runs is not
+raised there (Python would print "Exception ignored in ..." and drop it): it is
+recorded and delivered again a moment later, outside the finalizer.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+
+__all__ = ["worker_init", "die_with_parent", "one_blas_thread", "defer_in_finalizers", "blas_threads_limited",
+           "PDEATHSIG"]
+
+PDEATHSIG = signal.SIGKILL if hasattr(signal, "SIGKILL") else None
+"""The signal a Linux worker gets when its parent dies (a worker holds no
+files of its own: the parent writes every output, so nothing needs cleaning)."""
+
+_PR_SET_PDEATHSIG = 1          # <linux/prctl.h>
+
+
+def worker_init(blas_limit: bool = True) -> None:
+    """First thing in a worker process: :func:`die_with_parent`, and with
+    ``blas_limit`` one BLAS/OpenMP thread for the process' lifetime."""
+    die_with_parent()
+    if blas_limit:
+        one_blas_thread()
+
+
+def die_with_parent() -> bool:
+    """Make this process (a :mod:`multiprocessing` child) end when its parent
+    ends, however the parent ends. Returns True if the Linux kernel signal
+    was set (False elsewhere, where only the watchdog thread acts). Does
+    nothing outside a multiprocessing child."""
+    import multiprocessing
+
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return False
+    armed = _set_pdeathsig()
+    if armed and os.getppid() != parent.pid:    # the parent died before the prctl: nobody will signal
+        os._exit(1)
+    threading.Thread(target=_watch, args=(parent,), name="tmtcontrol-parent-watchdog", daemon=True).start()
+    return armed
+
+
+def _set_pdeathsig() -> bool:
+    if not sys.platform.startswith("linux") or PDEATHSIG is None:
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(PDEATHSIG), 0, 0, 0) == 0
+    except (OSError, AttributeError):         # no prctl (an unusual libc): the watchdog remains
+        return False
+
+
+def _watch(parent) -> None:
+    """The portable fallback: wait for the parent's sentinel, then end."""
+    try:
+        parent.join()          # returns when the parent's end of the pipe closes (or its handle is signalled)
+    except Exception:         # pragma: no cover - a closed sentinel: the process is going anyway
+        return
+    os._exit(1)
+
+
+_PINNED: list[int] = []     # the pid of a process pinned for its lifetime (a forked child starts unpinned)
+
+
+def one_blas_thread():
+    """Limit BLAS and OpenMP to one thread in this process (threadpoolctl)
+    and return the limiter (its ``restore_original_limits()`` undoes it; as
+    a context manager it undoes it on exit). tmtcontrol's linear algebra is on
+    small matrices, where more threads only cost; with two processes busy on
+    2 cores, spinning BLAS threads made the report's sampled stage 3x
+    slower."""
+    from threadpoolctl import threadpool_limits
+
+    limiter = threadpool_limits(limits=1)
+    _PINNED[:] = [os.getpid()]
+    return limiter
+
+
+@contextlib.contextmanager
+def blas_threads_limited():
+    """One BLAS/OpenMP thread for a block, the original limits restored after;
+    nothing to do in a process already pinned for its lifetime (a worker
+    after :func:`worker_init`)."""
+    if _PINNED == [os.getpid()]:
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        yield
+
+
+_FINALIZER_FILES = ("weakref.py", "_weakrefset.py")
+
+
+def _in_finalizer(frame) -> bool:
+    """True if ``frame`` (the one a signal interrupted) is a weakref
+    callback, a ``weakref.finalize`` callback or a ``__del__`` method, or is
+    called from one: an exception raised there is printed as "Exception
+    ignored" and lost."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or os.path.basename(code.co_filename) in _FINALIZER_FILES:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def defer_in_finalizers(signums=(signal.SIGINT, signal.SIGTERM), retry: float = 0.02) -> None:
+    """Wrap the Python handlers of ``signums`` (those installed by
+    :func:`tmtcontrol.files.install_signal_handlers`): a signal that
+    interrupts a finalizer is handed to the handler (so it is recorded for
+    :func:`tmtcontrol.files.check_interrupt`) but its exception is held back,
+    and the signal is delivered again ``retry`` seconds later, until it lands
+    outside a finalizer. Main thread only."""
+    import _thread
+
+    for signum in signums:
+        handler = signal.getsignal(signum)
+        if not callable(handler) or getattr(handler, "_defers_finalizers", False):
+            continue
+
+        def deferring(sig, frame, _handler=handler):
+            if not _in_finalizer(frame):
+                return _handler(sig, frame)
+            try:
+                _handler(sig, frame)             # records it; its exception must not escape here
+            except BaseException:
+                pass
+            timer = threading.Timer(retry, _thread.interrupt_main, args=(sig,))
+            timer.daemon = True
+            timer.start()
+
+        deferring._defers_finalizers = True
+        signal.signal(signum, deferring)
