@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 _EXPORTS = {
     "tmtcontrol.model": ("Puma560", "PUMA560_LINKS", "LinkParameters"),
+    "tmtcontrol.model.robot": ("load_robot", "Robot", "URDFError"),
     "tmtcontrol.simulation.scenario": ("Scenario", "ScenarioError", "paper_scenario", "load_scenario",
                                        "dump_scenario", "apply_overrides"),
     "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError"),
@@ -35,7 +36,7 @@ __all__ = [
     "__version__", "Puma560", "PUMA560_LINKS", "LinkParameters", "Scenario", "ScenarioError",
     "paper_scenario", "load_scenario", "dump_scenario", "apply_overrides", "Simulator",
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
-    "LawRun",
+    "LawRun", "load_robot", "Robot", "URDFError",
 ]
 
 
@@ -54,6 +55,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .model import PUMA560_LINKS, LinkParameters, Puma560
+    from .model.robot import Robot, URDFError, load_robot
     from .simulation.compare import Comparison, LawRun, compare_laws
     from .simulation.metrics import SegmentMetrics, segment_metrics
     from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,

@@ -1,0 +1,408 @@
+"""One robot interface, eq. (1) for any fixed-base serial arm: :func:`load_robot`.
+
+``load_robot(source)`` returns a :class:`Robot` whatever the arm: the paper's
+three-link PUMA 560 (its Euler-Lagrange model from :mod:`.puma560`, numbers
+unchanged), an arm bundled with the package (``"ur5"``, ``"panda"``, URDFs in
+``model/data/``) or any URDF file (parsed and checked by :mod:`.urdf`, its
+dynamics by Featherstone's algorithms in :mod:`.featherstone`). Code above
+``model/`` asks the robot for quantities and never which arm it is.
+
+Joint space, SI units (rad or m, N m or N, kg m^2)::
+
+    M(q) ddq + C(q, dq) dq + g(q) + tau_f(dq) = tau                  (1)
+
+The robot offers, for the ``n`` actuated joints:
+
+* NumPy in, NumPy out: :meth:`Robot.mass_matrix`, :meth:`Robot.bias`
+  (``C dq + g``), :meth:`Robot.gravity`, :meth:`Robot.jacobian` (6 x n
+  geometric Jacobian of the tip frame's origin, linear rows first, base
+  axes), :meth:`Robot.fk` (4 x 4 pose of the tip in the base frame),
+  :meth:`Robot.friction`, :meth:`Robot.forward_dynamics`,
+  :meth:`Robot.inverse_dynamics`;
+* the same as named CasADi SX Functions in :attr:`Robot.functions`
+  (:class:`RobotFunctions`: inputs ``q``, ``dq``, ``ddq``, ``tau``), for the
+  closed loop and the compiled rollout to build on.
+
+Building a URDF robot's Functions is cached on disk keyed by the URDF's
+content and the options (the folder of the compiled rollouts,
+:func:`tmtcontrol.simulation.rollout.cache_dir`), so a second load of the same
+arm deserialises them instead of rebuilding the expressions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import os
+import pathlib
+from dataclasses import dataclass
+from importlib import resources
+
+import casadi as ca
+import numpy as np
+
+from .urdf import Chain, URDFError, parse_chain, read_urdf
+
+__all__ = ["BUNDLED", "Robot", "RobotFunctions", "URDFError", "load_robot"]
+
+BUNDLED = {
+    "ur5": ("ur5.urdf", "tool0"),
+    "panda": ("panda.urdf", "panda_hand_tcp"),
+}
+"""Arms shipped with the package: file in ``model/data/`` and default tip."""
+
+PUMA_JOINTS = ("joint1", "joint2", "joint3")
+PUMA_TIP = "wrist_centre"
+
+
+@dataclass(frozen=True)
+class RobotFunctions:
+    """The robot's named CasADi SX Functions (inputs ``q``, ``dq``, ``ddq``, ``tau``).
+
+    Attributes
+    ----------
+    fk : casadi.Function
+        ``["q"] -> ["T"]``, 4 x 4 pose of the tip in the base frame (m).
+    jacobian : casadi.Function
+        ``["q"] -> ["J"]``, 6 x n geometric Jacobian of the tip origin, linear
+        rows first, base axes.
+    jacobian_dot : casadi.Function
+        ``["q","dq"] -> ["Jdot_dq"]``, dJ/dt dq (6), m/s^2 and rad/s^2.
+    mass_matrix : casadi.Function
+        ``["q"] -> ["M"]`` (with armature).
+    bias : casadi.Function
+        ``["q","dq"] -> ["n"]``, ``C(q, dq) dq + g(q)``.
+    gravity : casadi.Function
+        ``["q"] -> ["g"]``.
+    friction : casadi.Function
+        ``["dq"] -> ["tau_f"]`` (zeros when disabled).
+    inverse_dynamics : casadi.Function
+        ``["q","dq","ddq"] -> ["tau"]``, ``M ddq + C dq + g + tau_f``.
+    forward_dynamics : casadi.Function
+        ``["q","dq","tau"] -> ["ddq"]``.
+    """
+
+    fk: ca.Function
+    jacobian: ca.Function
+    jacobian_dot: ca.Function
+    mass_matrix: ca.Function
+    bias: ca.Function
+    gravity: ca.Function
+    friction: ca.Function
+    inverse_dynamics: ca.Function
+    forward_dynamics: ca.Function
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A fixed-base serial arm: joints, limits, and eq. (1) as Functions.
+
+    Attributes
+    ----------
+    name : str
+        The robot's name (``"puma560"``, or the URDF's ``<robot name>``).
+    source : str
+        ``"puma560"``, the bundled name, or the URDF's path.
+    joint_names : tuple of str
+        Actuated joints, base to tip.
+    q_min, q_max : numpy.ndarray
+        Position limits, rad or m (+-inf: none).
+    dq_max, tau_max : numpy.ndarray
+        Velocity (rad/s, m/s) and effort (N m, N) limits (inf: none).
+    base, tip : str
+        Base link (fixed to the world) and tip frame.
+    held : dict
+        Movable joints not actuated, with the value they are held at.
+    link_masses : dict
+        Mass of every link below the base, kg.
+    functions : RobotFunctions
+        The named CasADi SX Functions.
+    chain : Chain or None
+        The parsed URDF chain (None for the PUMA).
+    urdf : str or None
+        The URDF's text (None for the PUMA).
+    """
+
+    name: str
+    source: str
+    joint_names: tuple[str, ...]
+    q_min: np.ndarray
+    q_max: np.ndarray
+    dq_max: np.ndarray
+    tau_max: np.ndarray
+    base: str
+    tip: str
+    held: dict
+    link_masses: dict
+    functions: RobotFunctions
+    chain: Chain | None = None
+    urdf: str | None = None
+    armature: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of actuated joints."""
+        return len(self.joint_names)
+
+    @property
+    def total_mass(self) -> float:
+        """Mass of every link below the base, kg."""
+        return float(sum(self.link_masses.values()))
+
+    # -- NumPy in, NumPy out --------------------------------------------------------
+    def fk(self, q) -> np.ndarray:
+        """4 x 4 pose of the tip in the base frame at ``q``."""
+        return np.array(self.functions.fk(_vec(q, self.n, "q")))
+
+    def jacobian(self, q) -> np.ndarray:
+        """6 x n geometric Jacobian of the tip origin (linear rows first, base axes)."""
+        return np.array(self.functions.jacobian(_vec(q, self.n, "q")))
+
+    def mass_matrix(self, q) -> np.ndarray:
+        """n x n joint-space inertia M(q), kg m^2 (kg for prismatic joints)."""
+        return np.array(self.functions.mass_matrix(_vec(q, self.n, "q")))
+
+    def bias(self, q, dq) -> np.ndarray:
+        """``C(q, dq) dq + g(q)`` (n), N m."""
+        return np.array(self.functions.bias(_vec(q, self.n, "q"), _vec(dq, self.n, "dq"))).ravel()
+
+    def gravity(self, q) -> np.ndarray:
+        """Gravity torque g(q) (n), N m."""
+        return np.array(self.functions.gravity(_vec(q, self.n, "q"))).ravel()
+
+    def friction(self, dq) -> np.ndarray:
+        """Joint friction torque tau_f(dq) (n), N m."""
+        return np.array(self.functions.friction(_vec(dq, self.n, "dq"))).ravel()
+
+    def inverse_dynamics(self, q, dq, ddq) -> np.ndarray:
+        """``tau = M ddq + C dq + g + tau_f`` (n), N m."""
+        return np.array(self.functions.inverse_dynamics(_vec(q, self.n, "q"), _vec(dq, self.n, "dq"),
+                                                        _vec(ddq, self.n, "ddq"))).ravel()
+
+    def forward_dynamics(self, q, dq, tau) -> np.ndarray:
+        """``ddq = M^-1 (tau - C dq - g - tau_f)`` (n)."""
+        return np.array(self.functions.forward_dynamics(_vec(q, self.n, "q"), _vec(dq, self.n, "dq"),
+                                                        _vec(tau, self.n, "tau"))).ravel()
+
+    @property
+    def moving_mass(self) -> float:
+        """Mass carried by the actuated joints (every link that moves), kg."""
+        if self.chain is None:
+            return self.total_mass
+        return float(sum(b.mass for b in self.chain.bodies))
+
+    def reach(self) -> float:
+        """Upper bound of the tip's distance from the first joint's axis origin, m:
+        the sum of the distances between successive joint origins and to the tip
+        (all joints at 0)."""
+        if self.chain is None:              # PUMA: a2 + sqrt(a3^2 + d4^2) + |d3| from the shoulder
+            from .puma560 import PUMA560_LINKS, WRIST_OFFSET
+            l1, l2, l3 = PUMA560_LINKS
+            return float(l2.a + math.hypot(l3.a, WRIST_OFFSET) + abs(l3.d))
+        pts = [j.p for j in self.chain.joints[1:]] + [self.chain.tip_p]
+        return float(sum(np.linalg.norm(p) for p in pts))
+
+
+def load_robot(source, tip: str | None = None, base: str | None = None, joints=None, *,
+               friction: bool | str = True, armature=True, coulomb_velocity: float = 1e-2,
+               cache: bool = True) -> Robot:
+    """Load a robot: the PUMA 560, a bundled arm, or a URDF file.
+
+    Parameters
+    ----------
+    source : str or path
+        ``"puma560"`` (the paper's three links, :class:`.Puma560`), a bundled
+        arm (``"ur5"``: tip ``tool0``; ``"panda"``: tip ``panda_hand_tcp``),
+        or the path of a ``.urdf`` file.
+    tip : str, optional
+        Link (or fixed frame) whose origin is the tool point. Default: the
+        bundled arm's tip; for a file, the single leaf link (a branching tree
+        needs it named).
+    base : str, optional
+        Link fixed to the world; default the root link.
+    joints : sequence of str, optional
+        Actuated joints; default every revolute, continuous or prismatic joint
+        from base to tip. Other movable joints (a gripper's fingers) are held
+        at their neutral value (0 clipped into their limits) and reported in
+        :attr:`Robot.held`.
+    friction : bool or "smooth"
+        Joint friction ``b dq + f_c sign(dq)`` from ``<dynamics damping
+        friction>`` (PUMA: its motor friction); ``"smooth"`` replaces
+        ``sign(dq)`` by ``tanh(dq / coulomb_velocity)``; False: none.
+    armature : bool or sequence of float
+        Rotor inertia added to M's diagonal, kg m^2 (joint side). True: the
+        source's own (PUMA: ``G^2 Jm``; a URDF has no standard element for it,
+        so none); False: none; a sequence: one value per actuated joint.
+    coulomb_velocity : float
+        Velocity scale of the smooth Coulomb term, rad/s.
+    cache : bool
+        Reuse the Functions built for the same URDF and options before.
+
+    Raises
+    ------
+    URDFError
+        A URDF that cannot be used, or a bad argument (one line).
+    """
+    if friction not in (True, False, "smooth"):
+        raise URDFError(f"friction: expected True, False or 'smooth', got {friction!r}")
+    if not (isinstance(coulomb_velocity, (int, float)) and coulomb_velocity > 0):
+        raise URDFError(f"coulomb_velocity: must be > 0, got {coulomb_velocity!r}")
+    if isinstance(source, str) and source.lower() == "puma560":
+        return _puma(tip, base, joints, friction, armature, coulomb_velocity)
+    if isinstance(source, str) and source.lower() in BUNDLED:
+        fname, default_tip = BUNDLED[source.lower()]
+        text = resources.files("tmtcontrol.model").joinpath("data", fname).read_text(encoding="utf-8")
+        where, label, tip = f"{source.lower()} ({fname})", source.lower(), tip or default_tip
+    else:
+        path = os.fspath(source)
+        text = read_urdf(path)
+        where = label = path
+    chain = parse_chain(text, tip=tip, base=base, joints=joints, where=where)
+    n = len(chain.joints)
+    if armature is True or armature is False:
+        arm = np.zeros(n)
+    else:
+        arm = np.asarray(armature, dtype=float).ravel()
+        if arm.shape != (n,) or not np.all(np.isfinite(arm)) or np.any(arm < 0):
+            raise URDFError(f"armature: expected {n} finite values >= 0 (kg m^2), got {armature!r}")
+    functions = _cached_functions(chain, text, arm, friction, coulomb_velocity, cache)
+    J = chain.joints
+    return Robot(name=chain.name, source=label, joint_names=tuple(j.name for j in J),
+                 q_min=np.array([j.lower for j in J]), q_max=np.array([j.upper for j in J]),
+                 dq_max=np.array([j.velocity for j in J]), tau_max=np.array([j.effort for j in J]),
+                 base=chain.base, tip=chain.tip, held=dict(chain.held), link_masses=dict(chain.link_masses),
+                 functions=functions, chain=chain, urdf=text, armature=arm)
+
+
+# -- the PUMA through the interface -------------------------------------------------
+def _puma(tip, base, joints, friction, armature, coulomb_velocity) -> Robot:
+    from .puma560 import PUMA560_LINKS, Puma560
+
+    if tip not in (None, PUMA_TIP):
+        raise URDFError(f"tip: the PUMA 560's tip is {PUMA_TIP!r}, got {tip!r}")
+    if base not in (None, "base"):
+        raise URDFError(f"base: the PUMA 560's base is 'base', got {base!r}")
+    if joints is not None and tuple(joints) != PUMA_JOINTS:
+        raise URDFError(f"joints: the PUMA 560 actuates {', '.join(PUMA_JOINTS)}, got {list(joints)}")
+    if armature not in (True, False):
+        raise URDFError("armature: the PUMA 560 takes True (its rotor inertia G^2 Jm) or False")
+    puma = Puma560(armature=armature, friction=friction, coulomb_velocity=coulomb_velocity)
+    q, dq = puma.q, puma.dq
+    frames = puma._frame_list
+    R3 = frames[-1][:3, :3]
+    T = ca.vertcat(ca.horzcat(R3, puma._p), ca.horzcat(ca.SX.zeros(1, 3), ca.SX.ones(1, 1)))
+    Jw = ca.horzcat(ca.vertcat(0, 0, 1), frames[0][:3, 2], frames[1][:3, 2])
+    J = ca.vertcat(puma._J, Jw)
+    Jdot_dq = ca.vertcat(puma.expr["Jdot_dq"], ca.jtimes(Jw @ dq, q, dq))
+    fns = RobotFunctions(
+        fk=ca.Function("fk", [q], [T], ["q"], ["T"]),
+        jacobian=ca.Function("jacobian", [q], [J], ["q"], ["J"]),
+        jacobian_dot=ca.Function("jacobian_dot", [q, dq], [Jdot_dq], ["q", "dq"], ["Jdot_dq"]),
+        mass_matrix=puma.mass_matrix, bias=puma.bias, gravity=puma.gravity, friction=puma.friction,
+        inverse_dynamics=puma.inverse_dynamics, forward_dynamics=puma.forward_dynamics)
+    inf = np.full(3, np.inf)
+    masses = {f"link{i + 1}": l.m for i, l in enumerate(PUMA560_LINKS)}
+    arm = np.array([l.G ** 2 * l.Jm for l in PUMA560_LINKS]) if armature else np.zeros(3)
+    return Robot(name="puma560", source="puma560", joint_names=PUMA_JOINTS, q_min=-inf, q_max=inf.copy(),
+                 dq_max=inf.copy(), tau_max=inf.copy(), base="base", tip=PUMA_TIP, held={},
+                 link_masses=masses, functions=fns, armature=arm)
+
+
+# -- URDF robots ----------------------------------------------------------------------
+_NAMES = [f.name for f in dataclasses.fields(RobotFunctions)]
+
+
+def _build_functions(chain: Chain, arm, friction, coulomb_velocity) -> RobotFunctions:
+    from .featherstone import build_expressions
+
+    n = len(chain.joints)
+    q, dq, ddq, tau = (ca.SX.sym(s, n) for s in ("q", "dq", "ddq", "tau"))
+    e = build_expressions(chain, q, dq, ddq)
+    b = ca.DM([j.damping for j in chain.joints])
+    fc = ca.DM([j.friction for j in chain.joints])
+    if friction is False:
+        tau_f = ca.SX.zeros(n)
+    elif friction == "smooth":
+        tau_f = b * dq + fc * ca.tanh(dq / coulomb_velocity)
+    else:
+        tau_f = b * dq + fc * ca.sign(dq)
+    A = ca.diag(ca.DM(arm))
+    M = e["M"] + A if np.any(arm) else e["M"]
+    Jdot_dq = ca.jtimes(e["J"] @ dq, q, dq)
+    return RobotFunctions(
+        fk=ca.Function("fk", [q], [e["T"]], ["q"], ["T"]),
+        jacobian=ca.Function("jacobian", [q], [e["J"]], ["q"], ["J"]),
+        jacobian_dot=ca.Function("jacobian_dot", [q, dq], [Jdot_dq], ["q", "dq"], ["Jdot_dq"]),
+        mass_matrix=ca.Function("mass_matrix", [q], [M], ["q"], ["M"]),
+        bias=ca.Function("bias", [q, dq], [e["bias"]], ["q", "dq"], ["n"]),
+        gravity=ca.Function("gravity", [q], [e["g"]], ["q"], ["g"]),
+        friction=ca.Function("friction", [dq], [tau_f], ["dq"], ["tau_f"]),
+        inverse_dynamics=ca.Function("inverse_dynamics", [q, dq, ddq], [e["rnea"] + A @ ddq + tau_f],
+                                     ["q", "dq", "ddq"], ["tau"]),
+        forward_dynamics=ca.Function("forward_dynamics", [q, dq, tau], [ca.solve(M, tau - e["bias"] - tau_f)],
+                                     ["q", "dq", "tau"], ["ddq"]))
+
+
+def cache_key(chain: Chain, text: str, arm, friction, coulomb_velocity) -> str:
+    """Key of a robot's Functions: the URDF's content, the chain chosen, the
+    options, the sources of the modules that build them and CasADi's version."""
+    h = hashlib.sha256(text.encode("utf-8"))
+    here = pathlib.Path(__file__).parent
+    for part in (chain.base, chain.tip, ",".join(j.name for j in chain.joints), repr(np.asarray(arm).tolist()),
+                 repr(friction), repr(float(coulomb_velocity)), ca.__version__):
+        h.update(b"\0" + part.encode())
+    for module in ("featherstone.py", "urdf.py", "robot.py"):
+        h.update((here / module).read_bytes())
+    return h.hexdigest()[:20]
+
+
+def _cached_functions(chain, text, arm, friction, coulomb_velocity, use_cache) -> RobotFunctions:
+    if not use_cache:
+        return _build_functions(chain, arm, friction, coulomb_velocity)
+    from ..simulation.rollout import cache_dir      # the one definition of the cache folder
+
+    path = cache_dir() / "robots" / f"{_safe(chain.name)}_{cache_key(chain, text, arm, friction, coulomb_velocity)}.casadi"
+    if path.exists():
+        try:
+            return RobotFunctions(**dict(zip(_NAMES, _load_functions(path))))
+        except (OSError, RuntimeError, ValueError):
+            pass                                        # damaged: rebuilt and rewritten below
+    fns = _build_functions(chain, arm, friction, coulomb_velocity)
+    try:
+        _save_functions(path, [getattr(fns, name) for name in _NAMES])
+    except OSError:
+        pass                                            # an unwritable cache: built every time
+    return fns
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40] or "robot"
+
+
+def _save_functions(path: pathlib.Path, fns) -> None:
+    """Serialise the Functions, written under a temporary name, fsync'ed and renamed."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    staged = path.parent / f".{path.name}.{os.getpid()}.tmp"
+    s = ca.FileSerializer(str(staged))
+    for f in fns:
+        s.pack(f)
+    del s                                               # closes the file
+    with open(staged, "rb+") as fh:
+        os.fsync(fh.fileno())
+    os.replace(staged, path)
+
+
+def _load_functions(path: pathlib.Path) -> list:
+    d = ca.FileDeserializer(str(path))
+    out = [d.unpack() for _ in _NAMES]
+    if not all(isinstance(f, ca.Function) and f.name() == name for f, name in zip(out, _NAMES)):
+        raise ValueError("unexpected content")
+    return out
+
+
+def _vec(x, n: int, name: str) -> np.ndarray:
+    a = np.asarray(x, dtype=float).ravel()
+    if a.shape != (n,):
+        raise ValueError(f"{name}: expected {n} values, got shape {np.shape(x)}")
+    return a
