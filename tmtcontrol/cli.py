@@ -154,6 +154,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="which files to write: html, pdf or both (default: html,pdf)")
     p.set_defaults(func=_report)
 
+    p = sub.add_parser("robot", help="load an arm (puma560, ur5, panda or a URDF file), print its chain and "
+                       "check its model (identities, Pinocchio); exit 1 if a check fails",
+                       epilog="examples:\n  tmtcontrol robot ur5\n  tmtcontrol robot my_arm.urdf --tip tool0")
+    p.add_argument("source", metavar="NAME|FILE", help="puma560, ur5, panda, or the path of a .urdf file")
+    p.add_argument("--tip", help="tip link or frame (default: the bundled arm's, or the file's single leaf link)")
+    p.add_argument("--base", help="base link fixed to the world (default: the root link)")
+    p.add_argument("--joints", help="comma-separated actuated joints (default: every movable joint base to tip)")
+    p.add_argument("--samples", type=int, default=20, help="random states checked (default: 20)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random states (default: 0)")
+    p.set_defaults(func=_robot)
+
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
     p.add_argument("--schema", action="store_true", help="print the JSON Schema of scenario files")
@@ -236,13 +247,14 @@ def _compare(args) -> int:
         if r.result is None:
             print(f"diverged: law {n}: {r.error}", file=sys.stderr)
     for n, i, s in bad:
-        print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m",
-              file=sys.stderr)
+        print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m; "
+              f"{s.reason}", file=sys.stderr)
     return 0 if cmp.converged else 1
 
 
 def _verdict_exit(sc, segs) -> int:
-    """1 (with one line per failing segment on stderr) if any segment did not converge."""
+    """1 (with one line per failing segment on stderr: its verdict, the
+    predicted limit and why) if any segment is not ``converged``."""
     bad = [(i, s) for i, s in enumerate(segs, 1) if s.verdict != "converged"]
     if not bad:
         return 0
@@ -252,7 +264,7 @@ def _verdict_exit(sc, segs) -> int:
     lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario)"
            if limit is not None else "no linear prediction for this law")
     for i, s in bad:
-        print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}",
+        print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}; {s.reason}",
               file=sys.stderr)
     return 1
 
@@ -271,7 +283,7 @@ def _analyze(args) -> int:
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario (set it in the scenario)")
         sc = load_scenario(args.scenario)
-        run = lambda: analyze_scenario(sc)
+        run = lambda: analyze_scenario(sc, limits=True)
     else:
         for flag in ("m", "b", "k"):
             if getattr(args, flag) is None:
@@ -376,14 +388,22 @@ def _sweep(args) -> int:
     sweep = load_sweep(args.sweep)
     for case in sweep.cases:
         check_run_size(sweep.scenario(case), args.max_steps)
-    summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
-                         plots=not args.no_plots, max_steps=args.max_steps,
-                         command_line="tmtcontrol " + " ".join(sys.argv[1:]))
+    try:
+        summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
+                             plots=not args.no_plots, max_steps=args.max_steps,
+                             command_line="tmtcontrol " + " ".join(sys.argv[1:]))
+    except KeyboardInterrupt as exc:      # finished cases stay in OUT.partial/: say so, and how to go on
+        from .sweep.run import kept_note
+
+        exc.kept = kept_note(args.out)
+        raise
     counts = summary["verdicts"]
     print(f"{summary['cases']} cases over {', '.join(summary['axes'])}: "
           + ", ".join(f"{n} {v}" for v, n in counts.items()) + f" ({summary['run']['seconds']:.1f} s)")
-    for b in summary["boundary"]:
-        print("boundary: " + ", ".join(f"{k} = {v}" for k, v in b.items()))
+    from .sweep import boundary_lines
+
+    for line in boundary_lines(sweep, summary):
+        print(line)
     print(f"wrote {args.out}/")
     bad = summary["cases"] - counts["converged"]
     if bad:
@@ -430,6 +450,19 @@ def _formats(text: str) -> tuple[str, ...]:
     return tuple(f for f in FORMATS if f in names)
 
 
+def _robot(args) -> int:
+    from .model.robot import load_robot
+    from .model.verify import check_robot, describe
+
+    if args.samples < 1:
+        raise UsageError(f"--samples: must be >= 1, got {args.samples}")
+    joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
+    robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
+    check = check_robot(robot, samples=args.samples, seed=args.seed)
+    print(describe(robot, check))
+    return 0 if check.ok else 1
+
+
 def _scenario(args) -> int:
     import json
 
@@ -447,12 +480,14 @@ def main(argv: list[str] | None = None) -> int:
     import threading
 
     from .files import Interrupted, VerdictFailed, install_signal_handlers
+    from .processes import defer_in_finalizers
 
-    parser = build_parser()
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
         install_signal_handlers()
+        defer_in_finalizers()          # never raised inside a weakref callback or __del__
+    parser = build_parser()
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -463,11 +498,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:
-        print(f"interrupted ({'SIGTERM' if exc.exit_code == 143 else 'Ctrl-C'}): nothing was written",
-              file=sys.stderr)
+        print(f"interrupted ({'SIGTERM' if exc.exit_code == 143 else 'Ctrl-C'}): "
+              f"{getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"interrupted (Ctrl-C): {getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
         return 130
     except VerdictFailed as exc:   # computed verdicts (diverged simulation, infeasible design): exit 1
         print(f"error: {exc}", file=sys.stderr)
@@ -484,10 +519,16 @@ def run() -> None:
     collector's reach (``gc.freeze``): its final collection would walk them
     all, 0.2-0.6 s after python-control, matplotlib and WeasyPrint are
     loaded, to free memory the process is about to return anyway. Every file
-    is closed by then and atexit handlers still run."""
+    is closed by then and atexit handlers still run. Ctrl-C before
+    :func:`main` has installed its handlers (during the first imports) is
+    one line and exit code 130 too."""
     import gc
 
-    code = main()
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)
+        code = 130
     sys.stdout.flush()
     gc.freeze()
     sys.exit(code)
