@@ -1,0 +1,193 @@
+/* replay.c - run the exported controller over recorded measurements.
+ *
+ *   ./replay MEASUREMENTS.csv COMMANDS.csv   one tmt_step per row, from tmt_init()
+ *   ./replay --bench N [MEASUREMENTS.csv]    per-call time of tmt_step over N calls
+ *
+ * MEASUREMENTS.csv: a header line, then one row per period with the columns
+ *   t,@MEAS_COLUMNS@
+ * (t in s, then tmt_measurement's fields in order; units and frames in README.md).
+ * COMMANDS.csv gets t and tmt_command's fields:
+ *   t,@CMD_COLUMNS@
+ * The benchmark cycles through the rows of MEASUREMENTS.csv (or repeats the
+ * initial state's zero measurement) and prints the median, 99.9th percentile
+ * and maximum of the per-call time (CLOCK_MONOTONIC around each call).
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "tmt_controller.h"
+
+#define MAX_LINE 8192
+
+static int parse_row(char *line, double *t, double *v)
+{
+    char *p = line, *end;
+    int i;
+    *t = strtod(p, &end);
+    if (end == p) {
+        return -1;
+    }
+    p = end;
+    for (i = 0; i < TMT_N_MEASUREMENT; ++i) {
+        if (*p != ',') {
+            return -1;
+        }
+        ++p;
+        v[i] = strtod(p, &end);
+        if (end == p) {
+            return -1;
+        }
+        p = end;
+    }
+    return 0;
+}
+
+static void set_measurement(tmt_measurement *meas, const double *v)
+{
+@READ_MEAS@
+}
+
+static void write_command(FILE *out, double t, const tmt_command *cmd)
+{
+    fprintf(out, "%.17g", t);
+@WRITE_CMD@
+    fputc('\n', out);
+}
+
+static long read_all(const char *path, double **rows, double **times)
+{
+    FILE *in = fopen(path, "r");
+    char line[MAX_LINE];
+    long n = 0, cap = 1024;
+    if (in == NULL) {
+        return -1;
+    }
+    *rows = malloc(sizeof(double) * TMT_N_MEASUREMENT * cap);
+    *times = malloc(sizeof(double) * cap);
+    if (*rows == NULL || *times == NULL || fgets(line, sizeof line, in) == NULL) {   /* header */
+        fclose(in);
+        return -1;
+    }
+    while (fgets(line, sizeof line, in) != NULL) {
+        if (n == cap) {
+            cap *= 2;
+            *rows = realloc(*rows, sizeof(double) * TMT_N_MEASUREMENT * cap);
+            *times = realloc(*times, sizeof(double) * cap);
+            if (*rows == NULL || *times == NULL) {
+                fclose(in);
+                return -1;
+            }
+        }
+        if (parse_row(line, *times + n, *rows + n * TMT_N_MEASUREMENT) != 0) {
+            fprintf(stderr, "replay: %s: row %ld: expected %d numbers after t\n", path, n + 2,
+                    TMT_N_MEASUREMENT);
+            fclose(in);
+            return -1;
+        }
+        ++n;
+    }
+    fclose(in);
+    return n;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static int bench(long calls, const char *path)
+{
+    static tmt_params params;
+    static tmt_state state;
+    static tmt_measurement meas;
+    static tmt_command cmd;
+    double *rows = NULL, *times = NULL, *dt, sink = 0.0;
+    long nrows = 0, k;
+    struct timespec a, b;
+
+    if (path != NULL && (nrows = read_all(path, &rows, &times)) <= 0) {
+        fprintf(stderr, "replay: cannot read measurements from %s\n", path);
+        return 2;
+    }
+    dt = malloc(sizeof(double) * (size_t)calls);
+    if (dt == NULL) {
+        return 2;
+    }
+    tmt_default_params(&params);
+    tmt_init(&params, &state);
+    memset(&meas, 0, sizeof meas);
+    for (k = 0; k < calls; ++k) {
+        if (nrows > 0) {
+            if (k % nrows == 0) {
+                tmt_init(&params, &state);
+            }
+            set_measurement(&meas, rows + (k % nrows) * TMT_N_MEASUREMENT);
+        }
+        clock_gettime(CLOCK_MONOTONIC, &a);
+        tmt_step(&params, &state, &meas, &cmd);
+        clock_gettime(CLOCK_MONOTONIC, &b);
+        dt[k] = (double)(b.tv_sec - a.tv_sec) * 1e6 + (double)(b.tv_nsec - a.tv_nsec) * 1e-3;
+        sink += cmd.x_c[0];
+    }
+    qsort(dt, (size_t)calls, sizeof(double), cmp_double);
+    printf("tmt_step: %ld calls, median %.3f us, 99.9%% %.3f us, max %.3f us (inner loop: %s)\n", calls,
+           dt[calls / 2], dt[(long)(0.999 * (double)(calls - 1))], dt[calls - 1], TMT_INNER_LOOP ? "yes" : "no");
+    free(dt);
+    free(rows);
+    free(times);
+    return sink != sink;    /* keeps the calls from being optimised away; 0 unless NaN */
+}
+
+int main(int argc, char **argv)
+{
+    static tmt_params params;
+    static tmt_state state;
+    static tmt_measurement meas;
+    static tmt_command cmd;
+    double *rows = NULL, *times = NULL;
+    long n, k;
+    FILE *out;
+
+    if (argc >= 3 && strcmp(argv[1], "--bench") == 0) {
+        long calls = strtol(argv[2], NULL, 10);
+        if (calls < 1) {
+            fprintf(stderr, "replay: --bench: expected a number of calls >= 1, got %s\n", argv[2]);
+            return 2;
+        }
+        return bench(calls, argc > 3 ? argv[3] : NULL);
+    }
+    if (argc != 3) {
+        fprintf(stderr, "usage: %s MEASUREMENTS.csv COMMANDS.csv | --bench N [MEASUREMENTS.csv]\n", argv[0]);
+        return 2;
+    }
+    n = read_all(argv[1], &rows, &times);
+    if (n < 0) {
+        fprintf(stderr, "replay: cannot read measurements from %s\n", argv[1]);
+        return 2;
+    }
+    out = fopen(argv[2], "w");
+    if (out == NULL) {
+        fprintf(stderr, "replay: cannot write %s\n", argv[2]);
+        return 2;
+    }
+    fprintf(out, "t,@CMD_COLUMNS@\n");
+    tmt_default_params(&params);
+    tmt_init(&params, &state);
+    for (k = 0; k < n; ++k) {
+        set_measurement(&meas, rows + k * TMT_N_MEASUREMENT);
+        if (tmt_step(&params, &state, &meas, &cmd) != 0) {
+            fprintf(stderr, "replay: tmt_step failed at row %ld\n", k + 2);
+            fclose(out);
+            return 1;
+        }
+        write_command(out, times[k], &cmd);
+    }
+    fclose(out);
+    free(rows);
+    free(times);
+    return 0;
+}
