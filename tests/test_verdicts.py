@@ -24,9 +24,12 @@ def _point(rate, *sets):
 
 
 def _verdicts(base, limit, factors):
+    # "stable" for converged or off_target: just below the limit the oscillation still decays after
+    # 12 s (off_target against the 0.01 N tolerance); the limit is about decay, not the tolerance
     sim = Simulator(base)
-    return [segment_metrics(sim.run(apply_overrides(base, [f"environment.stiffness.values=[{limit * f}]"])))[0]
-            .verdict for f in factors]
+    return [{"converged": "stable", "off_target": "stable"}.get(v, v) for v in (
+        segment_metrics(sim.run(apply_overrides(base, [f"environment.stiffness.values=[{limit * f}]"])))[0]
+        .verdict for f in factors)]
 
 
 @pytest.mark.parametrize("rate", [1000, 250])
@@ -36,7 +39,7 @@ def test_whole_loop_limit_matches_simulation_within_1_percent(rate):
     base = _point(rate)
     limit, points = whole_loop_limit(base, points=1)
     assert len(points) == 1 and np.isfinite(limit)
-    assert _verdicts(base, limit, (0.99, 1.01)) == ["converged", "limit_cycle"]
+    assert _verdicts(base, limit, (0.99, 1.01)) == ["stable", "limit_cycle"]
 
 
 def test_whole_loop_and_1d_model_agree_on_the_paper_path():
@@ -83,7 +86,7 @@ def test_delay_of_one_sample_lowers_the_limit_and_simulation_agrees_within_2_per
     base = _point(1000, "controller.delay_samples=1")
     limit, _ = whole_loop_limit(base, points=1)
     assert limit == pytest.approx(delayed, rel=0.1)     # whole loop at one point vs 1-D at worst mass
-    assert _verdicts(base, limit, (0.98, 1.02)) == ["converged", "limit_cycle"]
+    assert _verdicts(base, limit, (0.98, 1.02)) == ["stable", "limit_cycle"]
 
 
 def test_paper_overshoot_after_a_switch_is_within_the_sampled_prediction(paper_result):

@@ -27,7 +27,7 @@ class RendererUnavailable(ValueError):
 
 
 _VERDICT = {"PASS": ("pass", "✔ PASS"), "FAIL": ("fail", "✘ FAIL"), "converged": ("pass", "✔ converged"),
-            "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
+            "off_target": ("warn", "◐ off target"), "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
 
 
 def _template_text(name: str) -> str:

@@ -1,30 +1,78 @@
-"""Force- and position-tracking metrics of a simulation, per stiffness segment.
+"""Force- and position-tracking metrics of a simulation, per stiffness segment, and its verdicts.
 
 A segment is a run of constant stiffness (a piecewise-constant profile, as in
-Fig. 3) or, for continuously varying profiles, one cycle of the path. Forces
-in N, times in s, positions in m.
+Fig. 3), the span between two knots of a piecewise-linear or table profile
+(a ramp or a hold; a knot pair closer than :data:`STEP_SAMPLES` samples is
+one step), or, for a sinusoidal profile, one cycle of the path. Forces in N,
+times in s, positions in m.
+
+Verdicts (:data:`VERDICTS`, best first) judge each segment's force error
+e = f_e - f_d against the scenario's tracking tolerance
+(``controller.force_tolerance``, N) and its growth over whole periods of the
+forcing (the path and a sinusoidal stiffness), never over fractions of one:
+
+* ``converged``: stable (neither of the last two), and |e| within the
+  tolerance (plus 6 sensor-noise standard deviations) over the segment's
+  last quarter;
+* ``off_target``: stable (not growing, contact kept), but not within the
+  tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
+  forced response to a varying stiffness, or a transient still decaying;
+* ``limit_cycle``: the contact is lost in the last quarter, or an oscillation
+  above the ripple band that does not decay and is not the periodic response
+  to the forcing;
+* ``diverged``: a force that is not finite, or an oscillation growing by more
+  than 1.5x from one judging window to the next.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .scenario import read_stiffness_table
 from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "segment_verdict",
-           "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
+           "judge_segment", "judging_periods", "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
 
-VERDICTS = ("converged", "limit_cycle", "diverged")
-"""Per-segment verdicts, best first."""
+VERDICTS = ("converged", "off_target", "limit_cycle", "diverged")
+"""Per-segment verdicts, best first (see the module docstring)."""
 
 STEADY_FRACTION = 0.25
 """The last quarter of a segment is its steady state."""
 
 RIPPLE_BAND = 0.01
-"""Peak-to-peak force ripple, as a fraction of f_d, below which a segment's
-steady state counts as settled (plus 6 sensor-noise standard deviations)."""
+"""Peak-to-peak force oscillation, as a fraction of f_d, below which a
+segment has no oscillation to judge (plus 6 sensor-noise standard
+deviations)."""
+
+NOISE_SIGMAS = 6.0
+"""Sensor-noise standard deviations added to the ripple band and to the
+tracking tolerance (a Gaussian sample exceeds 6 sigma once in 1e9)."""
+
+GROWTH = 1.5
+"""An oscillation growing by more than this factor from one judging window to
+the next is ``diverged``."""
+
+SUSTAINED = 0.95
+"""An oscillation keeping at least this fraction of its amplitude from one
+judging window to the next does not decay (``limit_cycle``, unless it is the
+periodic response to the forcing)."""
+
+FORCED = 0.2
+"""An oscillation that repeats from one whole forcing period to the next
+within this fraction of its amplitude is the forced response (stable)."""
+
+STEP_SAMPLES = 10
+"""Knots of a piecewise-linear or table profile closer than this many samples
+to the previous segment boundary make one step (the later knot starts the
+segment)."""
+
+MAX_KNOT_SEGMENTS = 50
+"""A piecewise-linear or table profile with more knots than this in the run
+is cut per path period instead (a densely sampled smooth profile)."""
 
 
 @dataclass(frozen=True)
@@ -43,12 +91,15 @@ class SegmentMetrics:
       ``steady_rms_error`` its RMS; ``max_steady_error`` = the former (kept
       for older summaries); ``tangential_rms``: RMS distance between X and
       X_r in the surface plane over the last quarter;
+    * ``stiffness``: the mean k_e over the segment (N/m);
     * ``contact_lost_steady``: f_e <= 0 somewhere in the last quarter;
     * ``contact_lost_time``: how long f_e <= 0 after the segment's first
       sample in contact (s; the whole segment if it never touches): the
       contact an upward stiffness switch loses, behind an overshoot of
       100 % (the force fell to zero);
-    * ``verdict``: :func:`segment_verdict`.
+    * ``tolerance``: the tracking tolerance the verdict used (N, the
+      scenario's ``controller.force_tolerance`` plus 6 noise sigmas);
+    * ``verdict``: :func:`judge_segment`; ``reason``: why, in words.
     """
     start: float
     end: float
@@ -66,21 +117,49 @@ class SegmentMetrics:
     contact_lost_steady: bool
     contact_lost_time: float
     verdict: str
+    tolerance: float = math.nan
+    reason: str = ""
 
     def as_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
                 for k, v in asdict(self).items()}
 
 
+def _knot_times(profile) -> np.ndarray | None:
+    if profile.kind == "piecewise_linear":
+        return np.asarray(profile.times, dtype=float)
+    if profile.kind == "table":
+        return np.asarray(read_stiffness_table(profile.file)[0], dtype=float)
+    return None
+
+
 def segments(result: SimulationResult) -> list[tuple[int, int]]:
-    """Index ranges [i0, i1) of the segments."""
+    """Index ranges [i0, i1) of the segments: at the value changes of a
+    piecewise-constant profile, at the knots of a piecewise-linear or table
+    profile (a knot pair within :data:`STEP_SAMPLES` samples is one step, at
+    the later knot), per path period otherwise."""
     k = result.stiffness
+    n = k.size
+    profile = result.scenario.environment.stiffness
+    knots = _knot_times(profile)
+    if knots is not None:
+        idx = np.ceil(knots / result.Ts - 1e-9).astype(int)
+        idx = idx[(idx > 0) & (idx < n)]
+        if idx.size <= MAX_KNOT_SEGMENTS:
+            kept = [0]
+            for i in idx:
+                if i - kept[-1] < STEP_SAMPLES and kept[-1] > 0:
+                    kept[-1] = int(i)                  # a step: the later knot starts the segment
+                elif i - kept[-1] >= STEP_SAMPLES:
+                    kept.append(int(i))
+            bounds = np.r_[kept, n]
+            return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
     edges = np.flatnonzero(np.diff(k) != 0) + 1
-    if result.scenario.environment.stiffness.kind == "piecewise_constant" or len(edges) <= 50:
-        bounds = np.r_[0, edges, k.size]
+    if profile.kind == "piecewise_constant" or (knots is None and len(edges) <= 50):
+        bounds = np.r_[0, edges, n]
     else:
         per = int(round(result.scenario.trajectory.period / result.Ts))
-        bounds = np.r_[np.arange(0, k.size, per), k.size]
+        bounds = np.r_[np.arange(0, n, per), n]
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
@@ -94,46 +173,109 @@ def settling_time(err: np.ndarray, band: float, t: np.ndarray) -> float:
     return float(t[last + 1] - t[0]) if last + 1 < t.size else float("nan")
 
 
-def segment_verdict(force: np.ndarray, f_d: float, band: float) -> str:
-    """``converged``, ``limit_cycle`` or ``diverged`` for one segment's force.
+def judging_periods(result: SimulationResult) -> tuple[int, ...]:
+    """The periods of the forcing, in samples, in the order the verdict tries
+    them: their common period (the path and a sinusoidal stiffness), the
+    stiffness' period, the path's (a circle of radius > 0)."""
+    sc = result.scenario
+    per = []
+    prof = sc.environment.stiffness
+    if prof.kind == "sinusoidal":
+        per.append(int(round(prof.period / result.Ts)))
+    if sc.trajectory.radius > 0:
+        per.append(int(round(sc.trajectory.period / result.Ts)))
+    per = [p for p in per if p >= 2]
+    if len(per) == 2:
+        per.insert(0, math.lcm(*per))
+    return tuple(dict.fromkeys(per))
 
-    The last quarter is split in halves A and B; with the peak-to-peak
-    amplitudes a_A, a_B of the force in each:
 
-    * ``limit_cycle`` if the contact is lost (f_e <= 0) anywhere in the last
-      quarter, or if a_B > ``band`` and a_B >= 0.8 a_A (a sustained
-      oscillation);
-    * ``diverged`` if a_B > ``band`` and a_B > 1.5 a_A (growing), or any
-      force is not finite;
-    * ``converged`` otherwise: settled (a_B <= band), or decaying (an
-      oscillation near the stability limit may still be above the band; its
-      ``steady_state_error`` says how far).
+def _amplitude(e: np.ndarray) -> float:
+    """The oscillation of ``e``: the largest swing between two consecutive
+    local extrema (N); 0 for a monotone signal or one with a single extremum
+    (a drift or a lag is not an oscillation, however curved)."""
+    d = np.diff(e)
+    d = d[d != 0.0]
+    turns = np.flatnonzero(d[:-1] * d[1:] < 0)
+    if turns.size < 2:
+        return 0.0
+    # the extreme values: e at the turning points (cumulated differences from e[0])
+    v = e[0] + np.cumsum(d)[turns]
+    return float(np.max(np.abs(np.diff(v))))
 
-    ``band`` (N) is the ripple that counts as settled (the caller adds the
-    sensor noise to it).
+
+def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
+                  periods: tuple[int, ...] = (), Ts: float = 1.0) -> tuple[str, str]:
+    """``(verdict, reason)`` for one segment's force (N) against f_d (N).
+
+    ``band`` (N): the oscillation (peak-to-peak) that counts as none;
+    ``tolerance`` (N): the largest |f_e - f_d| over the last quarter for
+    ``converged`` (the caller adds the sensor noise to both);
+    ``periods``: the forcing's periods in samples (:func:`judging_periods`);
+    ``Ts`` (s) only for the words of the reason.
+
+    Growth is judged between two consecutive windows A, B at the segment's
+    end, each a whole number of periods of the first of ``periods`` that the
+    segment holds twice (as many whole periods as fit in its last quarter,
+    at least one); with no such period (no forcing, or a segment shorter than
+    two periods), the two halves of the last quarter. With a_A, a_B the
+    oscillation in each (the largest swing between consecutive extrema): ``diverged`` if a_B > band
+    and a_B > 1.5 a_A; ``limit_cycle`` if the contact is lost in the last
+    quarter, or a_B > band, a_B >= 0.95 a_A and B does not repeat A (whole
+    periods only: max |e_B - e_A| > 0.2 a_B; a repeat is the forced
+    response); otherwise stable: ``converged`` if max |e| over the last
+    quarter <= ``tolerance``, else ``off_target``.
     """
+    force = np.asarray(force, dtype=float)
     if not np.all(np.isfinite(force)):
-        return "diverged"
+        return "diverged", "the force is not finite"
     n = force.size
     last = force[int(n * (1 - STEADY_FRACTION)):]
     if last.size < 4:
-        return "converged"
+        return "converged", "too short to judge"
+    e = force - f_d
     if np.any(last <= 0.0):
-        return "limit_cycle"
-    h = last.size // 2
-    a_A, a_B = float(np.ptp(last[:h])), float(np.ptp(last[h:]))
-    if a_B > band and a_B > 1.5 * a_A:
-        return "diverged"
-    if a_B > band and a_B >= 0.8 * a_A:
-        return "limit_cycle"
-    return "converged"
+        return "limit_cycle", "the contact is lost in the last quarter"
+    P = next((p for p in periods if n >= 2 * p), None)
+    W = P * max(1, (n // 4) // P) if P else max(2, last.size // 2)
+    e_A, e_B = e[n - 2 * W:n - W], e[n - W:]
+    a_A, a_B = _amplitude(e_A), _amplitude(e_B)
+    over = f"{W * Ts:.3g} s" + (" (whole periods)" if P else "")
+    if a_B > band and a_B > GROWTH * a_A:
+        return "diverged", f"oscillation grows {a_B / max(a_A, 1e-300):.3g}x over {over}"
+    forced = P is not None and float(np.max(np.abs(e_B - e_A))) <= FORCED * a_B
+    if a_B > band and a_B >= SUSTAINED * a_A and not forced:
+        return "limit_cycle", f"oscillation of {a_B:.3g} N peak-to-peak does not decay over {over}"
+    worst = float(np.max(np.abs(e[n - last.size:])))
+    if worst <= tolerance:
+        return "converged", f"|f_e - f_d| <= {worst:.3g} N at the end"
+    if forced:
+        why = f"a periodic forced response of {a_B:.3g} N peak-to-peak"
+    elif a_B > band:
+        why = f"still decaying ({a_B / max(a_A, 1e-300):.3g}x over {over})"
+    else:
+        drift = float(np.mean(e_B) - np.mean(e_A))
+        why = f"a bias of {float(np.mean(e_B)):+.3g} N" + (f", drifting {drift:+.3g} N over {over}"
+                                                          if abs(drift) > 0.1 * tolerance else "")
+    return "off_target", f"|f_e - f_d| up to {worst:.3g} N at the end (tolerance {tolerance:.3g} N): {why}"
+
+
+def segment_verdict(force: np.ndarray, f_d: float, band: float, tolerance: float = 0.01,
+                    periods: tuple[int, ...] = ()) -> str:
+    """The verdict of :func:`judge_segment` alone (``tolerance`` in N, the
+    scenario key's default 0.01 N)."""
+    return judge_segment(force, f_d, band, tolerance, periods)[0]
 
 
 def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     """:class:`SegmentMetrics` for every segment of ``result``."""
     out = []
-    f_d = result.scenario.controller.f_d
-    band = RIPPLE_BAND * f_d + 6.0 * result.scenario.sensor.noise_std
+    sc = result.scenario
+    f_d = sc.controller.f_d
+    noise = NOISE_SIGMAS * sc.sensor.noise_std
+    band = RIPPLE_BAND * f_d + noise
+    tol = sc.controller.force_tolerance + noise
+    periods = judging_periods(result)
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -148,6 +290,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         ss_err = float(np.abs(err[ss]).max())
         touching = np.flatnonzero(f > 0.0)
         lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
+        verdict, reason = judge_segment(f, f_d, band, tol, periods, result.Ts)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
@@ -160,7 +303,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             tangential_rms=float(tang),
             contact_lost_steady=bool(np.any(f[ss] <= 0.0)),
             contact_lost_time=float(lost * result.Ts),
-            verdict=segment_verdict(f, f_d, band),
+            verdict=verdict, tolerance=tol, reason=reason,
         ))
     return out
 
@@ -202,13 +345,15 @@ def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW
 
 
 def format_table(metrics: list[SegmentMetrics]) -> str:
-    """A plain-text table of the per-segment metrics."""
+    """A plain-text table of the per-segment metrics, with the tracking
+    tolerance each verdict used."""
     head = (f"{'segment':>7} {'t (s)':>11} {'k_e (N/m)':>10} {'ss err (N)':>10} {'peak (N)':>9} "
-            f"{'jump (N)':>9} {'overshoot':>9} {'settle 2% (s)':>13} {'tang RMS (mm)':>13}  verdict")
+            f"{'jump (N)':>9} {'overshoot':>9} {'settle 2% (s)':>13} {'tang RMS (mm)':>13} {'tol (N)':>8}  verdict")
     rows = [head, "-" * len(head)]
     for i, m in enumerate(metrics, 1):
         settle = f"{m.settling_time:.3f}" if np.isfinite(m.settling_time) else "never"
         rows.append(f"{i:>7} {m.start:>5.1f}-{m.end:<5.1f} {m.stiffness:>10.4g} "
                     f"{m.steady_state_error:>10.2e} {m.peak_force:>9.2f} {m.switch_jump:>+9.2f} "
-                    f"{m.overshoot_pct:>8.1f}% {settle:>13} {m.tangential_rms * 1e3:>13.4f}  {m.verdict}")
+                    f"{m.overshoot_pct:>8.1f}% {settle:>13} {m.tangential_rms * 1e3:>13.4f} {m.tolerance:>8.3g}  "
+                    f"{m.verdict}")
     return "\n".join(rows)

@@ -294,6 +294,9 @@ class ControllerSettings(_Section):
     contact_threshold: float = num(1.0, "N", "measured force that ends the guarded approach", gt=0)
     force_ramp: float = num(0.25, "s", "after a guarded approach, f_d rises linearly from 0 over this time",
                             gt=0, le=100)
+    force_tolerance: float = num(0.01, "N", "tracking tolerance of the segment verdicts: a segment is "
+                                 "'converged' only if the force error f_e - f_d stays within +- this "
+                                 "(plus 6 sensor-noise standard deviations) over its last quarter", gt=0)
     law: _law_union() = Field(default_factory=TmtParameters,
                               description="force-tracking law: its kind and parameters")
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,
