@@ -353,3 +353,23 @@ def test_puma_pinocchio_model_from_dh_many_states(arms):
         assert rel(robot.bias(q, dq), got["bias"]) < TOL
         assert rel(robot.jacobian(q), got["J"]) < TOL
         assert rel(robot.fk(q), got["fk"]) < TOL
+
+
+def test_compiled_dynamics_is_cached_and_equals_the_virtual_machine(tmp_path, monkeypatch):
+    """robot.dynamics(): M and n as C (compiled once, then loaded from the cache),
+    bit for bit the virtual machine's (-ffp-contract=off)."""
+    from tmtcontrol.simulation.rollout import compiler
+
+    if compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path / "cache"))
+    robot = load_robot(write(tmp_path, GOOD))
+    f = robot.dynamics()
+    assert f.is_a("external") or "External" in str(f)
+    assert len(list((tmp_path / "cache" / "robots").glob("*.so"))) == 1
+    again = robot.dynamics()
+    assert len(list((tmp_path / "cache" / "robots").glob("*.so"))) == 1
+    vm = robot.dynamics(compiled=False)
+    for q, dq in (([0.3], [1.0]), ([-2.0], [-0.4])):
+        for a, b, c in zip(f(q, dq), again(q, dq), vm(q, dq)):
+            assert np.array_equal(np.array(a), np.array(c)) and np.array_equal(np.array(b), np.array(c))

@@ -122,6 +122,10 @@ class Robot:
         The parsed URDF chain (None for the PUMA).
     urdf : str or None
         The URDF's text (None for the PUMA).
+    armature : numpy.ndarray
+        Rotor inertia on M's diagonal, kg m^2.
+    key : str
+        Cache key of the Functions (the URDF's content and the options).
     """
 
     name: str
@@ -139,6 +143,7 @@ class Robot:
     chain: Chain | None = None
     urdf: str | None = None
     armature: np.ndarray | None = None
+    key: str = ""
 
     @property
     def n(self) -> int:
@@ -191,6 +196,19 @@ class Robot:
         if self.chain is None:
             return self.total_mass
         return float(sum(b.mass for b in self.chain.bodies))
+
+    def dynamics(self, compiled: bool = True) -> ca.Function:
+        """``["q","dq"] -> ["M","n"]``: the mass matrix and the bias in one
+        Function, generated as C, compiled and cached on disk (keyed by
+        :attr:`key`) when ``compiled`` and a C compiler is found, else the SX
+        Function on CasADi's virtual machine (identical results: compiled with
+        ``-ffp-contract=off``)."""
+        f = self.functions
+        q, dq = ca.SX.sym("q", self.n), ca.SX.sym("dq", self.n)
+        fn = ca.Function("dynamics", [q, dq], [f.mass_matrix(q), f.bias(q, dq)], ["q", "dq"], ["M", "n"])
+        if not compiled:
+            return fn
+        return _compiled(fn, self.key or hashlib.sha256(fn.serialize().encode()).hexdigest()[:20])
 
     def reach(self) -> float:
         """Upper bound of the tip's distance from the first joint's axis origin, m:
@@ -272,7 +290,8 @@ def load_robot(source, tip: str | None = None, base: str | None = None, joints=N
                  q_min=np.array([j.lower for j in J]), q_max=np.array([j.upper for j in J]),
                  dq_max=np.array([j.velocity for j in J]), tau_max=np.array([j.effort for j in J]),
                  base=chain.base, tip=chain.tip, held=dict(chain.held), link_masses=dict(chain.link_masses),
-                 functions=functions, chain=chain, urdf=text, armature=arm)
+                 functions=functions, chain=chain, urdf=text, armature=arm,
+                 key=cache_key(chain, text, arm, friction, coulomb_velocity))
 
 
 # -- the PUMA through the interface -------------------------------------------------
@@ -306,7 +325,7 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity) -> Robot:
     arm = np.array([l.G ** 2 * l.Jm for l in PUMA560_LINKS]) if armature else np.zeros(3)
     return Robot(name="puma560", source="puma560", joint_names=PUMA_JOINTS, q_min=-inf, q_max=inf.copy(),
                  dq_max=inf.copy(), tau_max=inf.copy(), base="base", tip=PUMA_TIP, held={},
-                 link_masses=masses, functions=fns, armature=arm)
+                 link_masses=masses, functions=fns, armature=arm, key=_puma_key(armature, friction, coulomb_velocity))
 
 
 # -- URDF robots ----------------------------------------------------------------------
@@ -374,6 +393,60 @@ def _cached_functions(chain, text, arm, friction, coulomb_velocity, use_cache) -
     except OSError:
         pass                                            # an unwritable cache: built every time
     return fns
+
+
+def _puma_key(armature, friction, coulomb_velocity) -> str:
+    here = pathlib.Path(__file__).parent
+    h = hashlib.sha256(repr((bool(armature), friction, float(coulomb_velocity), ca.__version__)).encode())
+    for module in ("puma560.py", "robot.py"):
+        h.update((here / module).read_bytes())
+    return "puma560_" + h.hexdigest()[:20]
+
+
+_CFLAGS = ["-O3", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared"]
+"""-ffp-contract=off: no fused multiply-adds, so the compiled code computes
+what CasADi's virtual machine computes."""
+
+
+def _compiled(fn: ca.Function, key: str) -> ca.Function:
+    """``fn`` generated as C, compiled and loaded as an external Function;
+    cached as ``<cache>/robots/<name>_<key>.so`` (written under a temporary
+    name and renamed). Without a compiler, or if compiling fails, ``fn``."""
+    import subprocess
+    import tempfile
+
+    from ..simulation.rollout import cache_dir, compiler      # the one cache folder and compiler choice
+
+    h = hashlib.sha256(f"{key} {' '.join(_CFLAGS)} {ca.__version__} {os.uname().machine}".encode())
+    lib = cache_dir() / "robots" / f"{fn.name()}_{h.hexdigest()[:20]}.so"
+    if lib.exists():
+        try:
+            return ca.external(fn.name(), str(lib))
+        except RuntimeError:
+            pass                                              # damaged: rebuilt below
+    cc = compiler()
+    if cc is None:
+        return fn
+    try:
+        with tempfile.TemporaryDirectory(prefix="tmtcontrol-robot-") as tmp:
+            gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
+            gen.add(fn)
+            cfile = gen.generate(tmp + os.sep)
+            built = pathlib.Path(tmp) / "lib.so"
+            subprocess.run([cc, *_CFLAGS, cfile, "-o", str(built), "-lm"], check=True, capture_output=True,
+                           timeout=600)
+            try:
+                lib.parent.mkdir(parents=True, exist_ok=True)
+                staged = lib.parent / f".{lib.name}.{os.getpid()}.tmp"
+                staged.write_bytes(built.read_bytes())
+                os.replace(staged, lib)
+                return ca.external(fn.name(), str(lib))
+            except OSError:
+                private = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-lib-")) / lib.name
+                private.write_bytes(built.read_bytes())
+                return ca.external(fn.name(), str(private))
+    except (OSError, subprocess.SubprocessError, RuntimeError):
+        return fn
 
 
 def _safe(name: str) -> str:
