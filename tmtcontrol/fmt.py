@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["num", "qty", "pct", "ratio", "value"]
+__all__ = ["num", "qty", "pct", "ratio", "value", "column", "against", "text_table"]
 
 _SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 _PREFIXED = {"s", "N", "m", "Hz"}          # units that read better with a prefix (ms, mN, mm, kHz)
@@ -15,9 +15,11 @@ _PREFIX = [(1e-9, "n"), (1e-6, "µ"), (1e-3, "m"), (1.0, ""), (1e3, "k")]
 NBSP = "\u00a0"
 
 
-def num(v, sig: int = 3) -> str:
+def num(v, sig: int = 3, trim: bool = True) -> str:
     """``v`` to ``sig`` significant digits: 163,400 / 12.5 / 0.0312 /
-    3.1 × 10⁻⁵; "–" for NaN or None, "∞" for infinity."""
+    3.1 × 10⁻⁵; "–" for NaN or None, "∞" for infinity. ``trim=False`` keeps
+    the trailing zeros (0.00210, 1.50: every cell of a column shows ``sig``
+    digits)."""
     if v is None:
         return "–"
     if isinstance(v, bool):
@@ -34,14 +36,16 @@ def num(v, sig: int = 3) -> str:
     mag = math.floor(math.log10(abs(v)))
     if mag < -3 or mag >= 9:
         mant = v / 10 ** mag
-        text = f"{mant:.{sig - 1}f}".rstrip("0").rstrip(".")
-        if text in ("10", "-10"):                       # rounding carried into the next decade
-            text, mag = text[:-1], mag + 1
+        text = f"{mant:.{sig - 1}f}"
+        text = text.rstrip("0").rstrip(".") if trim else text
+        if text.lstrip("-").startswith("10"):                       # rounding carried into the next decade
+            text, mag = f"{mant / 10:.{sig - 1}f}", mag + 1
+            text = text.rstrip("0").rstrip(".") if trim else text
         return f"{text}{NBSP}×{NBSP}10{str(mag).translate(_SUP)}".replace("-", "−")
     decimals = sig - 1 - mag
     rounded = round(v, decimals)                  # negative decimals round to tens, hundreds, ...
     text = f"{rounded:,.{max(decimals, 0)}f}"
-    if "." in text:
+    if trim and "." in text:
         text = text.rstrip("0").rstrip(".")
     return text.replace("-", "−")
 
@@ -81,3 +85,59 @@ def value(v, unit: str = "") -> str:
     if isinstance(v, (int, float)):
         return num(v, 4) + (f"{NBSP}{unit}" if unit and unit != "1" else "")
     return str(v)
+
+
+def column(values, unit: str = "", sig: int = 3, attach: bool = False) -> tuple[str, list[str]]:
+    """One table column: ``(unit, cells)`` with a single unit for the whole
+    column (for s, N, m and Hz the SI prefix of its largest magnitude: 0.500 s
+    and 1.50 s, never 500 ms beside 1.5 s) and every cell to ``sig``
+    significant digits, trailing zeros kept (0.00210 %, 0.00211 %).
+    Non-finite values and None read as in :func:`num`. ``attach``: each
+    number cell carries the column's unit (4.20 mN), for tables read on
+    narrow screens where the header scrolls away."""
+    finite = [abs(float(v)) for v in values if v is not None and math.isfinite(float(v)) and v != 0]
+    scale, prefix = 1.0, ""
+    if unit in _PREFIXED and finite:
+        top = max(finite)
+        for s, p in reversed(_PREFIX):
+            if top >= s * 0.9995:
+                scale, prefix = s, p
+                break
+        else:
+            scale, prefix = _PREFIX[0]
+    cells = [num(v, sig) if v is None or not math.isfinite(float(v)) or v == 0
+             else num(float(v) / scale, sig, trim=False) for v in values]
+    if attach and unit and unit != "1":
+        cells = [c if c in ("–", "∞", "−∞") else f"{c}{NBSP}{prefix}{unit}" for c in cells]
+    return prefix + unit, cells
+
+
+def against(v, bound, sig: int = 3) -> str:
+    """``v`` to at least ``sig`` significant digits, more (up to 6) while it
+    would print as ``bound`` without being equal to it: 4.995 beside a bound
+    of 5 prints 4.995, not 5."""
+    if v is None or bound is None or not math.isfinite(float(v)) or float(v) == float(bound):
+        return num(v, sig)
+    for digits in range(sig, 7):
+        text = num(v, digits)
+        if text != num(bound, digits):
+            return text
+    return text
+
+
+def text_table(columns: list[tuple[str, list[str]]], left: tuple[int, ...] = (-1,)) -> str:
+    """A plain-text table for the terminal from ``(header, cells)`` columns:
+    each column as wide as its widest entry, numbers right-aligned, the
+    columns ``left`` (indices; by default the last, a verdict or a note)
+    left-aligned; a rule under the header."""
+    widths = [max([len(h), *(len(c) for c in cells)]) for h, cells in columns]
+    n = max((len(cells) for _, cells in columns), default=0)
+
+    def line(texts):
+        lefts = {j % len(columns) for j in left}
+        parts = [t.ljust(w) if j in lefts else t.rjust(w) for j, (t, w) in enumerate(zip(texts, widths))]
+        return "  ".join(parts).rstrip()
+
+    head = line([h for h, _ in columns])
+    rows = [line([cells[i] if i < len(cells) else "" for _, cells in columns]) for i in range(n)]
+    return "\n".join([head, "-" * len(head), *rows])

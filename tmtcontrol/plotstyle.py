@@ -9,7 +9,7 @@ import functools
 import pathlib
 import re
 
-__all__ = ["STYLE", "styled", "fixed_layout", "margin_colorbar", "plain_log_labels"]
+__all__ = ["STYLE", "styled", "fixed_layout", "margin_colorbar", "plain_log_labels", "legend_below", "legend_margin", "LEGEND_ROW"]
 
 STYLE = pathlib.Path(__file__).with_name("tmtcontrol.mplstyle")
 
@@ -46,6 +46,28 @@ def margin_colorbar(fig, ax, mappable, **kw):
     return fig.colorbar(mappable, cax=fig.add_axes((box.x1 + 0.15 / w, box.y0, 0.14 / w, box.height)), **kw)
 
 
+LEGEND_ROW = 0.2
+"""Height of one legend row under the axes, inches (:func:`legend_below`)."""
+
+
+def legend_below(fig, ax=None, ncol: int = 4, handles=None, labels=None):
+    """The legend of ``ax`` (default: the figure's first axes) in the
+    figure's bottom margin, under the x label, so it never covers data.
+    Lay the figure out with ``fixed_layout(fig, bottom=legend_margin(n,
+    ncol))``. Returns the legend."""
+    ax = ax or fig.axes[0]
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    return fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=ncol,
+                      fontsize="small", frameon=False, borderaxespad=0.2)
+
+
+def legend_margin(entries: int, ncol: int = 4, bottom: float = 0.48) -> float:
+    """The bottom margin (inches) for :func:`legend_below` with ``entries``
+    in ``ncol`` columns under an x label that needs ``bottom``."""
+    return bottom + LEGEND_ROW * -(-entries // ncol) + 0.08
+
+
 _SUPERSCRIPT = str.maketrans("0123456789-.", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻·")
 
 
@@ -55,13 +77,20 @@ def _unicode_log_formatter():
 
     class UnicodeLogFormatter(LogFormatterSciNotation):
         """matplotlib's log-axis labels (which ticks, and 10^3 or 2x10^3)
-        written with Unicode superscripts instead of mathtext."""
+        written with Unicode superscripts instead of mathtext; on an axis of
+        at most three decades between 0.001 and 10⁶ as plain numbers
+        (``fmt.num``: 6,000, 0.02)."""
 
         def __call__(self, x, pos=None):
             label = super().__call__(x, pos)
             m = re.fullmatch(r"\$\\mathdefault\{(.*)\}\$", label)
             if not m:
                 return label
+            lo, hi = sorted(abs(v) for v in self.axis.get_view_interval()) if self.axis is not None else (x, x)
+            if lo >= 1e-3 and hi < 1e6 and hi <= 1e3 * lo:    # a few ordinary decades: 6,000, not 6×10³
+                from .fmt import num
+
+                return num(x)
             body = m.group(1).replace(r"\times", "×")
             return re.sub(r"\^\{([^}]*)\}", lambda e: e.group(1).translate(_SUPERSCRIPT), body)
 

@@ -5,6 +5,7 @@ worker processes or a Dask cluster, with results in Parquet (see docs/sweeps.md)
 from __future__ import annotations
 
 import pathlib
+import re
 import time
 
 from ..files import OutputFolder, write_json
@@ -12,7 +13,7 @@ from .run import PartialFolder, Progress, SchedulerUnavailable, case_row, check_
 from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
-           "sweep_summary", "EXAMPLE", "case_row"]
+           "sweep_summary", "boundary_lines", "axis_labels", "EXAMPLE", "case_row"]
 
 
 def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps: int | None = None,
@@ -83,9 +84,12 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
     boundary = []
     axes = sweep.axes
     first = axes[0]
-    other = axes[1] if len(axes) > 1 else None
-    groups = [(None, df)] if other is None else [(v, g) for v, g in df.groupby(other, sort=True)]
-    for value, g in groups:
+    # one boundary per combination of the other grid axes (random axes are draws, not settings to split by)
+    others = [a for a in axes[1:] if a in sweep.grid and a in df]
+    groups = [((), df)] if not others else [((k,) if len(others) == 1 else k, g)
+                                            for k, g in df.groupby(others if len(others) > 1 else others[0],
+                                                                   sort=True)]
+    for values, g in groups:
         try:
             xs = sorted(set(g[first]))
         except TypeError:
@@ -96,13 +100,74 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
                 last_ok = x
             elif first_bad is None:
                 first_bad = x
-        boundary.append({**({other: value} if other else {}), f"largest {first} with every case converged": last_ok,
-                         f"smallest {first} with a case not converged": first_bad})
+        boundary.append({**{a: _plain(v) for a, v in zip(others, values)},
+                         f"largest {first} with every case converged": _plain(last_ok),
+                         f"smallest {first} with a case not converged": _plain(first_bad)})
     out = {"cases": int(len(df)), "axes": axes, "verdicts": counts, "worst": worst, "boundary": boundary}
     if predicted:
         out["predicted_stiffness_limit"] = [{"value": list(k) if isinstance(k, tuple) else k, "limit": v}
                                             for k, v in predicted.items()]
     return out
+
+
+def _plain(v):
+    """A NumPy scalar as the Python number it holds (for JSON and printing)."""
+    return v.item() if hasattr(v, "item") else v
+
+
+def axis_labels(sweep: Sweep) -> dict[str, str]:
+    """Each axis' description from the scenario schema (its meaning up to the
+    first ';', ':' or '(': "control rate 1/Ts"), the key where it has none, for
+    figure labels (the unit comes from :attr:`Sweep.units`)."""
+    from ..simulation.scenario import applicable_settings
+
+    try:
+        first = next(iter(sweep.cases))
+    except StopIteration:
+        return {a: a for a in sweep.axes}
+    rows = {r.key: r.meaning for r in applicable_settings(sweep.scenario(first))}
+    return {a: re.split(r"[;:]| \(", rows.get(a) or a)[0].strip() or a for a in sweep.axes}
+
+
+def boundary_lines(sweep: Sweep, summary: dict) -> list[str]:
+    """The summary's boundaries as lines for the terminal, one per
+    combination of the other grid axes, numbers formatted with their units
+    (``fmt.qty``): "boundary at controller.rate = 1 kHz,
+    controller.delay_samples = 0: environment.stiffness.values converged up
+    to 106,000 N/m, not from 150,000 N/m"."""
+    from .. import fmt
+
+    units = sweep.units
+    first = sweep.axes[0]
+
+    def show(key, v):
+        if v is None:
+            return "–"
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            unit = units.get(key, "")
+            return fmt.num(v, 4) + (f" {unit}" if unit else "")
+        if isinstance(v, (list, tuple)) and len(v) == 1:
+            return show(key, v[0])
+        return str(v)
+
+    ok_key = f"largest {first} with every case converged"
+    bad_key = f"smallest {first} with a case not converged"
+    lines = []
+    split = [k for k in (summary["boundary"][0] if summary["boundary"] else {}) if k not in (ok_key, bad_key)
+             and len({repr(b[k]) for b in summary["boundary"]}) > 1]     # an axis with one value splits nothing
+    for b in summary["boundary"]:
+        where = ", ".join(f"{k} = {show(k, b[k])}" for k in split)
+        ok, bad = b[ok_key], b[bad_key]
+        if ok is None and bad is None:
+            what = "no case"
+        elif bad is None:
+            what = f"every case converged (up to {show(first, ok)})"
+        elif ok is None:
+            what = f"not converged from the smallest, {show(first, bad)}"
+        else:
+            what = f"converged up to {show(first, ok)}, not from {show(first, bad)}"
+        lines.append(f"boundary{' at ' + where if where else ''}: {first} {what}")
+    return lines
 
 
 def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: str | None = None,
@@ -145,7 +210,9 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
             from .figures import law_distribution_figure, sweep_map_figure
 
             facet = _facet_axis(sweep, df)
-            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted, facet, sweep.units))]
+            labels = axis_labels(sweep)
+            makers = [("sweep_map", lambda d: sweep_map_figure(d, sweep.axes, predicted, facet, sweep.units,
+                                                               labels))]
             if "controller.law" in sweep.axes:
                 makers.append(("law_distribution", law_distribution_figure))
             summary["figures"] = [p.name for p in save_figures(makers, df, folder.path)]

@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..plotstyle import fixed_layout, margin_colorbar
+from ..plotstyle import fixed_layout, legend_below, legend_margin, margin_colorbar
 
 __all__ = ["sweep_map_figure", "law_distribution_figure", "VERDICT_STYLE"]
 
-VERDICT_STYLE = {"converged": ("o", "#0072B2"), "limit_cycle": ("^", "#E69F00"), "diverged": ("X", "#D55E00")}
+VERDICT_STYLE = {"converged": ("o", "#0072B2"), "off_target": ("s", "#CC79A7"), "limit_cycle": ("^", "#E69F00"),
+                 "diverged": ("X", "#D55E00")}
 """Marker and colour per verdict (Okabe-Ito palette; the marker alone tells them apart in grey)."""
 
 
@@ -19,19 +20,23 @@ def _numeric(values) -> bool:
 
 
 def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: str | None = None,
-                     units: dict[str, str] | None = None) -> Figure:
+                     units: dict[str, str] | None = None, labels: dict[str, str] | None = None) -> Figure:
     """Verdict (marker) and worst steady-state error (colour, N) over the
     first two axes (the first axis against the error if there is one axis),
     one panel per value of ``facet`` (the third axis) if given;
     ``predicted``: the analysis' stiffness limit (N/m) per value of the other
     axis (keys ``(other, facet)`` with a facet), drawn as the predicted
     boundary when the stiffness is one of the two axes; ``units``: each
-    axis' unit for its label (:attr:`~.spec.Sweep.units`)."""
+    axis' unit for its label (:attr:`~.spec.Sweep.units`); ``labels``: each
+    axis' description from the scenario schema (:func:`~tmtcontrol.sweep.axis_labels`),
+    used instead of its key. A numeric axis spanning a decade or more is
+    logarithmic; the legend sits under the axes."""
     import matplotlib as mpl
 
     def label(key):
         unit = (units or {}).get(key, "")
-        return f"{key} ({unit})" if unit else key
+        name = (labels or {}).get(key) or key
+        return f"{name} ({unit})" if unit else name
 
     panels = [(None, df)] if facet is None else list(df.groupby(facet, sort=True))
     fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6))
@@ -68,15 +73,15 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
                     ax.axhline(pts[None], **line)
         if j == 0:
             xs, ys = df[x_key].to_numpy(), df[y_key].to_numpy()
-            if _numeric(xs) and np.all(np.asarray(xs, float) > 0) and np.max(xs) / np.min(xs) > 20:
+            if _numeric(xs) and np.all(np.asarray(xs, float) > 0) and np.max(xs) / np.min(xs) >= 10:
                 ax.set_xscale("log")
             if y_key == "max_steady_error" or (_numeric(ys) and np.all(np.asarray(ys, float) > 0)
-                                               and np.max(ys) / np.min(ys) > 20):
+                                               and np.max(ys) / np.min(ys) >= 10):
                 ax.set_yscale("log")
         ax.set(xlabel=label(x_key), ylabel=(label(y_key) if y_key != "max_steady_error" else "worst steady-state "
                                             "error (N)") if j == 0 else "",
-               title=f"{facet} = {fv}" if facet else "Sweep: verdict (marker), accuracy (colour)")
-        ax.legend(fontsize="small")
+               title=f"{(labels or {}).get(facet) or facet} = {fv}{' ' + units[facet] if (units or {}).get(facet) else ''}"
+               if facet else "Sweep: verdict (marker), accuracy (colour)")
         ax.grid(True, which="both", alpha=0.3)
         if j > 0:
             ax.tick_params(labelleft=False)         # shared with the first panel
@@ -84,7 +89,16 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
         fig.suptitle("Sweep: verdict (marker) and accuracy (colour)")
     # fixed margins (constrained layout measured every text: half the figure's time), the colour
     # bar in the right margin beside the last panel
-    fixed_layout(fig, right=1.25 if sc is not None else 0.15, top=0.6 if facet else 0.32)
+    handles, names = {}, {}
+    for ax in fig.axes:                         # one entry per verdict over the panels
+        for h, n in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(n.rsplit(" (", 1)[0] if n.rsplit(" (", 1)[0] in VERDICT_STYLE else n, h)
+    counts = {v: int((df["verdict"] == v).sum()) for v in VERDICT_STYLE}
+    entries = [(h, f"{n} ({counts[n]})" if n in counts else n) for n, h in handles.items()]
+    if entries:
+        legend_below(fig, fig.axes[0], ncol=4, handles=[h for h, _ in entries], labels=[t for _, t in entries])
+    fixed_layout(fig, right=1.25 if sc is not None else 0.15, top=0.6 if facet else 0.32,
+                 bottom=legend_margin(len(entries), 4) if entries else 0.48)
     if sc is not None:
         margin_colorbar(fig, fig.axes[-1], sc, label="worst steady-state |f_e - f_d| (N)")
     return fig
