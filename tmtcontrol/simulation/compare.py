@@ -106,19 +106,31 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
 
 def format_comparison(cmp: Comparison) -> str:
     """One table, law x segment: steady-state error (max over the last
-    quarter), peak, settling to 0.01 N, tangential RMS, verdict."""
-    head = (f"{'law':<17} {'seg':>3} {'k_e (N/m)':>10} {'ss err (N)':>10} {'peak (N)':>9} "
-            f"{'settle 10 mN (s)':>16} {'tang RMS (mm)':>13}  verdict")
-    rows = [head, "-" * len(head)]
-    for name, run in cmp.runs.items():
-        if run.result is None:
-            rows.append(f"{name:<17} {'-':>3} {'':>10} {'':>10} {'':>9} {'':>16} {'':>13}  diverged: {run.error}")
-            continue
-        for i, s in enumerate(run.segments, 1):
-            settle = f"{s.settling_time_10mN:.3f}" if np.isfinite(s.settling_time_10mN) else "never"
-            rows.append(f"{name if i == 1 else '':<17} {i:>3} {s.stiffness:>10.4g} {s.steady_state_error:>10.2e} "
-                        f"{s.peak_force:>9.2f} {settle:>16} {s.tangential_rms * 1e3:>13.4f}  {s.verdict}")
-    return "\n".join(rows)
+    quarter), peak, settling to 0.01 N, tangential RMS, the tracking
+    tolerance the verdict used, verdict; one unit
+    per column (in its header), the same significant digits down a column
+    (``fmt.column``)."""
+    from .. import fmt
+
+    rows = [(name, i, s) for name, run in cmp.runs.items() for i, s in enumerate(run.segments, 1)]
+
+    def col(name, values, unit, sig=3, nan="never"):
+        unit, cells = fmt.column(list(values) + [None] * n_bad, unit, sig)
+        cells = [nan if c == "–" else c for c in cells[:len(rows)]] + [""] * n_bad
+        return (f"{name} ({unit})" if unit else name, cells)
+
+    bad = [(name, run.error) for name, run in cmp.runs.items() if run.result is None]
+    n_bad = len(bad)
+    return fmt.text_table([
+        ("law", [name if i == 1 else "" for name, i, _ in rows] + [name for name, _ in bad]),
+        ("seg", [str(i) for _, i, _ in rows] + ["–"] * n_bad),
+        col("k_e", (s.stiffness for *_, s in rows), "N/m", 4),
+        col("ss err", (s.steady_state_error for *_, s in rows), "N"),
+        col("peak", (s.peak_force for *_, s in rows), "N"),
+        col("settle 10 mN", (s.settling_time_10mN for *_, s in rows), "s"),
+        col("tang RMS", (s.tangential_rms for *_, s in rows), "m"),
+        col("tol", (s.tolerance for *_, s in rows), "N"),
+        ("verdict", [s.verdict for *_, s in rows] + [f"diverged: {err}" for _, err in bad])], left=(0, -1))
 
 
 def save_comparison(cmp: Comparison, folder: str | pathlib.Path, plots: bool = True) -> dict:

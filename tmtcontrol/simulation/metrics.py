@@ -346,14 +346,24 @@ def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW
 
 def format_table(metrics: list[SegmentMetrics]) -> str:
     """A plain-text table of the per-segment metrics, with the tracking
-    tolerance each verdict used."""
-    head = (f"{'segment':>7} {'t (s)':>11} {'k_e (N/m)':>10} {'ss err (N)':>10} {'peak (N)':>9} "
-            f"{'jump (N)':>9} {'overshoot':>9} {'settle 2% (s)':>13} {'tang RMS (mm)':>13} {'tol (N)':>8}  verdict")
-    rows = [head, "-" * len(head)]
-    for i, m in enumerate(metrics, 1):
-        settle = f"{m.settling_time:.3f}" if np.isfinite(m.settling_time) else "never"
-        rows.append(f"{i:>7} {m.start:>5.1f}-{m.end:<5.1f} {m.stiffness:>10.4g} "
-                    f"{m.steady_state_error:>10.2e} {m.peak_force:>9.2f} {m.switch_jump:>+9.2f} "
-                    f"{m.overshoot_pct:>8.1f}% {settle:>13} {m.tangential_rms * 1e3:>13.4f} {m.tolerance:>8.3g}  "
-                    f"{m.verdict}")
-    return "\n".join(rows)
+    tolerance each verdict used: one unit per column (in its header), every
+    number of a column to the same significant digits, thousands separated
+    (``fmt.column``)."""
+    from .. import fmt
+
+    def col(name, values, unit, sig=3, nan="never"):
+        unit, cells = fmt.column(values, unit, sig)
+        return (f"{name} ({unit})" if unit else name, [nan if c == "–" else c for c in cells])
+
+    return fmt.text_table([
+        ("segment", [str(i) for i in range(1, len(metrics) + 1)]),
+        ("t (s)", [f"{fmt.num(m.start)}–{fmt.num(m.end)}" for m in metrics]),
+        col("k_e", [m.stiffness for m in metrics], "N/m", 4),
+        col("ss err", [m.steady_state_error for m in metrics], "N"),
+        col("peak", [m.peak_force for m in metrics], "N"),
+        col("jump", [m.switch_jump for m in metrics], "N"),
+        col("overshoot", [m.overshoot_pct for m in metrics], "%"),
+        col("settle 2 %", [m.settling_time for m in metrics], "s"),
+        col("tang RMS", [m.tangential_rms for m in metrics], "m"),
+        col("tol", [m.tolerance for m in metrics], "N"),
+        ("verdict", [m.verdict for m in metrics])])

@@ -413,14 +413,17 @@ def damping_alternatives(scenario, result: DesignResult) -> dict:
 
 
 def format_design(r: DesignResult) -> str:
+    from ..fmt import against, num
+
     s = r.spec
     return "\n".join([
         f"stiffness range      {s.k_e_min:.6g} .. {s.k_e_max:.6g} N/m, Ts = {s.Ts:g} s, m = {s.m:g} kg, "
         f"m_p = {s.m_p:.4g} kg, delay {s.delay} sample(s)",
-        f"optimal design       b = {r.b:.6g} N s/m, k = {r.k:.6g} N/m  ({r.status})",
+        f"optimal design       b = {num(r.b, 4)} N s/m, k = {num(r.k, 4)} N/m  ({r.status})",
         f"worst-case cost      {r.objective:.6g} N^2 s on the grid, {r.dense_objective:.6g} between grid points",
-        f"eq. (25) baseline    b = {r.baseline_b:.6g} N s/m, cost {r.baseline_objective:.6g} N^2 s",
-        f"worst overshoot      {r.worst_overshoot:.4g} % in the sampled loop (bound {s.max_overshoot:g} %); "
+        f"eq. (25) baseline    b = {num(r.baseline_b, 4)} N s/m, cost {r.baseline_objective:.6g} N^2 s",
+        f"worst overshoot      {against(r.worst_overshoot, s.max_overshoot)} % in the sampled loop "
+        f"(bound {num(s.max_overshoot)} %); "
         f"eq. (22) would say {r.info['continuous_overshoot']:.4g} %",
         f"damping ratio        {r.info['damping_ratio_at_k_e_min']:.4g} at k_e_min, "
         f"{r.info['damping_ratio_at_k_e_max']:.4g} at k_e_max",
