@@ -57,10 +57,7 @@ def compile_export(folder: str | os.PathLike, flag: str = "--controller") -> pat
     (naming ``flag``) for a folder that is not an export or when there is no
     C compiler."""
     folder = pathlib.Path(folder)
-    meta = folder / METADATA
-    if not (folder / "tmt_controller.c").is_file() or not meta.is_file():
-        raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
-                          f"(no tmt_controller.c and {METADATA})")
+    _read_metadata(folder, flag)
     cc = compiler()
     if cc is None:
         raise ExportError(f"{flag}: no C compiler found; install one (apt-get install gcc) or set CC")
@@ -73,6 +70,17 @@ def compile_export(folder: str | os.PathLike, flag: str = "--controller") -> pat
         first = (result.stderr.strip().splitlines() or ["no message"])[0]
         raise ExportError(f"{flag}: compiling {folder / 'tmt_controller.c'} failed: {first}")
     return lib
+
+
+def _read_metadata(folder: pathlib.Path, flag: str) -> dict:
+    try:
+        meta = json.loads((folder / METADATA).read_text(encoding="utf-8"))
+        if meta.get("written_by") != "tmtcontrol export" or not (folder / "tmt_controller.c").is_file():
+            raise ValueError
+    except (OSError, ValueError, AttributeError):
+        raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
+                          f"(no tmt_controller.c and {METADATA})") from None
+    return meta
 
 
 class CompiledController:
@@ -92,15 +100,17 @@ class CompiledController:
     """
 
     def __init__(self, folder: str | os.PathLike, library: str | os.PathLike | None = None,
-                 flag: str = "--controller"):
-        self.folder = pathlib.Path(folder)
-        self.flag = flag
-        self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
-        self.meta = json.loads((self.folder / METADATA).read_text(encoding="utf-8"))
+                 flag: str = "--controller", scenario=None):
         from ..control.laws import get_law
 
+        self.folder = pathlib.Path(folder)
+        self.flag = flag
+        self.meta = _read_metadata(self.folder, flag)
         self.law = get_law(self.meta["law"])
         self.torque = bool(self.meta["inner_loop"])
+        if scenario is not None:            # refused before compiling
+            self.check_matches(scenario)
+        self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
         self.cmd_fields = COMMAND_FIELDS if self.torque else COMMAND_FIELDS[:-1]
         self.Params = _struct("tmt_params", param_fields(self.law))
         self.Measurement = _struct("tmt_measurement", MEASUREMENT_FIELDS)
