@@ -373,3 +373,17 @@ def test_compiled_dynamics_is_cached_and_equals_the_virtual_machine(tmp_path, mo
     for q, dq in (([0.3], [1.0]), ([-2.0], [-0.4])):
         for a, b, c in zip(f(q, dq), again(q, dq), vm(q, dq)):
             assert np.array_equal(np.array(a), np.array(c)) and np.array_equal(np.array(b), np.array(c))
+
+
+def test_docs_bundled_arms_table():
+    """docs/robots.md's table of bundled arms: joints, tip and moving mass (4 significant digits)."""
+    import pathlib
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text()
+    block = text.split("<!-- table checked by tests/test_urdf.py::test_docs_bundled_arms_table -->")[1]
+    rows = [line.split("|")[1:-1] for line in block.splitlines()[3:] if line.startswith("| `")]
+    assert [r[0].strip(" `") for r in rows] == ["puma560", "ur5", "panda"]
+    for name, joints, tip, mass, _ in rows:
+        robot = load_robot(name.strip(" `"))
+        assert int(joints) == robot.n and tip.strip(" `") == robot.tip
+        assert float(mass) == float(f"{robot.moving_mass:.4g}")
