@@ -25,7 +25,10 @@ Usage::
     python analysis/regenerate_robots.py --from <wheel> --check    # exit 1 if the bundled files differ
 
 ``--from`` also takes a folder holding ``robots/`` (an installed
-example-robot-data's ``share/example-robot-data``).
+example-robot-data's ``share/example-robot-data``), or a folder holding the
+URDFs themselves (``--from tmtcontrol/model/data --out DIR`` regenerates the
+bundled files from themselves, unchanged: the tests check this). ``--out``
+writes elsewhere than the package's ``model/data/``.
 """
 
 from __future__ import annotations
@@ -60,8 +63,8 @@ VERSION = "example-robot-data 6.0.0 (PyPI)"
 JOINT_CHILDREN = ("origin", "parent", "child", "axis", "limit", "mimic", "dynamics")
 
 
-def read_source(source: pathlib.Path, member: str) -> bytes:
-    """The upstream file ``member`` from a wheel or a folder."""
+def read_source(source: pathlib.Path, member: str, fname: str) -> bytes:
+    """The upstream file ``member`` from a wheel or a folder (or ``fname`` in a folder of URDFs)."""
     if source.is_file() and zipfile.is_zipfile(source):
         with zipfile.ZipFile(source) as zf:
             name = next((n for n in zf.namelist() if n.endswith("share/example-robot-data/" + member)), None)
@@ -70,7 +73,9 @@ def read_source(source: pathlib.Path, member: str) -> bytes:
             return zf.read(name)
     path = source / member
     if not path.is_file():
-        raise SystemExit(f"--from: {path} does not exist")
+        path = source / fname                           # a folder of URDFs (e.g. the bundled ones: idempotent)
+    if not path.is_file():
+        raise SystemExit(f"--from: {source / member} does not exist")
     return path.read_bytes()
 
 
@@ -121,20 +126,21 @@ def main(argv=None) -> int:
     ap.add_argument("--from", dest="source", required=True, type=pathlib.Path,
                     help="example-robot-data wheel, or its share/example-robot-data folder")
     ap.add_argument("--check", action="store_true", help="compare with the bundled files; exit 1 if they differ")
+    ap.add_argument("--out", type=pathlib.Path, default=OUT, help=f"output folder (default: {OUT.relative_to(ROOT)})")
     args = ap.parse_args(argv)
     differ = []
     for fname, info in ARMS.items():
-        text = strip(read_source(args.source, info["path"]), fname)
-        target = OUT / fname
+        text = strip(read_source(args.source, info["path"], fname), fname)
+        target = (OUT if args.check else args.out) / fname
         if args.check:
             same = target.is_file() and target.read_text(encoding="utf-8") == text
             print(f"{fname}: {'same' if same else 'DIFFERS'}")
             if not same:
                 differ.append(fname)
         else:
-            OUT.mkdir(parents=True, exist_ok=True)
+            args.out.mkdir(parents=True, exist_ok=True)
             target.write_text(text, encoding="utf-8")
-            print(f"wrote {target.relative_to(ROOT)}")
+            print(f"wrote {target}")
     return 1 if differ else 0
 
 

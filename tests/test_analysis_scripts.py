@@ -13,6 +13,7 @@ SCRIPTS = {
     "law_comparison.py": ["--cycles", "0.25"],
     "first_contact.py": ["--points", "2"],
     "noise.py": ["--cycles", "0.5", "--sigmas", "0.2"],
+    "regenerate_robots.py": ["--from", str(ROOT / "tmtcontrol" / "model" / "data")],
 }
 
 

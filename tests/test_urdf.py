@@ -387,3 +387,33 @@ def test_docs_bundled_arms_table():
         robot = load_robot(name.strip(" `"))
         assert int(joints) == robot.n and tip.strip(" `") == robot.tip
         assert float(mass) == float(f"{robot.moving_mass:.4g}")
+
+
+def test_regeneration_script_keeps_kinematics_and_inertials_only(tmp_path):
+    """analysis/regenerate_robots.py: meshes, transmissions, gazebo and non-standard
+    <dynamics> attributes dropped, numbers kept as written; the bundled files are
+    its fixed point (regenerated from themselves, unchanged)."""
+    import importlib.util
+    import pathlib
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("regen", root / "analysis" / "regenerate_robots.py")
+    regen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(regen)
+    upstream = b"""<?xml version="1.0"?><!-- xacro --><robot name="panda">
+      <link name="a"><visual><geometry><mesh filename="package://x.dae"/></geometry></visual>
+        <inertial><origin xyz="0 0 0.1"/><mass value="1.25e0"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0"
+        iyz="0"/></inertial><collision><geometry><mesh filename="x.stl"/></geometry></collision></link>
+      <joint name="j" type="revolute"><origin xyz="0 0 0.333"/><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+        <limit effort="87.0" lower="-2.8973" upper="2.8973" velocity="2.175"/><safety_controller k_velocity="1"/>
+        <dynamics D="1" K="7000" damping="0.003" friction="0.0" mu_viscous="16"/></joint>
+      <link name="b"/><transmission name="t"><type>x</type></transmission><gazebo reference="a"/></robot>"""
+    out = regen.strip(upstream, "panda.urdf")
+    for gone in ("mesh", "visual", "collision", "transmission", "gazebo", "safety_controller", "mu_viscous", 'K="'):
+        assert gone not in out.split("-->", 1)[1], gone
+    for kept in ('value="1.25e0"', 'lower="-2.8973"', '<dynamics damping="0.003" friction="0.0"/>',
+                 'xyz="0 0 0.333"', "Apache-2.0", "example-robot-data 6.0.0"):
+        assert kept in out, kept
+    assert regen.main(["--from", str(root / "tmtcontrol" / "model" / "data"), "--out", str(tmp_path)]) == 0
+    for name in ("ur5.urdf", "panda.urdf"):
+        assert (tmp_path / name).read_text() == (root / "tmtcontrol" / "model" / "data" / name).read_text()
