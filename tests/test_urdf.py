@@ -250,6 +250,12 @@ BAD = {
                                     '<mimic joint="hinge"/><limit lower="-1" upper="1" effort="1" velocity="1"/>')
                        .replace('<link name="tool"/>', LINK.format(n="tool")),
                        "joint 'flange' mimics 'hinge': mimic joints on the actuated chain are not supported"),
+    "no_link": ('<robot name="r"/>', "no <link>"),
+    "nothing_moves": ('<robot name="r"><link name="a"/></robot>', "no joint below the base link 'a'"),
+    "link_twice": (GOOD.replace('<link name="tool"/>', '<link name="tool"/><link name="arm"/>'),
+                   "link 'arm' is defined twice"),
+    "external_entity": ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+                        '<robot name="&x;"><link name="a"/></robot>', "not XML"),
     "lower_above_upper": (GOOD.replace('lower="-3" upper="3"', 'lower="3" upper="-3"'), "lower 3 must be < upper"),
     "negative_effort": (GOOD.replace('effort="10"', 'effort="-10"'), "must be > 0"),
     "zero_axis": (GOOD.replace('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>'), "is not a direction"),

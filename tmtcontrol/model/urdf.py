@@ -194,6 +194,13 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         One line naming the problem (see the module docstring).
     """
     robot = _parse(text, where)
+    if not robot.links:
+        raise URDFError(f"{where}: no <link>")
+    for kind, items in (("link", robot.links), ("joint", robot.joints)):
+        names = [x.name for x in items]
+        twice = sorted({x for x in names if names.count(x) > 1})
+        if twice:
+            raise URDFError(f"{where}: {kind} {twice[0]!r} is defined twice")
     links = {l.name: l for l in robot.links}
     by_child: dict[str, object] = {}
     children: dict[str, list] = {name: [] for name in links}
@@ -220,6 +227,8 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         raise URDFError(f"{where}: base link {base!r} does not exist; links: {', '.join(links)}")
     below = _subtree(base, children)
     frames = [l for l in below if l != base]
+    if not frames:
+        raise URDFError(f"{where}: no joint below the base link {base!r}")
     if tip is None:
         leaves = [l for l in below if not children[l]]
         if len(leaves) != 1:
