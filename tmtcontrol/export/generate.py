@@ -90,8 +90,8 @@ COMMAND_FIELDS = (
     Field("dx_c", 3, "m/s", "task", "commanded velocity, eq. (4)"),
     Field("ddx_c", 3, "m/s^2", "task", "commanded acceleration, eq. (4)"),
     Field("p_c", 3, "m", "base", "commanded wrist-centre position R X_c + c", suffixes=_XYZ),
-    Field("q_c", 3, "rad", "joint", "joint position command q + J^-1 (p_c - p) (one resolved-rate step)"),
-    Field("dq_c", 3, "rad/s", "joint", "joint velocity command J^-1 R dX_c"),
+    Field("q_c", 3, "rad", "joint", "joint position command: fk(q_c) = p_c (4 Newton steps from q)"),
+    Field("dq_c", 3, "rad/s", "joint", "joint velocity command J(q_c)^-1 R dX_c"),
     Field("tau", 3, "N m", "joint", "joint torques of eqs. (5)-(6), J^T F (only with --inner-loop)"),
 )
 """Outputs of ``tmt_step`` (:func:`~tmtcontrol.simulation.closedloop.command_layout`)."""

@@ -361,13 +361,20 @@ is ``-R[:, 0] . force``); the tangential reference position (m), velocity
 (m/s) and acceleration (m/s^2) on task axes 2 and 3."""
 
 
+IK_NEWTON_STEPS = 4
+"""Newton steps of the joint position command from the measured joints: the
+command of eq. (4) lies up to f_d/k (0.1 m in the paper) from the measured
+position, and four steps reach it to rounding on the paper's path."""
+
+
 def command_layout(torque: bool = True) -> Layout:
     """The controller's outputs: the command of eq. (4) X_c, dX_c, ddX_c
     (task frame: m, m/s, m/s^2), the commanded wrist position p_c = R X_c + c
-    (base frame, m), the joint position and velocity commands q_c = q +
-    J^-1 (p_c - p), dq_c = J^-1 R dX_c (rad, rad/s; one resolved-rate step
-    from the measured joints), and with ``torque`` the joint torques of eqs.
-    (5)-(6) (N m)."""
+    (base frame, m), the joint position command q_c with fk(q_c) = p_c
+    (:data:`IK_NEWTON_STEPS` Newton steps from the measured joints, the
+    branch the robot is in) and the joint velocity command dq_c =
+    J(q_c)^-1 R dX_c (rad, rad/s), and with ``torque`` the joint torques of
+    eqs. (5)-(6) (N m)."""
     return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", 3), ("dq_c", 3),
                   ("tau", 3 if torque else 0))
 
@@ -380,9 +387,10 @@ filtered normal force f_m (N), normal damping b_n (N s/m), desired force in
 use f_d (N) and the surface estimate x_e_hat (m, task normal)."""
 
 
-def build_controller(model: Puma560, law: Law, delay: int = 0, torque: bool = True) -> ca.Function:
+def build_controller(model: Puma560, law: Law, delay: int = 0, torque: bool = True,
+                     name: str = "tmt_controller") -> ca.Function:
     """The controller of :func:`build_step` alone (the same expressions,
-    :func:`_control`), expanded to SX: ``tmt_controller: ["s","y","p"] ->
+    :func:`_control`), expanded to SX: ``name: ["s","y","p"] ->
     ["s_next","cmd","diag"]`` with the state :func:`controller_state_layout`,
     the measurement :data:`MEASUREMENT`, the parameters
     :func:`controller_param_layout`, the command :func:`command_layout` and
@@ -397,12 +405,15 @@ def build_controller(model: Puma560, law: Law, delay: int = 0, torque: bool = Tr
     f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
     c = _control(model, law, S, P, Y, R, q, dq, J, X, dX, f_sensor, delay if torque else 0, torque)
     p_c = ca.mtimes(R, c["X_c"]) + P["c"]
-    q_c = q + ca.solve(J, p_c - pos, "symbolicqr")
-    dq_c = ca.solve(J, ca.mtimes(R, c["dX_c"]), "symbolicqr")
+    q_c, J_c = q, J
+    for _ in range(IK_NEWTON_STEPS):        # a fixed count: constant execution time
+        q_c = q_c + ca.solve(J_c, p_c - (pos if q_c is q else model.fk(q_c)), "symbolicqr")
+        J_c = model.jacobian(q_c)
+    dq_c = ca.solve(J_c, ca.mtimes(R, c["dX_c"]), "symbolicqr")
     queue = c["tau_wait"] if torque else ca.MX(0, 1)
     s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],
                         c["x_e_hat"], queue, c["law_next"])
     cmd = ca.vertcat(c["X_c"], c["dX_c"], c["ddX_c"], p_c, q_c, dq_c, c["tau"] if torque else ca.MX(0, 1))
     diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"])
-    return ca.Function("tmt_controller", [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],
+    return ca.Function(name, [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],
                        ["s_next", "cmd", "diag"]).expand()
