@@ -423,3 +423,25 @@ def test_regeneration_script_keeps_kinematics_and_inertials_only(tmp_path):
     assert regen.main(["--from", str(root / "tmtcontrol" / "model" / "data"), "--out", str(tmp_path)]) == 0
     for name in ("ur5.urdf", "panda.urdf"):
         assert (tmp_path / name).read_text() == (root / "tmtcontrol" / "model" / "data" / name).read_text()
+
+
+def test_mass_scale_is_the_controllers_mismatched_model():
+    """mass_scale: the PUMA's as simulation.closedloop.controller_model (bit for bit);
+    a URDF arm's M and g scale linearly while fk and J do not change."""
+    from tmtcontrol.simulation.closedloop import controller_model
+
+    q, dq = np.array([0.2, -0.6, 0.9]), np.array([0.3, 0.1, -0.5])
+    r, c = load_robot("puma560", friction=False, mass_scale=1.3), controller_model(1.3, False)
+    assert np.array_equal(r.mass_matrix(q), np.array(c.mass_matrix(q)))
+    assert np.array_equal(r.bias(q, dq), np.array(c.bias(q, dq)).ravel())
+    assert check_robot(r, samples=2).ok
+    one, scaled = load_robot("ur5"), load_robot("ur5", mass_scale=0.8)
+    q6 = np.array([0.1, -1.0, 1.2, 0.3, -0.7, 2.0])
+    assert rel(scaled.mass_matrix(q6), 0.8 * one.mass_matrix(q6)) < 1e-14
+    assert rel(scaled.gravity(q6), 0.8 * one.gravity(q6)) < 1e-14
+    assert np.array_equal(scaled.fk(q6), one.fk(q6))
+    assert abs(scaled.total_mass - 0.8 * one.total_mass) < 1e-12
+    check = check_robot(scaled, samples=2)
+    assert check.reference.startswith("pinocchio") and check.ok
+    with pytest.raises(URDFError, match="mass_scale"):
+        load_robot("ur5", mass_scale=0)

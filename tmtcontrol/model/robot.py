@@ -126,6 +126,10 @@ class Robot:
         Rotor inertia on M's diagonal, kg m^2.
     key : str
         Cache key of the Functions (the URDF's content and the options).
+    links : tuple of LinkParameters or None
+        The PUMA's parameter set (None for a URDF arm).
+    mass_scale : float
+        The factor every mass and inertia was multiplied by.
     """
 
     name: str
@@ -144,6 +148,8 @@ class Robot:
     urdf: str | None = None
     armature: np.ndarray | None = None
     key: str = ""
+    links: tuple | None = None
+    mass_scale: float = 1.0
 
     @property
     def n(self) -> int:
@@ -215,8 +221,8 @@ class Robot:
         the sum of the distances between successive joint origins and to the tip
         (all joints at 0)."""
         if self.chain is None:              # PUMA: a2 + sqrt(a3^2 + d4^2) + |d3| from the shoulder
-            from .puma560 import PUMA560_LINKS, WRIST_OFFSET
-            l1, l2, l3 = PUMA560_LINKS
+            from .puma560 import WRIST_OFFSET
+            l1, l2, l3 = self.links
             return float(l2.a + math.hypot(l3.a, WRIST_OFFSET) + abs(l3.d))
         pts = [j.p for j in self.chain.joints[1:]] + [self.chain.tip_p]
         return float(sum(np.linalg.norm(p) for p in pts))
@@ -224,7 +230,7 @@ class Robot:
 
 def load_robot(source, tip: str | None = None, base: str | None = None, joints=None, *,
                friction: bool | str = True, armature=True, coulomb_velocity: float = 1e-2,
-               cache: bool = True) -> Robot:
+               mass_scale: float = 1.0, cache: bool = True) -> Robot:
     """Load a robot: the PUMA 560, a bundled arm, or a URDF file.
 
     Parameters
@@ -254,6 +260,10 @@ def load_robot(source, tip: str | None = None, base: str | None = None, joints=N
         so none); False: none; a sequence: one value per actuated joint.
     coulomb_velocity : float
         Velocity scale of the smooth Coulomb term, rad/s.
+    mass_scale : float
+        Every mass, inertia and rotor inertia multiplied by this factor (a
+        controller's mismatched model, as ``model_mass_scale`` for the PUMA);
+        1 leaves the numbers untouched.
     cache : bool
         Reuse the Functions built for the same URDF and options before.
 
@@ -266,8 +276,10 @@ def load_robot(source, tip: str | None = None, base: str | None = None, joints=N
         raise URDFError(f"friction: expected True, False or 'smooth', got {friction!r}")
     if not (isinstance(coulomb_velocity, (int, float)) and coulomb_velocity > 0):
         raise URDFError(f"coulomb_velocity: must be > 0, got {coulomb_velocity!r}")
+    if not (isinstance(mass_scale, (int, float)) and math.isfinite(mass_scale) and mass_scale > 0):
+        raise URDFError(f"mass_scale: must be a finite number > 0, got {mass_scale!r}")
     if isinstance(source, str) and source.lower() == "puma560":
-        return _puma(tip, base, joints, friction, armature, coulomb_velocity)
+        return _puma(tip, base, joints, friction, armature, coulomb_velocity, float(mass_scale))
     if isinstance(source, str) and source.lower() in BUNDLED:
         fname, default_tip = BUNDLED[source.lower()]
         text = resources.files("tmtcontrol.model").joinpath("data", fname).read_text(encoding="utf-8")
@@ -284,18 +296,24 @@ def load_robot(source, tip: str | None = None, base: str | None = None, joints=N
         arm = np.asarray(armature, dtype=float).ravel()
         if arm.shape != (n,) or not np.all(np.isfinite(arm)) or np.any(arm < 0):
             raise URDFError(f"armature: expected {n} finite values >= 0 (kg m^2), got {armature!r}")
-    functions = _cached_functions(chain, text, arm, friction, coulomb_velocity, cache)
+    masses = dict(chain.link_masses)
+    if mass_scale != 1.0:
+        arm = arm * mass_scale
+        masses = {k: v * mass_scale for k, v in masses.items()}
+        chain = dataclasses.replace(chain, link_masses=masses, bodies=tuple(
+            dataclasses.replace(b, mass=b.mass * mass_scale, inertia=b.inertia * mass_scale) for b in chain.bodies))
+    functions = _cached_functions(chain, text, arm, friction, coulomb_velocity, mass_scale, cache)
     J = chain.joints
     return Robot(name=chain.name, source=label, joint_names=tuple(j.name for j in J),
                  q_min=np.array([j.lower for j in J]), q_max=np.array([j.upper for j in J]),
                  dq_max=np.array([j.velocity for j in J]), tau_max=np.array([j.effort for j in J]),
-                 base=chain.base, tip=chain.tip, held=dict(chain.held), link_masses=dict(chain.link_masses),
+                 base=chain.base, tip=chain.tip, held=dict(chain.held), link_masses=masses,
                  functions=functions, chain=chain, urdf=text, armature=arm,
-                 key=cache_key(chain, text, arm, friction, coulomb_velocity))
+                 key=cache_key(chain, text, arm, friction, coulomb_velocity, mass_scale), mass_scale=float(mass_scale))
 
 
 # -- the PUMA through the interface -------------------------------------------------
-def _puma(tip, base, joints, friction, armature, coulomb_velocity) -> Robot:
+def _puma(tip, base, joints, friction, armature, coulomb_velocity, mass_scale) -> Robot:
     from .puma560 import PUMA560_LINKS, Puma560
 
     if tip not in (None, PUMA_TIP):
@@ -306,7 +324,10 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity) -> Robot:
         raise URDFError(f"joints: the PUMA 560 actuates {', '.join(PUMA_JOINTS)}, got {list(joints)}")
     if armature not in (True, False):
         raise URDFError("armature: the PUMA 560 takes True (its rotor inertia G^2 Jm) or False")
-    puma = Puma560(armature=armature, friction=friction, coulomb_velocity=coulomb_velocity)
+    links = PUMA560_LINKS if mass_scale == 1.0 else tuple(   # as simulation.closedloop.controller_model
+        dataclasses.replace(l, m=l.m * mass_scale, I=tuple(i * mass_scale for i in l.I), Jm=l.Jm * mass_scale)
+        for l in PUMA560_LINKS)
+    puma = Puma560(armature=armature, friction=friction, coulomb_velocity=coulomb_velocity, links=links)
     q, dq = puma.q, puma.dq
     frames = puma._frame_list
     R3 = frames[-1][:3, :3]
@@ -321,11 +342,12 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity) -> Robot:
         mass_matrix=puma.mass_matrix, bias=puma.bias, gravity=puma.gravity, friction=puma.friction,
         inverse_dynamics=puma.inverse_dynamics, forward_dynamics=puma.forward_dynamics)
     inf = np.full(3, np.inf)
-    masses = {f"link{i + 1}": l.m for i, l in enumerate(PUMA560_LINKS)}
-    arm = np.array([l.G ** 2 * l.Jm for l in PUMA560_LINKS]) if armature else np.zeros(3)
+    masses = {f"link{i + 1}": l.m for i, l in enumerate(links)}
+    arm = np.array([l.G ** 2 * l.Jm for l in links]) if armature else np.zeros(3)
     return Robot(name="puma560", source="puma560", joint_names=PUMA_JOINTS, q_min=-inf, q_max=inf.copy(),
                  dq_max=inf.copy(), tau_max=inf.copy(), base="base", tip=PUMA_TIP, held={},
-                 link_masses=masses, functions=fns, armature=arm, key=_puma_key(armature, friction, coulomb_velocity))
+                 link_masses=masses, functions=fns, armature=arm, key=_puma_key(armature, friction, coulomb_velocity, mass_scale), links=links,
+                 mass_scale=mass_scale)
 
 
 # -- URDF robots ----------------------------------------------------------------------
@@ -363,25 +385,26 @@ def _build_functions(chain: Chain, arm, friction, coulomb_velocity) -> RobotFunc
                                      ["q", "dq", "tau"], ["ddq"]))
 
 
-def cache_key(chain: Chain, text: str, arm, friction, coulomb_velocity) -> str:
+def cache_key(chain: Chain, text: str, arm, friction, coulomb_velocity, mass_scale=1.0) -> str:
     """Key of a robot's Functions: the URDF's content, the chain chosen, the
     options, the sources of the modules that build them and CasADi's version."""
     h = hashlib.sha256(text.encode("utf-8"))
     here = pathlib.Path(__file__).parent
     for part in (chain.base, chain.tip, ",".join(j.name for j in chain.joints), repr(np.asarray(arm).tolist()),
-                 repr(friction), repr(float(coulomb_velocity)), ca.__version__):
+                 repr(friction), repr(float(coulomb_velocity)), repr(float(mass_scale)), ca.__version__):
         h.update(b"\0" + part.encode())
     for module in ("featherstone.py", "urdf.py", "robot.py"):
         h.update((here / module).read_bytes())
     return h.hexdigest()[:20]
 
 
-def _cached_functions(chain, text, arm, friction, coulomb_velocity, use_cache) -> RobotFunctions:
+def _cached_functions(chain, text, arm, friction, coulomb_velocity, mass_scale, use_cache) -> RobotFunctions:
     if not use_cache:
         return _build_functions(chain, arm, friction, coulomb_velocity)
     from ..simulation.rollout import cache_dir      # the one definition of the cache folder
 
-    path = cache_dir() / "robots" / f"{_safe(chain.name)}_{cache_key(chain, text, arm, friction, coulomb_velocity)}.casadi"
+    key = cache_key(chain, text, arm, friction, coulomb_velocity, mass_scale)
+    path = cache_dir() / "robots" / f"{_safe(chain.name)}_{key}.casadi"
     if path.exists():
         try:
             return RobotFunctions(**dict(zip(_NAMES, _load_functions(path))))
@@ -395,9 +418,9 @@ def _cached_functions(chain, text, arm, friction, coulomb_velocity, use_cache) -
     return fns
 
 
-def _puma_key(armature, friction, coulomb_velocity) -> str:
+def _puma_key(armature, friction, coulomb_velocity, mass_scale) -> str:
     here = pathlib.Path(__file__).parent
-    h = hashlib.sha256(repr((bool(armature), friction, float(coulomb_velocity), ca.__version__)).encode())
+    h = hashlib.sha256(repr((bool(armature), friction, float(coulomb_velocity), mass_scale, ca.__version__)).encode())
     for module in ("puma560.py", "robot.py"):
         h.update((here / module).read_bytes())
     return "puma560_" + h.hexdigest()[:20]

@@ -15,7 +15,7 @@ relative, and ``RNEA(q, dq, ABA(q, dq, tau)) = tau`` with Pinocchio's ABA. The
 Pinocchio model of a URDF arm is built from the same URDF text (held joints
 locked at their values); the PUMA's from its DH parameters (a revolute-z joint
 per link placed by the previous link's DH transform, inertias and armature
-from :data:`~tmtcontrol.model.puma560.PUMA560_LINKS`). Friction is not part of
+from the robot's parameter set, :data:`~tmtcontrol.model.puma560.PUMA560_LINKS` unless scaled). Friction is not part of
 the comparison (Pinocchio's algorithms have none).
 """
 
@@ -200,6 +200,11 @@ def pinocchio_model(robot):
             model = pin.buildReducedModel(model, lock, qref)
         if [model.names[i] for i in range(1, model.njoints)] != list(robot.joint_names):
             raise NotImplementedError("Pinocchio's joint order differs from the chain's")
+        if robot.mass_scale != 1.0:
+            s = robot.mass_scale
+            for i in range(model.njoints):
+                I = model.inertias[i]
+                model.inertias[i] = pin.Inertia(I.mass * s, I.lever, I.inertia * s)
         if robot.armature is not None:
             model.armature = np.asarray(robot.armature, float)
         tip = model.getFrameId(robot.tip)
@@ -231,13 +236,13 @@ def _puma_pinocchio(robot):
     """The PUMA's links 1-3 as a Pinocchio model from the DH parameters."""
     import pinocchio as pin
 
-    from .puma560 import GRAVITY, PUMA560_LINKS, WRIST_OFFSET
+    from .puma560 import GRAVITY, WRIST_OFFSET
 
     model = pin.Model()
     model.gravity = pin.Motion(np.array([0, 0, -GRAVITY, 0, 0, 0]))
     parent, placement = 0, pin.SE3.Identity()
     arm = []
-    for i, link in enumerate(PUMA560_LINKS):
+    for i, link in enumerate(robot.links):
         jid = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
         # frame i relative to the joint frame (frame i-1 rotated by q): Tz(d) Tx(a) Rx(alpha)
         dh = pin.SE3(pin.utils.rpyToMatrix(link.alpha, 0, 0), np.array([link.a, 0, link.d]))
