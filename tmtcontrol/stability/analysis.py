@@ -168,11 +168,19 @@ def analysis_kwargs(p: dict) -> dict:
     return kw
 
 
-def analyze_scenario(scenario, points: int = 8) -> dict:
+def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     """:func:`analyze` for a scenario (its law parameters included), plus
     the whole-loop linearisation (``stability.wholeloop``): the limit at
     ``points`` path points, whose minimum decides the sampled verdict (the
-    1-D limit stays as the closed-form explanation)."""
+    1-D limit stays as the closed-form explanation).
+
+    With ``limits`` (``tmtcontrol analyze --scenario``), also the limit of
+    the loop along the moving path (``periodic_limit``, N/m; the monodromy,
+    ``stability.periodic``) and the large-signal limit from the scenario's
+    own start (``first_contact_limit``, N/m; ``stability.first_contact``,
+    searched up to the periodic limit). Then the smaller of the two decides
+    the sampled verdict, and the frozen-point minimum stays as the
+    conservative bound."""
     from ..control.laws import get_law
     from .wholeloop import whole_loop_limit
 
@@ -184,6 +192,17 @@ def analyze_scenario(scenario, points: int = 8) -> dict:
         out.update({"whole_loop_limit": limit,
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
                     "sampled_stable": bool(out["sampled_stable"] and k_max < limit)})
+        if limits:
+            from .first_contact import first_contact_limit
+            from .periodic import periodic_limit
+
+            hi = max(l for _, l in per_point)
+            periodic = periodic_limit(scenario, bracket=(limit / 1.02, hi * 1.02))
+            first = first_contact_limit(scenario, periodic)
+            decisive = min(periodic, first)
+            out.update({"periodic_limit": periodic, "first_contact_limit": first, "limit": decisive,
+                        "limit_from": "first contact" if first < periodic else "periodic orbit",
+                        "sampled_stable": bool(k_max < decisive)})
     return out
 
 
@@ -223,5 +242,12 @@ def format_analysis(d: dict) -> str:
             pts = d["whole_loop_points"]
             rows.append(f"whole loop           {d['whole_loop_limit']:.6g} N/m (smallest over {len(pts)} path "
                         f"points; largest {max(p['limit'] for p in pts):.6g} N/m)")
+        if "periodic_limit" in d:
+            rows += [f"along the path       {d['periodic_limit']:.6g} N/m (periodic orbit: monodromy "
+                     "over one period; the frozen-point minimum above is the conservative bound)",
+                     f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
+                     "settles below it, else a contact limit cycle)",
+                     f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
+                     "decides the verdict)"]
         rows.append(f"sampled stable       {yes(d['sampled_stable'])}")
     return "\n".join(rows)

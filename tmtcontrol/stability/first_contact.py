@@ -1,0 +1,195 @@
+"""Large-signal stability from the scenario's own start, and simulated reference limits (beyond the paper).
+
+The small-signal analyses (``stability.lawloop``, ``stability.wholeloop``,
+``stability.periodic``) linearise the loop about its equilibrium. The TMT
+loop is not globally linear: eq. (18) switches to its f_e = 0 branch below
+the law's ``force_threshold`` (blended up to twice it), and the contact is
+unilateral. With a surface-location error towards the robot (x_e error
+delta < 0), the start (resting on the surface at zero force, or the
+guarded approach from a gap) passes through that small-force region with a
+large swing, and above some stiffness the loop locks into a limit cycle
+that keeps re-entering it, although the equilibrium is locally stable: the
+loop is bistable. :func:`first_contact_limit` finds that stiffness by
+bisection on short simulations of the compiled rollout
+(``simulation.simulator``) from the scenario's start at constant k_e.
+
+:func:`settles` is the verdict on one run: a limit cycle is an oscillation
+of the force of at least ``LIMIT_CYCLE_AMPLITUDE`` x f_d peak to peak over
+the last second that has not shrunk to ``LIMIT_CYCLE_DECAY`` of the
+second before. :func:`simulated_limit` is the small-signal reference: the
+largest constant k_e at which a run started near the periodic orbit (one
+path period at 0.95 k_e, then k_e) converges, judged by the decay of the
+difference between successive path periods (independent of any
+linearisation). Units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .continuous import AnalysisError
+
+__all__ = ["FirstContactRun", "LoopRunner", "settles", "first_contact_run", "first_contact_limit", "simulated_limit",
+           "LIMIT_CYCLE_AMPLITUDE", "LIMIT_CYCLE_DECAY", "SETTLE_TIME"]
+
+LIMIT_CYCLE_AMPLITUDE = 0.2
+"""Peak-to-peak force over the last second, as a fraction of f_d, above
+which a run that does not decay is a limit cycle (the TMT contact limit
+cycles measured swing about 2 f_d)."""
+
+LIMIT_CYCLE_DECAY = 0.8
+"""A run whose last-second peak-to-peak force is below this fraction of the
+second before is decaying, not a limit cycle."""
+
+SETTLE_TIME = 3.0
+"""Seconds simulated after the start has reached full force (contact, plus
+the f_d ramp after a guarded approach)."""
+
+
+@dataclass(frozen=True)
+class FirstContactRun:
+    """One run from the scenario's start at constant ``k_e`` (N/m):
+    ``amplitude`` and ``previous`` the peak-to-peak contact force (N) over
+    the last second and the second before, ``min_force`` the smallest force
+    in the last second (N), ``duration`` the simulated time (s)."""
+    k_e: float
+    amplitude: float
+    previous: float
+    min_force: float
+    duration: float
+    f_d: float
+
+    @property
+    def limit_cycle(self) -> bool:
+        return bool(self.amplitude >= LIMIT_CYCLE_AMPLITUDE * self.f_d
+                    and self.amplitude >= LIMIT_CYCLE_DECAY * self.previous)
+
+    @property
+    def settled(self) -> bool:
+        return not self.limit_cycle
+
+
+def _start_duration(sc) -> float:
+    """Time from the start to full force plus :data:`SETTLE_TIME` (s)."""
+    ctl, gap = sc.controller, sc.trajectory.approach_gap
+    t = SETTLE_TIME
+    if gap > 0 and ctl.approach_speed > 0:
+        t += gap / ctl.approach_speed + ctl.force_ramp
+    return t
+
+
+class LoopRunner:
+    """One simulator for the scenario's structure (``sim``: one already built
+    for it, reused), runs at constant k_e."""
+
+    def __init__(self, scenario, compile="auto", sim=None):
+        from ..simulation.simulator import Simulator, _path, _structure
+
+        self.scenario = scenario
+        if sim is not None and _structure(sim.scenario) != _structure(scenario):
+            raise ValueError("sim: built for another structure (robot options, integrator, law or delay)")
+        self.sim = sim or Simulator(scenario, compile=compile)
+        self.path = _path(self.sim.plant, scenario)
+
+    def run(self, k_e: float, duration: float, stiffness: np.ndarray | None = None):
+        """The contact force (N) from the scenario's start at constant ``k_e``
+        (or the per-sample ``stiffness``), no sensor noise."""
+        from ..simulation.closedloop import INPUT, LOG
+
+        sc = self.scenario
+        period = sc.trajectory.period
+        sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "cycles": duration / period},
+                        sensor={**sc.sensor.model_dump(), "noise_std": 0.0},
+                        environment={**sc.environment.model_dump(),
+                                     "stiffness": {"kind": "piecewise_constant", "values": (float(k_e),)}})
+        U, P, s0, _ = self.sim._inputs(sc, self.path)
+        if stiffness is not None:
+            U[INPUT["k_e"]] = stiffness[:U.shape[1]]
+        with np.errstate(all="ignore"):
+            _, L = self.sim.rollout.run(s0, U, P)
+        f = L[LOG["f_e"]][0]
+        return np.where(np.isfinite(f), f, np.inf)
+
+
+def settles(runner: LoopRunner, k_e: float) -> FirstContactRun:
+    """Run the scenario's start at constant ``k_e`` and judge it (see the module docstring)."""
+    sc = runner.scenario
+    T = _start_duration(sc)
+    f = runner.run(k_e, T)
+    n = int(round(1.0 / sc.controller.Ts))
+    last, before = f[-n:], f[-2 * n:-n]
+    ptp = lambda a: float(np.ptp(a)) if np.all(np.isfinite(a)) else math.inf
+    return FirstContactRun(float(k_e), ptp(last), ptp(before), float(np.min(last)), T, sc.controller.f_d)
+
+
+def first_contact_run(scenario, k_e: float) -> FirstContactRun:
+    """:func:`settles` for one stiffness (builds the simulator)."""
+    return settles(LoopRunner(scenario), k_e)
+
+
+def first_contact_limit(scenario, k_hi: float, rtol: float = 1e-3, runner: LoopRunner | None = None,
+                        k_lo: float | None = None) -> float:
+    """The largest constant k_e (N/m) up to ``k_hi`` (the small-signal
+    limit) for which the scenario's start settles instead of locking into
+    a limit cycle: bisection in log k_e to ``rtol``. Returns ``k_hi`` when
+    the start settles there (no large-signal limit below the small-signal
+    one) and 0 when it does not settle even at ``k_lo`` (default k_hi/64)."""
+    if not (np.isfinite(k_hi) and k_hi > 0):
+        raise AnalysisError(f"k_hi: must be a finite stiffness > 0, got {k_hi!r}")
+    r = runner or LoopRunner(scenario)
+    if settles(r, k_hi).settled:
+        return float(k_hi)
+    lo = k_hi / 1.25 if k_lo is None else k_lo
+    hi = k_hi
+    floor = k_hi / 64 if k_lo is None else k_lo
+    while not settles(r, lo).settled:
+        hi, lo = lo, lo / 2
+        if lo < floor:
+            return 0.0
+    while hi / lo > 1 + rtol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if settles(r, mid).settled else (lo, mid)
+    return float(lo)
+
+
+def _periodic_decay(runner: LoopRunner, k_e: float, cycles: int) -> float:
+    """The ratio of the largest difference between the last two path
+    periods and the two before them, at constant ``k_e`` after one period at
+    0.95 ``k_e`` from the scenario's start (< 1: the orbit attracts)."""
+    sc = runner.scenario
+    N = int(round(sc.trajectory.period / sc.controller.Ts))
+    k = np.full(N * (cycles + 1), float(k_e))
+    k[:N] = 0.95 * k_e
+    f = runner.run(k_e, sc.trajectory.period * (cycles + 1), k)
+    F = f[:N * (cycles + 1)].reshape(cycles + 1, N)[1:]
+    if not np.all(np.isfinite(F)) or F[-1].min() <= 0.0:
+        return math.inf
+    d = np.abs(np.diff(F, axis=0)).max(axis=1)
+    if d[-1] < 1e-9 * sc.controller.f_d:            # converged to rounding: decayed
+        return 0.0
+    return float(d[-1] / d[-2])
+
+
+def simulated_limit(scenario, k_lo: float, k_hi: float, rtol: float = 1e-3, cycles: int = 5,
+                    runner: LoopRunner | None = None) -> float:
+    """The small-signal stiffness limit (N/m) found in the simulator: the
+    largest constant k_e in [``k_lo``, ``k_hi``] at which the loop converges
+    to its periodic orbit, by bisection in log k_e to ``rtol``. Each run: one
+    path period at 0.95 k_e from the scenario's start, then ``cycles``
+    periods at k_e; converged if the difference between successive periods
+    shrinks. Raises :class:`AnalysisError` if ``k_lo`` does not converge or
+    ``k_hi`` does."""
+    r = runner or LoopRunner(scenario)
+    stable = lambda k: _periodic_decay(r, k, cycles) < 1.0
+    if not stable(k_lo):
+        raise AnalysisError(f"k_lo: the simulated loop does not converge at {k_lo:.6g} N/m")
+    if stable(k_hi):
+        raise AnalysisError(f"k_hi: the simulated loop converges at {k_hi:.6g} N/m")
+    lo, hi = float(k_lo), float(k_hi)
+    while hi / lo > 1 + rtol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return math.sqrt(lo * hi)

@@ -1,0 +1,270 @@
+"""Stability along the moving path: the monodromy matrix of the sampled loop (beyond the paper).
+
+``stability.wholeloop`` freezes the path at one point and linearises the
+compiled closed-loop step there; the smallest limit over the path is a
+conservative bound, since the simulated loop averages the growth at some
+points of the circle against the decay at others. This module linearises
+the loop *as it runs*: at a constant stiffness k_e the closed loop of
+``simulation.closedloop.build_step`` (the full robot of eq. (1), the
+controller's model of eq. (5), the inner loop of eq. (6), the force filter,
+the law's update, the computation delay) driven by the circle is periodic
+with the path's period ``N = period / Ts`` samples. Its steady periodic
+orbit ``s_0, s_1, ..., s_N = s_0`` is found by Newton shooting on the
+one-period map, and the product of the per-sample Jacobians along the orbit
+
+    Phi = A_(N-1) ... A_1 A_0,     A_j = d step / d s  at s_j
+
+is the monodromy matrix (Floquet theory): the orbit is locally stable iff
+its spectral radius is below 1 (for a path standing still, ``Phi = A^N``).
+:func:`periodic_limit` finds the stiffness where that radius crosses 1 by a
+bracketing root search (``scipy.optimize.brentq`` on log k_e).
+
+The Jacobians are exact (CasADi, SX) and multiplied inside the rolled-out
+step itself: the state of the augmented step is ``(s, vec(Phi))``, so one
+rollout of one period (compiled and cached by ``simulation.rollout``) gives
+the orbit's end point and the monodromy. The step is built without the
+contact-switch refinement; along an orbit in permanent contact (checked:
+the force stays > 0) it is the simulated step. The controller's bookkeeping
+states (approach phase and command, f_d ramp, surface estimate) are
+constants in contact and are left out, as in ``stability.wholeloop``; a
+scheduled damping (``controller.damping_schedule``) is a dynamic state.
+Units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from .continuous import AnalysisError
+
+__all__ = ["PeriodicLoop", "PeriodicModel", "periodic_loop", "periodic_limit"]
+
+_BOOKKEEPING = ("approach", "x_app", "ramp", "x_e_hat")
+
+_BUILT: dict = {}
+"""Augmented steps (Rollouts) per closed-loop structure."""
+
+
+@dataclass(frozen=True)
+class PeriodicLoop:
+    """The loop linearised along its steady periodic orbit at one stiffness.
+
+    ``k_e`` (N/m), ``Ts`` (s), ``samples`` per path period, ``s_orbit`` the
+    closed-loop state at the start of the period (path time 0) on the
+    orbit, ``monodromy`` the product of the per-sample Jacobians over one
+    period (dynamic states ``states``), ``spectral_radius`` its largest
+    eigenvalue magnitude (< 1: the orbit is locally stable),
+    ``per_sample_radius`` = spectral_radius ** (1/samples) (comparable with
+    a frozen point's radius), ``residual`` max |s_N - s_0| on the dynamic
+    states, ``force_range`` the (min, max) contact force along the orbit
+    (N) and ``newton_iterations`` the shooting iterations used."""
+    k_e: float
+    Ts: float
+    samples: int
+    s_orbit: np.ndarray
+    monodromy: np.ndarray
+    states: tuple[str, ...]
+    spectral_radius: float
+    residual: float
+    force_range: tuple[float, float]
+    newton_iterations: int
+
+    @property
+    def stable(self) -> bool:
+        return self.spectral_radius < 1.0
+
+    @property
+    def per_sample_radius(self) -> float:
+        return self.spectral_radius ** (1.0 / self.samples)
+
+
+def _augmented(sim, layout, dynamic, sc):
+    """``(s; vec Phi) -> (step(s); vec(A(s) Phi))`` with log ``f_e``: the
+    orbit and the monodromy in one rollout."""
+    from ..simulation.closedloop import LOG, build_step
+
+    step = build_step(sim.plant, sim.model, sim.law, "fixed", sc.simulation.substeps, delay=sim.delay,
+                      contact_refine=1)
+    s, u, p = step.sx_in()
+    s_next, log = step(s, u, p)
+    nd = dynamic.size
+    Phi = ca.SX.sym("Phi", nd, nd)
+    A = ca.jacobian(s_next[dynamic.tolist()], s)[:, dynamic.tolist()]
+    return ca.Function("monodromy_step", [ca.vertcat(s, ca.vec(Phi)), u, p],
+                       [ca.vertcat(s_next, ca.vec(ca.mtimes(A, Phi))), log[LOG["f_e"]]],
+                       ["s", "u", "p"], ["s_next", "log"])
+
+
+class PeriodicModel:
+    """The scenario's augmented step, its one-period inputs and the frozen
+    loop (for a starting orbit), built once; :meth:`at` for a stiffness.
+
+    ``compile``: as :class:`~tmtcontrol.simulation.simulator.Simulator`
+    (``"auto"``: a cached library is used, else the rollout runs on CasADi's
+    virtual machine until enough steps have run to pay for compiling)."""
+
+    def __init__(self, scenario, compile: bool | str = "auto"):
+        from ..simulation.closedloop import state_layout
+        from ..simulation.rollout import Rollout
+        from ..simulation.simulator import structure_key
+        from .wholeloop import WholeLoopModel
+
+        self.frozen = WholeLoopModel(scenario)
+        sc = self.scenario = self.frozen.scenario
+        sim = self.frozen.sim
+        Ts, period = sc.controller.Ts, sc.trajectory.period
+        N = int(round(period / Ts))
+        if N < 1 or abs(N * Ts - period) > 1e-9 * period:
+            raise AnalysisError(f"trajectory.period: {period:g} s is not a whole number of control periods "
+                                f"({Ts:g} s); the loop is not periodic")
+        self.samples = N
+        self.layout = layout = state_layout(sim.law, sim.delay)
+        self.dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
+                                 for i in range(sl.start, sl.stop)])
+        self.states = self._names()
+        key = structure_key(sc, sim.law)
+        make = lambda: _augmented(sim, layout, self.dynamic, sc)
+        if key is None:                  # a law declared outside the package: keyed by its serialisation
+            self.rollout = Rollout(make(), compile=compile)
+        else:
+            if key not in _BUILT:
+                if len(_BUILT) >= 16:
+                    _BUILT.clear()
+                _BUILT[key] = Rollout(make, compile=compile, structure=(f"monodromy_{sim.law.name}_d{sim.delay}",
+                                                                        key + "|monodromy"))
+            self.rollout = _BUILT[key]
+        U, self.P = self.frozen.U, self.frozen.P
+        self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()
+        self._warm: tuple[float, np.ndarray] | None = None
+
+    def _names(self) -> tuple[str, ...]:
+        L, law = self.layout, self.frozen.law
+        names = []
+        for name, sl in L.slices.items():
+            if name in _BOOKKEEPING:
+                continue
+            n = sl.stop - sl.start
+            if name == "law":
+                names += list(law.states)
+            else:
+                names += [f"{name}[{j}]" if n > 1 else name for j in range(n)]
+        return tuple(names)
+
+    def _one_period(self) -> np.ndarray:
+        """Inputs over one period when the scenario is shorter than one."""
+        from ..simulation.trajectory import circle_reference
+
+        sc, N = self.scenario, self.samples
+        t = np.arange(N) * sc.controller.Ts
+        ref = circle_reference(t, sc.trajectory.radius, sc.trajectory.period)
+        return np.vstack([ref.pos, ref.vel, ref.acc, np.zeros((2, N))])
+
+    def _inputs(self, k_e: float) -> np.ndarray:
+        from ..simulation.closedloop import INPUT
+
+        U = self.U.copy()
+        U[INPUT["k_e"]] = k_e
+        U[INPUT["noise"]] = 0.0
+        return U
+
+    def _start(self, k_e: float) -> np.ndarray:
+        """A first state on (near) the orbit: the previous orbit for a nearby
+        stiffness, else the frozen loop's fixed point at path time 0 moving
+        with the circle."""
+        if self._warm is not None and abs(math.log(k_e / self._warm[0])) < 0.2:
+            return self._warm[1].copy()
+        from ..simulation.environment import task_frame
+
+        sc, L = self.scenario, self.layout
+        s = self.frozen.at(k_e, 0.0).s_eq.copy()
+        R = task_frame(sc.environment.tilt_deg)
+        vel = self.U[2:4, 0]
+        J = np.asarray(self.frozen.sim.plant.jacobian(s[L["q"]]))
+        s[L["dq"]] = np.linalg.solve(J, R @ np.r_[0.0, vel])
+        return s
+
+    def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:
+        """The loop at constant stiffness ``k_e`` (N/m) linearised along its
+        periodic orbit (Newton shooting to ``tol``, relative)."""
+        if not (np.isfinite(k_e) and k_e > 0):
+            raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
+        U = self._inputs(float(k_e))
+        d, nd, ns = self.dynamic, self.dynamic.size, self.layout.size
+        eye = np.eye(nd)
+        s = self._start(float(k_e))
+        residual, it = math.inf, 0
+        for it in range(1, iters + 1):
+            with np.errstate(all="ignore"):
+                S, F = self.rollout.run(np.r_[s, eye.ravel(order="F")], U, self.P)
+            if not np.all(np.isfinite(S[:, -1])):
+                raise AnalysisError(f"k_e = {k_e:.6g} N/m: no periodic orbit found (the shooting diverged)")
+            Phi = S[ns:, -1].reshape(nd, nd, order="F")
+            r = (S[:ns, -1] - s)[d]
+            residual = float(np.max(np.abs(r)))
+            if np.max(np.abs(r) / (1.0 + np.abs(s[d]))) < tol:
+                break
+            s = s.copy()
+            s[d] += np.linalg.solve(Phi - eye, -r)
+        f = np.ravel(F)
+        if residual > 1e-6:
+            raise AnalysisError(f"k_e = {k_e:.6g} N/m: the periodic orbit did not converge "
+                                f"(residual {residual:.3g} after {it} Newton steps)")
+        if not f.min() > 0.0:
+            raise AnalysisError(f"k_e = {k_e:.6g} N/m: the periodic orbit leaves the surface (force "
+                                f"{f.min():.3g} N); the linearisation in contact does not apply")
+        self._warm = (float(k_e), s.copy())
+        rho = float(np.max(np.abs(np.linalg.eigvals(Phi))))
+        return PeriodicLoop(float(k_e), self.scenario.controller.Ts, self.samples, s, Phi, self.states, rho,
+                            residual, (float(f.min()), float(f.max())), it)
+
+
+def periodic_loop(scenario, k_e: float) -> PeriodicLoop:
+    """:meth:`PeriodicModel.at` for one stiffness."""
+    return PeriodicModel(scenario).at(k_e)
+
+
+def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[float, float] | None = None,
+                   xtol: float = 1e-5) -> float:
+    """The largest constant k_e (N/m) for which the loop's periodic orbit is
+    locally stable: the root of ``log(spectral radius of the monodromy)`` in
+    log k_e (``scipy.optimize.brentq``, ``xtol`` in log k_e, i.e. relative).
+
+    ``bracket`` (N/m): a stable and an unstable stiffness; by default the
+    frozen loop's smallest and largest limits over the path
+    (``stability.wholeloop.whole_loop_limit``), widened until they bracket.
+    A stiffness whose orbit cannot be found or leaves the surface counts as
+    unstable."""
+    from scipy.optimize import brentq
+
+    mdl = model or PeriodicModel(scenario)
+
+    def g(log_k):
+        try:
+            return math.log(mdl.at(math.exp(log_k)).spectral_radius)
+        except AnalysisError:
+            return 1.0
+
+    if bracket is None:
+        from .wholeloop import whole_loop_limit
+
+        lo_lim, per_point = whole_loop_limit(mdl.scenario, points=8, rtol=1e-3, model=mdl.frozen)
+        hi_lim = max(l for _, l in per_point)
+        if not (np.isfinite(lo_lim) and lo_lim > 0):
+            raise AnalysisError("the frozen loop has no finite stiffness limit to start the periodic search from")
+        bracket = (lo_lim / 1.02, hi_lim * 1.02)
+    lo, hi = (math.log(float(v)) for v in bracket)
+    g_lo, g_hi = g(lo), g(hi)
+    for _ in range(8):               # widen until the bracket holds
+        if g_lo < 0 < g_hi:
+            break
+        if g_lo >= 0:
+            lo, g_lo = lo - 0.1, g(lo - 0.1)
+        if g_hi <= 0:
+            hi, g_hi = hi + 0.1, g(hi + 0.1)
+    else:
+        raise AnalysisError(f"no stability boundary found between {math.exp(lo):.4g} and {math.exp(hi):.4g} N/m")
+    return float(math.exp(brentq(g, lo, hi, xtol=xtol)))
