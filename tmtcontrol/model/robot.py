@@ -405,14 +405,18 @@ def _cached_functions(chain, text, arm, friction, coulomb_velocity, mass_scale, 
 
     key = cache_key(chain, text, arm, friction, coulomb_velocity, mass_scale)
     path = cache_dir() / "robots" / f"{_safe(chain.name)}_{key}.casadi"
-    if path.exists():
+    data = _verified(path)
+    if data is not None:
         try:
-            return RobotFunctions(**dict(zip(_NAMES, _load_functions(path))))
-        except (OSError, RuntimeError, ValueError):
-            pass                                        # damaged: rebuilt and rewritten below
+            return RobotFunctions(**dict(zip(_NAMES, _load_functions(data.decode("ascii")))))
+        except (RuntimeError, ValueError):
+            pass                                        # unreadable: rebuilt and rewritten below
     fns = _build_functions(chain, arm, friction, coulomb_velocity)
     try:
-        _save_functions(path, [getattr(fns, name) for name in _NAMES])
+        s = ca.StringSerializer()
+        for name in _NAMES:
+            s.pack(getattr(fns, name))
+        _store(path, s.encode().encode("ascii"))
     except OSError:
         pass                                            # an unwritable cache: built every time
     return fns
@@ -442,11 +446,11 @@ def _compiled(fn: ca.Function, key: str) -> ca.Function:
 
     h = hashlib.sha256(f"{key} {' '.join(_CFLAGS)} {ca.__version__} {os.uname().machine}".encode())
     lib = cache_dir() / "robots" / f"{fn.name()}_{h.hexdigest()[:20]}.so"
-    if lib.exists():
+    if _verified(lib) is not None:                            # a damaged or partial library is never loaded
         try:
             return ca.external(fn.name(), str(lib))
         except RuntimeError:
-            pass                                              # damaged: rebuilt below
+            pass                                              # rebuilt below
     cc = compiler()
     if cc is None:
         return fn
@@ -459,10 +463,7 @@ def _compiled(fn: ca.Function, key: str) -> ca.Function:
             subprocess.run([cc, *_CFLAGS, cfile, "-o", str(built), "-lm"], check=True, capture_output=True,
                            timeout=600)
             try:
-                lib.parent.mkdir(parents=True, exist_ok=True)
-                staged = lib.parent / f".{lib.name}.{os.getpid()}.tmp"
-                staged.write_bytes(built.read_bytes())
-                os.replace(staged, lib)
+                _store(lib, built.read_bytes())
                 return ca.external(fn.name(), str(lib))
             except OSError:
                 private = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-lib-")) / lib.name
@@ -476,21 +477,36 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)[:40] or "robot"
 
 
-def _save_functions(path: pathlib.Path, fns) -> None:
-    """Serialise the Functions, written under a temporary name, fsync'ed and renamed."""
+def _store(path: pathlib.Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` and its SHA-256 to ``path.sha256``, each under a
+    temporary name, fsync'ed and renamed (the checksum last, so a crash leaves an
+    unverifiable file, which is rebuilt)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    staged = path.parent / f".{path.name}.{os.getpid()}.tmp"
-    s = ca.FileSerializer(str(staged))
-    for f in fns:
-        s.pack(f)
-    del s                                               # closes the file
-    with open(staged, "rb+") as fh:
-        os.fsync(fh.fileno())
-    os.replace(staged, path)
+    for target, payload in ((path, data), (_sidecar(path), hashlib.sha256(data).hexdigest().encode())):
+        staged = target.parent / f".{target.name}.{os.getpid()}.tmp"
+        with open(staged, "wb") as fh:
+            fh.write(payload)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(staged, target)
 
 
-def _load_functions(path: pathlib.Path) -> list:
-    d = ca.FileDeserializer(str(path))
+def _verified(path: pathlib.Path) -> bytes | None:
+    """The content of ``path`` if it matches its recorded SHA-256, else None."""
+    try:
+        data = path.read_bytes()
+        recorded = _sidecar(path).read_text().strip()
+    except OSError:
+        return None
+    return data if hashlib.sha256(data).hexdigest() == recorded else None
+
+
+def _sidecar(path: pathlib.Path) -> pathlib.Path:
+    return path.with_name(path.name + ".sha256")
+
+
+def _load_functions(text: str) -> list:
+    d = ca.StringDeserializer(text)
     out = [d.unpack() for _ in _NAMES]
     if not all(isinstance(f, ca.Function) and f.name() == name for f, name in zip(out, _NAMES)):
         raise ValueError("unexpected content")
