@@ -148,3 +148,110 @@ def test_check_dask_accepts_a_listening_port_and_names_bad_addresses():
     check_dask(None)
     with pytest.raises(SchedulerUnavailable, match=r"^--dask tcp://127\.0\.0\.1:x: not a host:port address$"):
         check_dask("tcp://127.0.0.1:x")
+
+
+def _ctrl_c_after(args: list[str], cwd, needle: str) -> tuple[int, list[str]]:
+    """Start ``tmtcontrol ARGS``, wait for ``needle`` on stderr, send SIGINT to the whole
+    process group (what a terminal's Ctrl-C does); the exit code and the stderr lines after."""
+    proc = subprocess.Popen([sys.executable, "-m", "tmtcontrol.cli", *args], cwd=cwd, env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _wait_for_line(proc.stderr, needle)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    return proc.returncode, err.strip().splitlines()
+
+
+def test_ctrl_c_on_a_local_sweep_before_any_case_finished_is_one_line_and_leaves_nothing(tmp_path):
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    code, lines = _ctrl_c_after(["sweep", "s.toml", "--workers", "2", "--out", "o", "--no-plots"], tmp_path,
+                                "running on 2 worker processes")
+    assert code == 130 and lines == ["interrupted (Ctrl-C): nothing was written"], lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]          # the fresh o.partial/ removed too
+
+
+def test_ctrl_c_on_a_sweep_with_finished_cases_says_where_they_are_kept(tmp_path):
+    from tmtcontrol.sweep import load_sweep
+    from tmtcontrol.sweep.run import PartialFolder
+
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    sweep = load_sweep(tmp_path / "s.toml")
+    partial = PartialFolder(tmp_path / "o", sweep, resume=False)          # as a run that finished case 0
+    partial.write([{"case": 0, "verdict": "converged"}])
+    code, lines = _ctrl_c_after(["sweep", "s.toml", "--workers", "2", "--out", "o", "--no-plots", "--resume"],
+                                tmp_path, "3 cases running on 2 worker processes")
+    assert code == 130 and lines == [f"interrupted (Ctrl-C): 1 finished case kept in {tmp_path / 'o.partial'}/; "
+                                     "run the same command with --resume to continue"], lines
+    assert sorted(p.name for p in (tmp_path / "o.partial").iterdir()) == ["part-0000000.parquet", "sweep.json"]
+    assert not (tmp_path / "o").exists()
+
+
+def test_ctrl_c_on_a_dask_sweep_is_one_line(tmp_path):
+    # a LocalCluster of one worker process; the terminal's SIGINT reaches the worker too
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    code, lines = _ctrl_c_after(["sweep", "s.toml", "--dask", "local", "--workers", "1", "--out", "o",
+                                 "--no-plots"], tmp_path, "running on Dask")
+    assert code == 130 and lines == ["interrupted (Ctrl-C): nothing was written"], lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+FINALIZER_SCRIPT = """
+import signal, sys, time, weakref
+from tmtcontrol.cli import main
+from tmtcontrol import files, processes
+
+files.install_signal_handlers()
+if sys.argv[1] == "deferred":
+    processes.defer_in_finalizers()
+
+class Key:
+    pass
+
+d = weakref.WeakKeyDictionary()
+fired = []
+k = Key()
+weakref.finalize(k, lambda: (fired.append(1), signal.raise_signal(signal.SIGINT)))
+d[k] = 1
+try:
+    del k                       # the finalizer runs here and the signal arrives inside it
+    for _ in range(200):        # later, outside the finalizer: the deferred signal lands here (a bound, not a timing)
+        time.sleep(0.01)
+    print("not interrupted", fired)
+except files.Interrupted:
+    print("interrupted outside the finalizer", fired)
+"""
+
+
+@pytest.mark.parametrize("mode", ["deferred", "plain"])
+def test_a_signal_inside_a_finalizer_is_raised_after_it_not_inside_it(mode):
+    r = subprocess.run([sys.executable, "-c", FINALIZER_SCRIPT, mode], capture_output=True, text=True, env=ENV)
+    if mode == "deferred":
+        assert r.stdout.strip() == "interrupted outside the finalizer [1]" and r.stderr == "", r.stderr
+    else:        # the handler alone: Python prints "Exception ignored" and the Ctrl-C is lost (the bug)
+        assert "Exception ignored" in r.stderr and r.stdout.strip() == "not interrupted [1]"
+
+
+IMPORT_SCRIPT = """
+import importlib.abc, signal, sys
+
+class CtrlCDuringImport(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name == "tmtcontrol.files":          # main()'s first import, before its handlers exist
+            signal.raise_signal(signal.SIGINT)
+        return None
+
+import tmtcontrol.cli
+sys.meta_path.insert(0, CtrlCDuringImport())
+sys.argv = ["tmtcontrol", "check"]
+tmtcontrol.cli.run()
+"""
+
+
+def test_ctrl_c_during_the_first_imports_is_one_line_and_exit_130():
+    r = subprocess.run([sys.executable, "-c", IMPORT_SCRIPT], capture_output=True, text=True, env=ENV)
+    assert r.returncode == 130 and r.stderr.strip().splitlines() == ["interrupted (Ctrl-C): nothing was written"], \
+        r.stderr

@@ -51,11 +51,36 @@ _PR_SET_PDEATHSIG = 1          # <linux/prctl.h>
 
 
 def worker_init(blas_limit: bool = True) -> None:
-    """First thing in a worker process: :func:`die_with_parent`, and with
-    ``blas_limit`` one BLAS/OpenMP thread for the process' lifetime."""
+    """First thing in a worker process: :func:`die_with_parent`, quiet
+    signals (:func:`_worker_signal`), and with ``blas_limit`` one BLAS/OpenMP
+    thread for the process' lifetime."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None and threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, _worker_signal)
     die_with_parent()
     if blas_limit:
         one_blas_thread()
+
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _worker_signal(signum, frame):
+    """A worker's SIGINT/SIGTERM (Ctrl-C reaches every process of the
+    command): inside a task (tmtcontrol's code on the stack) it stops the
+    task with KeyboardInterrupt, which the pool hands back to the parent as
+    the task's outcome; anywhere else (starting, waiting for a task) it is
+    ignored, since a worker that raised there would print its own traceback.
+    The parent handles the interruption and stops the pool. The walk stops
+    at the process' own start (a forked child's stack goes on into the
+    parent's frames as they were at the fork)."""
+    while frame is not None and frame.f_code.co_name not in ("_process_worker", "_bootstrap"):
+        name = os.path.abspath(frame.f_code.co_filename)
+        if name.startswith(_PACKAGE + os.sep) and name != os.path.abspath(__file__):
+            raise KeyboardInterrupt
+        frame = frame.f_back
 
 
 def die_with_parent() -> bool:

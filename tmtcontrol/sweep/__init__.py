@@ -9,7 +9,7 @@ import re
 import time
 
 from ..files import OutputFolder, write_json
-from .run import PartialFolder, Progress, SchedulerUnavailable, case_row, check_dask, run_cases
+from .run import PartialFolder, Progress, case_row, check_dask, run_cases
 from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
@@ -190,8 +190,8 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         try:
             if todo:
                 run_cases(sweep, todo, partial.write, workers, dask, max_steps, prog)
-        except SchedulerUnavailable:
-            if partial.fresh:                      # nothing ran: leave nothing behind
+        except BaseException:
+            if partial.fresh and not partial.parts():   # no case finished (no scheduler, an early Ctrl-C)
                 partial.remove()
             raise
         finally:

@@ -32,11 +32,11 @@ from typing import Any, Callable
 
 
 from ..files import OutputError, check_interrupt
-from ..processes import blas_threads_limited, worker_init
+from ..processes import blas_threads_limited, one_blas_thread, worker_init
 from .spec import Case, Sweep, case_scenario
 
 __all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
-           "SchedulerUnavailable"]
+           "SchedulerUnavailable", "kept_note"]
 
 CONNECT_TIMEOUT = 3.0
 """Seconds to wait for a Dask scheduler's TCP port to accept a connection."""
@@ -144,8 +144,14 @@ class PartialFolder:
 
     MARK = "sweep.json"
 
+    @staticmethod
+    def path_for(out) -> pathlib.Path:
+        """``OUT.partial`` beside the output folder ``out``."""
+        out = pathlib.Path(out).expanduser().resolve()
+        return out.parent / (out.name + ".partial")
+
     def __init__(self, out: pathlib.Path, sweep: Sweep, resume: bool):
-        self.path = out.parent / (out.name + ".partial")
+        self.path = self.path_for(out)
         self.fresh = False                   # True if this run created it
         mark = self.path / self.MARK
         if self.path.exists():
@@ -166,6 +172,10 @@ class PartialFolder:
                 mark.write_text(json.dumps({"fingerprint": sweep.fingerprint, "cases": len(sweep.cases)}) + "\n")
             except OSError as exc:
                 raise OutputError(f"--out: cannot create {self.path} ({exc.strerror})") from None
+
+    def parts(self) -> list[pathlib.Path]:
+        """The finished chunks' files."""
+        return sorted(self.path.glob("part-*.parquet"))
 
     def done(self) -> set[int]:
         import pyarrow.parquet as pq
@@ -197,6 +207,24 @@ class PartialFolder:
 
     def remove(self) -> None:
         shutil.rmtree(self.path, ignore_errors=True)
+
+
+def kept_note(out) -> str | None:
+    """After an interruption: what ``OUT.partial/`` keeps and how to go on
+    (one sentence), or None if there is no such folder of a sweep's."""
+    path = PartialFolder.path_for(out)
+    if not (path / PartialFolder.MARK).is_file():
+        return None
+    n = 0
+    try:
+        import pyarrow.parquet as pq
+
+        for part in path.glob("part-*.parquet"):
+            n += pq.read_metadata(part).num_rows
+    except Exception:         # a part cut short: --resume reruns its cases
+        pass
+    return (f"{n} finished case{'s' if n != 1 else ''} kept in {path}/; "
+            "run the same command with --resume to continue")
 
 
 def _uniform(rows: list[dict]) -> list[dict]:
@@ -282,8 +310,11 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
                     write(rows)
                     tick(len(rows))
             except BaseException:
-                for f in futures:
-                    f.cancel()
+                # the cases still running are abandoned, not awaited: a compiled simulation sees no
+                # signal until it returns, and every finished chunk is already written. No
+                # future is cancelled first: the pool then fails them all as broken (Python 3.11's pool
+                # raises InvalidStateError in its own thread for a cancelled one)
+                _stop_workers(pool)
                 raise
         return
     from dask.distributed import Client, LocalCluster, as_completed
@@ -291,7 +322,7 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
     check_dask(dask)
     if dask == "local":
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=40)
+                               silence_logs=40, preload=[__name__])      # dask_setup below, in each worker
         client = Client(cluster)
     else:
         cluster = None
@@ -317,6 +348,34 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
             client.close()
             if cluster is not None:
                 cluster.close()
+
+
+def _stop_workers(pool) -> None:
+    """Kill a process pool's workers (``kill_workers`` from Python 3.14, the
+    pool's process table before)."""
+    kill = getattr(pool, "kill_workers", None)
+    if kill is not None:
+        kill()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.kill()
+        except (OSError, ValueError):          # already gone
+            pass
+
+
+def dask_setup(worker) -> None:
+    """Preload of a LocalCluster's worker processes (Dask calls it as each
+    starts): Ctrl-C is the parent's to handle, since the terminal sends SIGINT
+    to every process of the command, and a worker that took it would print
+    its own traceback; the parent stops the cluster. One BLAS thread for the
+    worker's lifetime."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    one_blas_thread()
 
 
 @contextlib.contextmanager
