@@ -125,6 +125,20 @@ def test_two_interleaved_instances_equal_two_separate_ones(exported_inner):
     np.testing.assert_array_equal(inter[1], alone[1])
 
 
+def test_deploy_doc_matches_the_exported_code():
+    """docs/deploy.md's interface tables are the field tables the C structs are written from, and its
+    code sizes are the paper export's."""
+    from tmtcontrol.control.laws import get_law
+
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "deploy.md").read_text()
+    for fields in (generate.MEASUREMENT_FIELDS, generate.COMMAND_FIELDS, generate.DIAGNOSTIC_FIELDS,
+                   generate.param_fields(get_law("tmt"))):
+        assert generate._md_table(fields) in doc
+    for inner, label in ((False, "without inner loop"), (True, "with inner loop (eqs. 5-6)")):
+        fn, _ = generate.controller_function(paper_scenario(), inner)
+        assert f"| {label} | {fn.n_instructions()} | {fn.sz_w()} |" in doc, label
+
+
 # -- bad input: one line, exit 2, nothing written ---------------------------------------------------
 
 class _Saturate(ca.Callback):
@@ -360,3 +374,8 @@ def test_tmt_step_calls_no_malloc_free_or_realloc(tmp_path, inner):
     out = subprocess.run(["./harness"], cwd=tmp_path, capture_output=True, text=True).stdout.split("\n")
     assert out[1] == "probe 2"          # the wrapped allocator is the one in use
     assert out[2].startswith("steps 0 ")
+    # no global mutable state: the library object has no writable data (nm: D/d data, B/b bss, C common)
+    syms = subprocess.run(["nm", "tmt_controller.o"], cwd=tmp_path, capture_output=True, text=True).stdout
+    kinds = {line.split()[-2] for line in syms.splitlines() if len(line.split()) >= 2}
+    assert kinds and not kinds & set("DdBbCG"), syms
+    assert "R" in kinds or "r" in kinds          # the constant tables are there, read-only
