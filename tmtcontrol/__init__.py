@@ -25,6 +25,8 @@ _EXPORTS = {
     "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError"),
     "tmtcontrol.simulation.metrics": ("SegmentMetrics", "segment_metrics"),
     "tmtcontrol.simulation.compare": ("compare_laws", "Comparison", "LawRun"),
+    "tmtcontrol.export.generate": ("export_controller", "ExportError"),
+    "tmtcontrol.export.sil": ("CompiledController", "simulate_with_controller"),
 }
 """The public API by defining module. Imported on first access (PEP 562), so
 ``import tmtcontrol`` and the command line's start cost no CasADi, NumPy or
@@ -36,7 +38,8 @@ __all__ = [
     "__version__", "Puma560", "PUMA560_LINKS", "LinkParameters", "Scenario", "ScenarioError",
     "paper_scenario", "load_scenario", "dump_scenario", "apply_overrides", "Simulator",
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
-    "LawRun", "load_robot", "Robot", "URDFError",
+    "LawRun", "load_robot", "Robot", "URDFError", "export_controller", "ExportError", "CompiledController",
+    "simulate_with_controller",
 ]
 
 
@@ -54,6 +57,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
+    from .export.generate import ExportError, export_controller
+    from .export.sil import CompiledController, simulate_with_controller
     from .model import PUMA560_LINKS, LinkParameters, Puma560
     from .model.robot import Robot, URDFError, load_robot
     from .simulation.compare import Comparison, LawRun, compare_laws

@@ -228,8 +228,7 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
         if k % 1000 == 0:
             check_interrupt()
     run_time = time.perf_counter() - t0
-    # the built-in result's state check (the next state is the plant's)
-    S = np.vstack([np.hstack([L[0:6, 1:], z[:, None]])])
+    S = np.hstack([L[0:6, 1:], z[:, None]])          # the joints after each period, as the built-in run's
     sim._check_finite(S, L, t)
     return sim._result(scenario, t, L, U, path, {"integrator": sc.integrator, "code": "exported C (SIL)",
                                                  "controller": str(controller.folder),
