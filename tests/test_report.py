@@ -24,7 +24,9 @@ def make_report(out, *args):
 @pytest.fixture(scope="module")
 def paper_report(run_once):
     out, r = run_once("paper-report", lambda out: make_report(out, "paper"))
-    assert r.returncode == 0, r.stderr
+    # the paper's b = 60 N s/m overshoots 50 % at first contact (damping ratio 0.21 at 2e4 N/m):
+    # the damping verdict judges the scenario as run and fails it (issue 28.5), so the report exits 1
+    assert r.returncode == 1, r.stderr
     return out, r
 
 
@@ -91,11 +93,12 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     _, head, rows = table(section(html, "summary"), "Verdicts")
     assert head == ["verdict", "result", "number", "computed by"]
     verdicts = {row[0]: row for row in rows}
-    assert all(row[1] == "✔ PASS" for row in rows) and r.stdout.count("PASS ") == len(rows) == 5
+    assert [row[1] for row in rows] == ["✔ PASS"] * 4 + ["✘ FAIL"] and r.stdout.count("PASS ") == 4
     # in the order of the stages behind them, whichever process ran each stage
     assert [row[0] for row in rows] == ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)",
                                         "Stable in the sampled implementation (Ts = 1\xa0ms)",
-                                        "Force tracking within tolerance (simulation)", "Robust damping design verified"]
+                                        "Force tracking within tolerance (simulation)",
+                                        "Scenario's damping within the design bounds (b = 60\xa0N s/m)"]
     # derivation checks: n/N = the PASS rows of the checks table
     _, _, check_rows = table(section(html, "derivations"), "Derivation checks")
     n = len(check_rows)
@@ -204,7 +207,7 @@ def test_pdf_is_the_same_document_paginated(paper_report):
     for i, text in enumerate(pages, 1):
         assert f"Page {i} of {n}" in text
     text = re.sub(r"\s+", " ", "\n".join(pages))
-    assert "Overall: ✔ PASS" in pages[0]
+    assert "Overall: ✘ FAIL" in pages[0]        # the paper's b = 60 fails the damping verdict
     # the contents list carries page numbers
     assert re.search(r"Simulation \.{5,} \d+", text)
     # every table's header row and caption, every figure's numbered caption
@@ -379,7 +382,7 @@ def test_force_verdict_fails_on_a_converged_but_biased_run():
                                "trajectory.cycles=1", "environment.stiffness.values=[5e3]")
     _simulation(rep, sc, p)
     (v,) = rep.verdicts
-    assert not v.passed and "every segment converged" in v.check
+    assert not v.passed and "segment 1 off_target" in v.check
     worst = rep.data["simulation"]["segments"][0].steady_state_error
     assert worst == pytest.approx(10 * (1 - k_eff(100, 5e3) / k_eff(100, 7.5e3)), abs=2e-3)
     assert v.value.startswith(f"worst steady-state |f_e − f_d| {fmt.qty(worst, 'N')}")

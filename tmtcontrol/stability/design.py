@@ -44,6 +44,7 @@ from .continuous import AnalysisError, _pos
 from .sampled import spectral_radius
 
 __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
+           "ImpedanceCheck", "check_impedance",
            "overshoot_closed_form", "sampled_overshoot", "damping_alternatives", "format_design"]
 
 
@@ -377,6 +378,39 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
         info={"continuous_overshoot": continuous_os,
               "damping_ratio_at_k_e_max": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_max))),
               "damping_ratio_at_k_e_min": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_min)))})
+
+
+@dataclass(frozen=True)
+class ImpedanceCheck:
+    """A given normal-axis impedance (b, k) against a :class:`DesignSpec`'s
+    bounds, verified as a design is: the first-contact overshoot of the
+    sampled loop at ``verify_points`` stiffnesses over the range (percent)
+    and its largest stable stiffness (N/m)."""
+    spec: DesignSpec
+    b: float
+    k: float
+    worst_overshoot: float
+    sampled_limit: float
+
+    @property
+    def violations(self) -> list[str]:
+        return DesignResult.violations.fget(self)
+
+    @property
+    def passed(self) -> bool:
+        return not self.violations
+
+
+def check_impedance(spec: DesignSpec, b: float, k: float | None = None, verify_points: int = 60) -> ImpedanceCheck:
+    """:class:`ImpedanceCheck` of the impedance (``b`` N s/m, ``k`` N/m,
+    default ``spec.k``) that a scenario runs, against ``spec``'s overshoot
+    bound and stiffness margin: the same verification as
+    :func:`design_impedance`'s, for a design it did not choose."""
+    k = spec.k if k is None else float(k)
+    dense = (np.geomspace(spec.k_e_min, spec.k_e_max, verify_points) if spec.k_e_max > spec.k_e_min
+             else spec.stiffness_grid)
+    worst = max(sampled_overshoot(spec, b, k, ke) for ke in dense)
+    return ImpedanceCheck(spec, float(b), k, worst, _limit(spec, float(b), k))
 
 
 def _limit(spec: DesignSpec, b: float, k: float) -> float:
