@@ -255,3 +255,39 @@ def test_ctrl_c_during_the_first_imports_is_one_line_and_exit_130():
     r = subprocess.run([sys.executable, "-c", IMPORT_SCRIPT], capture_output=True, text=True, env=ENV)
     assert r.returncode == 130 and r.stderr.strip().splitlines() == ["interrupted (Ctrl-C): nothing was written"], \
         r.stderr
+
+
+def _threads_probe(base, cases, max_steps=None):
+    """Stands in for run_chunk in the worker: each case's row carries the BLAS/OpenMP thread counts."""
+    from threadpoolctl import threadpool_info
+
+    return [{"case": c.index, "threads": [i["num_threads"] for i in threadpool_info()]} for c in cases]
+
+
+def _plain_probe():
+    from threadpoolctl import threadpool_info
+
+    return [i["num_threads"] for i in threadpool_info()]
+
+
+def test_sweep_workers_run_with_one_blas_thread(tmp_path, monkeypatch):
+    import concurrent.futures
+
+    import numpy  # noqa: F401  (its BLAS loaded here, inherited by the forked workers)
+
+    from tmtcontrol.sweep import load_sweep
+    from tmtcontrol.sweep import run as sweep_run
+
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    sweep = load_sweep(tmp_path / "s.toml")
+    monkeypatch.setattr(sweep_run, "run_chunk", _threads_probe)
+    rows: list[dict] = []
+    sweep_run.run_cases(sweep, list(sweep.cases), rows.extend, workers=2)
+    assert sorted(r["case"] for r in rows) == [0, 1, 2, 3]
+    assert all(r["threads"] and set(r["threads"]) == {1} for r in rows), rows
+    from tmtcontrol.processes import THREAD_VARIABLES
+
+    if (os.cpu_count() or 1) > 1 and not any(v in os.environ for v in THREAD_VARIABLES):
+        # the control: a plain worker on this machine has more than one
+        with concurrent.futures.ProcessPoolExecutor(1) as pool:
+            assert max(pool.submit(_plain_probe).result()) > 1

@@ -563,10 +563,15 @@ def run() -> None:
     loaded, to free memory the process is about to return anyway. Every file
     is closed by then and atexit handlers still run. Ctrl-C before
     :func:`main` has installed its handlers (during the first imports) is
-    one line and exit code 130 too."""
+    one line and exit code 130 too. BLAS and OpenMP libraries start with
+    one thread (tmtcontrol's matrices are small; a user's
+    ``OPENBLAS_NUM_THREADS`` etc. wins)."""
     import gc
 
     try:
+        from .processes import blas_env_defaults
+
+        blas_env_defaults()
         code = main()
     except KeyboardInterrupt:
         print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)

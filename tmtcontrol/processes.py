@@ -41,7 +41,7 @@ import sys
 import threading
 
 __all__ = ["worker_init", "die_with_parent", "one_blas_thread", "defer_in_finalizers", "blas_threads_limited",
-           "PDEATHSIG"]
+           "blas_env_defaults", "THREAD_VARIABLES", "PDEATHSIG"]
 
 PDEATHSIG = signal.SIGKILL if hasattr(signal, "SIGKILL") else None
 """The signal a Linux worker gets when its parent dies (a worker holds no
@@ -130,12 +130,29 @@ def one_blas_thread():
     a context manager it undoes it on exit). tmtcontrol's linear algebra is on
     small matrices, where more threads only cost; with two processes busy on
     2 cores, spinning BLAS threads made the report's sampled stage 3x
-    slower."""
+    slower. Libraries loaded later in the process start with one thread
+    too (:func:`blas_env_defaults`)."""
     from threadpoolctl import threadpool_limits
 
+    blas_env_defaults()
     limiter = threadpool_limits(limits=1)
     _PINNED[:] = [os.getpid()]
     return limiter
+
+
+THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+                    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+"""The variables BLAS, OpenMP and friends read when they are loaded."""
+
+
+def blas_env_defaults() -> None:
+    """Set each of :data:`THREAD_VARIABLES` to 1 unless the user set it: a
+    library loaded after this call (NumPy's OpenBLAS, imported lazily by each
+    command) starts with one thread, at no cost now (threadpoolctl can only
+    limit libraries already loaded). The command line calls this first
+    thing; a user's own value wins."""
+    for name in THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
 
 
 @contextlib.contextmanager
