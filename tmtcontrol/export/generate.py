@@ -27,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from ..control.laws import Law, get_law
-from ..simulation.closedloop import (DIAGNOSTICS, MEASUREMENT, build_controller, command_layout,
+from ..simulation.closedloop import (DIAGNOSTICS, MEASUREMENT, build_controller, command_layout, controller_model,
                                      controller_param_layout, controller_state_layout, param_layout,
                                      state_layout)
 from ..simulation.scenario import Scenario
@@ -162,8 +162,6 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
     """The scenario's controller as one SX Function named
     :data:`GENERATED_FUNCTION` (raises :class:`ExportError` if it cannot be
     generated as C)."""
-    from ..simulation.closedloop import controller_model
-
     law = get_law(scenario.controller.law.kind)
     model = controller_model(scenario.robot.model_mass_scale, scenario.robot.compensate_friction)
     try:
