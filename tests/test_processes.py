@@ -291,3 +291,12 @@ def test_sweep_workers_run_with_one_blas_thread(tmp_path, monkeypatch):
         # the control: a plain worker on this machine has more than one
         with concurrent.futures.ProcessPoolExecutor(1) as pool:
             assert max(pool.submit(_plain_probe).result()) > 1
+
+
+@pytest.mark.heavy
+@pytest.mark.skipif(not LINUX, reason="reads the process tree from /proc")
+def test_dask_local_cluster_workers_die_when_the_parent_is_killed(tmp_path):
+    # Dask's own watchdog (each worker watches its nanny, which lives in the command's process)
+    (tmp_path / "s.toml").write_text(LONG_SWEEP)
+    _sigkill_leaves_no_orphan(["sweep", "s.toml", "--dask", "local", "--workers", "2", "--out", "o", "--no-plots"],
+                              tmp_path, "running on Dask")
