@@ -85,5 +85,5 @@ def test_stability_legends_read_stiffness_without_exponent():
 
     labels = [t.get_text() for fig in (root_locus_figure(1.0, 60.0, 100.0, 200.0, 2e5),
                                        step_figure(1.0, 60.0, 100.0, [2e3, 2e4]))
-              for t in fig.axes[0].get_legend().get_texts()]
+              for t in (fig.axes[0].get_legend() or fig.legends[0]).get_texts()]   # in the axes or under them
     assert labels == ["k_e = 200 N/m", "k_e = 200,000 N/m", "k_e = 2,000 N/m", "k_e = 20,000 N/m"]

@@ -44,11 +44,11 @@ derivation checks in groups) are tasks that a second process takes from the
 start, this one taking its share when its own stages are done (see
 :func:`_remote_tasks`). Progress reports the stages as they end, each with
 its own computing time (the checks': their groups' sum)."""
-SWEEP_STIFFNESS = (3e3, 1e4, 3e4, 1e5, 2e5, 4e5)
-SWEEP_RATES = (1000.0, 500.0)
+SWEEP_POINTS = 6
 SWEEP_CYCLES = 0.5
-"""The report's robustness sweep: constant k_e (N/m) x control rate (Hz), each
-case 0.5 cycle of the scenario's path."""
+"""The report's robustness sweep: ``SWEEP_POINTS`` constant stiffnesses
+x two control rates (:func:`sweep_axes`), each case 0.5 cycle of the
+scenario's path."""
 
 
 @dataclass(frozen=True)
@@ -76,9 +76,11 @@ class Table:
 
 @dataclass(frozen=True)
 class FigureBlock:
-    """A figure as SVG text with its caption."""
+    """A figure as SVG text with its caption and ``alt``, a description of
+    what it draws for a reader who cannot see it (:func:`describe`)."""
     caption: str
     svg: str
+    alt: str = ""
 
 
 @dataclass(frozen=True)
@@ -122,10 +124,56 @@ def svg(fig) -> str:
     return slim_svg(buf.getvalue())
 
 
+def describe(fig) -> str:
+    """A text description of a matplotlib figure for the image's alt text
+    (what it draws, not its caption): per panel its title, the quantities on
+    its axes with their scales, and its named curves and markers."""
+    parts = []
+    for ax in fig.axes:
+        if ax.get_label() == "<colorbar>":
+            parts.append(f"a colour scale of {ax.get_ylabel() or ax.get_xlabel()}")
+            continue
+        x, y = ax.get_xlabel(), ax.get_ylabel()
+        if not (x or y or ax.get_title()):
+            continue
+        scale = lambda a: " (log scale)" if a.get_scale() == "log" else ""
+        what = f"{y or 'value'}{scale(ax.yaxis)} against {x or 'index'}{scale(ax.xaxis)}"
+        names = [t.get_text() for t in (ax.get_legend().get_texts() if ax.get_legend() else [])]
+        names += [t.get_text() for leg in fig.legends for t in leg.get_texts()] if ax is fig.axes[0] else []
+        names = list(dict.fromkeys(n for n in names if n and not n.startswith("_")))
+        parts.append((f"{ax.get_title()}: " if ax.get_title() else "") + f"a chart of {what}"
+                     + (f"; shown: {', '.join(names)}" if names else ""))
+    return ("Chart. " + ". ".join(parts) + ".") if parts else "Chart."
+
+
 def figure(caption: str, make: Callable, *args, **kw) -> FigureBlock:
     with styled():
         fig = make(*args, **kw)
-    return FigureBlock(caption, svg(fig))
+    return FigureBlock(caption, svg(fig), describe(fig))
+
+
+def provenance() -> dict:
+    """When and from what the report was made: the date (UTC, ISO 8601) and
+    the source, the git commit of the package's checkout if it is one (with
+    "+ local changes" if its tracked files differ), else the package version."""
+    import datetime
+    import pathlib
+    import subprocess
+
+    from .. import __version__
+
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    root = pathlib.Path(__file__).resolve().parents[2]
+    source = f"tmtcontrol {__version__} (no git checkout)"
+    try:
+        run = lambda *a: subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True, timeout=5)
+        head = run("rev-parse", "--short=12", "HEAD")
+        if head.returncode == 0 and (root / ".git").exists():
+            dirty = run("status", "--porcelain", "--untracked-files=no", "--", "tmtcontrol").stdout.strip()
+            source = f"tmtcontrol {__version__}, git commit {head.stdout.strip()}" + (" + local changes" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return {"date": date, "source": source}
 
 
 def _mark(passed: bool) -> str:
@@ -195,10 +243,10 @@ def _continuous(rep: Report, p: dict):
         Table("Continuous-time force error dynamics per stiffness",
               ["k_e (N/m)", "poles (1/s)", "ω_n (rad/s)", "ζ", "overshoot", "settling 2 %", "b_crit eq. 25 (N s/m)",
                "b / b_crit", "BIBO stable"], rows, verdict_column=8),
-        figure("Root locus of eq. (22) as k_e varies over the range (×/÷ 10).", sf.root_locus_figure, m, b, k,
-               lo / 10, hi * 10),
-        figure("Damping ratio and natural frequency of eq. (22) against k_e.", sf.damping_figure, m, b, k,
-               lo / 10, hi * 10),
+        figure("Root locus of eq. (22) as k_e varies over the range (×/÷ 10), the operating range drawn thick.", sf.root_locus_figure, m, b, k,
+               lo / 10, hi * 10, operating=(lo, hi)),
+        figure("Damping ratio and natural frequency of eq. (22) against k_e, the operating range shaded.",
+               sf.damping_figure, m, b, k, lo / 10, hi * 10, operating=(lo, hi)),
         figure("Force step responses of eq. (22) at the operating stiffnesses.", sf.step_figure, m, b, k, points, f_d)])
     rep.data["continuous"] = {"range": rng, "points": per_k}
     return sec
@@ -259,13 +307,24 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     return Section("sampled", "Sampled-data analysis", blocks)
 
 
-def _segment_row(i, s) -> list[str]:
+def _cells(values, unit: str, sig: int = 3) -> list[str]:
+    """One column's cells: one unit (and SI prefix) for the column, ``sig``
+    significant digits in every cell (:func:`~tmtcontrol.fmt.column`)."""
+    return fmt.column(values, unit, sig, attach=True)[1]
+
+
+def _segment_rows(segs) -> list[list[str]]:
+    """The per-segment table's rows, each column in one unit."""
     # an overshoot means nothing for a loop that does not settle
-    over = fmt.pct(s.overshoot_pct) if s.verdict == "converged" else f"– ({s.verdict.replace('_', ' ')})"
-    lost = fmt.qty(s.contact_lost_time, "s") if s.contact_lost_time > 0 else "no"
-    return [str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", fmt.num(s.stiffness), fmt.qty(s.switch_jump, "N"),
-            over, lost, fmt.qty(s.settling_time, "s"), fmt.qty(s.steady_state_error, "N"),
-            fmt.qty(s.tangential_rms, "m"), s.verdict]
+    over = _cells([s.overshoot_pct if s.verdict == "converged" else None for s in segs], "%")
+    over = [o if s.verdict == "converged" else f"– ({s.verdict.replace('_', ' ')})" for o, s in zip(over, segs)]
+    lost = _cells([s.contact_lost_time if s.contact_lost_time > 0 else None for s in segs], "s")
+    lost = [c if s.contact_lost_time > 0 else "no" for c, s in zip(lost, segs)]
+    cols = [_cells([s.stiffness for s in segs], "", 4), _cells([s.switch_jump for s in segs], "N"), over, lost,
+            _cells([s.settling_time for s in segs], "s"), _cells([s.steady_state_error for s in segs], "N"),
+            _cells([s.tangential_rms for s in segs], "m")]
+    return [[str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", *(c[i - 1] for c in cols), s.verdict]
+            for i, s in enumerate(segs, 1)]
 
 
 def _simulation(rep: Report, sc: Scenario, p: dict):
@@ -304,7 +363,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     blocks.append(Table(
         "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost",
                                 "settling 2 %", "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
-        [_segment_row(i, s) for i, s in enumerate(segs, 1)], verdict_column=9))
+        _segment_rows(segs), verdict_column=9))
     blocks.append(Table("First contact", ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))
@@ -316,8 +375,8 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         figure("Tracking errors: |f_e − f_d| (log scale) and the tangential position error within the surface.",
                simf.tracking_error_figure, res),
         figure("Environment stiffness and the TMT estimate f_e/(x − x_e) (Fig. 3).", simf.stiffness_figure, res),
-        figure("Wrist position against the reference X_r (Fig. 5); X_r lies inside the surface by design "
-               "(eq. 18), so the normal offset is not an error.", simf.position_figure, res)]
+        figure("Wrist position against the desired path on the surface (Fig. 5); the controller's reference "
+               "X_r lies inside the surface by design (eq. 18) and is not drawn.", simf.position_figure, res)]
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
     return Section("simulation", "Simulation", blocks), sim, res
 
@@ -334,17 +393,23 @@ def _comparison(rep: Report, sc: Scenario):
     from ..simulation.compare import compare_laws
 
     cmp = compare_laws(sc)
+    runs = [(name + (" (scenario's)" if name == sc.controller.law.kind else ""), run) for name, run in cmp.runs.items()]
+    ok = [run.result is not None for _, run in runs]
+    worst = [max(s.steady_state_error for s in run.segments) if good else None for (_, run), good in zip(runs, ok)]
+    settle = [max(s.settling_time for s in run.segments) if good else None for (_, run), good in zip(runs, ok)]
+    err = _cells(worst, "N")
+    over = _cells([max(s.overshoot_pct for s in run.segments) if good else None for (_, run), good in zip(runs, ok)],
+                  "%")
+    settling = _cells([None if t is None or math.isnan(t) else t for t in settle], "s")
+    tang = _cells([max(s.tangential_rms for s in run.segments) if good else None for (_, run), good in zip(runs, ok)],
+                  "m")
     rows = []
-    for name, run in cmp.runs.items():
-        label = name + (" (scenario's)" if name == sc.controller.law.kind else "")
+    for i, (label, run) in enumerate(runs):
         if run.result is None:
             rows.append([label, "–", "no", "–", "–", "–", "diverged"])
             continue
-        segs = run.segments
-        worst = max(s.steady_state_error for s in segs)
-        rows.append([label, fmt.qty(worst, "N"), "yes" if worst <= sc.controller.force_tolerance else "no",
-                     fmt.pct(max(s.overshoot_pct for s in segs)), _worst_settling(segs),
-                     fmt.qty(max(s.tangential_rms for s in segs), "m"), run.verdict])
+        rows.append([label, err[i], "yes" if worst[i] <= sc.controller.force_tolerance else "no", over[i],
+                     "never" if math.isnan(settle[i]) else settling[i], tang[i], run.verdict])
     rep.data["comparison"] = cmp
     return Section("comparison", "Law comparison", [
         Paragraph("Every registered force-tracking law on the same scenario, each with its documented default "
@@ -358,37 +423,68 @@ def _comparison(rep: Report, sc: Scenario):
         figure("Force error of every law (log scale).", simf.comparison_error_figure, cmp)])
 
 
-def _sweep(rep: Report, sc: Scenario):
-    from ..sweep import _predicted, run_sweep, sweep_summary
+def _round2(v: float) -> float:
+    """``v`` to two significant digits (axis values a reader can quote)."""
+    return float(f"{v:.2g}")
+
+
+def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
+    """The report sweep's axes, from the scenario: its control rate and half
+    of it (Hz; the slower side is where stability is lost), and
+    :data:`SWEEP_POINTS` constant stiffnesses (N/m, two significant digits)
+    evenly spaced in log from half its smallest k_e to twice the larger of
+    its largest k_e and the predicted stiffness limit at its rate (the
+    boundary is inside the map whenever the analysis finds one)."""
+    from ..stability.analysis import scenario_stiffness_limit
+
+    rate = 1.0 / p["Ts"]
+    try:
+        limit = scenario_stiffness_limit(sc, p)
+    except Exception:                 # no linear verdict for this law: the range's neighbourhood only
+        limit = None
+    top = max(p["k_e_max"], limit if limit is not None and math.isfinite(limit) else p["k_e_max"] * 5)
+    lo, hi = p["k_e_min"] / 2, 2 * top
+    stiffness = sorted({_round2(v) for v in np.geomspace(lo, hi, SWEEP_POINTS)})
+    return stiffness, [rate, rate / 2]
+
+
+def _sweep(rep: Report, sc: Scenario, p: dict):
+    from ..sweep import _predicted, axis_labels, run_sweep, sweep_summary
     from ..sweep.figures import sweep_map_figure
     from ..simulation.scenario import apply_overrides, scenario_to_dict
     from ..sweep.spec import sweep_from_dict
 
     cycles = min(sc.trajectory.cycles, SWEEP_CYCLES)
-    spec = sweep_from_dict({"grid": {"environment.stiffness.values": [[v] for v in SWEEP_STIFFNESS],
-                                     "controller.rate": list(SWEEP_RATES)}})
-    # the same axes on this scenario (shortened) instead of the paper's
+    stiffness, rates = sweep_axes(sc, p)
+    spec = sweep_from_dict({"grid": {"environment.stiffness.values": [[v] for v in stiffness],
+                                     "controller.rate": rates}})
+    # the axes on this scenario (shortened)
     spec = dataclasses.replace(spec, base=scenario_to_dict(apply_overrides(sc, [f"trajectory.cycles={cycles!r}"])))
     df = run_sweep(spec)
     pred = _predicted(spec, df)
     counts = {v: n for v, n in sweep_summary(spec, df, pred)["verdicts"].items() if n}
     rows = []
-    for rate in SWEEP_RATES:
+    for rate in rates:
         d = df[df["controller.rate"] == rate]
-        for _, r in d.iterrows():
-            rows.append([fmt.qty(rate, "Hz"), fmt.num(r["environment.stiffness.values"]),
-                         fmt.qty(r["max_steady_error"], "N"), r["verdict"]])
-    rep.data["sweep"] = {"frame": df, "predicted": pred}
+        errs = _cells(list(d["max_steady_error"]), "N")
+        for (_, r), err in zip(d.iterrows(), errs):
+            rows.append([f"{fmt.num(rate, 4)}{fmt.NBSP}Hz", fmt.num(r["environment.stiffness.values"]), err,
+                         r["verdict"]])
+    rep.data["sweep"] = {"frame": df, "predicted": pred, "stiffness": stiffness, "rates": rates}
     return Section("sweep", "Robustness sweep", [
         Paragraph(f"{len(df)} simulations of {fmt.qty(cycles * sc.trajectory.period, 's')} each: constant "
-                  f"stiffness × control rate, everything else as in the scenario. Verdicts: "
+                  f"stiffness from {fmt.qty(stiffness[0], 'N/m')} to {fmt.qty(stiffness[-1], 'N/m')} (half the "
+                  "scenario's smallest stiffness to twice the larger of its largest and the predicted limit) × "
+                  f"the scenario's control rate {fmt.qty(rates[0], 'Hz')} and half of it, everything else as in "
+                  "the scenario. Verdicts: "
                   + ", ".join(f"{n} {v}" for v, n in counts.items()) + ". The dashed line is the analysis' "
                   "predicted limit; a simulated verdict on the wrong side of it would show a model error. "
                   "Larger sweeps: tmtcontrol sweep (see the Robustness sweeps page)."),
         Table("Sweep cases", ["control rate", "k_e (N/m)", "worst steady-state error", "verdict"], rows,
               verdict_column=3),
         figure("Sweep map: verdict (marker) and steady-state error (colour) over stiffness and control rate, with "
-               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred, units=spec.units)])
+               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred, units=spec.units,
+               labels=axis_labels(spec))])
 
 
 def _design(rep: Report, sc: Scenario, p: dict, sim, res):
@@ -418,8 +514,8 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
         d = design_impedance(spec)
     except (DesignError, DesignInfeasible) as exc:
         return Section("design", "Damping design", [Paragraph(f"No design meets the bounds: {exc}")])
-    rows = [["optimal (IPOPT)", fmt.num(d.b), fmt.num(d.objective), fmt.pct(d.worst_overshoot)],
-            ["eq. (25) at k_e max", fmt.num(d.baseline_b), fmt.num(d.baseline_objective), "0 % (continuous)"]]
+    rows = [["optimal (IPOPT)", fmt.num(d.b, 4), fmt.num(d.objective), f"{fmt.against(d.worst_overshoot, 5.0)} %"],
+            ["eq. (25) at k_e max", fmt.num(d.baseline_b, 4), fmt.num(d.baseline_objective), "0 % (continuous)"]]
     if "design_check" in rep.data:
         own = rep.data["design_check"]
         rows.append(["the scenario's (as run)", fmt.num(own.b, 4), "–", f"{fmt.against(own.worst_overshoot, 5.0)} %"])
@@ -462,7 +558,8 @@ def _scenario_section(sc: Scenario) -> Section:
 
 def _repro(rep: Report) -> Section:
     sc = rep.scenario
-    rows = [["command", rep.command_line],
+    made = rep.data.get("provenance") or provenance()
+    rows = [["date", made["date"]], ["source", made["source"]], ["command", rep.command_line],
             ["scenario SHA-256 (its TOML)", hashlib.sha256(dump_scenario(sc).encode()).hexdigest()],
             ["sensor noise seed", str(sc.sensor.seed) if sc.sensor.noise_std > 0 else "no noise"],
             ["derivation check seed", "2024"],
@@ -515,7 +612,7 @@ _TASKS: dict[str, Callable] = {
     "continuous-time analysis": lambda rep, sc, p: _continuous(rep, p),
     "sampled-data analysis": lambda rep, sc, p: _sampled(rep, sc, p),
     "law comparison": lambda rep, sc, p: _comparison(rep, sc),
-    "robustness sweep": lambda rep, sc, p: _sweep(rep, sc),
+    "robustness sweep": lambda rep, sc, p: _sweep(rep, sc, p),
 }
 
 
@@ -709,6 +806,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     from ..stability import scenario_parameters
 
     rep = Report(scenario, command_line or " ".join(sys.argv))
+    rep.data["provenance"] = provenance()
     say = progress or (lambda *a: None)
     p = scenario_parameters(scenario)
     rep.data["parameters"] = p

@@ -1,7 +1,9 @@
 """Rendering of the report document: HTML from a Jinja2 template with one
 stylesheet for screen and print, and the PDF from that same HTML by
-WeasyPrint (tables with header rows, numbered tables and figures with
-captions, a table of contents with page numbers, page numbers, A4 pages).
+WeasyPrint (tables with header rows repeated on each page and "(continued)"
+above a table's continuation, numbered tables and figures with captions, a
+table of contents with page numbers, page numbers, the section in the
+running header, A4 pages, tagged for accessibility).
 
 The HTML is one self-contained file: the stylesheet inline, figures as SVG
 data URIs, no scripts and no external references.
@@ -51,7 +53,8 @@ def _blocks(rep: Report) -> list[dict]:
             elif isinstance(b, FigureBlock):
                 n_fig += 1
                 src = "data:image/svg+xml;base64," + base64.b64encode(b.svg.encode()).decode()
-                blocks.append({"kind": "figure", "number": n_fig, "caption": b.caption, "src": src})
+                blocks.append({"kind": "figure", "number": n_fig, "caption": b.caption, "src": src,
+                               "alt": b.alt or f"Figure {n_fig}"})
         out.append({"key": s.key, "title": s.title, "blocks": blocks})
     return out
 
@@ -74,7 +77,10 @@ def render_html(rep: Report) -> str:
 
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=False)
     tpl = env.from_string(_template_text("report.html.j2"))
-    return tpl.render(rep=rep, sections=_blocks(rep), css=_template_text("report.css"), version=__version__,
+    from .document import provenance
+
+    made = rep.data.get("provenance") or provenance()
+    return tpl.render(rep=rep, sections=_blocks(rep), css=_template_text("report.css"), version=__version__, made=made,
                       n_pass=sum(v.passed for v in rep.verdicts),
                       mark=lambda ok: "✔ PASS" if ok else "✘ FAIL",
                       head_cell=_head_cell, verdict_class=lambda c: _VERDICT.get(c, ("", c))[0],
@@ -110,4 +116,6 @@ def render_pdf(html: str, path: str | pathlib.Path) -> None:
     weasyprint = _weasyprint()
     logging.getLogger("weasyprint").setLevel(logging.ERROR)
     logging.getLogger("fontTools").setLevel(logging.ERROR)
-    weasyprint.HTML(string=html, base_url=None).write_pdf(str(path))
+    # a tagged PDF (headings, tables, figures with their alt text in the structure tree: screen readers,
+    # reflow) where WeasyPrint supports it (pdf_tags, WeasyPrint >= 60)
+    weasyprint.HTML(string=html, base_url=None).write_pdf(str(path), pdf_tags=True)

@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..drawing import save_figures
-from ..plotstyle import fixed_layout
+from ..plotstyle import fixed_layout, legend_below, legend_margin
 from .output import SIMULATION_FIGURES
 from .traces import SimulationTraces
 
@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
 __all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
            "path_figure",
-           "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
+           "desired_path", "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
            "save_comparison_figures", "envelope"]
 
 DRAW_POINTS = 1200
@@ -138,19 +138,32 @@ def tracking_error_figure(res: SimulationResult) -> Figure:
     return fixed_layout(fig)
 
 
+def desired_path(res: SimulationResult | SimulationTraces) -> np.ndarray:
+    """The desired path X_d (3, N), m: the reference X_r moved along the
+    surface normal onto the surface plane (X_r lies inside the surface by
+    the TMT's modification, eq. 18; X_d is the circle on the surface that
+    the paper's Fig. 5 plots the path against)."""
+    tr = _traces(res)
+    n = tr.surface_frame[:, 0]
+    depth = n @ (tr.reference_position - tr.center[:, None])
+    return tr.reference_position - np.outer(n, depth)
+
+
 def position_figure(res: SimulationResult | SimulationTraces) -> Figure:
-    """Fig. 5: x, y, z of the wrist centre against the reference (base frame)."""
-    fig = Figure(figsize=(7, 5.5))
+    """Fig. 5: x, y, z of the wrist centre against the desired path X_d on the
+    surface (:func:`desired_path`, base frame), the legend under the axes."""
+    fig = Figure(figsize=(7, 5.7))
     axes = fig.subplots(3, 1, sharex=True)
+    xd = desired_path(res)
     for i, (ax, name) in enumerate(zip(axes, "xyz")):
-        ax.plot(*envelope(res.time, res.position[i]), label=name)
-        ax.plot(*envelope(res.time, res.reference_position[i]), "k--", lw=1, label=f"{name}_r")
+        ax.plot(*envelope(res.time, res.position[i]), label="wrist centre X")
+        ax.plot(*envelope(res.time, xd[i]), "k--", lw=1, label="desired path X_d (on the surface)")
         ax.set_ylabel(f"{name} (m)")
-        ax.legend(loc="upper right")
         ax.grid(True, alpha=0.3)
     axes[0].set_title("Position tracking (Fig. 5)")
     axes[-1].set_xlabel("time (s)")
-    return fixed_layout(fig)
+    legend_below(fig, axes[0], ncol=2)
+    return fixed_layout(fig, bottom=legend_margin(2, 2))
 
 
 def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
@@ -176,42 +189,70 @@ def save_simulation_figures(res: SimulationResult | SimulationTraces,
     return save_figures([(name, globals()[make]) for name, make in SIMULATION_FIGURES], _traces(res), folder)
 
 
+_LAW_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "D"), ((0, (5, 1, 1, 1)), "v"), ((0, (1, 2)), "P"))
+"""Line style and marker per law, in the comparison's order: with colour,
+line and marker differing, a curve drawn over an identical one stays visible."""
+
+
+def _law_curves(ax, cmp, series, floor: float | None = None) -> list[str]:
+    """Draw ``series(result)`` of every law of ``cmp``: the scenario's own law
+    first with a thick line, each other with its own dash pattern and markers
+    (staggered, so a curve identical to another still shows its markers); a
+    law whose series lies within 1 % (of the larger peak) of an earlier one's
+    says so in its label. Returns the labels."""
+    own = cmp.scenario.controller.law.kind
+    order = sorted((n for n, r in cmp.runs.items() if r.result is not None), key=lambda n: n != own)
+    drawn: dict[str, np.ndarray] = {}
+    labels = []
+    for i, name in enumerate(order):
+        res = cmp.runs[name].result
+        y = series(res)
+        # within 1 % of the larger peak: one curve at the figure's scale
+        same = next((other for other, z in drawn.items() if z.shape == y.shape
+                     and np.max(np.abs(z - y)) <= 0.01 * max(np.max(np.abs(z)), np.max(np.abs(y)))), None)
+        drawn[name] = y
+        label = name + (" (scenario's)" if name == own else "") + (f" (within 1 % of {same})" if same else "")
+        ls, marker = _LAW_STYLES[i % len(_LAW_STYLES)]
+        t, v = envelope(res.time, np.maximum(y, floor) if floor is not None else y)
+        step = max(len(t) // 12, 1)
+        ax.plot(t, v, ls=ls, lw=2.6 if name == own else 1.1, marker=marker, ms=5, mfc="none",
+                markevery=(i * step // len(order), step), label=label, zorder=2 if name == own else 3)
+        labels.append(label)
+    return labels
+
+
 def comparison_force_figure(cmp) -> Figure:
-    """Contact force of every law of a :class:`~.compare.Comparison` against f_d."""
-    fig = Figure(figsize=(7, 3.4))
+    """Contact force of every law of a :class:`~.compare.Comparison` against f_d
+    (each law its own line style and markers; the legend under the axes)."""
+    fig = Figure(figsize=(7, 3.8))
     ax = fig.add_subplot()
-    peak = 0.0
-    for name, run in cmp.runs.items():
-        if run.result is None:
-            continue
-        ax.plot(*envelope(run.result.time, run.result.contact_force), lw=1, label=name)
-        peak = max(peak, float(np.max(run.result.contact_force)))
-        f_d = run.result.scenario.controller.f_d
-        time = run.result.time
-    if peak:
-        ax.plot(time, np.full_like(time, f_d), "k--", lw=0.8, label="f_d")
+    runs = [r for r in cmp.runs.values() if r.result is not None]
+    labels = _law_curves(ax, cmp, lambda res: res.contact_force)
+    if runs:
+        f_d = runs[0].result.scenario.controller.f_d
+        time = runs[0].result.time
+        peak = max(float(np.max(r.result.contact_force)) for r in runs)
+        ax.plot(time[[0, -1]], [f_d, f_d], "k--", lw=0.8, label="f_d")
         top = min(peak, 6 * f_d)
         ax.set_ylim(-0.05 * top, 1.1 * top)
     ax.set(xlabel="time (s)", ylabel="normal force f_e (N)", title="Force tracking, all laws")
-    ax.legend(ncol=3, fontsize="small")
     ax.grid(True, alpha=0.3)
-    return fixed_layout(fig)
+    legend_below(fig, ax, ncol=3)
+    return fixed_layout(fig, bottom=legend_margin(len(labels) + 1, 3))
 
 
 def comparison_error_figure(cmp) -> Figure:
-    """|f_e - f_d| of every law on a log axis (floor 1e-6 N), with the 0.01 N band."""
-    fig = Figure(figsize=(7, 3.4))
+    """|f_e - f_d| of every law on a log axis (floor 1e-6 N), with the 0.01 N
+    band (each law its own line style and markers; the legend under the axes)."""
+    fig = Figure(figsize=(7, 3.8))
     ax = fig.add_subplot()
-    for name, run in cmp.runs.items():
-        if run.result is None:
-            continue
-        ax.semilogy(*envelope(run.result.time, np.maximum(np.abs(run.result.force_error), 1e-6)), lw=0.8,
-                    label=name)
+    labels = _law_curves(ax, cmp, lambda res: np.abs(res.force_error), floor=1e-6)
+    ax.set_yscale("log")
     ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 N")
     ax.set(xlabel="time (s)", ylabel="|f_e − f_d| (N)", title="Force error, all laws")
-    ax.legend(ncol=3, fontsize="small")
     ax.grid(True, which="both", alpha=0.3)
-    return fixed_layout(fig)
+    legend_below(fig, ax, ncol=3)
+    return fixed_layout(fig, bottom=legend_margin(len(labels) + 1, 3))
 
 
 def save_comparison_figures(cmp, folder: str | pathlib.Path) -> list[pathlib.Path]:

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from ..drawing import save_figures
 from ..fmt import num
-from ..plotstyle import fixed_layout, margin_colorbar
+from ..plotstyle import fixed_layout, legend_below, legend_margin, margin_colorbar
 
 __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "step_figure", "stability_region_figure",
            "save_analysis_figures", "design_cost_figure", "design_response_figure",
@@ -22,41 +22,68 @@ __all__ = ["stiffness_limit_figure", "root_locus_figure", "damping_figure", "ste
 
 # -- stability analysis figures ----------------------------------------------------
 
-def root_locus_figure(m, b, k, k_e_min, k_e_max) -> Figure:
-    """Poles of eq. (22) as k_e sweeps [k_e_min, k_e_max] (python-control root_locus_map)."""
+def period_ticks(axis) -> None:
+    """A log control-period axis labelled at 1, 2 and 5 of each decade in
+    plain units (0.2 ms, 0.5 ms, 1 ms), so a span under two decades still
+    carries several labelled ticks."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    from ..fmt import qty
+
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: qty(x, "s")))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def root_locus_figure(m, b, k, k_e_min, k_e_max, operating: tuple[float, float] | None = None) -> Figure:
+    """Poles of eq. (22) as k_e sweeps [k_e_min, k_e_max] (python-control
+    root_locus_map); ``operating``: the scenario's stiffness range (N/m),
+    drawn as a thick stretch of the locus."""
     from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
-    fig = Figure(figsize=(6, 4.5))
+    fig = Figure(figsize=(6, 4.7))
     ax = fig.add_subplot()
     loci = sw["loci"]
     for j in range(loci.shape[1]):
-        ax.plot(loci[:, j].real, loci[:, j].imag, "-", lw=1.5)
-    ax.plot(loci[0].real, loci[0].imag, "o", label=f"k_e = {num(k_e_min)} N/m")
-    ax.plot(loci[-1].real, loci[-1].imag, "x", ms=9, label=f"k_e = {num(k_e_max)} N/m")
+        ax.plot(loci[:, j].real, loci[:, j].imag, "-", lw=1.2, color="C0")
+    if operating is not None:
+        on = sw["k_e"] <= operating[1] * (1 + 1e-9)
+        on &= sw["k_e"] >= operating[0] * (1 - 1e-9)
+        lo, hi = operating
+        for j in range(loci.shape[1]):
+            ax.plot(loci[on, j].real, loci[on, j].imag, "-", lw=5, color="C2", alpha=0.6, solid_capstyle="butt",
+                    label=f"operating range {num(lo)}–{num(hi)} N/m" if j == 0 else None)
+    ax.plot(loci[0].real, loci[0].imag, "o", color="C1", label=f"k_e = {num(k_e_min)} N/m")
+    ax.plot(loci[-1].real, loci[-1].imag, "x", color="C3", ms=9, label=f"k_e = {num(k_e_max)} N/m")
     ax.axvline(0, color="k", lw=0.8)
     ax.set(xlabel="Re (1/s)", ylabel="Im (rad/s)", title="Root locus of eq. (22) in k_e")
-    ax.legend()
+    n = len(ax.get_legend_handles_labels()[1])
+    legend_below(fig, ax, ncol=3)
     ax.grid(True, alpha=0.3)
-    return fixed_layout(fig)
+    return fixed_layout(fig, bottom=legend_margin(n, 3))
 
 
-def damping_figure(m, b, k, k_e_min, k_e_max) -> Figure:
-    """Damping ratio and natural frequency of eq. (22) against k_e."""
+def damping_figure(m, b, k, k_e_min, k_e_max, operating: tuple[float, float] | None = None) -> Figure:
+    """Damping ratio and natural frequency of eq. (22) against k_e;
+    ``operating``: the scenario's stiffness range (N/m), shaded."""
     from .continuous import stiffness_sweep
 
     sw = stiffness_sweep(m, b, k, np.geomspace(k_e_min, k_e_max, 200))
-    fig = Figure(figsize=(6.5, 4.5))
+    fig = Figure(figsize=(6.5, 4.8))
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.semilogx(sw["k_e"], sw["damping_ratio"])
     ax1.axhline(1.0, color="k", ls="--", lw=0.8, label="critical (eq. 25)")
     ax1.set(ylabel="damping ratio", title="Damping and natural frequency versus k_e")
-    ax1.legend()
     ax2.semilogx(sw["k_e"], sw["natural_frequency"])
     ax2.set(xlabel="k_e (N/m)", ylabel="natural frequency (rad/s)")
     for ax in (ax1, ax2):
         ax.grid(True, which="both", alpha=0.3)
-    return fixed_layout(fig)
+        if operating is not None:
+            ax.axvspan(*operating, color="C2", alpha=0.18, lw=0,
+                       label=f"operating range {num(operating[0])}–{num(operating[1])} N/m" if ax is ax1 else None)
+    legend_below(fig, ax1, ncol=2)
+    return fixed_layout(fig, bottom=legend_margin(len(ax1.get_legend_handles_labels()[1]), 2))
 
 
 def step_figure(m, b, k, stiffnesses, f_d=10.0) -> Figure:
@@ -87,8 +114,6 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     (so with the paper's gains), which no k_e moves. Its rho = 1 contour on
     the same grid is drawn too (dotted): it lies on the boundary unless the
     loop turns stable again at a larger k_e, which the margin could not show."""
-    from matplotlib.ticker import NullFormatter
-
     from .sampled import stability_region, stiffness_margin
 
     Ts_grid, k_e_grid = np.asarray(Ts_grid, float), np.asarray(k_e_grid, float)
@@ -106,9 +131,9 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     for i, (Ts, ke, label) in enumerate(points):
         ax.plot(Ts, ke, "o", color="k", mfc="white", label="operating points" if i == 0 else None)
         ax.annotate(label, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
-    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness k_e (N/m)",
+    ax.set(xscale="log", yscale="log", xlabel="control period Ts", ylabel="stiffness k_e (N/m)",
            ylim=(k_e_grid[0], k_e_grid[-1]), title=f"Sampled-data stability margin, m_p = {num(m_p)} kg")
-    ax.xaxis.set_minor_formatter(NullFormatter())     # over two decades the minor labels overlap
+    period_ticks(ax.xaxis)
     ax.legend(loc="lower left", fontsize="small")
     margin_colorbar(fixed_layout(fig, right=1.3), ax, cs, label="stiffness margin log10(limit / k_e)",
                     ticks=np.arange(-2, 3))
@@ -121,7 +146,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     hatched, the operating points ``[(Ts, k_e, label), ...]`` and the
     whole-loop limit ``(Ts, k_e)`` at the scenario's period. Distance to the
     boundary is the margin, readable at any Ts."""
-    fig = Figure(figsize=(6.5, 4.2))
+    fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
     Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
     ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable k_e ({label})")
@@ -133,14 +158,12 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
         ax.annotate(text, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
     if whole_loop is not None:
         ax.plot(*whole_loop, "D", color="C2", ms=7, label="whole-loop limit at the scenario's Ts")
-    ax.set(xscale="log", yscale="log", xlabel="control period Ts (s)", ylabel="stiffness k_e (N/m)",
+    ax.set(xscale="log", yscale="log", xlabel="control period Ts", ylabel="stiffness k_e (N/m)",
            ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
            title="Sampled-data stability boundary")
-    from matplotlib.ticker import NullFormatter
-
-    ax.xaxis.set_minor_formatter(NullFormatter())     # over two decades the minor labels overlap
-    ax.legend(loc="lower left", fontsize="small")
-    return fixed_layout(fig)
+    period_ticks(ax.xaxis)
+    legend_below(fig, ax, ncol=2)
+    return fixed_layout(fig, bottom=legend_margin(len(ax.get_legend_handles_labels()[1]), 2))
 
 
 def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.Path]:
@@ -149,14 +172,15 @@ def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.P
     m, b, k, f_d = d["m"], d["b"], d["k"], d["f_d"]
     lo, hi = (d["k_e_min"], d["k_e_max"]) if "k_e_min" in d else (d["k_e"], d["k_e"])
     span_lo, span_hi = lo / 10, hi * 10
-    makers = [("root_locus", lambda _: root_locus_figure(m, b, k, span_lo, span_hi)),
-              ("damping_vs_stiffness", lambda _: damping_figure(m, b, k, span_lo, span_hi)),
+    makers = [("root_locus", lambda _: root_locus_figure(m, b, k, span_lo, span_hi, operating=(lo, hi))),
+              ("damping_vs_stiffness", lambda _: damping_figure(m, b, k, span_lo, span_hi, operating=(lo, hi))),
               ("step_responses", lambda _: step_figure(m, b, k, sorted({lo, np.sqrt(lo * hi), hi}), f_d))]
     if "Ts" in d:
         Ts = d["Ts"]
         pts = [(Ts, ke, num(ke)) for ke in sorted({lo, hi})]
+        # the worst-case (largest) effective mass, as the printed limit, the docs and design use
         makers.append(("stability_region", lambda _: stability_region_figure(
-            m, b, k, min(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 41),
+            m, b, k, max(d["m_p"]), np.geomspace(Ts / 10, Ts * 10, 41),
             np.geomspace(span_lo, max(span_hi, 10 * d["max_stable_stiffness"])
                          if np.isfinite(d["max_stable_stiffness"]) else span_hi, 81), pts)))
     return save_figures(makers, d, folder, dpi=110)
@@ -164,42 +188,83 @@ def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.P
 
 # -- design figures ------------------------------------------------------------------------
 
+def _worst_sampled_overshoot(spec, bs, k) -> np.ndarray:
+    """The worst first-contact overshoot (percent) of the sampled loop over
+    the design's stiffness grid, for each damping in ``bs`` (the constraint
+    the design is held to; ``inf`` where the response does not stay finite)."""
+    from .design import _contact_response, _overshoot_horizon
+
+    bs = np.asarray(bs, float)
+    worst = np.zeros(bs.size)
+    for ke in spec.stiffness_grid:
+        F = _contact_response(spec, ke, max(_overshoot_horizon(spec.m, k, ke), 20 * spec.Ts))
+        with np.errstate(all="ignore"):
+            f = np.array(F.map(bs.size)(bs[None, :], np.full((1, bs.size), k))).reshape(bs.size, -1)
+        over = np.where(np.all(np.isfinite(f), axis=1), np.maximum(f.max(axis=1) / spec.f_d - 1.0, 0.0) * 100, np.inf)
+        worst = np.maximum(worst, over)
+    return worst
+
+
 def design_cost_figure(result) -> Figure:
-    """Worst-case cost J against b (fixed k), with the optimum and the eq. (25) baseline."""
+    """Worst-case cost J against b (fixed k), with the optimum and the eq. (25)
+    baseline, above the constraint that places the optimum: the worst
+    first-contact overshoot of the sampled loop against b, its bound, and the
+    dampings that break it shaded in both panels."""
     from .design import _objective
 
     spec = result.spec
     bs = np.geomspace(max(spec.b_bounds[0], result.b / 20), min(spec.b_bounds[1], result.b * 20), 120)
     J = [_objective(spec, b, result.k) for b in bs]
-    fig = Figure(figsize=(6.5, 4.2))
-    ax = fig.add_subplot()
-    ax.loglog(bs, J, label=f"worst-case J (k = {result.k:.4g} N/m)")
-    ax.plot(result.b, result.objective, "o", label=f"optimal b = {result.b:.4g}")
-    ax.plot(result.baseline_b, result.baseline_objective, "s", label=f"eq. (25) b = {result.baseline_b:.4g}")
-    ax.set(xlabel="b (N s/m)", ylabel="J (N² s)", title="Robust damping design")
-    ax.legend()
-    ax.grid(True, which="both", alpha=0.3)
-    return fixed_layout(fig)
+    over = _worst_sampled_overshoot(spec, bs, result.k)
+    bad = over > spec.max_overshoot
+    fig = Figure(figsize=(6.5, 5.4))
+    ax, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    ax.loglog(bs, J, label=f"worst-case J (k = {num(result.k)} N/m)")
+    ax.plot(result.b, result.objective, "o", label=f"optimal b = {num(result.b, 4)} N s/m")
+    ax.plot(result.baseline_b, result.baseline_objective, "s", label=f"eq. (25) b = {num(result.baseline_b, 4)} N s/m")
+    ax2.semilogx(bs, np.minimum(over, 1e3), color="C2", label="worst first-contact overshoot (sampled loop)")
+    ax2.axhline(spec.max_overshoot, color="k", ls="--", lw=1, label=f"bound {num(spec.max_overshoot)} %")
+    ax2.plot(result.b, result.worst_overshoot, "o", color="C1")
+    for a in (ax, ax2):
+        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(int), 0]))
+        for i, (lo, hi) in enumerate(zip(edges[::2], edges[1::2])):
+            a.axvspan(bs[lo], bs[min(hi, bs.size - 1)], color="0.85", zorder=0,
+                      label=f"overshoot > {num(spec.max_overshoot)} %: infeasible" if i == 0 and a is ax else None)
+        a.grid(True, which="both", alpha=0.3)
+    ax2.set_ylim(0, max(3 * spec.max_overshoot, 1.0))
+    ax.set(ylabel="J (N² s)", title="Robust damping design: cost and the overshoot bound")
+    ax2.set(xlabel="b (N s/m)", ylabel="overshoot (%)")
+    handles, labels = [], []
+    for a in (ax, ax2):
+        h, lab = a.get_legend_handles_labels()
+        handles += h
+        labels += lab
+    legend_below(fig, ax, ncol=2, handles=handles, labels=labels)
+    return fixed_layout(fig, bottom=legend_margin(len(labels), 2))
 
 
 def design_response_figure(result) -> Figure:
-    """First-contact force responses (eq. 22) at k_e_min and k_e_max, optimal vs baseline."""
-    import control as ct
-
-    from .continuous import tmt_error_tf
+    """First-contact force responses of the sampled loop (the model the
+    overshoot bound applies to: the TMT loop at Ts with its delay and filter,
+    drawn at its samples) at k_e_min and k_e_max, optimal vs the eq. (25)
+    baseline, with the bound."""
+    from .design import _contact_response, _overshoot_horizon
 
     s = result.spec
-    fig = Figure(figsize=(6.5, 4.2))
+    fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
     for b, k, name, ls in ((result.b, result.k, "optimal", "-"), (result.baseline_b, s.k, "eq. (25)", "--")):
         for ke in (s.k_e_min, s.k_e_max):
-            r = ct.step_response(tmt_error_tf(s.m, b, k, ke) * s.f_d)
-            ax.plot(r.time, np.squeeze(r.outputs), ls, label=f"{name}, k_e = {ke:.3g}")
-    ax.axhline(s.f_d * (1 + s.max_overshoot / 100), color="k", lw=0.8, ls=":", label="overshoot bound")
-    ax.set(xlabel="time (s)", ylabel="f_e (N)", title="First-contact force response, eq. (22)")
-    ax.legend(fontsize=8)
+            f = np.ravel(np.array(_contact_response(s, ke, max(_overshoot_horizon(s.m, k, ke), 20 * s.Ts))(b, k)))
+            t = s.Ts * np.arange(1, f.size + 1)
+            ax.step(t, f, ls, where="post", label=f"{name} b = {num(b, 4)} N s/m, k_e = {num(ke)} N/m")
+    ax.axhline(s.f_d * (1 + s.max_overshoot / 100), color="k", lw=0.8, ls=":",
+               label=f"overshoot bound {num(s.max_overshoot)} %")
+    ax.set(xlabel="time after first contact (s)", ylabel="f_e (N)",
+           title=f"First-contact force response, sampled loop (Ts = {num(s.Ts * 1e3)} ms)")
     ax.grid(True, alpha=0.3)
-    return fixed_layout(fig)
+    legend_below(fig, ax, ncol=2)
+    return fixed_layout(fig, bottom=legend_margin(5, 2))
 
 
 def save_design_figures(result, folder) -> list[pathlib.Path]:
