@@ -300,3 +300,27 @@ def test_dask_local_cluster_workers_die_when_the_parent_is_killed(tmp_path):
     (tmp_path / "s.toml").write_text(LONG_SWEEP)
     _sigkill_leaves_no_orphan(["sweep", "s.toml", "--dask", "local", "--workers", "2", "--out", "o", "--no-plots"],
                               tmp_path, "running on Dask")
+
+
+def _sigterm_idle_sibling_then_return_pid():
+    return os.getpid()
+
+
+def test_an_idle_worker_ends_on_sigterm_and_ignores_sigint():
+    # a pool terminates its idle workers (SIGTERM) when one crashed, then joins them: they must end;
+    # the terminal's Ctrl-C (SIGINT) outside a task is the parent's to handle
+    import concurrent.futures
+    import multiprocessing
+
+    from tmtcontrol.processes import worker_init
+
+    ctx = multiprocessing.get_context("fork")
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=worker_init,
+                                                initargs=(False,)) as pool:
+        pid = pool.submit(_sigterm_idle_sibling_then_return_pid).result()     # now idle, waiting for a task
+        os.kill(pid, signal.SIGINT)
+        assert pool.submit(_sigterm_idle_sibling_then_return_pid).result() == pid    # still there, still working
+        proc = next(iter(pool._processes.values()))
+        os.kill(pid, signal.SIGTERM)
+        proc.join(timeout=30)            # a bound, not a timing: expected at once
+        assert proc.exitcode == 128 + signal.SIGTERM

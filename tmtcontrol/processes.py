@@ -71,16 +71,20 @@ def _worker_signal(signum, frame):
     """A worker's SIGINT/SIGTERM (Ctrl-C reaches every process of the
     command): inside a task (tmtcontrol's code on the stack) it stops the
     task with KeyboardInterrupt, which the pool hands back to the parent as
-    the task's outcome; anywhere else (starting, waiting for a task) it is
-    ignored, since a worker that raised there would print its own traceback.
-    The parent handles the interruption and stops the pool. The walk stops
-    at the process' own start (a forked child's stack goes on into the
-    parent's frames as they were at the fork)."""
+    the task's outcome. Anywhere else (starting, waiting for a task), where
+    a worker that raised would print its own traceback, SIGINT is ignored
+    (the parent handles the interruption and stops the pool) and SIGTERM
+    ends the worker at once, quietly (a pool terminates its idle workers so
+    when one of them crashed, and then waits for them). The walk stops at the
+    process' own start (a forked child's stack goes on into the parent's
+    frames as they were at the fork)."""
     while frame is not None and frame.f_code.co_name not in ("_process_worker", "_bootstrap"):
         name = os.path.abspath(frame.f_code.co_filename)
         if name.startswith(_PACKAGE + os.sep) and name != os.path.abspath(__file__):
             raise KeyboardInterrupt
         frame = frame.f_back
+    if signum != signal.SIGINT:
+        os._exit(128 + int(signum))
 
 
 def die_with_parent() -> bool:
