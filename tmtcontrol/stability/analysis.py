@@ -13,6 +13,27 @@ __all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_m
 
 
 
+def _limit(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6) -> float:
+    """Largest k_e (N/m) with ``stable(k_e)``: the first unstable point of a
+    49-point log grid from ``k_lo`` to ``k_hi``, then bisection to ``rtol``
+    (``inf`` if stable up to ``k_hi``, 0 if unstable at ``k_lo``)."""
+    grid = np.geomspace(k_lo, k_hi, 49)
+    prev = None
+    for ke in grid:
+        if not stable(ke):
+            break
+        prev = ke
+    else:
+        return float("inf")
+    if prev is None:
+        return 0.0
+    lo, hi = prev, ke
+    while hi / lo > 1 + rtol:
+        mid = float(np.sqrt(lo * hi))
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return float(lo)
+
+
 def scenario_parameters(scenario) -> dict:
     """Normal-axis parameters of a scenario for the analysis: m, b, k, f_d, the
     stiffness range of its profile, Ts, the inner-loop gains, the force filter
@@ -54,15 +75,40 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     if not law.linear_analysis:
         return None
     ctl = scenario.controller
+    bk = _scheduled(scenario, p["m"])
     if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error):
         # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
         kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
-        return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, **kw)
+        if bk is None:
+            return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, **kw)
+                       for mp in (p["m_p_min"], p["m_p_max"]))
+        return min(_limit(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
+                                                     **{**kw, **bk(ke)}) < 1.0)
                    for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
               d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
-    return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)
+    if bk is None:
+        return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)
+                   for mp in (p["m_p_min"], p["m_p_max"]))
+    from .lawloop import law_loop
+
+    return min(_limit(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
+                                          **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4)
                for mp in (p["m_p_min"], p["m_p_max"]))
+
+
+def _scheduled(scenario, m: float):
+    """With a scheduled damping (``controller.damping_schedule.kind = "zeta"``),
+    ``k_e -> {"b": b, "kd": b/m}`` at the schedule's fixed point
+    (``stability.wholeloop.equilibrium_damping``); else None."""
+    if scenario.controller.damping_schedule.kind != "zeta":
+        return None
+    from .wholeloop import equilibrium_damping
+
+    def bk(ke):
+        b = equilibrium_damping(scenario, ke)
+        return {"b": b, "kd": b / m}
+    return bk
 
 
 def paper_effective_mass(worst: bool = False) -> float:
@@ -82,7 +128,8 @@ def closed_form_applies(law: str, delay: int, x_e_error: float) -> bool:
 
 
 def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_p=None,
-            kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt", delay=0, x_e_error=0.0, law_params=None) -> dict:
+            kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt", delay=0, x_e_error=0.0, law_params=None,
+            damping=None) -> dict:
     """Everything ``tmtcontrol analyze`` reports, as a dict of plain values
     (the python-control objects under ``"systems"``).
 
@@ -94,7 +141,12 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
     loop and the steady state; with either, or a law other than ``tmt`` and
     ``known``, the loop is the law's own update (``stability.lawloop``),
     else the closed-form 1-D model (``stability.sampled``), which agree to
-    5e-4 where both apply."""
+    5e-4 where both apply.
+
+    ``damping``: a scheduled normal damping, a function ``k_e -> b`` (N s/m;
+    ``stability.wholeloop.equilibrium_damping``): every stiffness is then
+    analysed with its own b and K_D = b/m (the continuous part with the b of
+    the largest stiffness), and ``b`` is only its fallback."""
     from ..control.laws import get_law
 
     _check(m, b, k, None, f_d)
@@ -110,6 +162,9 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
             m_p = tuple(m_p) if isinstance(m_p, (tuple, list)) else (m_p,)
             for v in m_p:
                 _pos("m_p", v)
+    if damping is not None:             # the continuous part at the damping of the stiffest surface
+        b = float(damping(k_e if k_e is not None else k_e_max))
+        _check(m, b, k, None, f_d)
     if k_e is not None:
         cont = analyze_continuous(m, b, k, k_e, f_d)
         out = cont.as_dict()
@@ -131,10 +186,18 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
     if Ts is not None:
         masses = m_p if m_p is not None else (paper_effective_mass(), paper_effective_mass(worst=True))
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
+        if damping is not None:
+            bk = lambda ke: {"b": float(damping(ke)), "kd": float(damping(ke)) / m}   # K_D = b/m (eq. 9)
         if closed_form_applies(law, delay, x_e_error):
             kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
-            limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
-            rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
+            if damping is None:
+                limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
+                rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
+            else:
+                radius = lambda ke, mp: spectral_radius(m, k=k, k_e=ke, Ts=Ts, m_p=mp, **{**kw, **bk(ke)})
+                limit = min(_limit(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6) for mp in masses)
+                rho = max(radius(ke, mp) for ke in grid for mp in masses)
+                b, kw["kd"] = bk(hi)["b"], bk(hi)["kd"]
             out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, max(masses), **kw).sys
             model = "closed-form 1-D (stability.sampled)"
         else:
@@ -144,10 +207,16 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 raise AnalysisError(f"law: {law!r} has no linear stability verdict (a continuum of equilibria)")
             kw = dict(m=m, b=b, k=k, Ts=Ts, f_d=f_d, kd=kd, kp=kp, alpha=alpha, d_e=d_e, delta=x_e_error,
                       delay=delay)
-            limit = min(law_stiffness_limit(lw, params, m_p=mp, **kw) for mp in masses)
-            rho = max(law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
-                      for ke in grid[::3] for mp in masses)
+            if damping is None:
+                limit = min(law_stiffness_limit(lw, params, m_p=mp, **kw) for mp in masses)
+                radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
+            else:
+                radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **{**kw, **bk(ke)}).spectral_radius
+                limit = min(_limit(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4) for mp in masses)
+            rho = max(radius(ke, mp) for ke in grid[::3] for mp in masses)
             model = "the law's 1-D loop (stability.lawloop)"
+        if damping is not None:
+            model += ", scheduled damping b(k_e)"
         out.update({"Ts": Ts, "m_p": list(masses), "delay": delay, "x_e_error": x_e_error,
                     "sampled_model": model, "max_stable_stiffness": limit,
                     "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
@@ -184,7 +253,10 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     from ..control.laws import get_law
     from .wholeloop import whole_loop_limit
 
-    out = analyze(**analysis_kwargs(scenario_parameters(scenario)), law_params=scenario.controller.law)
+    p = scenario_parameters(scenario)
+    bk = _scheduled(scenario, p["m"])
+    out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
+                  damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     if get_law(scenario.controller.law.kind).linear_analysis:
         limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
                                             guess=out["max_stable_stiffness"])

@@ -156,21 +156,40 @@ def first_contact_limit(scenario, k_hi: float, rtol: float = 1e-3, runner: LoopR
 
 
 def _periodic_decay(runner: LoopRunner, k_e: float, cycles: int) -> float:
-    """The ratio of the largest difference between the last two path
-    periods and the two before them, at constant ``k_e`` after one period at
-    0.95 ``k_e`` from the scenario's start (< 1: the orbit attracts)."""
+    """How the deviation from the periodic orbit changes over the last path
+    period at constant ``k_e`` (after one period at 0.95 ``k_e`` from the
+    scenario's start, and +-5 % on the stiffness for the first four samples
+    at ``k_e``, which excites every mode up to half the sampling rate): the larger of two ratios, last period over the one
+    before, of (a) the largest difference between successive periods (the
+    orbit cancels) and (b) the largest second difference of the force
+    within a period (the smooth orbit hardly contributes; this catches an
+    oscillation that has saturated in step with the period, e.g. at half
+    the sampling rate, which (a) misses). Returns ratio (a): < 1, the orbit
+    attracts; ``inf`` if the force leaves the surface in the last period;
+    at least 1 if ratio (b) is above :data:`SATURATED` with second
+    differences above 1e-3 f_d (well above the smooth orbit's own)."""
     sc = runner.scenario
     N = int(round(sc.trajectory.period / sc.controller.Ts))
     k = np.full(N * (cycles + 1), float(k_e))
     k[:N] = 0.95 * k_e
+    k[N:N + 4] *= 1 + 0.05 * np.array([1, -1, 1, -1])     # a broadband kick: every mode excited
     f = runner.run(k_e, sc.trajectory.period * (cycles + 1), k)
     F = f[:N * (cycles + 1)].reshape(cycles + 1, N)[1:]
     if not np.all(np.isfinite(F)) or F[-1].min() <= 0.0:
         return math.inf
+    floor = 1e-9 * sc.controller.f_d
     d = np.abs(np.diff(F, axis=0)).max(axis=1)
-    if d[-1] < 1e-9 * sc.controller.f_d:            # converged to rounding: decayed
-        return 0.0
-    return float(d[-1] / d[-2])
+    h = np.abs(np.diff(F, n=2, axis=1)).max(axis=1)
+    ratios = [x[-1] / x[-2] if x[-1] > floor else 0.0 for x in (d, h)]
+    if ratios[1] >= SATURATED and h[-1] > 1e-3 * sc.controller.f_d:
+        return max(1.0, ratios[0])
+    return float(ratios[0])
+
+
+SATURATED = 0.98
+"""Ratio of the in-period oscillation amplitude (second differences of the
+force) between the last two periods above which a run counts as a
+saturated oscillation, not a decaying one."""
 
 
 def simulated_limit(scenario, k_lo: float, k_hi: float, rtol: float = 1e-3, cycles: int = 5,

@@ -175,9 +175,14 @@ class PeriodicModel:
         """A first state on (near) the orbit: the previous orbit for a nearby
         stiffness, else the frozen loop's fixed point at path time 0 moving
         with the circle."""
-        if self._warm is not None and abs(math.log(k_e / self._warm[0])) < 0.2:
-            return self._warm[1].copy()
         from ..simulation.environment import task_frame
+        from .wholeloop import equilibrium_damping
+
+        if self._warm is not None and abs(math.log(k_e / self._warm[0])) < 0.2:
+            s = self._warm[1].copy()
+            # a scheduled damping far from its fixed point is rate-limited: no derivative to follow
+            s[self.layout["b_n"]] = equilibrium_damping(self.scenario, k_e)
+            return s
 
         sc, L = self.scenario, self.layout
         s = self.frozen.at(k_e, 0.0).s_eq.copy()
@@ -208,7 +213,7 @@ class PeriodicModel:
             if np.max(np.abs(r) / (1.0 + np.abs(s[d]))) < tol:
                 break
             s = s.copy()
-            s[d] += np.linalg.solve(Phi - eye, -r)
+            s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
         f = np.ravel(F)
         if residual > 1e-6:
             raise AnalysisError(f"k_e = {k_e:.6g} N/m: the periodic orbit did not converge "

@@ -34,7 +34,7 @@ from .continuous import AnalysisError
 from .lawloop import law_loop
 from .sampled import effective_mass
 
-__all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit"]
+__all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
 _BOOKKEEPING = ("approach", "x_app", "ramp", "x_e_hat")
 
@@ -64,6 +64,33 @@ def _build(sc):
     s_mx, up_mx = ca.MX.sym("s", layout.size), ca.MX.sym("up", up.numel())
     jac = ca.Function("whole_jacobian", [s_mx, up_mx], [ca.jacobian(f(s_mx, up_mx)[0], s_mx)], ["s", "up"], ["A"])
     return sim, layout, dynamic, f, jac
+
+
+def equilibrium_damping(scenario, k_e: float) -> float:
+    """The normal impedance damping (N s/m) the loop runs with in steady
+    contact at stiffness ``k_e`` (N/m): ``impedance.b`` when fixed; with
+    ``controller.damping_schedule.kind = "zeta"`` the schedule's fixed point
+    (``simulation.closedloop.damping_schedule``): eq. (25)'s
+    ``2 zeta sqrt(m (k + k_hat))`` with the estimate at the law's steady
+    force, ``k_hat = f_e/(f_e/k_e - delta)`` (delta the x_e error), clamped
+    as the schedule clamps it. Below twice the schedule's force threshold
+    the schedule holds its start value. Near a fixed point the damping's
+    own deviation does not enter the linearised loop (it multiplies the
+    impedance filter's and the inner loop's velocity errors, zero there),
+    so the loop is linearised with this constant b and K_D = b/m."""
+    sc = scenario
+    sch, b0 = sc.controller.damping_schedule, float(sc.impedance.b[0])
+    if sch.kind != "zeta":
+        return b0
+    ctl, m, k = sc.controller, float(sc.impedance.m[0]), float(sc.impedance.k[0])
+    law = get_law(ctl.law.kind)
+    f = law.steady_force(ctl.law, ctl.f_d, k, k_e, ctl.x_e_error) if law.steady_force else ctl.f_d
+    start = min(max(b0, sch.b_min), sch.b_max)
+    depth = f / k_e - ctl.x_e_error
+    if not (f > 2 * sch.force_threshold and depth > 0):
+        return start
+    k_hat = min(max(f / depth, sch.min_stiffness), sch.k_max)
+    return float(min(max(2 * sch.zeta * math.sqrt(m * (k + k_hat)), sch.b_min), sch.b_max))
 
 
 @dataclass(frozen=True)
@@ -155,6 +182,7 @@ class WholeLoopModel:
             # the equilibrium found at this point for a nearby stiffness (bisection): the force and
             # the law state carry over, the penetration scales as 1/k_e
             s = s_prev.copy()
+            s[L["b_n"]] = equilibrium_damping(sc, k_e)
             pen = float(n @ (np.asarray(self.sim.plant.fk(s[L["q"]])).ravel() - c))
             s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[pen * k_prev / k_e, ref.pos[:, 0]])
             return s
@@ -163,13 +191,17 @@ class WholeLoopModel:
             # the law's 1-D equilibrium at this effective mass
             kd, kp = sc.impedance.gains
             alpha = sc.sensor.pole(ctl.Ts)
-            one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=sc.impedance.b[0], k=sc.impedance.k[0],
+            b = equilibrium_damping(sc, k_e)
+            if sc.controller.damping_schedule.kind == "zeta":      # the closed loop's K_D = b/m then
+                kd = (b / sc.impedance.m[0],)
+            one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=b, k=sc.impedance.k[0],
                              k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0],
                              kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,
                              settle=0.5)
             s = self.s0.copy()
             s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]])
             s[L["dq"]] = 0.0
+            s[L["b_n"]] = b
             s[L["f_filt"]] = one_d.f_eq
             s[L["law"]] = one_d.z_eq[3:3 + len(self.law.states)]
             return s
