@@ -203,3 +203,23 @@ def test_scheduled_damping_limits_match_the_simulator():
     runner = LoopRunner(sc, compile=False)
     assert _periodic_decay(runner, 0.99 * limit, 5) < 1.0
     assert _periodic_decay(runner, 1.01 * limit, 5) >= 1.0
+
+
+def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_sim, tmp_path, capsys):
+    """delta = -10 mm, k_e = 1.3e5 N/m: below the small-signal limit (1-D: 143,812
+    N/m) but above the first-contact one (~1.2e5): the run locks into a limit cycle,
+    exits 1, and the line names both limits."""
+    import re
+
+    from tmtcontrol.cli import main
+
+    code = main(["simulate", "paper", "--out", str(tmp_path / "out"), "--no-plots",
+                 "--set", "controller.x_e_error=-0.01", "--set", "environment.stiffness.values=[1.3e5]",
+                 "--set", "trajectory.cycles=1"])
+    err = capsys.readouterr().err
+    assert code == 1
+    m = re.search(r"predicted limit ([\d.e+]+) N/m .*from first contact ([\d.e+]+) N/m", err)
+    assert m, err
+    small, first = float(m.group(1)), float(m.group(2))
+    assert small == pytest.approx(1.438e5, rel=2e-3)
+    assert 1.15e5 < first < 1.25e5

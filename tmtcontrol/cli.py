@@ -300,11 +300,12 @@ def _verdict_exit(sc, segs) -> int:
     bad = [(i, s) for i, s in enumerate(segs, 1) if s.verdict != "converged"]
     if not bad:
         return 0
-    from .stability.analysis import scenario_stiffness_limit
+    from .stability.analysis import predicted_limits
 
-    limit = scenario_stiffness_limit(sc)
-    lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario)"
-           if limit is not None else "no linear prediction for this law")
+    pred = predicted_limits(sc)
+    limit, first = pred["small_signal"], pred["first_contact"]
+    lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
+           f"from first contact {first:.4g} N/m" if limit is not None else "no linear prediction for this law")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}; {s.reason}",
               file=sys.stderr)

@@ -8,8 +8,8 @@ import numpy as np
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
 
-__all__ = ["scenario_stiffness_limit", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
-           "analyze_scenario", "format_analysis", "closed_form_applies"]
+__all__ = ["scenario_stiffness_limit", "predicted_limits", "scenario_parameters", "paper_effective_mass", "analyze",
+           "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
 
@@ -95,6 +95,21 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     return min(_limit(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
                                           **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4)
                for mp in (p["m_p_min"], p["m_p_max"]))
+
+
+def predicted_limits(scenario) -> dict:
+    """The two stiffness limits ``simulate`` quotes when a segment does not
+    converge: ``small_signal``, the 1-D sampled loop's
+    (:func:`scenario_stiffness_limit`, N/m), and ``first_contact``, the
+    largest stiffness up to it from which the scenario's own start settles
+    (``stability.first_contact``, N/m; short simulations). Both ``None``
+    for a law without a linear verdict."""
+    limit = scenario_stiffness_limit(scenario)
+    if limit is None or not np.isfinite(limit) or limit <= 0:
+        return {"small_signal": limit, "first_contact": limit}
+    from .first_contact import first_contact_limit
+
+    return {"small_signal": limit, "first_contact": first_contact_limit(scenario, limit)}
 
 
 def _scheduled(scenario, m: float):
