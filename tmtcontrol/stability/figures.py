@@ -199,7 +199,9 @@ def _worst_sampled_overshoot(spec, bs, k) -> np.ndarray:
     for ke in spec.stiffness_grid:
         F = _contact_response(spec, ke, max(_overshoot_horizon(spec.m, k, ke), 20 * spec.Ts))
         with np.errstate(all="ignore"):
-            f = np.array(F.map(bs.size)(bs[None, :], np.full((1, bs.size), k))).reshape(bs.size, -1)
+            f = np.array(F.map(bs.size)(bs[None, :], np.full((1, bs.size), k)))
+        # one response per b: a column output maps to one column per b, a row output to one row block per b
+        f = f.T if F.size_out(0)[1] == 1 else f.reshape(bs.size, -1)
         over = np.where(np.all(np.isfinite(f), axis=1), np.maximum(f.max(axis=1) / spec.f_d - 1.0, 0.0) * 100, np.inf)
         worst = np.maximum(worst, over)
     return worst
