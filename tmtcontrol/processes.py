@@ -41,7 +41,7 @@ import sys
 import threading
 
 __all__ = ["worker_init", "die_with_parent", "one_blas_thread", "defer_in_finalizers", "blas_threads_limited",
-           "blas_env_defaults", "THREAD_VARIABLES", "PDEATHSIG"]
+           "blas_env_defaults", "signals_held", "THREAD_VARIABLES", "PDEATHSIG"]
 
 PDEATHSIG = signal.SIGKILL if hasattr(signal, "SIGKILL") else None
 """The signal a Linux worker gets when its parent dies (a worker holds no
@@ -57,14 +57,36 @@ def worker_init(blas_limit: bool = True) -> None:
     import multiprocessing
 
     if multiprocessing.parent_process() is not None and threading.current_thread() is threading.main_thread():
-        for signum in (signal.SIGINT, signal.SIGTERM):
+        for signum in _HELD:
             signal.signal(signum, _worker_signal)
+        if hasattr(signal, "pthread_sigmask"):       # held by the parent while it forked (signals_held)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD)
     die_with_parent()
     if blas_limit:
         one_blas_thread()
 
 
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
+_HELD = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Hold SIGINT and SIGTERM (blocked, not lost) in this thread for the
+    block: start worker processes inside it. A Ctrl-C while they fork then
+    reaches each child only after :func:`worker_init` has installed its own
+    handler (a forked child inherits the blocked mask and the parent's
+    Python handler, which would raise in the middle of its start-up), and
+    reaches this process as the block ends. No-op where ``pthread_sigmask``
+    is missing (Windows) or outside the main thread."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _worker_signal(signum, frame):

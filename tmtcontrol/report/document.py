@@ -738,8 +738,11 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts:
     verdicts go to ``verdicts[stage]``, its data to ``rep.data``."""
     import concurrent.futures
 
+    from ..processes import signals_held
+
     pool, claims, tasks = background
-    pulls = [pool.submit(_pull, sc, p) for _ in tasks]      # each takes a task when it starts
+    with signals_held():            # the second process forks at the first submit; Ctrl-C waits for its handler
+        pulls = [pool.submit(_pull, sc, p) for _ in tasks]      # each takes a task when it starts
     done = 0
 
     def finished(name, seconds):

@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 
 from ..files import OutputError, check_interrupt
-from ..processes import blas_threads_limited, one_blas_thread, worker_init
+from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
 from .spec import Case, Sweep, case_scenario
 
 __all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
@@ -302,9 +302,10 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
         # the platform's default start method (fork on Linux): a user's script or notebook needs no
         # `if __name__ == "__main__"` guard; each worker dies with this process and pins BLAS to one thread
         with cf.ProcessPoolExecutor(max_workers=workers, initializer=worker_init) as pool:
-            futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
-            say(f"sweep: {len(todo)} cases running on {workers} worker processes")
             try:
+                with signals_held():        # the workers fork at the first submit
+                    futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
+                say(f"sweep: {len(todo)} cases running on {workers} worker processes")
                 for fut in cf.as_completed(futures):
                     rows = fut.result()
                     write(rows)
