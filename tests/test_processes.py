@@ -324,3 +324,40 @@ def test_an_idle_worker_ends_on_sigterm_and_ignores_sigint():
         os.kill(pid, signal.SIGTERM)
         proc.join(timeout=30)            # a bound, not a timing: expected at once
         assert proc.exitcode == 128 + signal.SIGTERM
+
+
+WATCHDOG_SCRIPT = """
+import concurrent.futures, multiprocessing, os, sys
+from tmtcontrol import processes
+processes._set_pdeathsig = lambda: False     # as on a platform without PR_SET_PDEATHSIG: the watchdog alone
+with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context(sys.argv[1]),
+                                            initializer=processes.worker_init, initargs=(False,)) as pool:
+    print(pool.submit(os.getpid).result(), flush=True)
+    sys.stdin.read()                          # until killed
+"""
+
+
+@pytest.mark.skipif(not LINUX, reason="reads the process tree from /proc")
+def test_the_portable_watchdog_alone_ends_a_worker_whose_parent_was_killed():
+    # fork: the worker holds a copy of the parent's end of its task pipe, so without the watchdog (or the
+    # kernel's signal) it waits for ever (a spawned worker sees EOF on that pipe and ends by itself)
+    method = "fork"
+    proc = subprocess.Popen([sys.executable, "-c", WATCHDOG_SCRIPT, method], env=ENV, stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        worker = int(proc.stdout.readline())
+        assert _alive(worker)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        end = time.monotonic() + 10.0          # a generous bound; expected at once
+        while time.monotonic() < end and _alive(worker):
+            time.sleep(0.05)
+        assert not _alive(worker), "the worker outlived its parent"
+    finally:
+        for p in _descendants(proc.pid):
+            os.kill(p, signal.SIGKILL)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdin.close()
+        proc.stdout.close()
