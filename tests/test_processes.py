@@ -361,3 +361,26 @@ def test_the_portable_watchdog_alone_ends_a_worker_whose_parent_was_killed():
             proc.wait()
         proc.stdin.close()
         proc.stdout.close()
+
+
+def _pdeathsig() -> int:
+    import ctypes
+
+    value = ctypes.c_int(-1)
+    assert ctypes.CDLL(None).prctl(2, ctypes.byref(value), 0, 0, 0) == 0      # PR_GET_PDEATHSIG
+    return value.value
+
+
+@pytest.mark.skipif(not LINUX, reason="PR_SET_PDEATHSIG is Linux's")
+def test_a_worker_asks_the_kernel_for_sigkill_when_its_parent_dies():
+    import concurrent.futures
+    import multiprocessing
+
+    from tmtcontrol.processes import worker_init
+
+    ctx = multiprocessing.get_context("fork")
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx, initializer=worker_init,
+                                                initargs=(False,)) as pool:
+        assert pool.submit(_pdeathsig).result() == signal.SIGKILL
+    with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:      # the control: unset by default
+        assert pool.submit(_pdeathsig).result() == 0
