@@ -223,3 +223,72 @@ def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_si
     small, first = float(m.group(1)), float(m.group(2))
     assert small == pytest.approx(1.438e5, rel=2e-3)
     assert 1.15e5 < first < 1.25e5
+
+
+def test_the_check_beyond_the_paper_passes_and_fails_when_the_analysis_drifts(monkeypatch):
+    """tmtcontrol check's analysis-vs-simulation cross-check at m = 2, delay 2, a force
+    filter, a mass error, fixed and scheduled damping (issue 28 item 7; the five bugs
+    it guards are mutations in benchmarks/mutation_score.py). It must also fail when
+    the analysis moves by 5 %: here the 1-D loop's model mass error is ignored."""
+    import numpy as np
+
+    from tmtcontrol.checks import loop
+    from tmtcontrol.stability import lawloop
+
+    ok = loop.check_extensions(np.random.default_rng(0))
+    assert ok.passed and ok.residual == 0.0, ok.note
+    real = lawloop.law_loop
+    monkeypatch.setattr(lawloop, "law_loop", lambda *a, **kw: real(*a, **{**kw, "model_scale": 1.0}))
+    bad = loop.check_extensions(np.random.default_rng(0))
+    assert not bad.passed and "limit" in bad.note
+
+
+# -- issue 33: stability survivors, each case stated ---------------------------------------------------------------
+
+def test_analyze_scenario_keeps_the_scenario_x_e_error():
+    """A scenario with x_e error +5 mm on a 1e4 N/m surface (penetration f_d/k_e = 1 mm
+    < delta): TMT's compliance estimate is clipped and the steady force is
+    k_eff (delta + f_d/k) = 99.01 x 0.105 = 10.396 N, not f_d (closed form, eq. 12)."""
+    from tmtcontrol.stability.analysis import analysis_kwargs, analyze, scenario_parameters
+
+    sc = apply_overrides(paper_scenario(), ["controller.x_e_error=0.005", "environment.stiffness.values=[1e4]"])
+    kw = {**analysis_kwargs(scenario_parameters(sc)), "Ts": None}
+    d = analyze(**kw, law_params=sc.controller.law)
+    k_eff = 100 * 1e4 / (100 + 1e4)
+    assert d["steady_state_force_x_e_error"] == pytest.approx(k_eff * (0.005 + 10 / 100), rel=1e-9)
+
+
+def test_worst_steady_force_is_the_one_farthest_from_f_d_not_the_largest():
+    """known law (assumed 5e3 N/m), delta = -1 mm, k_e in [2e3, 2e4]: eq. (11)'s force
+    f_d k_eff(k_e)/k_eff(5e3) + k_eff(k_e) delta is 9.619 N at 2e3 (0.38 N off) and
+    10.05 N at 2e4 (0.05 N off): the worst is the smaller one."""
+    from tmtcontrol.stability.analysis import analyze
+
+    k_eff = lambda ke: 100 * ke / (100 + ke)
+    force = lambda ke: 10 * k_eff(ke) / k_eff(5e3) + k_eff(ke) * -0.001
+    assert force(2e4) > 10 > force(2e3) and abs(force(2e3) - 10) > abs(force(2e4) - 10)
+    d = analyze(1.0, 60.0, 100.0, k_e_min=2e3, k_e_max=2e4, law="known", x_e_error=-0.001)
+    assert d["steady_state_force_x_e_error"] == pytest.approx(force(2e3), rel=1e-9)
+
+
+def test_law_loop_default_kd_is_b_over_m():
+    """m = 2 kg: the default K_D of the law loop is B/M = 30 1/s (eq. 9), so the loop
+    equals the one with kd = 30 given and differs from kd = B = 60."""
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.stability.lawloop import law_loop
+
+    kw = dict(m=2.0, b=60.0, k=100.0, k_e=2e4, Ts=1e-3, m_p=3.5, settle=0.1)
+    tmt = get_law("tmt")
+    default, given, wrong = (law_loop(tmt, **kw, **extra).A for extra in ({}, {"kd": 30.0}, {"kd": 60.0}))
+    assert np.array_equal(default, given)
+    assert np.max(np.abs(default - wrong)) > 1e-3
+
+
+def test_stiffness_margin_is_in_decades():
+    """A stiffness ten times below the limit has a margin of exactly one decade
+    (log10), not ln 10 = 2.303 nepers."""
+    from tmtcontrol.stability.sampled import stiffness_margin
+
+    limits, _ = stiffness_margin(1.0, 60.0, 100.0, 3.7, [1e-3], [1e4])
+    _, margin = stiffness_margin(1.0, 60.0, 100.0, 3.7, [1e-3], [limits[0] / 10])
+    assert margin[0, 0] == pytest.approx(1.0, rel=1e-12)

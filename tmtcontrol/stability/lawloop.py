@@ -79,7 +79,7 @@ def _iterate(step: ca.Function, z0: np.ndarray, n: int) -> tuple[np.ndarray, np.
 
 
 def _step_function(law: Law, params: LawParameters, *, m, b, k, k_e, Ts, m_p, f_d, delta, kd, kp, alpha,
-                   d_e, delay, inputs=()):
+                   d_e, delay, inputs=(), model_scale=1.0):
     """The one-period map ``[z, *inputs] -> [z_next, f_e]``; numbers may be
     CasADi SX symbols listed in ``inputs`` (the design makes b and k inputs)."""
     nl = len(law.states)
@@ -99,7 +99,7 @@ def _step_function(law: Law, params: LawParameters, *, m, b, k, k_e, Ts, m_p, f_
     else:
         applied, buf_next = held, ca.SX(0, 1)
     Ac = np.array([[0.0, 1.0], [-k_e / m_p, -d_e / m_p]])
-    Bc = np.array([[0.0, 0.0], [1.0, 1.0 / m_p]])
+    Bc = np.array([[0.0, 0.0], [model_scale, 1.0 / m_p]])     # eq. (5) with the model's mass model_scale m_p
     Phi, Gam = _zoh(Ac, Bc, Ts)
     xv_next = ca.mtimes(ca.DM(Phi), ca.vertcat(x, v)) + ca.mtimes(ca.DM(Gam), applied)
     z_next = ca.vertcat(xv_next, f_m, s_next, buf_next)
@@ -125,7 +125,7 @@ def _newton(fun, jac, z, iters=60, tol=1e-12):
 def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float, k_e: float,
              Ts: float, m_p: float, f_d: float = 10.0, delta: float = 0.0, kd: float | None = None,
              kp: float | None = None, alpha: float = 0.0, d_e: float = 0.0, delay: int = 0,
-             settle: float = 2.0) -> LawLoop:
+             settle: float = 2.0, model_scale: float = 1.0) -> LawLoop:
     """The sampled normal-axis loop of ``law`` (see the module docstring).
 
     Parameters: impedance ``m, b, k`` (kg, N s/m, N/m; the law may override
@@ -133,7 +133,10 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     ``m_p`` (kg), ``f_d`` (N), surface-location error ``delta`` (m,
     estimate minus true), inner-loop gains ``kd, kp`` (default b/m, k/m,
     eq. 9), force-filter pole ``alpha``, contact damping ``d_e`` (N s/m),
-    computation delay ``delay`` (samples). The equilibrium is found by
+    computation delay ``delay`` (samples), the controller's model of the
+    robot's mass relative to the true one ``model_scale`` (eq. 5's D*^ =
+    model_scale D*: the inner loop's acceleration U acts scaled by it).
+    The equilibrium is found by
     iterating the map for ``settle`` seconds from contact at rest (when that
     stays finite) and refining by Newton.
     """
@@ -145,7 +148,7 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     kd = b / m if kd is None else kd
     kp = k / m if kp is None else kp
     F, names = _step_function(law, params, m=m, b=b, k=k, k_e=k_e, Ts=Ts, m_p=m_p, f_d=f_d, delta=delta,
-                              kd=kd, kp=kp, alpha=alpha, d_e=d_e, delay=delay)
+                              kd=kd, kp=kp, alpha=alpha, d_e=d_e, delay=delay, model_scale=model_scale)
     nz = F.size1_in(0)
     z0 = np.zeros(nz)
     z0[3:3 + len(law.states)] = law.initial_state(params)

@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 
 from ..control.laws import get_law
-from .continuous import AnalysisError
+from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import effective_mass
 
@@ -90,7 +90,7 @@ def equilibrium_damping(scenario, k_e: float) -> float:
     if not (f > 2 * sch.force_threshold and depth > 0):
         return start
     k_hat = min(max(f / depth, sch.min_stiffness), sch.k_max)
-    return float(min(max(2 * sch.zeta * math.sqrt(m * (k + k_hat)), sch.b_min), sch.b_max))
+    return float(min(max(sch.zeta * critical_damping(m, k, k_hat), sch.b_min), sch.b_max))
 
 
 @dataclass(frozen=True)
