@@ -211,6 +211,15 @@ def _in_finalizer(frame) -> bool:
     return False
 
 
+def _redeliver(signum, handler) -> None:
+    """Deliver ``signum`` to the main thread again, if ``handler`` still
+    handles it (not once the command has restored the previous handlers)."""
+    import _thread
+
+    if signal.getsignal(signum) is handler:
+        _thread.interrupt_main(signum)
+
+
 def defer_in_finalizers(signums=(signal.SIGINT, signal.SIGTERM), retry: float = 0.02) -> None:
     """Wrap the Python handlers of ``signums`` (those installed by
     :func:`tmtcontrol.files.install_signal_handlers`): a signal that
@@ -218,23 +227,25 @@ def defer_in_finalizers(signums=(signal.SIGINT, signal.SIGTERM), retry: float = 
     :func:`tmtcontrol.files.check_interrupt`) but its exception is held back,
     and the signal is delivered again ``retry`` seconds later, until it lands
     outside a finalizer. Main thread only."""
-    import _thread
-
     for signum in signums:
         handler = signal.getsignal(signum)
-        if not callable(handler) or getattr(handler, "_defers_finalizers", False):
-            continue
+        if callable(handler) and not getattr(handler, "_defers_finalizers", False):
+            signal.signal(signum, _deferring(handler, retry))
 
-        def deferring(sig, frame, _handler=handler):
-            if not _in_finalizer(frame):
-                return _handler(sig, frame)
-            try:
-                _handler(sig, frame)             # records it; its exception must not escape here
-            except BaseException:
-                pass
-            timer = threading.Timer(retry, _thread.interrupt_main, args=(sig,))
-            timer.daemon = True
-            timer.start()
 
-        deferring._defers_finalizers = True
-        signal.signal(signum, deferring)
+def _deferring(handler, retry: float):
+    """``handler``, held back inside finalizers (see :func:`defer_in_finalizers`)."""
+
+    def deferring(sig, frame):
+        if not _in_finalizer(frame):
+            return handler(sig, frame)
+        try:
+            handler(sig, frame)             # records it; its exception must not escape here
+        except BaseException:
+            pass
+        timer = threading.Timer(retry, _redeliver, args=(sig, deferring))
+        timer.daemon = True
+        timer.start()
+
+    deferring._defers_finalizers = True
+    return deferring
