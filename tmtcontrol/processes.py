@@ -16,15 +16,19 @@ report's second process (:mod:`tmtcontrol.report.document`). Both call
   between the fork and the ``prctl``). On every platform (the portable
   fallback, and a second guard on Linux) a daemon thread waits on
   :func:`multiprocessing.parent_process`'s sentinel, which becomes ready when
-  the parent ends (a pipe whose write end only the parent holds; on Windows
-  the parent's process handle), and then ends the worker with
+  the parent ends (the read end of a pipe whose write end the parent holds,
+  and with fork also the workers forked after this one, which end the same
+  way first; on Windows the parent's process handle), and then ends the worker with
   ``os._exit(1)``. Caveat of ``PR_SET_PDEATHSIG``: the signal follows the
   *thread* that forked the child; tmtcontrol forks its workers from the main
   thread, so it follows the process.
 * **One BLAS/OpenMP thread per process** (:func:`one_blas_thread`, by
   threadpoolctl): the numerical work is many small problems (3x3 and 8x8
-  matrices), where BLAS threads only spin; on a busy 2-core machine
-  ``OPENBLAS_NUM_THREADS=1`` made a sweep 3x faster (benchmarks/bench_threads.py).
+  matrices), where BLAS threads only spin (issue #27 measured a sweep on a
+  busy 2-core host at 30.2 s with the default threads and 9.0 s with
+  ``OPENBLAS_NUM_THREADS=1``; ``benchmarks/bench_threads.py`` measures it on
+  yours). The command line also sets those variables for libraries it loads
+  later (:func:`blas_env_defaults`).
 
 :func:`defer_in_finalizers` wraps the command line's SIGINT/SIGTERM handlers so
 that a signal arriving while a weakref callback or a ``__del__`` runs is not
