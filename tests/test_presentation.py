@@ -260,12 +260,17 @@ def paper_report(run_once):
 
 
 @pytest.fixture(scope="module")
-def report_200hz(run_once):
+def report_200hz_run(run_once):
     out, r = run_once("unstable-report", lambda out: _make_report(
         out, "paper", "--set", "controller.rate=200", "--set", "environment.stiffness.values=[5e3, 5e4]",
         "--set", "trajectory.cycles=2", "--format", "html"))
     assert r.returncode == 1, r.stderr
-    return out
+    return out, r
+
+
+@pytest.fixture(scope="module")
+def report_200hz(report_200hz_run):
+    return report_200hz_run[0]
 
 
 def _section(html, key):
@@ -437,3 +442,113 @@ def test_design_responses_are_the_sampled_loop_within_the_bound_with_units(paper
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert "optimal b = 193.7 N s/m, k_e = 2,000 N/m" in labels and not any("e+0" in s for s in labels)
     _legend_clear_of_axes(fig)
+
+
+# -- item 15: the docs quote what the commands print ------------------------------------------
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def _sweeps_md_example() -> list[str]:
+    text = (ROOT / "docs" / "sweeps.md").read_text()
+    block = text.split("    $ tmtcontrol sweep docs/sweeps/paper-gains.toml --out paper-gains --workers 2\n")[1]
+    return [line[4:] for line in block.split("\n\n")[0].splitlines()]
+
+
+def test_sweeps_page_quotes_the_regenerated_output_and_exit_code():
+    """docs/sweeps.md's example is analysis/sweep_example.py's output.txt (run
+    time aside): the boundary lines, then the exit code."""
+    quoted = _sweeps_md_example()
+    assert quoted[-2:] == ["$ echo $?", "1"]
+    stored = (ROOT / "docs" / "figures" / "sweep-example" / "output.txt").read_text().splitlines()
+    assert stored[-1] == "exit code: 1"
+    assert [re.sub(r"\(\d+\.\d s\)", "(T s)", line) for line in quoted[:-2]] == stored[:-1]
+    assert sum(line.startswith("boundary at controller.rate = ") for line in quoted) == 8    # 4 rates x 2 delays
+
+
+@pytest.mark.heavy
+def test_the_sweep_example_prints_what_the_page_quotes():
+    """A fresh run of the page's example (96 cases, ~10 s on 2 workers) prints output.txt."""
+    sys.path.insert(0, str(ROOT / "analysis"))
+    try:
+        import sweep_example
+    finally:
+        sys.path.pop(0)
+    stdout, code, tmp = sweep_example.run()
+    stored = (ROOT / "docs" / "figures" / "sweep-example" / "output.txt").read_text()
+    assert stdout + f"exit code: {code}\n" == stored
+
+
+def test_cli_reference_lists_the_options_where_they_apply():
+    from tmtcontrol.cli import build_parser
+
+    text = (ROOT / "docs" / "cli.md").read_text()
+    sections = {m.group(1): body for m, body in zip(re.finditer(r"^## `tmtcontrol (\w+)", text, flags=re.M),
+                                                     re.split(r"^## `tmtcontrol \w+", text, flags=re.M)[1:])}
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    for command, parser in sub.choices.items():
+        for flag in ("--max-steps", "--delay", "--filter-hz"):
+            if any(flag in a.option_strings for a in parser._actions):
+                assert flag in sections[command], (command, flag)
+    assert "fixed\\|cvodes" not in text and "fixed&#124;cvodes" in text     # no stray backslash when rendered
+
+
+def test_api_page_snippets_import_a_module_before_using_it():
+    """Every ``name.attribute`` in docs/api.md's Python blocks refers to a name
+    imported or assigned earlier on the page, statement by statement (``st``
+    was used before its import)."""
+    import ast
+    import builtins
+
+    bound = set(dir(builtins))
+
+    def names(node):
+        return {n.id for n in ast.walk(node) if isinstance(n, ast.Name)} if node is not None else set()
+
+    def check(node, local=frozenset()):
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.Attribute) and isinstance(sub.value, ast.Name):
+                assert sub.value.id in bound | local, f"{sub.value.id}.{sub.attr} used before it is imported"
+
+    def visit(stmts):
+        for node in stmts:
+            if isinstance(node, (ast.With, ast.For)):
+                for item in getattr(node, "items", []):
+                    check(item.context_expr)
+                    bound.update(names(item.optional_vars))
+                if isinstance(node, ast.For):
+                    check(node.iter)
+                    bound.update(names(node.target))
+                visit(node.body)
+                continue
+            local = {n.id for c in ast.walk(node) if isinstance(c, ast.comprehension) for n in ast.walk(c.target)
+                     if isinstance(n, ast.Name)}
+            local |= {a.arg for c in ast.walk(node) if isinstance(c, ast.Lambda) for a in c.args.args}
+            check(node, local)
+            for sub in ast.walk(node):
+                if isinstance(sub, (ast.Import, ast.ImportFrom)):
+                    bound.update((a.asname or a.name).split(".")[0] for a in sub.names)
+                elif isinstance(sub, ast.Name) and isinstance(sub.ctx, ast.Store):
+                    bound.add(sub.id)
+
+    for block in re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "api.md").read_text(), flags=re.S):
+        visit(ast.parse(block).body)
+
+
+def test_documented_failing_report_prints_no_warning(report_200hz_run):
+    """docs/report.md's failing example (Ts = 5 ms, a 5e4 N/m segment): stderr
+    holds the stage lines only, no matplotlib warning (the stiffness limit is
+    0 at the longest periods of Fig. 4's grid)."""
+    _, r = report_200hz_run
+    assert [line for line in r.stderr.splitlines() if not re.match(r"\[\d/\d\] [\w -]+: \d+\.\d s$", line)] == []
+
+
+def test_stiffness_limit_figure_skips_periods_without_a_stable_stiffness():
+    import warnings
+
+    from tmtcontrol.stability.figures import stiffness_limit_figure
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = stiffness_limit_figure(np.geomspace(1e-4, 1e-2, 5), [1e6, 3e5, 0.0, np.nan, 1e4], [(1e-3, 5e3, "5,000")])
+    assert fig.axes[0].get_ylim()[0] == pytest.approx(5e3 / 3)      # a third below the lowest point drawn

@@ -451,7 +451,7 @@ def format_design(r: DesignResult) -> str:
 
     s = r.spec
     return "\n".join([
-        f"stiffness range      {s.k_e_min:.6g} .. {s.k_e_max:.6g} N/m, Ts = {s.Ts:g} s, m = {s.m:g} kg, "
+        f"stiffness range      {num(s.k_e_min, 4)} .. {num(s.k_e_max, 4)} N/m, Ts = {s.Ts:g} s, m = {s.m:g} kg, "
         f"m_p = {s.m_p:.4g} kg, delay {s.delay} sample(s)",
         f"optimal design       b = {num(r.b, 4)} N s/m, k = {num(r.k, 4)} N/m  ({r.status})",
         f"worst-case cost      {r.objective:.6g} N^2 s on the grid, {r.dense_objective:.6g} between grid points",
@@ -461,6 +461,6 @@ def format_design(r: DesignResult) -> str:
         f"eq. (22) would say {r.info['continuous_overshoot']:.4g} %",
         f"damping ratio        {r.info['damping_ratio_at_k_e_min']:.4g} at k_e_min, "
         f"{r.info['damping_ratio_at_k_e_max']:.4g} at k_e_max",
-        f"sampled stability    stable up to k_e = {r.sampled_limit:.6g} N/m at Ts "
+        f"sampled stability    stable up to k_e = {num(r.sampled_limit, 4)} N/m at Ts "
         f"(margin {r.sampled_limit / s.k_e_max:.3g}x k_e_max)",
     ])

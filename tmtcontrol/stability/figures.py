@@ -149,8 +149,12 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
     Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
+    # a period where no stiffness is stable (limit 0) or the analysis found none (NaN) has no point on a log axis
+    limits = np.where(np.isfinite(limits) & (limits > 0), limits, np.nan)
+    known = limits[np.isfinite(limits)]
     ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable k_e ({label})")
-    top = max(limits.max(), *(p[1] for p in points)) * 20 if points else limits.max() * 20
+    values = [*known, *(p[1] for p in points), *([whole_loop[1]] if whole_loop is not None else [])]
+    top = max(values) * 20
     ax.fill_between(Ts_grid, limits, top, facecolor="none", hatch="///", edgecolor="0.6", lw=0,
                     label="unstable")
     for i, (Ts, ke, text) in enumerate(points):
@@ -159,7 +163,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     if whole_loop is not None:
         ax.plot(*whole_loop, "D", color="C2", ms=7, label="whole-loop limit at the scenario's Ts")
     ax.set(xscale="log", yscale="log", xlabel="control period Ts", ylabel="stiffness k_e (N/m)",
-           ylim=(min(limits.min(), *(p[1] for p in points)) / 3 if points else limits.min() / 3, top),
+           ylim=(min(values) / 3, top),
            title="Sampled-data stability boundary")
     period_ticks(ax.xaxis)
     legend_below(fig, ax, ncol=2)

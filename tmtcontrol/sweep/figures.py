@@ -19,6 +19,29 @@ def _numeric(values) -> bool:
     return all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in values)
 
 
+def _log_axis(values) -> bool:
+    """A positive numeric axis spanning a factor of 4 or more (two octaves,
+    such as 250-2,000 Hz; any decade) is drawn logarithmic: evenly spaced
+    grid values (geomspace, doubling rates) then fill it evenly."""
+    return bool(_numeric(values) and np.all(np.asarray(values, float) > 0)
+                and np.max(values) / np.min(values) >= 4)
+
+
+def _grid_ticks(axis, values) -> None:
+    """A log axis with at most eight distinct grid values: ticks at those
+    values, labelled as plain numbers (250, 500, 1,000, 2,000)."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    from ..fmt import num
+
+    distinct = sorted({float(v) for v in values})
+    if len(distinct) <= 8:
+        axis.set_major_locator(FixedLocator(distinct))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: num(v)))
+        axis.set_minor_locator(NullLocator())
+        axis.set_minor_formatter(NullFormatter())
+
+
 def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: str | None = None,
                      units: dict[str, str] | None = None, labels: dict[str, str] | None = None) -> Figure:
     """Verdict (marker) and worst steady-state error (colour, N) over the
@@ -29,8 +52,8 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
     boundary when the stiffness is one of the two axes; ``units``: each
     axis' unit for its label (:attr:`~.spec.Sweep.units`); ``labels``: each
     axis' description from the scenario schema (:func:`~tmtcontrol.sweep.axis_labels`),
-    used instead of its key. A numeric axis spanning a decade or more is
-    logarithmic; the legend sits under the axes."""
+    used instead of its key. A numeric axis spanning a factor of 4 or more
+    (so any decade) is logarithmic; the legend sits under the axes."""
     import matplotlib as mpl
 
     def label(key):
@@ -73,11 +96,14 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
                     ax.axhline(pts[None], **line)
         if j == 0:
             xs, ys = df[x_key].to_numpy(), df[y_key].to_numpy()
-            if _numeric(xs) and np.all(np.asarray(xs, float) > 0) and np.max(xs) / np.min(xs) >= 10:
+            if _log_axis(xs):
                 ax.set_xscale("log")
-            if y_key == "max_steady_error" or (_numeric(ys) and np.all(np.asarray(ys, float) > 0)
-                                               and np.max(ys) / np.min(ys) >= 10):
+                _grid_ticks(ax.xaxis, xs)
+            if y_key == "max_steady_error":
                 ax.set_yscale("log")
+            elif _log_axis(ys):
+                ax.set_yscale("log")
+                _grid_ticks(ax.yaxis, ys)
         ax.set(xlabel=label(x_key), ylabel=(label(y_key) if y_key != "max_steady_error" else "worst steady-state "
                                             "error (N)") if j == 0 else "",
                title=f"{(labels or {}).get(facet) or facet} = {fv}{' ' + units[facet] if (units or {}).get(facet) else ''}"

@@ -1,0 +1,73 @@
+"""The worked example of docs/sweeps.md: what `tmtcontrol sweep` prints for
+docs/sweeps/paper-gains.toml, its exit code and its map (the page quotes them).
+
+Usage: python analysis/sweep_example.py [--out DIR] [--workers N] [--points N] [--cycles C]
+
+Runs ``tmtcontrol sweep docs/sweeps/paper-gains.toml --workers N`` (with
+``--points``/``--cycles`` other than the file's 12 stiffnesses and 1 cycle, a
+smaller copy of it, for a quick look) and writes ``output.txt`` (stdout, the
+run time replaced by "T", then "exit code: N"), ``sweep_map.png`` and
+``summary.json``. Regenerate the page's figure and quote with
+``--out docs/figures/sweep-example`` (the defaults); tests/test_presentation.py
+checks that docs/sweeps.md quotes output.txt and (heavy) that a fresh run
+prints the same.
+"""
+import argparse
+import pathlib
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+from tmtcontrol.files import OutputFolder
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+SWEEP = ROOT / "docs" / "sweeps" / "paper-gains.toml"
+
+
+def sweep_text(points: int = 12, cycles: float = 1.0) -> str:
+    """The example's sweep file, with ``points`` stiffnesses and ``cycles`` per case."""
+    text = SWEEP.read_text()
+    text = re.sub(r"geomspace = \[1e3, 3e5, \d+\]", f"geomspace = [1e3, 3e5, {points}]", text)
+    return re.sub(r'"trajectory.cycles" = \[[\d.]+\]', f'"trajectory.cycles" = [{cycles!r}]', text)
+
+
+def run(points: int = 12, cycles: float = 1.0, workers: int = 2) -> tuple[str, int, pathlib.Path]:
+    """Run the example; ``(stdout with the run time as T, exit code, folder with its outputs)``."""
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="sweep-example-"))
+    (tmp / "paper-gains.toml").write_text(sweep_text(points, cycles))
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", "paper-gains.toml", "--out", "out",
+                        "--workers", str(workers)], capture_output=True, text=True, cwd=tmp)
+    if r.returncode not in (0, 1):
+        raise SystemExit(f"sweep failed (exit {r.returncode}): {r.stderr.strip().splitlines()[-1:]}")
+    stdout = re.sub(r"\(\d+\.\d s\)", "(T s)", r.stdout).replace("wrote out/", "wrote paper-gains/")
+    return stdout, r.returncode, tmp
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="analysis-output/sweep-example",
+                    help="output folder (default analysis-output/sweep-example, ignored by git; "
+                         "docs/figures/sweep-example for the page)")
+    ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    ap.add_argument("--points", type=int, default=12, help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
+    ap.add_argument("--cycles", type=float, default=1.0, help="path cycles per case (default 1, the file's)")
+    args = ap.parse_args(argv)
+    out = OutputFolder(args.out, "--out")
+    stdout, code, tmp = run(args.points, args.cycles, args.workers)
+    try:
+        with out:
+            (out.path / "output.txt").write_text(stdout + f"exit code: {code}\n")
+            for name in ("sweep_map.png", "summary.json"):
+                shutil.copy(tmp / "out" / name, out.path / name)
+            out.commit()
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print(stdout + f"exit code: {code}")
+    print(f"wrote {out.out}/")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
