@@ -18,9 +18,9 @@ of the force of at least ``LIMIT_CYCLE_AMPLITUDE`` x f_d peak to peak over
 the last second that has not shrunk to ``LIMIT_CYCLE_DECAY`` of the
 second before. :func:`simulated_limit` is the small-signal reference: the
 largest constant k_e at which a run started near the periodic orbit (one
-path period at 0.95 k_e, then k_e) converges, judged by the decay of the
-difference between successive path periods (independent of any
-linearisation). Units are SI.
+path period at 0.95 k_e, a +-5 % kick, then k_e) converges, judged by the
+decay of the deviation from periodicity between path periods (independent
+of any linearisation). Units are SI.
 """
 
 from __future__ import annotations
@@ -159,9 +159,10 @@ def _periodic_decay(runner: LoopRunner, k_e: float, cycles: int) -> float:
     """How the deviation from the periodic orbit changes over the last path
     period at constant ``k_e`` (after one period at 0.95 ``k_e`` from the
     scenario's start, and +-5 % on the stiffness for the first four samples
-    at ``k_e``, which excites every mode up to half the sampling rate): the larger of two ratios, last period over the one
-    before, of (a) the largest difference between successive periods (the
-    orbit cancels) and (b) the largest second difference of the force
+    at ``k_e``, which excites every mode up to half the sampling rate).
+    Two ratios, last period over the one before: (a) of the largest
+    difference between successive periods (the orbit cancels) and (b) of
+    the largest second difference of the force
     within a period (the smooth orbit hardly contributes; this catches an
     oscillation that has saturated in step with the period, e.g. at half
     the sampling rate, which (a) misses). Returns ratio (a): < 1, the orbit
