@@ -19,10 +19,16 @@ Constraints, on the loop that runs at Ts (not on eq. 22, whose overshoot the
 sampled loop exceeds at coarse rates): the first-contact overshoot of the
 sampled TMT loop (``stability.lawloop``: the law's own update, the inner
 loop, the zero-order-hold plant of effective mass m_p, the force filter and
-the computation delay) stays below the bound at every sample and every grid
-stiffness, the loop unrolled symbolically in b and k; sampled-data
+the computation delay) stays below the bound at every grid stiffness, on
+the continuous force: at every sample and at ``intersample`` points between
+samples (the plant's exact ZOH solution, :func:`_intersample`; at 5 ms the
+force can swing 45 % above f_d between samples that stay within 10 %), the
+loop unrolled symbolically in b and k; sampled-data
 stability at Ts with a stiffness margin (spectral radius < 1 at ``margin *
-k_e_max``, through a CasADi Callback); bounds on b and k. The result is
+k_e_max``, through a CasADi Callback); bounds on b and k. Feasibility is
+decided before IPOPT by a scan of b whose boundaries are bisected
+(:func:`_diagnose`): a window narrower than the scan's grid is found, and
+an infeasible spec quotes the real boundaries. The result is
 verified by iterating the same sampled loop numerically at 60 stiffnesses
 between the grid points (a simulation of the normal axis), scored beside
 the eq. (25) worst-case rule ``b = 2 sqrt(m (k + k_e_max))``; the continuous
@@ -31,6 +37,7 @@ eq. (22) overshoot is reported alongside.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass, field
@@ -50,6 +57,18 @@ __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "des
 
 SAMPLING_MARGIN = 1e-3
 """Relative margin inside the overshoot bound for the sampled NLP constraint."""
+
+INTERSAMPLE = 4
+"""Default points per control period at which the NLP bounds the continuous
+contact force (the exact ZOH solution between samples, :func:`_intersample`;
+``DesignSpec.intersample``). A swing at up to the Nyquist frequency is then
+seen at 8 points per cycle, its peak underestimated by at most 1 - cos(pi/8)
+= 7.6 % of its amplitude; the verification uses :data:`VERIFY_INTERSAMPLE`."""
+
+VERIFY_INTERSAMPLE = 16
+"""Points per control period of the verification (:func:`sampled_overshoot`,
+``worst_overshoot``): a peak underestimated by at most 1 - cos(pi/32) =
+0.5 % of the swing's amplitude."""
 
 
 class DesignError(ValueError):
@@ -79,6 +98,7 @@ class DesignSpec:
     grid: int = 7
     delay: int = 0                   # computation delay, samples
     alpha: float = 0.0               # force-filter pole (0: no filter)
+    intersample: int = INTERSAMPLE   # points per period where the continuous force is bounded (0: samples only)
 
     def __post_init__(self):
         try:
@@ -100,6 +120,8 @@ class DesignSpec:
             raise DesignError(f"grid: need at least 2 stiffness points, got {self.grid}")
         if not isinstance(self.delay, (int, np.integer)) or self.delay < 0:
             raise DesignError(f"delay: expected an integer >= 0 samples, got {self.delay!r}")
+        if not isinstance(self.intersample, (int, np.integer)) or self.intersample < 0:
+            raise DesignError(f"intersample: expected an integer >= 0 points per period, got {self.intersample!r}")
         if not 0.0 <= self.alpha < 1.0:
             raise DesignError(f"alpha: the force-filter pole must be in [0, 1), got {self.alpha!r}")
 
@@ -171,12 +193,46 @@ def overshoot_closed_form(m, b, k, k_e) -> float:
 
 # -- the NLP ---------------------------------------------------------------------------------
 
+def _intersample(spec: DesignSpec, k_e: float, n_sub: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)``, each (n_sub, 2): the contact force at ``tau_j = j Ts /
+    n_sub`` (j = 1..n_sub) after a sample is ``k_e (A xv_k + B xv_k+1)`` in
+    the states xv = (x, v) at that sample and the next, exactly.
+
+    Between samples the 1-D plant (``stability.lawloop``: effective mass
+    m_p on the spring k_e) is driven by one held scalar, the commanded
+    acceleration plus the force feed-forward over m_p, w_k: ``xv(tau) =
+    Phi(tau) xv_k + g(tau) w_k`` with the exact zero-order-hold matrices
+    (matrix exponential), and w_k is recovered from the next sample,
+    ``w_k = g^T (xv_k+1 - Phi xv_k) / g^T g`` with ``g = g(Ts)``."""
+    from scipy.linalg import expm
+
+    Ac = np.array([[0.0, 1.0], [-k_e / spec.m_p, 0.0]])
+    M = np.zeros((3, 3))
+    M[:2, :2], M[1, 2] = Ac, 1.0
+
+    def zoh(tau):
+        E = expm(M * tau)
+        return E[:2, :2], E[:2, 2]
+
+    Phi, g = zoh(spec.Ts)
+    gg = float(g @ g)
+    A, B = np.empty((n_sub, 2)), np.empty((n_sub, 2))
+    for j in range(1, n_sub + 1):
+        Phi_j, g_j = zoh(spec.Ts * j / n_sub)
+        A[j - 1] = Phi_j[0] - g_j[0] * (g @ Phi) / gg
+        B[j - 1] = g_j[0] * g / gg
+    return A, B
+
+
 @functools.lru_cache(maxsize=128)
 def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Function:
-    """``(b, k) -> f``: the contact force (N) of the sampled TMT loop at the
-    samples of ``duration`` after first contact at rest (x = 0, f = 0), the
-    loop's map (``stability.lawloop``) unrolled with b and k symbolic; the
-    inner-loop gains follow eq. (9), K_D = b/m, K_P = k/m."""
+    """``(b, k) -> f``: the contact force (N) of the sampled TMT loop over
+    ``duration`` after first contact at rest (x = 0, f = 0), at the samples
+    and at ``spec.intersample`` points within each period (the continuous
+    force between samples, :func:`_intersample`; its peak is what a bound on
+    the overshoot must hold), the loop's map (``stability.lawloop``)
+    unrolled with b and k symbolic; the inner-loop gains follow eq. (9),
+    K_D = b/m, K_P = k/m."""
     from ..control.laws import get_law
     from .lawloop import _step_function
 
@@ -189,17 +245,40 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
     acc = F.mapaccum("response", n)
     z0 = np.zeros(F.size1_in(0))
     bm, km = ca.MX.sym("b"), ca.MX.sym("k")
-    _, f = acc(z0, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
-    return ca.Function("contact_response", [bm, km], [f], ["b", "k"], ["f_e"])
+    Z, f = acc(z0, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
+    X = ca.horzcat(ca.DM(z0[:2]), Z[:2, :])                        # (x, v) at samples 0..n
+    if spec.intersample < 0:       # the verification's form: the sample states, intersample in NumPy
+        return ca.Function("contact_states", [bm, km], [f, X], ["b", "k"], ["f_e", "xv"])
+    if not spec.intersample:
+        return ca.Function("contact_response", [bm, km], [f], ["b", "k"], ["f_e"])
+    A, B = _intersample(spec, k_e, spec.intersample)
+    between = k_e * (ca.mtimes(ca.DM(A), X[:, :-1]) + ca.mtimes(ca.DM(B), X[:, 1:]))
+    return ca.Function("contact_response", [bm, km], [ca.vertcat(ca.vec(f), ca.vec(between))], ["b", "k"], ["f_e"])
+
+
+def _states_spec(spec: DesignSpec) -> DesignSpec:
+    """``spec`` asking :func:`_contact_response` for the sample states (one
+    Function per stiffness whatever the number of intersample points)."""
+    out = dataclasses.replace(spec, intersample=0)
+    object.__setattr__(out, "intersample", -1)       # a private marker the validation would refuse
+    return out
 
 
 def sampled_overshoot(spec: DesignSpec, b: float, k: float, k_e: float) -> float:
     """First-contact overshoot (percent of f_d) of the sampled TMT loop at
     ``k_e``: the loop iterated numerically from contact at rest over
-    10/omega_n (at least 20 samples); ``inf`` if it does not stay finite."""
+    10/omega_n (at least 20 samples), its continuous force evaluated at the
+    samples and between them (``spec.intersample`` points per period, the
+    exact ZOH solution); ``inf`` if it does not stay finite."""
     duration = max(_overshoot_horizon(spec.m, k, k_e), 20 * spec.Ts)
     with np.errstate(all="ignore"):
-        f = np.ravel(np.array(_contact_response(spec, k_e, duration)(b, k)))
+        if spec.intersample:
+            n_sub = max(spec.intersample, VERIFY_INTERSAMPLE)
+            f, X = (np.array(v) for v in _contact_response(_states_spec(spec), k_e, duration)(b, k))
+            A, B = _intersample(spec, k_e, n_sub)
+            f = np.r_[np.ravel(f), np.ravel(k_e * (A @ X[:, :-1] + B @ X[:, 1:]))]
+        else:
+            f = np.ravel(np.array(_contact_response(spec, k_e, duration)(b, k)))
     if not np.all(np.isfinite(f)):
         return math.inf
     return max(0.0, float(f.max()) / spec.f_d - 1.0) * 100.0
@@ -265,40 +344,97 @@ def _objective(spec: DesignSpec, b: float, k: float) -> float:
                for ke, w in zip(spec.stiffness_grid, spec.event_weights(spec.stiffness_grid)))
 
 
-def _diagnose(spec: DesignSpec) -> str | None:
-    """Name the binding constraint of an infeasible spec by scanning b (and k)
-    on the sampled loop; None if some scanned design meets every constraint."""
+BRACKET_RTOL = 1e-5
+"""Relative width to which :func:`_diagnose` bisects the boundaries of b."""
+
+
+def _bisect(ok, lo: float, hi: float) -> float:
+    """The boundary of the predicate ``ok`` between ``lo`` and ``hi`` (``ok(lo)
+    != ok(hi)``), by bisection in log b to :data:`BRACKET_RTOL`: the end of
+    the final bracket on the ``ok`` side."""
+    ok_lo = ok(lo)
+    while hi / lo - 1.0 > BRACKET_RTOL:
+        mid = math.sqrt(lo * hi)
+        if ok(mid) == ok_lo:
+            lo = mid
+        else:
+            hi = mid
+    return lo if ok_lo else hi
+
+
+def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
+    """``(why, b_start)``: the binding constraint of an infeasible spec (None
+    if feasible) and, if feasible, a b (and k's) inside the feasible window
+    to start IPOPT from.
+
+    b is scanned on a log grid (120 points, 7 % apart) at k_e_max on the
+    sampled loop; the boundaries of the overshoot bound (the smallest b that
+    meets it) and of sampled stability (the largest b that keeps it) are
+    then bracketed between grid points and bisected to
+    :data:`BRACKET_RTOL`, so a window narrower than the grid is found and an
+    infeasible spec quotes the real boundaries, not grid points."""
     bs = np.geomspace(*spec.b_bounds, 120)
     ks = np.geomspace(*spec.k_bounds, 7) if spec.optimize_k else [spec.k]
     os_ok = np.zeros((len(ks), len(bs)), bool)      # overshoot within the bound (stable or not)
     st_ok = np.zeros_like(os_ok)
+
+    def meets(resp, k):
+        def ok(b):
+            with np.errstate(all="ignore"):
+                f = np.ravel(np.array(resp(b, k)))
+            return bool(np.all(np.isfinite(f))) and (f.max() / spec.f_d - 1.0) * 100.0 <= spec.max_overshoot + 1e-9
+        return ok
+
+    def stable(k):
+        return lambda b: _radius(spec, b, k) < 1
+
+    resps = []
     for i, k in enumerate(ks):
         resp = _contact_response(spec, spec.k_e_max, max(_overshoot_horizon(spec.m, k, spec.k_e_max),
                                                           20 * spec.Ts))
+        resps.append(resp)
         for j, b in enumerate(bs):
-            st_ok[i, j] = _radius(spec, b, k) < 1
-            with np.errstate(all="ignore"):
-                f = np.ravel(np.array(resp(b, k)))
-            os_ok[i, j] = bool(np.all(np.isfinite(f))) and (f.max() / spec.f_d - 1.0) * 100.0 <= \
-                spec.max_overshoot + 1e-9
+            st_ok[i, j] = stable(k)(b)
+            os_ok[i, j] = meets(resp, k)(b)
     brange = f"b in [{spec.b_bounds[0]:g}, {spec.b_bounds[1]:g}] N s/m"
     if not st_ok.any():
         return (f"Ts: no {brange} keeps the sampled loop stable at {spec.stiffness_margin:g} x k_e_max "
-                f"= {spec.stiffness_margin * spec.k_e_max:g} N/m with Ts = {spec.Ts:g} s")
+                f"= {spec.stiffness_margin * spec.k_e_max:g} N/m with Ts = {spec.Ts:g} s"), None
     if not os_ok.any():
-        b_c = [b for b in bs if any(overshoot_closed_form(spec.m, b, k, spec.k_e_max) <= spec.max_overshoot + 1e-9
-                                    for k in ks)]
-        if b_c:
+        # eq. (22)'s own boundary, in closed form: zeta = -ln(p) / sqrt(pi^2 + ln(p)^2) for an overshoot
+        # fraction p (1 for p = 0), b = 2 zeta sqrt(m (k + k_e_max)), at the smallest k scanned
+        frac = spec.max_overshoot / 100.0
+        zeta = 1.0 if frac <= 0 else -math.log(frac) / math.sqrt(math.pi ** 2 + math.log(frac) ** 2)
+        b_c = 2 * zeta * math.sqrt(spec.m * (min(ks) + spec.k_e_max))
+        if b_c <= spec.b_bounds[1]:
             return (f"max_overshoot and Ts conflict: eq. (22) reaches {spec.max_overshoot:g} % with b >= "
-                    f"{min(b_c):.4g} N s/m, but no {brange} does in the sampled loop at Ts = {spec.Ts:g} s")
+                    f"{b_c:.4g} N s/m, but no {brange} does in the sampled loop at Ts = {spec.Ts:g} s "
+                    "(its force between the samples included)"), None
         return (f"max_overshoot: {spec.max_overshoot:g} % at k_e_max = {spec.k_e_max:g} N/m is not reachable "
-                f"with {brange}")
-    if not (os_ok & st_ok).any():
-        b_os = bs[os_ok.any(axis=0)].min()
-        b_st = bs[st_ok.any(axis=0)].max()
-        return (f"max_overshoot and Ts conflict: overshoot <= {spec.max_overshoot:g} % needs b >= {b_os:.4g} "
-                f"N s/m, but sampled stability at Ts = {spec.Ts:g} s allows b <= {b_st:.4g} N s/m")
-    return None
+                f"with {brange}"), None
+    both = os_ok & st_ok
+    if both.any():
+        i, j = np.argwhere(both)[len(np.argwhere(both)) // 2]
+        return None, float(bs[j])
+    # no grid point meets both: bracket each boundary between grid points and bisect, per k
+    best = None
+    for i, k in enumerate(ks):
+        if not (os_ok[i].any() and st_ok[i].any()):
+            continue
+        j_os, j_st = int(np.argmax(os_ok[i])), int(len(bs) - 1 - np.argmax(st_ok[i][::-1]))
+        b_os = bs[j_os] if j_os == 0 else _bisect(meets(resps[i], k), bs[j_os - 1], bs[j_os])
+        b_st = bs[j_st] if j_st == len(bs) - 1 else _bisect(stable(k), bs[j_st], bs[j_st + 1])
+        if b_os <= b_st:
+            return None, math.sqrt(b_os * b_st)
+        if best is None or b_os / b_st < best[0] / best[1]:
+            best = (b_os, b_st)
+    if best is None:
+        b_os, b_st = bs[os_ok.any(axis=0)].min(), bs[st_ok.any(axis=0)].max()
+    else:
+        b_os, b_st = best
+    return (f"max_overshoot and Ts conflict: overshoot <= {spec.max_overshoot:g} % needs b >= {b_os:.6g} "
+            f"N s/m, but sampled stability at Ts = {spec.Ts:g} s allows b <= {b_st:.6g} N s/m "
+            f"(boundaries bisected to {BRACKET_RTOL:g})"), None
 
 
 def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None = None,
@@ -307,11 +443,14 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
 
     Raises :class:`DesignError` naming the binding constraint when the
     specification is invalid and :class:`DesignInfeasible` naming the binding
-    constraint when no design in the bounds meets it (decided by a closed-form
-    scan before IPOPT runs, so an infeasible spec fails fast)."""
+    constraint when no design in the bounds meets it: a scan of b with its
+    boundaries bisected (:func:`_diagnose`) decides before IPOPT runs, so an
+    infeasible spec fails fast and quotes the real boundaries; a feasible one
+    starts IPOPT inside the window it found. The overshoot bound holds on the
+    continuous force, between the samples too (:func:`_intersample`)."""
     from ..files import check_interrupt
 
-    why = _diagnose(spec)
+    why, b_inside = _diagnose(spec)
     if why is not None:
         raise DesignInfeasible(why)
     grid = spec.stiffness_grid
@@ -338,7 +477,8 @@ def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None
         opti.set_initial(k, k0 if k0 is not None else spec.k)
     else:
         opti.set_value(k, spec.k)
-    b_start = b0 if b0 is not None else 2 * math.sqrt(spec.m * (spec.k + spec.k_e_max))
+    # from inside the feasible window the scan found (eq. 25's b may lie outside a narrow one)
+    b_start = b0 if b0 is not None else b_inside
     b_start = min(max(b_start, spec.b_bounds[0]), spec.b_bounds[1])
     opti.set_initial(b, b_start)
     opti.set_initial(t, _objective(spec, b_start, k0 if (spec.optimize_k and k0) else spec.k))
