@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from tmtcontrol import paper_scenario
 from tmtcontrol.cli import main
+from tmtcontrol.simulation.metrics import VERDICTS
 from tmtcontrol.simulation.scenario import scenario_to_dict, toml_document
 
 BASE = scenario_to_dict(paper_scenario())
@@ -74,6 +75,9 @@ def _short(**changes):
 @example(_short(controller__f_d="3"))                     # invalid: must be exit 2 naming the key
 @example({**_short(), "name": {"kind": "zzz"}})              # a table where a string belongs: exit 2
 @example(_short(sensor__noise_std=112.0))                 # runs, does not converge: outputs, then exit 1
+@example(_short(trajectory__period=1.3e-289))             # issue #27: an OverflowError before the bound
+@example({**_short(), "environment": {"stiffness": {"segment": 1.3e-289}}})   # issue #27: an IndexError
+@example(_short(sensor__filter_cutoff=1e9))               # above Nyquist: refused, not "no filter"
 def test_corrupted_scenarios_run_or_fail_cleanly(data):
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
@@ -92,7 +96,7 @@ def test_corrupted_scenarios_run_or_fail_cleanly(data):
             if code == 2:     # names a dotted key of a section (or the file, for TOML syntax)
                 assert re.match(r"error: (name|(robot|environment|trajectory|impedance|controller|sensor|"
                                 r"simulation)[.\w\[\]]*): ", lines[0]), lines[0]
-            if code == 1 and re.match(r"(limit_cycle|diverged): segment \d+ ", lines[0]):
+            if code == 1 and re.match(rf"({'|'.join(VERDICTS[1:])}): segment \d+ ", lines[0]):
                 # a computed verdict on a finished run: the outputs are written, then exit 1
                 assert (tmp / "out" / "summary.json").exists()
             else:           # bad input or a run that blew up: nothing written

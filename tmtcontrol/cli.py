@@ -338,8 +338,7 @@ def _analyze(args) -> int:
         for flag in ("mp", "delay"):
             if getattr(args, flag) is not None and args.ts is None:
                 raise UsageError(f"--{flag}: only used by the sampled-data analysis; give --ts too")
-        if args.delay is not None and args.delay < 0:
-            raise UsageError(f"--delay: must be an integer >= 0 samples, got {args.delay}")
+        _check_numbers(args)
         kw = dict(m=args.m, b=args.b, k=args.k, f_d=10.0 if args.fd is None else args.fd,
                   Ts=args.ts, m_p=args.mp, delay=args.delay or 0,
                   x_e_error=0.0 if args.x_e_error is None else args.x_e_error)
@@ -361,13 +360,25 @@ def _analyze(args) -> int:
     return 0 if stable else 1
 
 
-def _filter_pole(cutoff: float, Ts: float) -> float:
-    import math
+def _check_numbers(args) -> None:
+    """Every given number the scenario schema bounds, with the schema's range and message."""
+    from .simulation.scenario import check_filter_cutoff, check_period, check_setting
 
+    for flag, key in (("m", "impedance.m"), ("b", "impedance.b"), ("k", "impedance.k"), ("fd", "controller.f_d"),
+                      ("ke", "environment.stiffness.values"), ("ke_min", "environment.stiffness.values"),
+                      ("ke_max", "environment.stiffness.values"), ("delay", "controller.delay_samples"),
+                      ("x_e_error", "controller.x_e_error")):
+        if getattr(args, flag, None) is not None:
+            check_setting(f"--{flag.replace('_', '-')}", key, getattr(args, flag))
+    if getattr(args, "ts", None) is not None:
+        check_period("--ts", args.ts)
+        if getattr(args, "filter_hz", None) is not None:
+            check_filter_cutoff("--filter-hz", args.filter_hz, args.ts)
+
+
+def _filter_pole(cutoff: float, Ts: float) -> float:
     from .simulation.scenario import filter_pole
 
-    if not (math.isfinite(cutoff) and cutoff >= 0):
-        raise UsageError(f"--filter-hz: must be >= 0, got {cutoff}")
     return filter_pole(cutoff, Ts)
 
 
@@ -378,6 +389,7 @@ def _design(args) -> int:
     from .stability import paper_effective_mass
     from .stability.design import DesignSpec, design_impedance, format_design
 
+    _check_numbers(args)
     spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
                       max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
                       m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),

@@ -17,6 +17,8 @@ Errors are :class:`ScenarioError`, one line: ``dotted.key: expected ..., got
 from __future__ import annotations
 
 import csv
+import functools
+import io
 import math
 import pathlib
 import re
@@ -37,7 +39,9 @@ __all__ = [
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "ControllerSettings", "SensorSettings",
     "SimulationSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
     "scenario_to_dict", "dump_scenario", "apply_overrides", "set_key", "scenario_json_schema",
-    "read_stiffness_table", "SettingRow", "applicable_settings",
+    "read_stiffness_table", "SettingRow", "applicable_settings", "read_text_file", "InputFileError",
+    "MAX_INPUT_BYTES", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",
+    "check_filter_cutoff", "setting_bounds",
 ]
 
 
@@ -54,6 +58,17 @@ def num(default, unit: str, doc: str, **limits) -> Any:
 F = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Pos = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
 NonNeg = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
+
+MAX_STIFFNESS = 1e10
+"""The stiffest environment a scenario (or ``analyze``/``design``) takes, N/m:
+far stiffer than any contact a force-controlled arm meets (steel on steel at
+these scales is about 1e8-1e9 N/m); above it the analysis' numbers overflow."""
+
+MIN_PERIODS = 10
+"""A path period, a stiffness segment and a stiffness sinusoid's period are at
+least this many control periods (fewer samples cannot resolve them)."""
+
+Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_STIFFNESS)]
 
 
 class _Section(BaseModel):
@@ -90,9 +105,10 @@ class RobotSettings(_Section):
 class PiecewiseConstantStiffness(_Section):
     """``values[i]`` on ``[i, i+1) * segment``, the last value held (Fig. 3)."""
     kind: Literal["piecewise_constant"] = "piecewise_constant"
-    values: tuple[Pos, ...] = Field((5e3, 2e4, 2e3, 1e4), min_length=1,
+    values: tuple[Stiff, ...] = Field((5e3, 2e4, 2e3, 1e4), min_length=1,
                                     description="stiffness of each segment [N/m]", json_schema_extra={"unit": "N/m"})
-    segment: float = num(0.0, "s", "segment length; 0 = the trajectory period", ge=0)
+    segment: float = num(0.0, "s", "segment length, 0 (= the trajectory period) or at least 10 control "
+                         "periods", ge=0)
 
 
 class PiecewiseLinearStiffness(_Section):
@@ -100,7 +116,7 @@ class PiecewiseLinearStiffness(_Section):
     kind: Literal["piecewise_linear"] = "piecewise_linear"
     times: tuple[NonNeg, ...] = Field(..., min_length=1, description="knot times, strictly increasing [s]",
                                       json_schema_extra={"unit": "s"})
-    values: tuple[Pos, ...] = Field(..., min_length=1, description="stiffness at the knots [N/m]",
+    values: tuple[Stiff, ...] = Field(..., min_length=1, description="stiffness at the knots [N/m]",
                                     json_schema_extra={"unit": "N/m"})
 
     @model_validator(mode="after")
@@ -115,9 +131,9 @@ class PiecewiseLinearStiffness(_Section):
 class SinusoidalStiffness(_Section):
     """``mean + amplitude sin(2 pi t / period)``."""
     kind: Literal["sinusoidal"] = "sinusoidal"
-    mean: float = num(1e4, "N/m", "mean stiffness", gt=0)
+    mean: float = num(1e4, "N/m", "mean stiffness", gt=0, le=MAX_STIFFNESS)
     amplitude: float = num(5e3, "N/m", "amplitude, < mean so that k_e stays > 0", ge=0)
-    period: float = num(4.0, "s", "period", gt=0)
+    period: float = num(4.0, "s", "period, at least 10 control periods", gt=0)
 
     @model_validator(mode="after")
     def _positive(self):
@@ -150,19 +166,19 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
     with no number in it is a header; any other malformed row is an error."""
     import numpy as np
 
-    key = "environment.stiffness.file"
-    p = pathlib.Path(path)
-    if p.is_dir():
-        raise ValueError(f"file: {str(path)!r} is a folder, expected a CSV file")
     try:
-        with open(p, newline="", encoding="utf-8") as fh:
-            rows = [r for r in csv.reader(fh) if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
-    except FileNotFoundError:
-        raise ValueError(f"file: no such file {str(path)!r}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"file: {str(path)!r} is not UTF-8 text") from None
-    except OSError as exc:
-        raise ValueError(f"file: cannot read {str(path)!r} ({exc.strerror})") from None
+        text = read_text_file(path)
+    except InputFileError as exc:
+        reason = str(exc)
+        if reason == "no such file":
+            raise ValueError(f"file: no such file {str(path)!r}") from None
+        if reason == "is a folder":
+            raise ValueError(f"file: {str(path)!r} is a folder, expected a CSV file") from None
+        if reason.startswith("not UTF-8"):
+            raise ValueError(f"file: {str(path)!r} is not UTF-8 text") from None
+        raise ValueError(f"file: {str(path)!r}: {reason}") from None
+    rows = [r for r in csv.reader(io.StringIO(text, newline=""))
+            if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
 
     def number(cell):
         try:
@@ -186,9 +202,10 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
         raise ValueError(f"file: non-finite value in {str(path)!r}")
     if np.any(arr[:, 1] <= 0):
         raise ValueError(f"file: stiffness must be > 0 in {str(path)!r}")
+    if np.any(arr[:, 1] > MAX_STIFFNESS):
+        raise ValueError(f"file: stiffness must be <= {MAX_STIFFNESS:g} N/m in {str(path)!r}")
     if np.any(np.diff(arr[:, 0]) <= 0):
         raise ValueError(f"file: times must be strictly increasing in {str(path)!r}")
-    del key
     return arr[:, 0], arr[:, 1]
 
 
@@ -210,7 +227,7 @@ class TrajectorySettings(_Section):
     center: tuple[F, F, F] = Field((0.5, -0.15, 0.55), description="centre, base frame [m]",
                                    json_schema_extra={"unit": "m"})
     radius: float = num(0.1, "m", "radius", ge=0)
-    period: float = num(4.0, "s", "time per circle", gt=0)
+    period: float = num(4.0, "s", "time per circle, at least 10 control periods", gt=0)
     cycles: float = num(4.0, "1", "number of circles (simulated time = cycles x period)", gt=0, le=1000)
     approach_gap: float = num(0.0, "m", "start this far above the surface, along the normal "
                               "(0 = on the surface at zero force, the paper's start)", ge=0, le=0.5)
@@ -259,9 +276,9 @@ class ScheduledDamping(_Section):
     b_min: float = num(1.0, "N s/m", "smallest damping", ge=0)
     b_max: float = num(1000.0, "N s/m", "largest damping", gt=0)
     rate: float = num(1e4, "N s/m per s", "rate limit of the damping", gt=0)
-    k_max: float = num(1e7, "N/m", "largest stiffness estimate used", gt=0)
+    k_max: float = num(1e7, "N/m", "largest stiffness estimate used", gt=0, le=MAX_STIFFNESS)
     force_threshold: float = num(0.5, "N", "the estimate is used above twice this force", gt=0)
-    min_stiffness: float = num(100.0, "N/m", "smallest stiffness estimate used", gt=0)
+    min_stiffness: float = num(100.0, "N/m", "smallest stiffness estimate used", gt=0, le=MAX_STIFFNESS)
 
     @model_validator(mode="after")
     def _bounds(self):
@@ -282,7 +299,8 @@ def _law_union():
 class ControllerSettings(_Section):
     """Sampled controller: rate, desired force, surface estimate, force-tracking
     law (``controller.law``, with its parameters) and normal damping."""
-    rate: float = num(1000.0, "Hz", "control rate 1/Ts", gt=0, le=1e6)
+    rate: float = num(1000.0, "Hz", "control rate 1/Ts (at most 10 kHz, the fastest force-control loops of "
+                      "robot arms)", gt=0, le=1e4)
     f_d: float = num(10.0, "N", "desired normal force", gt=0)
     x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
                            "(positive: believed deeper than it is)")
@@ -326,7 +344,8 @@ class SensorSettings(_Section):
     """Force sensor along the normal."""
     noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0)
     seed: StrictInt = Field(0, ge=0, description="seed of the noise generator (an integer)")
-    filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off; 0 = off", ge=0)
+    filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off, below the Nyquist frequency "
+                               "controller.rate/2; 0 = off", ge=0)
 
     def pole(self, Ts: float) -> float:
         """The force filter's discrete pole at control period ``Ts`` (0: no filter)."""
@@ -355,6 +374,14 @@ class Scenario(_Section):
     controller: ControllerSettings = Field(default_factory=ControllerSettings)
     sensor: SensorSettings = Field(default_factory=SensorSettings)
     simulation: SimulationSettings = Field(default_factory=SimulationSettings)
+
+    @model_validator(mode="after")
+    def _sampled(self):
+        """The bounds relative to the control period (see :func:`sampling_problem`)."""
+        problem = sampling_problem(self)
+        if problem:
+            raise ValueError(problem)
+        return self
 
     @property
     def duration(self) -> float:
@@ -387,6 +414,35 @@ _TAGGED = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default
 _TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller", "law"): "tmt",
                  ("controller", "damping_schedule"): "off"}
 """The kind of a tagged table that does not say."""
+
+
+SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate")
+"""The keys :func:`sampling_problem` relates (the only check across sections)."""
+
+
+def sampling_problem(sc: Scenario) -> str | None:
+    """What the control period ``Ts = 1/controller.rate`` forbids, as an error
+    message naming the key, or None: a path period, a stiffness segment or a
+    sinusoid's period shorter than :data:`MIN_PERIODS` control periods (fewer
+    samples cannot resolve them: a circle in under 10 samples, a segment whose
+    last quarter holds no sample), and a force-filter cut-off at or above the
+    Nyquist frequency ``rate/2`` (its discrete pole ``exp(-2 pi f_c Ts)``
+    would be below ``exp(-pi) = 0.04``: no filtering at all, silently)."""
+    Ts, rate = sc.controller.Ts, sc.controller.rate
+    least = MIN_PERIODS * Ts
+    why = f"at least {MIN_PERIODS} control periods ({least:g} s at controller.rate = {rate:g} Hz)"
+    if sc.trajectory.period < least:
+        return f"trajectory.period: must be {why}, got {sc.trajectory.period!r}"
+    st = sc.environment.stiffness
+    if st.kind == "piecewise_constant" and st.segment != 0 and st.segment < least:
+        return f"environment.stiffness.segment: must be 0 (the path period) or {why}, got {st.segment!r}"
+    if st.kind == "sinusoidal" and st.period < least:
+        return f"environment.stiffness.period: must be {why}, got {st.period!r}"
+    cutoff = sc.sensor.filter_cutoff
+    if cutoff >= rate / 2:
+        return (f"sensor.filter_cutoff: must be below the Nyquist frequency controller.rate/2 = {rate / 2:g} Hz "
+                f"(0 = no filter), got {cutoff!r}")
+    return None
 
 
 def paper_scenario() -> Scenario:
@@ -450,10 +506,10 @@ def _input_at(data, loc):
     return node
 
 
-def _message(err: dict, data: dict) -> str:
+def _message(err: dict, data: dict, key: str | None = None) -> str:
     loc = _strip_tags(err["loc"])
     typ, ctx, got = err["type"], err.get("ctx") or {}, err.get("input")
-    key = _dotted(loc)
+    key = _dotted(loc) if key is None else key
     if typ == "extra_forbidden":
         parent = _model_at(loc[:-1], data)
         known = [f for f in (parent.model_fields if parent else {}) if f != "kind"]
@@ -512,6 +568,86 @@ def scenario_from_dict(data: Any, source: str = "") -> Scenario:
         return Scenario.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError(_message(exc.errors()[0], data) + (f" (in {source})" if source else "")) from None
+
+
+def _field_type(key: str):
+    """The type (with its constraints) of the number at dotted ``key`` of the
+    schema: a tagged union's default kind; a list's element."""
+    from typing import get_args, get_origin
+
+    model: Any = Scenario
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        info = model.model_fields[part]
+        if i == len(parts) - 1:
+            break
+        loc = tuple(parts[max(0, i - 1):i + 1])
+        model = (_TAGGED[loc]()[_TAG_DEFAULTS[loc]] if loc in _TAGGED else info.annotation)
+    typ = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+    if get_origin(info.annotation) is tuple:
+        typ = get_args(info.annotation)[0]
+    return typ
+
+
+@functools.lru_cache(maxsize=None)
+def _adapter(key: str):
+    from pydantic import TypeAdapter
+
+    return TypeAdapter(_field_type(key))
+
+
+def check_setting(flag: str, key: str, value: Any) -> Any:
+    """``value`` checked against the scenario schema's field at dotted ``key``
+    (its type and range; a list key's element), for a command-line flag that
+    means the same setting: the error is the schema's, naming ``flag``, e.g.
+    ``--delay: must be <= 20, got 1000 (controller.delay_samples in a
+    scenario)``."""
+    try:
+        return _adapter(key).validate_python(value)
+    except ValidationError as exc:
+        raise ScenarioError(_message(exc.errors()[0], {}, key=flag) + f" ({key} in a scenario)") from None
+
+
+def setting_bounds(key: str) -> dict[str, float]:
+    """The range of the number at dotted ``key`` of the schema: its ``gt``,
+    ``ge``, ``lt``, ``le`` constraints that are set."""
+    from typing import get_args
+
+    out = {}
+    for m in get_args(_field_type(key))[1:]:
+        for item in (getattr(m, "metadata", None) or [m]):
+            for attr in ("gt", "ge", "lt", "le"):
+                if getattr(item, attr, None) is not None:
+                    out[attr] = getattr(item, attr)
+    return out
+
+
+def check_period(flag: str, Ts: Any) -> float:
+    """A control period ``Ts`` (s) from the command line, checked against the
+    schema's range of ``controller.rate = 1/Ts`` (so ``--ts`` takes exactly
+    the rates a scenario takes)."""
+    if not (isinstance(Ts, (int, float)) and not isinstance(Ts, bool) and math.isfinite(Ts) and Ts > 0):
+        raise ScenarioError(f"{flag}: must be a finite number > 0 s, got {Ts!r}")
+    bounds = setting_bounds("controller.rate")
+    rate = 1.0 / Ts
+    for attr, op, ok in (("le", ">=", lambda b: rate <= b), ("lt", ">", lambda b: rate < b),
+                         ("ge", "<=", lambda b: rate >= b), ("gt", "<", lambda b: rate > b)):
+        if attr in bounds and not ok(bounds[attr]):
+            sym = {"le": "<=", "lt": "<", "ge": ">=", "gt": ">"}[attr]
+            raise ScenarioError(f"{flag}: must be {op} {1 / bounds[attr]:g} s (controller.rate = 1/Ts must be "
+                                f"{sym} {bounds[attr]:g} Hz in a scenario), got {Ts!r}")
+    return float(Ts)
+
+
+def check_filter_cutoff(flag: str, cutoff: Any, Ts: float) -> float:
+    """A force-filter cut-off (Hz) from the command line: the schema's range
+    of ``sensor.filter_cutoff`` and, as :func:`sampling_problem` says, below
+    the Nyquist frequency ``1/(2 Ts)``."""
+    cutoff = check_setting(flag, "sensor.filter_cutoff", cutoff)
+    if cutoff >= 0.5 / Ts:
+        raise ScenarioError(f"{flag}: must be below the Nyquist frequency 1/(2 Ts) = {0.5 / Ts:g} Hz "
+                            f"(0 = no filter), got {cutoff!r}")
+    return cutoff
 
 
 def scenario_to_dict(scenario: Scenario) -> dict:
@@ -631,21 +767,78 @@ def toml_document(d: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+MAX_INPUT_BYTES = 16 * 2**20
+"""The largest scenario, sweep or stiffness-table file read (16 MiB): anything
+larger is refused before it is read."""
+
+
+class InputFileError(ValueError):
+    """An input file that cannot be read as text; the message is the reason,
+    without the file's name (callers say which file and what it should be)."""
+
+
+def read_text_file(path: str | pathlib.Path, max_bytes: int = MAX_INPUT_BYTES) -> str:
+    """The text of the regular file ``path`` (UTF-8; a leading UTF-8 byte-order
+    mark, as Windows Notepad and Excel's "CSV UTF-8" write, is dropped).
+
+    The file is opened without blocking and checked before anything is read:
+    a folder, a FIFO, a device (``/dev/zero``), a socket, or a file larger than
+    ``max_bytes`` raise :class:`InputFileError` at once (a FIFO never blocks)."""
+    import os
+    import stat
+
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        raise InputFileError("no such file") from None
+    except OSError as exc:
+        raise InputFileError(f"cannot read ({exc.strerror})") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise InputFileError("is a folder")
+        if not stat.S_ISREG(st.st_mode):
+            what = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a device" if stat.S_ISCHR(st.st_mode)
+                    or stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "special")
+            raise InputFileError(f"not a regular file ({what})")
+        if st.st_size > max_bytes:
+            raise InputFileError(f"{st.st_size / 2**20:.1f} MiB, larger than the {max_bytes / 2**20:g} MiB limit")
+        chunks, size = [], 0
+        while size <= max_bytes:            # a file growing while it is read stops at the limit too
+            chunk = os.read(fd, max_bytes + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > max_bytes:
+            raise InputFileError(f"larger than the {max_bytes / 2**20:g} MiB limit")
+    except OSError as exc:
+        raise InputFileError(f"cannot read ({exc.strerror})") from None
+    finally:
+        os.close(fd)
+    try:
+        return b"".join(chunks).decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"not UTF-8 text (byte {exc.start})") from None
+
+
 def read_toml(path: pathlib.Path, what: str, error: type[Exception]) -> dict:
-    """Parse the TOML file ``path``; every failure (missing, a folder, not
-    UTF-8, unreadable, malformed) raises ``error`` naming the file and
-    ``what`` it should have been."""
+    """Parse the TOML file ``path``; every failure (missing, a folder, not a
+    regular file, larger than :data:`MAX_INPUT_BYTES`, not UTF-8, unreadable,
+    malformed) raises ``error`` naming the file and ``what`` it should have
+    been. A UTF-8 byte-order mark is accepted."""
     src = str(path)
     try:
-        text = pathlib.Path(path).read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise error(f"{src}: no such {what} file") from None
-    except IsADirectoryError:
-        raise error(f"{src}: is a folder, expected a {what} TOML file") from None
-    except UnicodeDecodeError as exc:
-        raise error(f"{src}: not UTF-8 text (byte {exc.start})") from None
-    except OSError as exc:
-        raise error(f"{src}: cannot read ({exc.strerror})") from None
+        text = read_text_file(path)
+    except InputFileError as exc:
+        reason = str(exc)
+        if reason == "no such file":
+            raise error(f"{src}: no such {what} file") from None
+        if reason == "is a folder":
+            raise error(f"{src}: is a folder, expected a {what} TOML file") from None
+        if reason.startswith("not a regular file"):
+            raise error(f"{src}: {reason}, expected a {what} TOML file") from None
+        raise error(f"{src}: {reason}" + (f" of a {what} file" if "limit" in reason else "")) from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -749,6 +942,14 @@ def scenario_reference() -> str:
                     parts.append(f"{op} {getattr(m, attr):g}")
             if getattr(m, "min_length", None):
                 parts.append("non-empty")
+        from typing import get_args, get_origin
+
+        if get_origin(info.annotation) is tuple and get_args(info.annotation)[-1] is Ellipsis:   # each element's
+            for m in get_args(get_args(info.annotation)[0])[1:]:
+                for item in (getattr(m, "metadata", None) or [m]):
+                    for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                        if getattr(item, attr, None) is not None:
+                            parts.append(f"each {op} {getattr(item, attr):g}")
         return ", ".join(parts) or "–"
 
     def fmt(v) -> str:

@@ -1,0 +1,272 @@
+"""Inputs (issues #27 items 2, 4, 5, 6 and #33's scenario-schema survivors): unbounded and
+special files, numbers the schema bounds (the command line with the same range and
+message), bounds relative to the control period, a UTF-8 BOM, strict schema details,
+and sweeps too large to run (refused at once, cases generated lazily)."""
+import os
+import subprocess
+import sys
+from typing import Literal
+
+import numpy as np
+import pytest
+
+from tmtcontrol import paper_scenario
+from tmtcontrol.cli import main
+from tmtcontrol.simulation.scenario import (MAX_INPUT_BYTES, ScenarioError, check_period, load_scenario,
+                                            read_stiffness_table, scenario_from_dict, setting_bounds)
+
+CSV = "t, k_e\n0.0, 5000\n1.0, 20000\n2.0, 2000\n"
+
+
+def _cli(capsys, tmp_path, *args):
+    """Run the CLI in this process: exit code, stdout, the stderr lines; every
+    refusal here must leave ``tmp_path`` as it was."""
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(list(args))
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err.strip().splitlines(), before
+
+
+def _refused(capsys, tmp_path, needle, *args):
+    code, out, lines, before = _cli(capsys, tmp_path, *args)
+    assert code == 2 and out == "" and len(lines) == 1, (code, out, lines)
+    assert needle in lines[0] and "Traceback" not in lines[0], lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before        # nothing written
+    return lines[0]
+
+
+# -- files: regular, bounded, BOM ------------------------------------------------------
+
+@pytest.mark.parametrize("special", ["fifo", "/dev/zero"])
+@pytest.mark.parametrize("role", ["scenario", "stiffness table"])
+def test_a_fifo_or_device_is_refused_at_once_naming_it(tmp_path, special, role):
+    # in a subprocess: a reader that blocked on the FIFO (or read /dev/zero forever) would hang the
+    # test run, not fail it; the timeout only stops such a regression, the assertions are on the output
+    path = tmp_path / "pipe" if special == "fifo" else special
+    if special == "fifo":
+        os.mkfifo(path)
+    target = path
+    if role == "stiffness table":
+        target = tmp_path / "s.toml"
+        target.write_text(f'[environment.stiffness]\nkind = "table"\nfile = "{path}"\n')
+    before = sorted(p.name for p in tmp_path.iterdir())
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(target), "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    kind = "a FIFO" if special == "fifo" else "a device"
+    assert f"not a regular file ({kind})" in lines[0] and str(path) in lines[0], lines[0]
+    if role == "stiffness table":
+        assert lines[0].startswith("error: environment.stiffness.file: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_files_larger_than_the_limit_are_refused_before_reading(tmp_path, capsys):
+    big = tmp_path / "big.toml"
+    with open(big, "wb") as fh:            # sparse: 1 byte over the limit, no disk used
+        fh.truncate(MAX_INPUT_BYTES + 1)
+    line = _refused(capsys, tmp_path, "larger than the 16 MiB limit of a scenario file", "simulate", str(big),
+                    "--out", str(tmp_path / "o"))
+    assert line.startswith(f"error: {big}: ")
+    csv_big = tmp_path / "k.csv"
+    with open(csv_big, "wb") as fh:
+        fh.truncate(MAX_INPUT_BYTES + 1)
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: .*k\.csv.*larger than the 16 MiB"):
+        scenario_from_dict({"environment": {"stiffness": {"kind": "table", "file": str(csv_big)}}})
+    # exactly at the limit is read (a file of 16 MiB of TOML comments and a name)
+    ok = tmp_path / "ok.toml"
+    body = 'name = "big"\n'
+    ok.write_text(body + "#" * (MAX_INPUT_BYTES - len(body) - 1) + "\n")
+    assert ok.stat().st_size == MAX_INPUT_BYTES and load_scenario(ok).name == "big"
+
+
+def test_a_utf8_bom_is_accepted_in_a_scenario_and_a_csv(tmp_path):
+    text = '[controller]\nf_d = 4.0\n[environment.stiffness]\nkind = "table"\nfile = "k.csv"\n'
+    (tmp_path / "plain.toml").write_text(text)
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    (tmp_path / "k.csv").write_text(CSV)
+    (tmp_path / "kbom.csv").write_bytes(b"\xef\xbb\xbf" + CSV.encode())
+    assert load_scenario(tmp_path / "bom.toml") == load_scenario(tmp_path / "plain.toml")
+    t0, k0 = read_stiffness_table(tmp_path / "k.csv")
+    t1, k1 = read_stiffness_table(tmp_path / "kbom.csv")
+    assert list(t1) == list(t0) == [0.0, 1.0, 2.0] and list(k1) == list(k0) == [5000.0, 20000.0, 2000.0]
+    # only a leading BOM is a BOM: one inside the text is still an error naming the row
+    (tmp_path / "mid.csv").write_bytes(CSV.encode() + b"\xef\xbb\xbf3.0, 1000\n")
+    with pytest.raises(ValueError, match="row 5"):
+        read_stiffness_table(tmp_path / "mid.csv")
+
+
+def test_comment_rows_of_a_stiffness_table_are_skipped(tmp_path):
+    # issue #33: a CSV with '#' comment rows (before the header, between data rows, indented) loads as
+    # the same CSV without them
+    (tmp_path / "k.csv").write_text(CSV)
+    (tmp_path / "c.csv").write_text("# measured 2024-05-01\nt, k_e\n0.0, 5000\n  # a note, 1.0\n1.0, 20000\n"
+                                    "#3.0, 1\n2.0, 2000\n")
+    a, b = read_stiffness_table(tmp_path / "k.csv"), read_stiffness_table(tmp_path / "c.csv")
+    assert [list(x) for x in a] == [list(x) for x in b]
+
+
+# -- numbers: the schema's bounds, and the command line with the same ones -------------
+
+@pytest.mark.parametrize("key,value,needle", [
+    # issue #27 item 5: an OverflowError and an IndexError further down before these bounds
+    ("trajectory.period", 1.3e-289, "trajectory.period: must be at least 10 control periods (0.01 s at "
+                                    "controller.rate = 1000 Hz), got 1.3e-289"),
+    ("environment.stiffness.segment", 1.3e-289, "environment.stiffness.segment: must be 0 (the path period) or "
+                                                "at least 10 control periods"),
+    # item 6: a segment "0.0-0.0"
+    ("environment.stiffness.segment", 1e-12, "environment.stiffness.segment: must be 0"),
+    # item 6: a cut-off above the Nyquist frequency silently meant "no filter"
+    ("sensor.filter_cutoff", 1e9, "sensor.filter_cutoff: must be below the Nyquist frequency "
+                                  "controller.rate/2 = 500 Hz (0 = no filter), got 1000000000.0"),
+    ("sensor.filter_cutoff", 500.0, "sensor.filter_cutoff: must be below the Nyquist frequency"),
+    ("environment.stiffness.values", [1e300], "environment.stiffness.values[0]: must be <= 1e+10, got 1e+300"),
+    ("controller.rate", 2e4, "controller.rate: must be <= 10000, got 20000.0"),
+])
+def test_bounds_relative_to_the_control_period_refuse_with_one_line(tmp_path, capsys, key, value, needle):
+    sec, _, rest = key.partition(".")
+    path = tmp_path / "s.toml"
+    table, _, field = rest.rpartition(".")
+    head = f"[{sec}.{table}]" if table else f"[{sec}]"
+    path.write_text(f"{head}\n{field} = {value!r}\n".replace("'", '"'))
+    _refused(capsys, tmp_path, needle, "simulate", str(path), "--out", str(tmp_path / "o"), "--no-plots")
+
+
+def test_the_bounds_admit_their_edges():
+    # 10 control periods exactly, and a cut-off just below the Nyquist frequency (pole exp(-pi) = 0.043)
+    sc = scenario_from_dict({"trajectory": {"period": 0.01}, "environment": {"stiffness": {"segment": 0.01}},
+                             "sensor": {"filter_cutoff": 499.0}})
+    assert sc.trajectory.period == 0.01 and 0.04 < sc.sensor.pole(sc.controller.Ts) < 0.05
+    sc = scenario_from_dict({"controller": {"rate": 250.0}, "trajectory": {"period": 0.04},
+                             "environment": {"stiffness": {"kind": "sinusoidal", "period": 0.04}}})
+    assert sc.environment.stiffness.period == 0.04
+    with pytest.raises(ScenarioError, match=r"environment\.stiffness\.period: must be at least 10 control periods "
+                                            r"\(0\.04 s at controller\.rate = 250 Hz\)"):
+        scenario_from_dict({"controller": {"rate": 250.0},
+                            "environment": {"stiffness": {"kind": "sinusoidal", "period": 0.039}}})
+
+
+ANALYZE = ["analyze", "--m", "1", "--b", "60", "--k", "100"]
+DESIGN = ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "20000", "--max-overshoot", "5"]
+
+
+@pytest.mark.parametrize("args,needle", [
+    # issue #27 item 5: IndexError in python-control's step_info
+    ([*ANALYZE, "--ke", "1e300", "--ts", "0.001"], "--ke: must be <= 1e+10, got 1e+300"),
+    # item 4: still running after 120 s at 1 GB; design at 4 GiB
+    ([*ANALYZE, "--ke", "2000", "--ts", "0.001", "--delay", "1000"], "--delay: must be <= 20, got 1000"),
+    ([*DESIGN, "--ts", "1e-9"], "--ts: must be >= 0.0001 s (controller.rate = 1/Ts must be <= 10000 Hz"),
+    # item 6: printed "unstable"
+    ([*ANALYZE, "--ke", "2000", "--ts", "1e-300"], "--ts: must be >= 0.0001 s"),
+    ([*ANALYZE, "--ke", "2000", "--ts", "-0.001"], "--ts: must be a finite number > 0 s"),
+    ([*ANALYZE, "--ke-min", "2000", "--ke-max", "inf"], "--ke-max: must be finite"),
+    (["analyze", "--m", "0", "--b", "60", "--k", "100", "--ke", "2000"], "--m: must be > 0, got 0.0"),
+    (["analyze", "--m", "1", "--b", "-1", "--k", "100", "--ke", "2000"], "--b: must be >= 0, got -1.0"),
+    ([*ANALYZE, "--ke", "2000", "--fd", "nan"], "--fd: must be finite"),
+    ([*DESIGN, "--ts", "0.001", "--delay", "21"], "--delay: must be <= 20, got 21"),
+    ([*DESIGN, "--ts", "0.001", "--filter-hz", "1e9"], "--filter-hz: must be below the Nyquist frequency "
+                                                       "1/(2 Ts) = 500 Hz"),
+    ([*DESIGN, "--ts", "0.001", "--filter-hz", "-1"], "--filter-hz: must be >= 0"),
+])
+def test_command_line_numbers_take_the_schema_ranges(tmp_path, capsys, args, needle):
+    line = _refused(capsys, tmp_path, needle, *args, "--plot", str(tmp_path / "figs"))
+    assert line.startswith("error: " + needle.split(":")[0] + ": ")
+
+
+@pytest.mark.parametrize("flag,key,value,extra", [
+    ("--delay", "controller.delay_samples", 1000, ["--ke", "2000", "--ts", "0.001"]),
+    ("--ke", "environment.stiffness.values", 1e300, ["--ts", "0.001"]),
+    ("--fd", "controller.f_d", -3.0, ["--ke", "2000"]),
+    ("--x-e-error", "controller.x_e_error", float("inf"), ["--ke", "2000"]),
+])
+def test_a_flag_and_its_scenario_key_give_the_same_message(tmp_path, capsys, flag, key, value, extra):
+    # one source of truth: the problem after "FLAG: " is the schema's after "KEY: " for the same value
+    sec, name = key.split(".", 1)
+    d = {sec: {name: value}} if "." not in name else {sec: {"stiffness": {"values": [value]}}}
+    with pytest.raises(ScenarioError) as exc:
+        scenario_from_dict(d)
+    schema_problem = str(exc.value).split(": ", 1)[1]
+    text = repr(value) if not isinstance(value, float) or value == value else "nan"
+    line = _refused(capsys, tmp_path, f"{flag}: ", *ANALYZE, *extra, flag, str(value))
+    cli_problem = line.split(f"{flag}: ", 1)[1].split(f" ({key} in a scenario)")[0]
+    assert cli_problem == schema_problem, (cli_problem, schema_problem, text)
+
+
+def test_the_period_bound_is_the_rate_bound():
+    # --ts takes exactly the rates a scenario takes: 1/Ts within controller.rate's range
+    le = setting_bounds("controller.rate")["le"]
+    assert check_period("--ts", 1 / le) == 1 / le
+    with pytest.raises(ScenarioError, match="--ts"):
+        check_period("--ts", 1 / le * 0.999)
+    scenario_from_dict({"controller": {"rate": le}})
+    with pytest.raises(ScenarioError, match="controller.rate"):
+        scenario_from_dict({"controller": {"rate": le / 0.999}})
+
+
+def test_a_name_too_long_for_the_file_system_is_one_line_naming_out(tmp_path, capsys):
+    _refused(capsys, tmp_path, "--out", "simulate", "--out", str(tmp_path / ("a" * 300)), "--no-plots")
+
+
+# -- issue #33: scenario-schema survivors ----------------------------------------------
+
+@pytest.mark.parametrize("times,values", [([0.0, 1.0, 2.0], [1e3, 2e3]), ([0.0], [1e3, 2e3])])
+def test_piecewise_linear_needs_one_time_per_value(times, values):
+    with pytest.raises(ScenarioError, match=rf"environment\.stiffness\.times: needs one time per value "
+                                            rf"\({len(values)}\), got {len(times)}"):
+        scenario_from_dict({"environment": {"stiffness": {"kind": "piecewise_linear", "times": times,
+                                                          "values": values}}})
+    ok = scenario_from_dict({"environment": {"stiffness": {"kind": "piecewise_linear", "times": [0.0, 1.0],
+                                                           "values": [1e3, 2e3]}}})
+    assert ok.environment.stiffness.times == (0.0, 1.0)
+
+
+@pytest.mark.parametrize("text", ["1.0", '"1"', "true"])
+def test_delay_samples_is_a_strict_integer(tmp_path, capsys, text):
+    path = tmp_path / "s.toml"
+    path.write_text(f"[controller]\ndelay_samples = {text}\n")
+    _refused(capsys, tmp_path, "controller.delay_samples: expected an integer", "simulate", str(path),
+             "--out", str(tmp_path / "o"))
+    assert scenario_from_dict({"controller": {"delay_samples": 1}}).controller.delay_samples == 1
+
+
+def test_a_damping_schedule_needs_a_law_with_the_impedance_filter():
+    from tmtcontrol.control.laws import Law, LawParameters, register_law, unregister_law
+
+    class Direct(LawParameters):
+        kind: Literal["toy_direct"] = "toy_direct"
+
+    def update(y, p, s):                  # never built: only the schema is under test
+        raise AssertionError
+
+    register_law(Law("toy_direct", Direct, (), update, uses_impedance_filter=False))
+    try:
+        assert scenario_from_dict({"controller": {"law": "toy_direct"}}).controller.law.kind == "toy_direct"
+        with pytest.raises(ScenarioError, match=r"controller\.damping_schedule: law 'toy_direct' does not use "
+                                                r"the impedance filter"):
+            scenario_from_dict({"controller": {"law": "toy_direct", "damping_schedule": "zeta"}})
+        # the same schedule with a law that filters is fine
+        assert scenario_from_dict({"controller": {"damping_schedule": "zeta"}}).controller.damping_schedule.kind \
+            == "zeta"
+    finally:
+        unregister_law("toy_direct")
+
+
+def test_a_law_table_without_kind_is_the_documented_tmt(tmp_path):
+    (tmp_path / "s.toml").write_text("[controller.law]\nforce_threshold = 0.7\n")
+    law = load_scenario(tmp_path / "s.toml").controller.law
+    assert law.kind == "tmt" and law.force_threshold == 0.7
+    assert scenario_from_dict({"controller": {"law": {}}}).controller.law.kind == "tmt"
+    # a field of another law ('known') in a table without kind is an error of kind 'tmt'
+    with pytest.raises(ScenarioError, match=r"controller\.law\.assumed_stiffness: not a field of kind 'tmt'"):
+        scenario_from_dict({"controller": {"law": {"assumed_stiffness": 2e4}}})
+    assert paper_scenario().controller.law.kind == "tmt"
+
+
+def test_numbers_check_is_cheap_and_exact_for_vectors():
+    # the first element of a vector key (the normal axis) is what --m/--b/--k set
+    from tmtcontrol.simulation.scenario import check_setting
+
+    assert check_setting("--m", "impedance.m", 2.0) == 2.0
+    with pytest.raises(ScenarioError, match=r"^--m: must be > 0, got -1\.0 \(impedance\.m in a scenario\)$"):
+        check_setting("--m", "impedance.m", -1.0)
+    assert np.isclose(check_setting("--ke", "environment.stiffness.values", 1e10), 1e10)
