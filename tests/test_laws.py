@@ -283,7 +283,7 @@ def test_docs_comparison_tables_are_the_generated_ones(compared):
     paper = table.split("###")[1]
     for name, entry in summary["laws"].items():
         cells = " | ".join(f"{s['steady_state_error']:.2g} N" for s in entry["segments"])
-        assert f"| `{name}` | {cells} |" in paper, name
+        assert f"| `{name}` | {cells} | {entry['verdict']} |" in paper, name
 
 
 def test_tmt_law_is_finite_near_zero_force():
