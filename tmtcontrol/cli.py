@@ -3,8 +3,9 @@
 Exit codes: 0 success; 1 a computed verdict failed (a check, an unstable
 analysis, an infeasible or unverified design, a diverged or non-converged
 simulation); 2 bad input (one line on stderr naming the key or flag and the
-problem, nothing written); 130 Ctrl-C, 143 SIGTERM (one line, nothing left
-behind).
+problem, nothing written); 3 the results could not be saved (a full disk, or
+the output folder changed during the run; one line, the previous output
+intact); 130 Ctrl-C, 143 SIGTERM (one line, nothing left behind).
 """
 from __future__ import annotations
 
@@ -144,6 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--max-steps", type=int, default=None, metavar="N",
                    help="refuse cases longer than N control steps (default 1,000,000)")
+    p.add_argument("--max-cases", type=int, default=100_000, metavar="N",
+                   help="refuse sweeps of more than N cases, before generating any (default 100,000)")
     p.set_defaults(func=_sweep)
 
     p = sub.add_parser("report", help="stability report of a scenario: report.html and report.pdf",
@@ -437,12 +440,11 @@ def _sweep(args) -> int:
         raise UsageError(f"--workers: must be >= 1, got {args.workers}")
     if args.dask is not None and not (args.dask == "local" or "://" in args.dask):
         raise UsageError(f"--dask: expected 'local' or a scheduler address like tcp://host:8786, got {args.dask!r}")
-    from .simulation.simulator import check_run_size
     from .sweep import load_sweep, save_sweep
+    from .sweep.spec import check_sweep_size
 
-    sweep = load_sweep(args.sweep)
-    for case in sweep.cases:
-        check_run_size(sweep.scenario(case), args.max_steps)
+    sweep = load_sweep(args.sweep, max_cases=args.max_cases)
+    check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
                              plots=not args.no_plots, max_steps=args.max_steps,
@@ -534,7 +536,7 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import threading
 
-    from .files import Interrupted, VerdictFailed, install_signal_handlers
+    from .files import NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers
     from .processes import defer_in_finalizers
 
     previous = None
@@ -562,6 +564,9 @@ def main(argv: list[str] | None = None) -> int:
     except VerdictFailed as exc:   # computed verdicts (diverged simulation, infeasible design): exit 1
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    except OutputNotSaved as exc:  # a full disk, or the target changed during the run: exit 3
+        print(f"error: {exc}", file=sys.stderr)
+        return NOT_SAVED_EXIT
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous[0])

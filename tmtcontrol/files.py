@@ -2,41 +2,85 @@
 
 Every command that writes goes through :class:`OutputFolder`:
 
-* the target is checked, and a private staging folder created beside it,
-  **before** anything is computed, so an unwritable target (``/proc/x``, a
-  path below a regular file, a read-only folder) fails at once;
-* the outputs are written into the staging folder, together with a manifest
-  :data:`MANIFEST` naming every file written;
+* the target is checked, and a private staging folder ``.NAME.tmt-*``
+  created beside it, **before** anything is computed, so an unwritable target
+  (``/proc/x``, a path below a regular file, a read-only folder) fails at once;
+* the outputs are written into the staging folder; on commit a manifest
+  :data:`MANIFEST` records every file written, in every sub-folder, with its
+  size and SHA-256;
 * on success the staging folder replaces the target in one rename. An existing
-  target is replaced only if it is empty or a previous tmtcontrol output (it
-  holds a manifest and nothing that the manifest does not list); anything else
-  is refused, naming the flag (``--out``, ``--plot``), with nothing touched;
-* on any error, Ctrl-C or SIGTERM the staging folder is removed.
+  target is replaced only if it is empty or a previous tmtcontrol output whose
+  files are exactly those its manifest lists, unchanged (no other file or
+  folder anywhere, hidden ones included; no symbolic link). Anything else is
+  refused, naming the flag (``--out``, ``--plot``) and the first file that is
+  not tmtcontrol's, with nothing touched. The target is checked again at
+  commit, so a file saved into it during the run is never deleted;
+* the check, the staging folder's creation and the commit hold an exclusive
+  lock (``flock``) on the parent folder, so concurrent runs into one target
+  commit one after the other (the last one wins);
+* on any error, Ctrl-C or SIGTERM the staging folder is removed, and so are
+  the parent folders the run created. Staging folders left by a killed run
+  (their owner process, recorded inside, is gone) are removed by the next run
+  into the same target.
 
-Errors are :class:`OutputError` (a ``ValueError``: exit code 2 in the CLI).
+Errors: :class:`OutputError` (a ``ValueError``: bad input, exit code 2 in the
+CLI) for a target that must not or cannot be written; :class:`OutputNotSaved`
+(exit code 3) when the results were computed but could not be saved: the disk
+is full, or the target changed during the run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import hashlib
 import json
 import os
 import pathlib
+import re
 import shutil
 import signal
+import socket
 import sys
 import tempfile
 
+try:                                  # POSIX; elsewhere commits are not serialised
+    import fcntl
+except ImportError:                   # pragma: no cover
+    fcntl = None
 
-__all__ = ["MANIFEST", "OutputError", "OutputFolder", "Interrupted", "VerdictFailed", "install_signal_handlers",
-           "check_interrupt", "versions", "jsonable", "write_json"]
+
+__all__ = ["MANIFEST", "MANIFEST_FORMAT", "NOT_SAVED_EXIT", "OutputError", "OutputNotSaved", "OutputFolder",
+           "Interrupted", "VerdictFailed", "install_signal_handlers", "check_interrupt", "versions", "jsonable",
+           "write_json", "disk_full"]
 
 MANIFEST = ".tmtcontrol-output.json"
 """The file that marks a folder as written by tmtcontrol, listing its files."""
 
+MANIFEST_FORMAT = "tmtcontrol-output/2"
+"""The manifest's ``format``: only a manifest with this signature (and
+``"written_by": "tmtcontrol"``) makes a folder replaceable. Version 1 (before
+0.x: top-level names, no hashes) cannot show whether a file was changed, so a
+folder it describes counts as foreign."""
+
+NOT_SAVED_EXIT = 3
+"""The CLI's exit code for :class:`OutputNotSaved`."""
+
+_OWNER = ".tmt-owner.json"
+"""Inside a staging folder while it is being written: the owner process (host,
+boot, pid, start time), so a later run can tell a live staging folder from
+the litter of a killed one. Removed before the commit."""
+
 
 class OutputError(ValueError):
     """An output target that cannot or must not be written; names the flag."""
+
+
+class OutputNotSaved(RuntimeError):
+    """The results were computed but could not be saved (a full disk, or the
+    target changed during the run): the staging folder is removed and the
+    target left as it was. The CLI prints the one-line message and exits
+    :data:`NOT_SAVED_EXIT` (3): not bad input (2), not a failed verdict (1)."""
 
 
 class VerdictFailed(RuntimeError):
@@ -56,11 +100,13 @@ class Interrupted(KeyboardInterrupt):
 
 
 _pending: list[int] = []
+_deferring: list[int] = []
 
 
 def _handler(signum, frame):
     _pending.append(signum)
-    raise Interrupted(signum)
+    if not _deferring:
+        raise Interrupted(signum)
 
 
 def install_signal_handlers() -> None:
@@ -78,44 +124,236 @@ def check_interrupt() -> None:
         raise Interrupted(_pending[-1])
 
 
-def _listing(folder: pathlib.Path) -> set[str]:
-    return {p.name for p in folder.iterdir()}
+@contextlib.contextmanager
+def _signals_deferred():
+    """The two renames of a commit run whole: a signal arriving meanwhile is
+    remembered and raised just after (the previous output is never left
+    moved aside with the new one discarded)."""
+    _deferring.append(1)
+    try:
+        yield
+    finally:
+        _deferring.pop()
+    check_interrupt()
 
 
-def _manifest_files(folder: pathlib.Path) -> set[str] | None:
-    """Files listed by ``folder``'s manifest, or None if it has no valid one."""
+# -- what is in a folder ----------------------------------------------------------
+
+def _walk(folder: pathlib.Path, prefix: str = ""):
+    """``(relative path, kind)`` of everything below ``folder``, sorted, links
+    not followed; kind is ``dir``, ``file``, ``link`` or ``other``."""
+    with os.scandir(folder) as it:
+        entries = sorted(it, key=lambda e: e.name)
+    for e in entries:
+        rel = prefix + e.name
+        if e.is_symlink():
+            yield rel, "link"
+        elif e.is_dir(follow_symlinks=False):
+            yield rel, "dir"
+            yield from _walk(pathlib.Path(e.path), rel + "/")
+        elif e.is_file(follow_symlinks=False):
+            yield rel, "file"
+        else:
+            yield rel, "other"
+
+
+def _sha256(path: pathlib.Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
+
+
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+
+
+def _read_manifest(folder: pathlib.Path) -> tuple[dict | None, str]:
+    """``(manifest, "")`` for tmtcontrol's own manifest (format
+    :data:`MANIFEST_FORMAT`), else ``(None, why)``."""
     try:
         data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return None
+        return None, "is a folder tmtcontrol did not write and is not empty"
     if not isinstance(data, dict) or data.get("written_by") != "tmtcontrol":
+        return None, "is a folder tmtcontrol did not write and is not empty"
+    if data.get("format") != MANIFEST_FORMAT:
+        return None, ("was written by an older tmtcontrol whose manifest cannot show whether its files were "
+                      "changed; delete it yourself if it holds nothing of yours")
+    files, folders = data.get("files"), data.get("folders")
+    ok = (isinstance(files, dict) and isinstance(folders, list) and all(isinstance(f, str) for f in folders)
+          and all(isinstance(k, str) and isinstance(v, dict) and isinstance(v.get("size"), int)
+                  and isinstance(v.get("sha256"), str) and _HEX64.fullmatch(v["sha256"])
+                  for k, v in files.items()))
+    if not ok:
+        return None, "holds a damaged tmtcontrol manifest, so its files cannot be checked"
+    return data, ""
+
+
+def _foreign(out: pathlib.Path, shown: str) -> str | None:
+    """None if ``out`` may be replaced as a whole (absent, empty, or a previous
+    tmtcontrol output holding exactly the files its manifest lists, unchanged),
+    else the reason, naming the first offending path as ``shown/...``."""
+    if not os.path.lexists(out):
         return None
-    files = data.get("files")
-    return set(files) if isinstance(files, list) and all(isinstance(f, str) for f in files) else None
-
-
-def _replaceable(out: pathlib.Path, flag: str) -> None:
-    """Raise unless ``out`` may be replaced as a whole (absent, empty, or a
-    previous tmtcontrol output holding only the files it wrote)."""
-    if not out.exists() and not out.is_symlink():
-        return
-    if out.is_symlink() or not out.is_dir():
-        raise OutputError(f"{flag}: {out} exists and is not a folder; choose a new folder name")
+    if out.is_symlink():
+        return f"{shown} is a symbolic link (tmtcontrol replaces only a folder it wrote, never a link)"
+    if not out.is_dir():
+        return f"{shown} exists and is not a folder"
     try:
-        names = _listing(out)
+        if not any(out.iterdir()):
+            return None
+        manifest, why = _read_manifest(out)
+        if manifest is None:
+            return f"{shown} {why}"
+        files, folders = manifest["files"], set(manifest["folders"])
+        for rel, kind in _walk(out):
+            path = f"{shown.rstrip('/')}/{rel}"
+            if rel == MANIFEST:
+                continue
+            if kind == "link":
+                return f"{path} is a symbolic link tmtcontrol did not write"
+            if kind == "dir":
+                if rel not in folders:
+                    return f"{path}/ is a folder tmtcontrol did not write"
+            elif kind != "file" or rel not in files:
+                return f"{path} is not a file tmtcontrol wrote"
+            else:
+                entry = files[rel]
+                if (out / rel).stat().st_size != entry["size"] or _sha256(out / rel) != entry["sha256"]:
+                    return f"{path} was changed after tmtcontrol wrote it"
     except OSError as exc:
-        raise OutputError(f"{flag}: cannot read {out} ({exc.strerror})") from None
-    if not names:
+        if disk_full(exc):
+            raise
+        return f"{shown} cannot be read ({exc.strerror or exc}), so it cannot be checked"
+    return None
+
+
+def _manifest_of(folder: pathlib.Path, command: str) -> dict:
+    from . import __version__
+
+    files, folders = {}, []
+    for rel, kind in _walk(folder):
+        if rel in (MANIFEST, _OWNER):
+            continue
+        if kind == "dir":
+            folders.append(rel)
+        elif kind == "file":
+            files[rel] = {"size": (folder / rel).stat().st_size, "sha256": _sha256(folder / rel)}
+        else:                         # never written by tmtcontrol's writers
+            raise OutputError(f"{rel}: a {kind} in the output; tmtcontrol writes only files and folders")
+    return {"written_by": "tmtcontrol", "format": MANIFEST_FORMAT, "version": __version__,
+            "command": command or " ".join(sys.argv), "folders": folders, "files": files}
+
+
+# -- who owns a staging folder ------------------------------------------------------
+
+def _proc_stat(pid: int) -> tuple[str, str] | None:
+    """``(state, start time in clock ticks since boot)`` from /proc, or None."""
+    try:
+        fields = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return fields[0], fields[19]
+    except (OSError, IndexError):
+        return None
+
+
+def _boot_id() -> str | None:
+    try:
+        return pathlib.Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return None
+
+
+def _owner_record() -> dict:
+    st = _proc_stat(os.getpid())
+    return {"host": socket.gethostname(), "boot": _boot_id(), "pid": os.getpid(), "start": st and st[1]}
+
+
+def _owner_gone(record) -> bool:
+    """True only when the process that made a staging folder is certainly gone:
+    same host, and another boot, or no such process, or a zombie, or a
+    different process under the same pid (its start time differs)."""
+    if not isinstance(record, dict) or record.get("host") != socket.gethostname():
+        return False
+    boot = _boot_id()
+    if record.get("boot") and boot and record["boot"] != boot:
+        return True
+    pid = record.get("pid")
+    if not isinstance(pid, int) or isinstance(pid, bool) or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:           # alive, another user's
+        pass
+    st = _proc_stat(pid)
+    if st is None:
+        return False
+    return st[0] == "Z" or (record.get("start") is not None and st[1] != record["start"])
+
+
+def _write_owner(folder: pathlib.Path) -> None:
+    (folder / _OWNER).write_text(json.dumps(_owner_record()), encoding="utf-8")
+
+
+def _clean_stale(parent: pathlib.Path, name: str) -> None:
+    """Remove ``.NAME.tmt-*`` staging folders beside the target whose owner is
+    gone, and ``.NAME.tmt-*.old`` folders (a previous output moved aside by a
+    commit) whose staging folder no longer exists."""
+    prefix = f".{name}.tmt-"
+    try:
+        entries = [p for p in parent.iterdir() if p.name.startswith(prefix)]
+    except OSError:
         return
-    listed = _manifest_files(out)
-    if listed is None:
-        raise OutputError(f"{flag}: {out} is a folder that tmtcontrol did not write and is not empty; "
-                          "choose a new or empty folder (nothing was written)")
-    foreign = sorted(names - listed - {MANIFEST})
-    if foreign:
-        shown = ", ".join(foreign[:3]) + (" ..." if len(foreign) > 3 else "")
-        raise OutputError(f"{flag}: {out} holds files tmtcontrol did not write ({shown}); "
-                          "move them or choose another folder (nothing was written)")
+    for p in entries:
+        if p.is_symlink() or not p.is_dir():
+            continue
+        if p.name.endswith(".old"):
+            stale = not os.path.lexists(p.with_name(p.name[:-4]))
+        else:
+            try:
+                stale = _owner_gone(json.loads((p / _OWNER).read_text(encoding="utf-8")))
+            except (OSError, ValueError):
+                stale = False         # no record: it cannot be told from a live one
+        if stale:
+            shutil.rmtree(p, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _locked(folder: pathlib.Path):
+    """An exclusive ``flock`` on ``folder`` itself (no lock file left behind);
+    where the file system cannot lock a folder, unlocked."""
+    fd = None
+    if fcntl is not None:
+        try:
+            fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
+def disk_full(exc: BaseException) -> str | None:
+    """If ``exc`` (or an exception it was raised from) is a full disk or an
+    exceeded quota (ENOSPC, EDQUOT, also when a library or a worker process
+    only kept the message), its message, else None."""
+    texts = [os.strerror(errno.ENOSPC), os.strerror(getattr(errno, "EDQUOT", errno.ENOSPC))]
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", None)):
+            return exc.strerror or texts[0]
+        text = str(exc)
+        for t in texts:
+            if t in text:
+                return t
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 class OutputFolder:
@@ -124,7 +362,8 @@ class OutputFolder:
     Create it before computing anything: the constructor checks the target and
     makes the staging folder, raising :class:`OutputError` naming ``flag``.
     Use as a context manager; leaving it by an exception removes the staging
-    folder and leaves ``out`` as it was.
+    folder and leaves ``out`` as it was; a full disk is then reported as
+    :class:`OutputNotSaved`.
 
     Examples
     --------
@@ -137,21 +376,48 @@ class OutputFolder:
         if out is None or not str(out).strip():
             raise OutputError(f"{flag}: empty path; name the output folder")
         self.flag = flag
+        self.shown = str(out)
         self.out = pathlib.Path(os.path.abspath(os.path.expanduser(str(out))))
+        self.committed = False
+        self.path = None
         if self.out.parent == self.out:
             raise OutputError(f"{flag}: {self.out} is a file system root; name a folder inside it")
-        _replaceable(self.out, flag)
         parent = self.out.parent
+        self._made = []               # parent folders this run creates, deepest first
+        p = parent
+        while not os.path.lexists(p) and p.parent != p:
+            self._made.append(p)
+            p = p.parent
         try:
-            parent.mkdir(parents=True, exist_ok=True)
-            self.path = pathlib.Path(tempfile.mkdtemp(prefix=f".{self.out.name}.tmt-", dir=parent))
+            for _ in range(5):        # a concurrent failed run may remove a parent it made just now
+                try:
+                    parent.mkdir(parents=True, exist_ok=True)
+                    with _locked(parent):
+                        reason = _foreign(self.out, self.shown)
+                        if reason:
+                            raise OutputError(f"{flag}: {reason}; choose another folder or move it "
+                                              "(nothing was written)")
+                        _clean_stale(parent, self.out.name)
+                        self.path = pathlib.Path(tempfile.mkdtemp(prefix=f".{self.out.name}.tmt-", dir=parent))
+                        _write_owner(self.path)
+                    break
+                except FileNotFoundError:
+                    if self.path is not None or os.path.isdir(parent):
+                        raise
+            else:
+                raise OutputError(f"{flag}: cannot create {parent} (it keeps disappearing)")
         except OSError as exc:
+            self.discard()
+            if disk_full(exc):
+                raise OutputNotSaved(self._full_message(exc)) from None
             raise OutputError(f"{flag}: cannot write {self.out} "
                               f"({exc.strerror or exc.__class__.__name__})") from None
+        except BaseException:
+            self.discard()
+            raise
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(self.path, 0o777 & ~umask)   # mkdtemp makes 0700; the result is an ordinary folder
-        self.committed = False
 
     def __enter__(self) -> "OutputFolder":
         return self
@@ -159,46 +425,70 @@ class OutputFolder:
     def __exit__(self, exc_type, exc, tb):
         if not self.committed:
             self.discard()
+            if exc is not None and not isinstance(exc, (KeyboardInterrupt, OutputNotSaved)) and disk_full(exc):
+                raise OutputNotSaved(self._full_message(exc)) from None
         return False
 
+    def _full_message(self, exc) -> str:
+        where = self.shown
+        name = getattr(exc, "filename", None)
+        if isinstance(name, (str, os.PathLike)) and self.path is not None \
+                and not os.path.abspath(name).startswith(str(self.path) + os.sep) \
+                and os.path.abspath(name) != str(self.path):
+            where = f"{self.shown} ({os.path.dirname(os.fspath(name)) or '.'} is full)"
+        return (f"{self.flag}: no space left on the disk holding {where} ({disk_full(exc)}); free some space "
+                f"and run again (the results were not saved; {self.shown} was left as it was)")
+
     def discard(self) -> None:
-        """Remove the staging folder (the target is untouched)."""
-        shutil.rmtree(self.path, ignore_errors=True)
+        """Remove the staging folder and the parent folders this run created
+        (if they are empty); the target is untouched."""
+        if self.path is not None:
+            shutil.rmtree(self.path, ignore_errors=True)
+        for p in self._made:
+            try:
+                p.rmdir()
+            except OSError:
+                break
 
     def commit(self, command: str = "") -> pathlib.Path:
         """Write the manifest and rename the staging folder onto the target.
 
-        Another process may commit the same target at the same moment: the
-        target is re-checked and moved aside before each rename attempt.
-        A signal that arrived meanwhile (even one a compiled library
+        Under the parent folder's lock the target is checked again (a file a
+        user saved into it during the run makes it foreign:
+        :class:`OutputNotSaved`), moved aside, replaced and the old copy
+        removed. A signal that arrived before (even one a compiled library
         swallowed) stops the commit: an interrupted run is never a result."""
-        from . import __version__
-
         check_interrupt()
-        files = sorted(_listing(self.path))
-        (self.path / MANIFEST).write_text(json.dumps(
-            {"written_by": "tmtcontrol", "version": __version__, "command": command or " ".join(sys.argv),
-             "files": files}, indent=2) + "\n", encoding="utf-8")
-        for _ in range(20):
-            _replaceable(self.out, self.flag)
-            old = None
-            try:
-                if self.out.exists():
-                    old = pathlib.Path(tempfile.mkdtemp(prefix=f".{self.out.name}.old-", dir=self.out.parent))
-                    os.replace(self.out, old / "previous")
-                os.replace(self.path, self.out)
-            except FileNotFoundError:
-                continue                      # another process moved it first: check again
-            except OSError as exc:
-                if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
-                    continue                  # another process committed in between: check again
-                raise OutputError(f"{self.flag}: cannot write {self.out} ({exc.strerror})") from None
-            finally:
-                if old is not None:
-                    shutil.rmtree(old, ignore_errors=True)
-            self.committed = True
-            return self.out
-        raise OutputError(f"{self.flag}: {self.out} keeps changing (another process is writing it)")
+        manifest = _manifest_of(self.path, command)
+        (self.path / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
+        parent = self.out.parent
+        with _locked(parent):
+            for _ in range(20):
+                reason = _foreign(self.out, self.shown)
+                if reason:
+                    raise OutputNotSaved(f"{self.flag}: {self.shown} changed during the run: {reason}; the results "
+                                         f"were not saved and {self.shown} was left as it was")
+                aside = pathlib.Path(f"{self.path}.old")
+                with _signals_deferred():
+                    (self.path / _OWNER).unlink(missing_ok=True)
+                    try:
+                        if os.path.lexists(self.out):
+                            os.replace(self.out, aside)
+                        os.replace(self.path, self.out)
+                    except OSError as exc:
+                        if os.path.lexists(aside) and not os.path.lexists(self.out):
+                            os.replace(aside, self.out)          # put the previous output back
+                        _write_owner(self.path)
+                        if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
+                            continue          # another (unlocked) writer changed it meanwhile: check again
+                        if disk_full(exc):
+                            raise
+                        raise OutputError(f"{self.flag}: cannot write {self.out} ({exc.strerror})") from None
+                    self.committed = True
+                shutil.rmtree(aside, ignore_errors=True)
+                return self.out
+        raise OutputNotSaved(f"{self.flag}: {self.shown} keeps changing (another program is writing it); "
+                             "the results were not saved")
 
 
 def versions() -> dict:
@@ -241,5 +531,9 @@ def jsonable(obj):
 
 
 def write_json(path: str | pathlib.Path, obj) -> None:
-    """JSON with NaN/inf written as null and NumPy types converted."""
-    pathlib.Path(path).write_text(json.dumps(jsonable(obj), indent=2) + "\n", encoding="utf-8")
+    """Strict JSON (RFC 8259): NumPy types converted, every NaN, +inf and -inf
+    written as ``null`` (:func:`jsonable`); a non-finite number that reaches
+    the encoder some other way raises ``ValueError`` rather than writing the
+    invalid tokens ``NaN`` or ``Infinity``."""
+    text = json.dumps(jsonable(obj), indent=2, allow_nan=False)
+    pathlib.Path(path).write_text(text + "\n", encoding="utf-8")
