@@ -347,3 +347,23 @@ def test_contact_threshold_adds_six_sigma_of_the_filtered_noise():
     n = sigma * np.random.default_rng(3).standard_normal(200_000)
     std = float(np.std(lfilter([1 - a], [1, -a], n)[100:]))
     assert contact_detection_threshold(1.0, sigma, a) == pytest.approx(1.0 + 6 * std, rel=0.01)
+
+
+def test_the_reports_tracking_verdict_uses_the_scenarios_tolerance():
+    # the known law with k_e assumed 50 % high settles 0.065 N off f_d (eqs. 11-12): it fails the
+    # default 0.01 N tolerance and passes a scenario tolerance of 0.07 N, which the verdict quotes
+    from tmtcontrol import fmt
+    from tmtcontrol.report.document import Report, _simulation
+    from tmtcontrol.stability import scenario_parameters
+
+    base = ["controller.law=known", "controller.law.assumed_stiffness=7500", "trajectory.cycles=1",
+            "environment.stiffness.values=[5e3]"]
+    passed = []
+    for tol in (0.01, 0.07):
+        sc = apply_overrides(paper_scenario(), base + [f"controller.force_tolerance={tol}"])
+        rep = Report(sc, "test")
+        _simulation(rep, sc, scenario_parameters(sc))
+        (v,) = rep.verdicts
+        assert f"(tolerance {fmt.qty(tol, 'N')})" in v.value
+        passed.append(v.passed)
+    assert passed == [False, True]
