@@ -111,9 +111,12 @@ def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage, first_co
 def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
     from tmtcontrol import Simulator
 
+    import tempfile
+
     blocker = tmp_path / "file"
     blocker.write_text("x")
     monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker / "cache"))      # below a regular file
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))           # its per-user fallback: fresh, here
     with pytest.warns(RuntimeWarning, match="cannot write the compile cache .* TMTCONTROL_CACHE"):
         sim = Simulator(SMALL(), compile=True)
     assert sim.rollout.how == "compiled" and not str(sim.rollout.library).startswith(str(blocker))

@@ -275,3 +275,165 @@ def test_simulate_summary_is_strict_json(tmp_path):
     """A run whose stiffness estimate is NaN before contact: summary.json still parses strictly."""
     assert main(["simulate", *SHORT, "--out", str(tmp_path / "o")]) == 0
     json.loads((tmp_path / "o" / "summary.json").read_text(), parse_constant=_no_constants)
+
+
+# -- item 2: a full disk is one line; nothing partial is left -------------------------------
+
+def _enospc(filename=None):
+    return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), filename)
+
+
+def test_full_disk_during_simulate_is_one_line_and_keeps_the_previous_output(tmp_path, monkeypatch, capsys):
+    """Injected: the CSV writer meets ENOSPC half-way. Exit 3, one line naming
+    the folder and the need for space, the staging folder removed, the
+    previous output as it was."""
+    import tmtcontrol.simulation.output as output
+
+    out = commit(tmp_path / "o")
+    before = snapshot(tmp_path)
+
+    def full(res, path, **kw):
+        pathlib.Path(path).write_bytes(b"time,contact_force\n0,0\n")    # part of it, then the disk is full
+        raise _enospc(str(path))
+
+    monkeypatch.setattr(output, "write_timeseries", full)
+    assert main(["simulate", *SHORT, "--out", str(out)]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: --out: no space left on the disk holding {out} ("), err
+    assert "free some space" in err[0]
+    assert snapshot(tmp_path) == before and litter(tmp_path) == []
+
+
+def test_full_disk_reported_only_as_text_by_a_worker_process_is_recognised(tmp_path):
+    """A figure or report worker hands back only the traceback's text."""
+    with pytest.raises(OutputNotSaved, match="no space left on the disk holding"):
+        with OutputFolder(tmp_path / "o"):
+            raise RuntimeError("drawing the figures failed:\nOSError: [Errno 28] No space left on device: 'x.png'")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(RuntimeError, match="^other$"):            # any other error passes through unchanged
+        with OutputFolder(tmp_path / "o"):
+            raise RuntimeError("other")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 2 MiB tmpfs (root may mount one here; skipped where mounting is refused,
+    the injected tests above always run)."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(disk)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.strip()}")
+    try:
+        yield disk
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], check=False)
+
+
+def _fill(disk, leave):
+    """Fill ``disk`` up to ``leave`` free bytes with a user's file."""
+    st = os.statvfs(disk)
+    free = st.f_bavail * st.f_frsize
+    with open(disk / "filler.bin", "wb") as fh:
+        fh.write(b"\0" * max(free - leave, 0))
+
+
+def test_full_tmpfs_during_simulate(small_disk):
+    out = small_disk / "o"
+    args = CLI + ["simulate", *SHORT, "--out", str(out)]
+    assert subprocess.run(args, capture_output=True, text=True).returncode == 0
+    _fill(small_disk, leave=40_000)                # the CSV of this run takes about 105 kB
+    before = snapshot(small_disk)
+    r = subprocess.run(args, capture_output=True, text=True)
+    assert r.returncode == 3, r.stderr
+    assert r.stderr.startswith(f"error: --out: no space left on the disk holding {out} (No space left on device)")
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+    assert snapshot(small_disk) == before and litter(small_disk) == []
+
+
+def toy_step(scale=1.0):
+    import casadi as ca
+
+    s, u, p = ca.SX.sym("s", 2), ca.SX.sym("u", 1), ca.SX.sym("p", 1)
+    return ca.Function("fulltoy", [s, u, p], [ca.vertcat(s[0] + scale * u, s[1] * p), ca.vertcat(s, u)],
+                       ["s", "u", "p"], ["s_next", "log"])
+
+
+def _check_runs(r, scale=1.0):
+    import numpy as np
+
+    U = np.arange(30, dtype=float)[None, :]
+    S, _ = r.run([0.0, 1.0], U, [2.0])
+    np.testing.assert_array_equal(S[0], np.cumsum(scale * U))    # exact: sums of small integers
+    np.testing.assert_array_equal(S[1], 2.0 ** np.arange(1, 31))  # exact: powers of two
+
+
+@pytest.fixture
+def private_tmp(tmp_path, monkeypatch):
+    """tempfile's folder (build folders, the per-user fallback) inside this test's tmp_path."""
+    import tempfile
+
+    t = tmp_path / "tmp"
+    t.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(t))
+    return t
+
+
+def _full_open(real_open=open):
+    def fake(path, mode="r", *a, **kw):
+        fh = real_open(path, mode, *a, **kw)
+        if "w" not in mode:
+            return fh
+
+        class Full:
+            def __enter__(self):
+                return self
+
+            def __exit__(self, *exc):
+                fh.close()
+
+            def write(self, data):
+                fh.write(data[:len(data) // 2])                     # half of it, then the disk is full
+                raise _enospc(str(path))
+
+            def __getattr__(self, name):
+                return getattr(fh, name)
+
+        return Full()
+    return fake
+
+
+def test_full_disk_while_caching_a_library_leaves_nothing_partial(tmp_path, private_tmp, monkeypatch):
+    """Injected ENOSPC while the library is staged: the staged .so.PID.tmp is
+    removed, nothing is cached, the run uses the library it built (one
+    warning), and the build folder is gone."""
+    from tmtcontrol.simulation import cache, rollout
+
+    if rollout.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "open", _full_open(), raising=False)
+    with pytest.warns(RuntimeWarning, match=r"disk holding the compile cache is full \(No space left on device\); "
+                                            "this run's compiled code is not cached"):
+        r = rollout.Rollout(toy_step(1.0), compile=True)
+    assert r.how == "compiled"
+    _check_runs(r)
+    assert list((tmp_path / "cache").iterdir()) == []
+    assert list(private_tmp.iterdir()) == []
+
+
+def test_full_tmpfs_while_caching_a_library(small_disk, private_tmp, monkeypatch):
+    from tmtcontrol.simulation import rollout
+
+    if rollout.compiler() is None:
+        pytest.skip("no C compiler")
+    cache_dir = small_disk / "cache"
+    cache_dir.mkdir()
+    _fill(small_disk, leave=4096)                       # a library takes more than one page
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(cache_dir))
+    with pytest.warns(RuntimeWarning, match="disk holding the compile cache is full"):
+        r = rollout.Rollout(toy_step(2.0), compile=True)
+    assert r.how == "compiled"
+    _check_runs(r, 2.0)
+    assert list(cache_dir.iterdir()) == [] and list(private_tmp.iterdir()) == []

@@ -15,11 +15,11 @@ CasADi version and the CPU, so a warm run generates no C. The structure is
 the caller's key when it gives one (the Simulator's: the package's sources,
 the structural settings and the law, so a warm run does not even build the
 step; the library's own sparsity tables give the sizes), else the
-Function's serialisation. Each library is written fsync'ed under a
-temporary name and renamed into place, with its size and SHA-256 in a
-sidecar; a library that does not match its sidecar (a crash or a full disk
-during a write) is rebuilt, never loaded. An unwritable cache compiles into a
-private temporary folder; with no compiler a valid cached library is still
+Function's serialisation. Storage, verification, the per-user fallback of
+an unwritable cache and pruning are in :mod:`tmtcontrol.simulation.cache`: a
+library that does not match its recorded size and SHA-256 (a crash during a
+write) is rebuilt, never loaded; a full disk leaves nothing partial and the
+library is used uncached; with no compiler a valid cached library is still
 used. Without a compiler, or when ``compile=False`` (the caller's choice for
 Functions that cannot be code-generated, such as CVODES), the same rollout
 runs on CasADi's virtual machine — slower, identical in result.
@@ -28,9 +28,9 @@ runs on CasADi's virtual machine — slower, identical in result.
 from __future__ import annotations
 
 import ctypes
+import errno
 import functools
 import hashlib
-import json
 import os
 import pathlib
 import platform
@@ -41,6 +41,9 @@ import warnings
 
 import casadi as ca
 import numpy as np
+
+from . import cache
+from .cache import cache_dir
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
@@ -69,50 +72,12 @@ def _cpu_id() -> str:
     return platform.machine() + platform.processor() + model
 
 
-def cache_dir() -> pathlib.Path:
-    """The folder holding compiled libraries."""
-    env = os.environ.get("TMTCONTROL_CACHE")
-    if env:
-        return pathlib.Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return pathlib.Path(base) / "tmtcontrol"
-
-
 def compiler() -> str | None:
     """The C compiler to use (``$CC``, else cc/gcc/clang on PATH), or None."""
     for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
         if name and shutil.which(name):
             return shutil.which(name)
     return None
-
-
-def _digest(path: pathlib.Path) -> dict:
-    data = path.read_bytes()
-    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
-
-
-def _verify(lib: pathlib.Path) -> bool:
-    """The library matches the size and checksum recorded when it was written."""
-    try:
-        recorded = json.loads(lib.with_suffix(".json").read_text())
-        return recorded == _digest(lib)
-    except (OSError, ValueError):
-        return False
-
-
-def _store(built: pathlib.Path, lib: pathlib.Path) -> None:
-    """Copy ``built`` into the cache as ``lib``: staged, fsync'ed, renamed, with
-    its size and checksum in a sidecar written the same way (after the library,
-    so a crash leaves an unverifiable library, which is rebuilt)."""
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    for target, data in ((lib, built.read_bytes()),
-                         (lib.with_suffix(".json"), json.dumps(_digest(built)).encode())):
-        staged = target.parent / f".{target.name}.{os.getpid()}.tmp"
-        with open(staged, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(staged, target)
 
 
 class Rollout:
@@ -188,7 +153,7 @@ class Rollout:
                               "running on CasADi's virtual machine", RuntimeWarning, stacklevel=3)
 
     def _cached(self) -> bool:
-        return self._library_path().exists()
+        return cache.find(self._library_name()) is not None
 
     # -- compilation --------------------------------------------------------------
     @functools.cached_property
@@ -204,48 +169,74 @@ class Rollout:
             h.update(part.encode())
         return h.hexdigest()[:20]
 
-    def _library_path(self) -> pathlib.Path:
-        return cache_dir() / f"{self._chunk_name}_{self._key}.so"
+    def _library_name(self) -> str:
+        return f"{self._chunk_name}_{self._key}.so"
 
     def _load(self):
         name = self._chunk_name
-        folder = cache_dir()
-        lib = self._library_path()
+        lib = cache.find(self._library_name())
         how = "cached"
-        if lib.exists() and not _verify(lib):
+        if lib is not None and not cache.verify(lib):
             warnings.warn(f"tmtcontrol: cached library {lib} is damaged; rebuilding it", RuntimeWarning,
                           stacklevel=3)
             how = "rebuilt"
-        elif lib.exists():
+        elif lib is not None:
             self._bind(ctypes.CDLL(str(lib)), name)
+            cache.mark_used(lib)
             self.how, self.library = how, lib
             return
         if compiler() is None:
             raise OSError("no C compiler")
+        target = lib if lib is not None else cache_dir() / self._library_name()
         acc = self.step.mapaccum(name, self.chunk)
         # named as the library is (mapaccum names its Function after the chunk's factors)
         args = acc.mx_in()
         fn = ca.Function(name, args, acc.call(args), acc.name_in(), acc.name_out())
-        with tempfile.TemporaryDirectory(prefix="tmtcontrol-cg-") as tmp:
+        with tempfile.TemporaryDirectory(prefix="tmtcontrol-cg-", ignore_cleanup_errors=True) as tmp:
             gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             gen.add(fn)
             cfile = pathlib.Path(gen.generate(tmp + os.sep))
             tmp_lib = pathlib.Path(tmp) / "lib.so"
             subprocess.run([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"],
                            check=True, capture_output=True, timeout=600)
-            try:
-                _store(tmp_lib, lib)
-            except OSError as exc:
-                # an unwritable cache: load from a private copy that outlives the build folder
-                warnings.warn(f"tmtcontrol: cannot write the compile cache {folder} ({exc.strerror}); "
-                              "set TMTCONTROL_CACHE to a writable folder to keep compiled code", RuntimeWarning,
-                              stacklevel=3)
-                private = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-lib-")) / lib.name
-                shutil.copyfile(tmp_lib, private)
-                lib = private
+            lib = self._keep(tmp_lib, target)
+            # an uncached library is loaded from the build folder, which is removed
+            # after loading (the mapping stays valid): nothing is left behind
             self._bind(ctypes.CDLL(str(lib)), name)
         self.how = "compiled" if how == "cached" else how
         self.library = lib
+
+    @staticmethod
+    def _keep(built: pathlib.Path, target: pathlib.Path) -> pathlib.Path:
+        """Store ``built`` as ``target`` and prune its folder; if that folder
+        cannot be written, in the per-user fallback folder; on a full disk,
+        nowhere. Returns the path to load."""
+        try:
+            cache.store(built, target)
+            cache.prune(target.parent, keep=(target,))
+            return target
+        except OSError as exc:
+            full = exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+            reason = exc.strerror or str(exc)
+        fallback = None if full else cache.fallback_cache()
+        if fallback is not None and fallback != target.parent:
+            try:
+                cache.store(built, fallback / target.name)
+                cache.prune(fallback, keep=(fallback / target.name,))
+                warnings.warn(f"tmtcontrol: cannot write the compile cache {target.parent} ({reason}); compiled "
+                              f"code is kept in {fallback} until the system clears it; set TMTCONTROL_CACHE to a "
+                              "writable folder to keep it", RuntimeWarning, stacklevel=4)
+                return fallback / target.name
+            except OSError as exc:
+                full = exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+        if full:
+            warnings.warn(f"tmtcontrol: the disk holding the compile cache is full ({reason}); this run's compiled "
+                          "code is not cached (free some space to keep it)", RuntimeWarning, stacklevel=4)
+        else:
+            warnings.warn(f"tmtcontrol: cannot write the compile cache {target.parent} ({reason}); this run's "
+                          "compiled code is not cached; set TMTCONTROL_CACHE to a writable folder to keep it",
+                          RuntimeWarning, stacklevel=4)
+        return built
 
     def _bind(self, dll, name):
         work = getattr(dll, f"{name}_work")

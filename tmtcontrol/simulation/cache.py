@@ -1,0 +1,279 @@
+"""The compile cache of :mod:`tmtcontrol.simulation.rollout`: where compiled
+libraries live, how they are written (staged, fsync'ed, renamed, verified),
+found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
+
+* The cache is ``$TMTCONTROL_CACHE`` if set, else ``$XDG_CACHE_HOME/tmtcontrol``
+  (``~/.cache/tmtcontrol``).
+* A library ``NAME_chunk_KEY.so`` has a sidecar ``NAME_chunk_KEY.json`` with
+  its size and SHA-256, written after it; a library that does not match its
+  sidecar is rebuilt, never loaded. A write that fails (a full disk) removes
+  its staged ``.NAME.so.PID.tmp`` files: nothing partial is left.
+* An unwritable cache falls back to one folder per user,
+  ``$TMPDIR/tmtcontrol-cache-UID`` (mode 0700, owned by the user, else not
+  used), reused by every run instead of a new folder each time.
+* After each new library the folder is pruned: libraries unused for
+  :data:`MAX_AGE_DAYS` days go, then the least recently used until the
+  libraries take at most :data:`MAX_BYTES`; staged files older than an hour
+  (a killed write) go too. Loading a library marks it used (its mtime).
+* Only files named as tmtcontrol names them are ever removed; anything else in
+  the folder is left alone.
+
+Standard library only: ``tmtcontrol cache`` starts without CasADi or NumPy.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pathlib
+import re
+import stat
+import tempfile
+import time
+
+__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
+           "mark_used", "prune", "cache_info", "clear_cache", "format_cache_info"]
+
+MAX_BYTES = 200 * 2**20
+"""The compiled libraries kept in one cache folder take at most 200 MiB
+(a library of the paper's closed loop takes about 0.1 MiB)."""
+
+MAX_AGE_DAYS = 90
+"""A library not used for 90 days is removed (an old CasADi version, old sources)."""
+
+_STALE_TMP_SECONDS = 3600
+_LIBRARY = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so")
+_SIDECAR = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.json")
+_STAGED = re.compile(r"\.[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.(so|json)\.[0-9]+\.tmp")
+
+
+def cache_dir() -> pathlib.Path:
+    """The folder holding compiled libraries."""
+    env = os.environ.get("TMTCONTROL_CACHE")
+    if env:
+        return pathlib.Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return pathlib.Path(base) / "tmtcontrol"
+
+
+def _user() -> str:
+    return str(os.getuid()) if hasattr(os, "getuid") else re.sub(r"\W", "_", os.environ.get("USERNAME", "user"))
+
+
+def fallback_dir() -> pathlib.Path:
+    """The per-user folder used when :func:`cache_dir` cannot be written."""
+    return pathlib.Path(tempfile.gettempdir()) / f"tmtcontrol-cache-{_user()}"
+
+
+def _private(folder: pathlib.Path) -> bool:
+    """A real folder (not a link) owned by this user that nobody else can write:
+    libraries are loaded from it, so in a shared /tmp nothing else will do."""
+    try:
+        st = os.lstat(folder)
+    except OSError:
+        return False
+    owner_ok = not hasattr(os, "getuid") or st.st_uid == os.getuid()
+    return stat.S_ISDIR(st.st_mode) and owner_ok and not st.st_mode & 0o022
+
+
+def fallback_cache(create: bool = True) -> pathlib.Path | None:
+    """:func:`fallback_dir`, created 0700 if needed, if it is safe to use; else None."""
+    folder = fallback_dir()
+    if create:
+        try:
+            folder.mkdir(mode=0o700)
+        except FileExistsError:
+            pass
+        except OSError:
+            return None
+    return folder if _private(folder) else None
+
+
+def cache_folders() -> list[pathlib.Path]:
+    """The folders searched for a library: the cache, then the per-user
+    fallback if it exists and is safe."""
+    out = [cache_dir()]
+    fb = fallback_cache(create=False)
+    if fb is not None and fb != out[0]:
+        out.append(fb)
+    return out
+
+
+def find(name: str) -> pathlib.Path | None:
+    """The first ``folder/name`` that exists among :func:`cache_folders`."""
+    for folder in cache_folders():
+        if (folder / name).exists():
+            return folder / name
+    return None
+
+
+def _digest(path: pathlib.Path) -> dict:
+    data = path.read_bytes()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _sidecar(lib: pathlib.Path) -> pathlib.Path:
+    return lib.with_suffix(".json")
+
+
+def verify(lib: pathlib.Path) -> bool:
+    """The library matches the size and checksum recorded when it was written."""
+    try:
+        return json.loads(_sidecar(lib).read_text()) == _digest(lib)
+    except (OSError, ValueError):
+        return False
+
+
+def store(built: pathlib.Path, lib: pathlib.Path) -> None:
+    """Copy ``built`` into the cache as ``lib``: both the library and its
+    sidecar are staged and fsync'ed first, then renamed (the library first, so
+    a crash between leaves an unverifiable library, which is rebuilt). If
+    staging fails (a full disk), the staged files are removed and the error
+    raised: nothing partial stays in the cache."""
+    lib.parent.mkdir(parents=True, exist_ok=True)
+    staged = []
+    try:
+        for target, data in ((lib, built.read_bytes()), (_sidecar(lib), json.dumps(_digest(built)).encode())):
+            tmp = target.parent / f".{target.name}.{os.getpid()}.tmp"
+            staged.append((tmp, target))
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+        for tmp, target in staged:
+            os.replace(tmp, target)
+    except BaseException:
+        for tmp, _ in staged:
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+        raise
+
+
+def mark_used(lib: pathlib.Path) -> None:
+    """Record that ``lib`` was used now (its mtime), for :func:`prune`; a
+    read-only cache is left as it is."""
+    try:
+        os.utime(lib)
+    except OSError:
+        pass
+
+
+def _libraries(folder: pathlib.Path) -> list[tuple[pathlib.Path, int, float]]:
+    """``(library, bytes with its sidecar, last use)`` of tmtcontrol's libraries in ``folder``."""
+    out = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return out
+    names = {e.name for e in entries}
+    for e in entries:
+        if not _LIBRARY.fullmatch(e.name) or not e.is_file(follow_symlinks=False):
+            continue
+        try:
+            st = e.stat(follow_symlinks=False)
+        except OSError:
+            continue
+        size = st.st_size
+        side = e.name[:-3] + ".json"
+        if side in names:
+            try:
+                size += os.lstat(os.path.join(folder, side)).st_size
+            except OSError:
+                pass
+        out.append((pathlib.Path(e.path), size, st.st_mtime))
+    return out
+
+
+def _remove_library(lib: pathlib.Path) -> None:
+    for p in (lib, _sidecar(lib)):
+        try:
+            p.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def prune(folder: pathlib.Path, keep: tuple[pathlib.Path, ...] = (), max_bytes: int | None = None,
+          max_age_days: float | None = None, now: float | None = None) -> list[pathlib.Path]:
+    """Remove from ``folder`` staged files older than an hour, libraries
+    unused for ``max_age_days`` (default :data:`MAX_AGE_DAYS`), then the least
+    recently used until the rest take at most ``max_bytes`` (default
+    :data:`MAX_BYTES`); never a library in ``keep``, nor a sidecar whose
+    library stays, nor any file tmtcontrol does not name. Returns the
+    libraries removed."""
+    max_bytes = MAX_BYTES if max_bytes is None else max_bytes
+    max_age = (MAX_AGE_DAYS if max_age_days is None else max_age_days) * 86400.0
+    now = time.time() if now is None else now
+    keep = {pathlib.Path(k).resolve() for k in keep}
+    try:
+        for e in os.scandir(folder):
+            if _STAGED.fullmatch(e.name) and e.is_file(follow_symlinks=False) \
+                    and now - e.stat(follow_symlinks=False).st_mtime > _STALE_TMP_SECONDS:
+                pathlib.Path(e.path).unlink(missing_ok=True)
+    except OSError:
+        pass
+    removed = []
+    libs = sorted(_libraries(folder), key=lambda t: t[2], reverse=True)      # most recently used first
+    total, full = 0, False
+    for lib, size, used in libs:
+        full = full or total + size > max_bytes           # from here on, every older library goes
+        if lib.resolve() not in keep and (now - used > max_age or full):
+            try:
+                _remove_library(lib)
+                removed.append(lib)
+            except OSError:
+                total += size
+            continue
+        total += size
+    return removed
+
+
+def cache_info() -> dict:
+    """Path, number of libraries and their size (bytes, sidecars included)
+    of the cache and of the per-user fallback if it exists."""
+    out = []
+    for folder in cache_folders():
+        libs = _libraries(folder)
+        out.append({"path": str(folder), "libraries": len(libs), "bytes": sum(s for _, s, _ in libs)})
+    return {"folders": out, "max_bytes": MAX_BYTES, "max_age_days": MAX_AGE_DAYS}
+
+
+def clear_cache() -> dict:
+    """Remove every file tmtcontrol put in its cache folders (libraries,
+    sidecars, staged files); anything else stays. Returns the counts."""
+    count = size = 0
+    for folder in cache_folders():
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for e in entries:
+            if not (_LIBRARY.fullmatch(e.name) or _SIDECAR.fullmatch(e.name) or _STAGED.fullmatch(e.name)) \
+                    or not e.is_file(follow_symlinks=False):
+                continue
+            try:
+                n = e.stat(follow_symlinks=False).st_size
+                os.unlink(e.path)
+            except FileNotFoundError:
+                continue
+            count += e.name.endswith(".so")
+            size += n
+    return {"libraries": count, "bytes": size}
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:,.1f} MiB"
+
+
+def format_cache_info(info: dict) -> str:
+    """The lines ``tmtcontrol cache --info`` prints."""
+    lines = []
+    for i, f in enumerate(info["folders"]):
+        label = "cache" if i == 0 else "fallback (the cache was not writable)"
+        lines.append(f"{label}: {f['path']}: {f['libraries']} librar{'y' if f['libraries'] == 1 else 'ies'}, "
+                     f"{_mib(f['bytes'])}")
+    lines.append(f"bound: {_mib(info['max_bytes'])} per folder, libraries unused for {info['max_age_days']} days "
+                 "removed (least recently used first)")
+    return "\n".join(lines)
