@@ -437,3 +437,162 @@ def test_full_tmpfs_while_caching_a_library(small_disk, private_tmp, monkeypatch
     assert r.how == "compiled"
     _check_runs(r, 2.0)
     assert list(cache_dir.iterdir()) == [] and list(private_tmp.iterdir()) == []
+
+
+# -- item 3: litter is cleaned, the fallback cache reused, the cache bounded -----------------
+
+HOLDER = """
+import sys
+from tmtcontrol.files import OutputFolder
+f = OutputFolder(sys.argv[1])
+(f.path / "half.csv").write_text("1,2")
+print(f.path, flush=True)
+sys.stdin.read()
+"""
+
+
+def _stagings(parent):
+    return sorted(p.name for p in parent.iterdir() if p.name.startswith(".o.tmt-"))
+
+
+def test_staging_folders_of_killed_runs_are_cleaned_and_live_ones_kept(tmp_path):
+    """A run killed with SIGKILL leaves its staging folder; the next run into
+    the same target removes it, but never the staging folder of a run that is
+    still alive."""
+    import signal
+
+    out = tmp_path / "o"
+    live = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    doomed = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        live_path = pathlib.Path(live.stdout.readline().strip())
+        doomed_path = pathlib.Path(doomed.stdout.readline().strip())
+        doomed.send_signal(signal.SIGKILL)
+        doomed.wait()
+        assert doomed_path.exists()                                       # the litter a SIGKILL leaves
+        with OutputFolder(out) as mine:
+            assert not doomed_path.exists() and live_path.exists()
+            assert (live_path / "half.csv").read_text() == "1,2"
+            assert _stagings(tmp_path) == sorted([live_path.name, mine.path.name])
+    finally:
+        live.kill()
+        live.wait()
+        doomed.kill()
+        doomed.wait()
+
+
+def _fake_staging(parent, name, record):
+    p = parent / name
+    p.mkdir()
+    (p / "part.csv").write_text("x")
+    if record is not None:
+        (p / ".tmt-owner.json").write_text(json.dumps(record))
+    return p
+
+
+def test_a_reused_pid_or_another_host_is_told_apart(tmp_path):
+    """The owner is recorded as (host, boot, pid, start time): a record with
+    this process' pid but another start time is a dead owner whose pid was
+    reused (cleaned); this process' own record, another host's, or a folder
+    without a record are left alone; a previous output moved aside by a
+    commit that died (``.o.tmt-X.old`` without ``.o.tmt-X``) is cleaned."""
+    from tmtcontrol.files import _owner_record
+
+    me = _owner_record()
+    assert me["pid"] == os.getpid() and me["start"] is not None
+    reused = _fake_staging(tmp_path, ".o.tmt-reused", {**me, "start": str(int(me["start"]) + 1)})
+    other_boot = _fake_staging(tmp_path, ".o.tmt-reboot", {**me, "boot": "another-boot"})
+    alive = _fake_staging(tmp_path, ".o.tmt-alive", me)
+    elsewhere = _fake_staging(tmp_path, ".o.tmt-elsewhere", {**me, "host": me["host"] + "-other", "pid": 2**22 + 7})
+    unknown = _fake_staging(tmp_path, ".o.tmt-unknown", None)
+    aside = _fake_staging(tmp_path, ".o.tmt-gone.old", None)
+    aside_live = _fake_staging(tmp_path, ".o.tmt-alive.old", None)
+    other_target = _fake_staging(tmp_path, ".p.tmt-reused", {**me, "start": "1"})
+    with OutputFolder(tmp_path / "o"):
+        pass
+    assert not reused.exists() and not other_boot.exists() and not aside.exists()
+    assert alive.exists() and elsewhere.exists() and unknown.exists() and aside_live.exists()
+    assert other_target.exists()                                  # only litter of the same target is touched
+
+
+def test_unwritable_cache_reuses_one_private_fallback_folder(tmp_path, private_tmp, monkeypatch):
+    from tmtcontrol.simulation import cache, rollout
+
+    if rollout.compiler() is None:
+        pytest.skip("no C compiler")
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker / "cache"))      # below a regular file
+    with pytest.warns(RuntimeWarning, match="cannot write the compile cache .* kept in .*tmtcontrol-cache-"):
+        first = rollout.Rollout(toy_step(3.0), compile=True)
+    fallback = cache.fallback_dir()
+    assert first.how == "compiled" and first.library.parent == fallback
+    assert (fallback.stat().st_mode & 0o777) == 0o700
+    second = rollout.Rollout(toy_step(3.0), compile=True)             # the next run: from the fallback
+    assert second.how == "cached" and second.library == first.library
+    _check_runs(second, 3.0)
+    assert sorted(p.name for p in private_tmp.iterdir()) == [fallback.name]
+    # a fallback folder others could write is never used (it could hold anyone's code)
+    fallback.chmod(0o777)
+    with pytest.warns(RuntimeWarning, match="this run's compiled code is not cached"):
+        third = rollout.Rollout(toy_step(3.0), compile=True)
+    assert third.how == "compiled" and not str(third.library).startswith(str(fallback))
+    _check_runs(third, 3.0)
+    assert sorted(p.name for p in private_tmp.iterdir()) == [fallback.name]
+
+
+def _fake_library(folder, name, size, used):
+    lib = folder / f"{name}_chunk_{hashlib.sha256(name.encode()).hexdigest()[:20]}.so"
+    lib.write_bytes(b"\0" * size)
+    lib.with_suffix(".json").write_text("{}")
+    os.utime(lib, (used, used))
+    return lib
+
+
+def test_prune_keeps_the_most_recently_used_libraries_within_the_bound(tmp_path):
+    """Five fake libraries of 100 kB used 1 to 5 days ago, a bound of 350 kB,
+    an age limit of 30 days: the three most recent stay (3 x 100 kB plus
+    sidecars), the rest go, then a library unused for 40 days goes even under
+    the size bound; staged files older than an hour go; files tmtcontrol does
+    not name, and the library just built, always stay."""
+    from tmtcontrol.simulation.cache import prune
+
+    now = 1.8e9
+    libs = [_fake_library(tmp_path, f"law{i}", 100_000, now - (i + 1) * 86400) for i in range(5)]
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    stale = tmp_path / f".{libs[0].name}.123.tmp"
+    fresh = tmp_path / f".{libs[1].name}.456.tmp"
+    for p, age in ((stale, 7200), (fresh, 60)):
+        p.write_bytes(b"partial")
+        os.utime(p, (now - age, now - age))
+    keep = libs[4]                                            # the oldest, but the one just built
+    removed = prune(tmp_path, keep=(keep,), max_bytes=350_000, max_age_days=30, now=now)
+    assert sorted(removed) == sorted(libs[3:4])
+    assert all(p.exists() and p.with_suffix(".json").exists() for p in libs[:3] + [keep])
+    assert not libs[3].exists() and not libs[3].with_suffix(".json").exists()
+    assert notes.read_text() == "mine" and fresh.exists() and not stale.exists()
+    old = _fake_library(tmp_path, "old", 10, now - 40 * 86400)
+    assert prune(tmp_path, max_bytes=10**9, max_age_days=30, now=now) == [old]
+
+
+def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
+    """``tmtcontrol cache --info`` names the folder, counts the libraries and
+    their size; ``--clear`` removes only tmtcontrol's files."""
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "no-fallback"))
+    for i in range(2):
+        _fake_library(tmp_path, f"law{i}", 2**20, 1.7e9)
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "law0_chunk_other.so").write_text("not tmtcontrol's name")
+    assert main(["cache", "--info"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == f"cache: {tmp_path}: 2 libraries, 2.0 MiB"          # 2 x 1 MiB plus two 2-byte sidecars
+    assert main(["cache", "--clear"]) == 0
+    assert capsys.readouterr().out == "removed 2 compiled libraries (2.0 MiB)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "notes.txt"]
+    assert main(["cache"]) == 0 and capsys.readouterr().out.startswith(f"cache: {tmp_path}: 0 libraries, 0.0 MiB")

@@ -185,6 +185,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also compute the joint torques of eqs. (5)-(6) (for a torque-controlled robot)")
     p.set_defaults(func=_export)
 
+    p = sub.add_parser("cache", help="the compile cache: where it is and its size (--info), or empty it (--clear)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--info", action="store_true", help="print the cache folder, its libraries and size (default)")
+    g.add_argument("--clear", action="store_true", help="remove the libraries tmtcontrol put in the cache")
+    p.set_defaults(func=_cache)
+
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
     p.add_argument("name", nargs="?", default="paper", choices=["paper"])
     p.add_argument("--schema", action="store_true", help="print the JSON Schema of scenario files")
@@ -518,6 +524,18 @@ def _robot(args) -> int:
     check = check_robot(robot, samples=args.samples, seed=args.seed)
     print(describe(robot, check))
     return 0 if check.ok else 1
+
+
+def _cache(args) -> int:
+    from .simulation.cache import cache_info, clear_cache, format_cache_info
+
+    if args.clear:
+        done = clear_cache()
+        print(f"removed {done['libraries']} compiled librar{'y' if done['libraries'] == 1 else 'ies'} "
+              f"({done['bytes'] / 2**20:,.1f} MiB)")
+    else:
+        print(format_cache_info(cache_info()))
+    return 0
 
 
 def _scenario(args) -> int:
