@@ -596,3 +596,91 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().out == "removed 2 compiled libraries (2.0 MiB)\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "notes.txt"]
     assert main(["cache"]) == 0 and capsys.readouterr().out.startswith(f"cache: {tmp_path}: 0 libraries, 0.0 MiB")
+
+
+# -- item 4: concurrent commits into one target ----------------------------------------------
+
+WRITER = """
+import os, sys
+from tmtcontrol.files import OutputFolder
+out, n = sys.argv[1], int(sys.argv[2])
+for i in range(n):
+    with OutputFolder(out) as f:
+        (f.path / "sub").mkdir()
+        (f.path / "sub" / "run.txt").write_text(f"{os.getpid()} {i}")
+        (f.path / "summary.json").write_text('{"i": %d}' % i)
+        f.commit("writer")
+print("ok", flush=True)
+"""
+
+
+def test_four_processes_committing_into_one_target_all_succeed(tmp_path):
+    """4 processes x 25 commits into the same --out: every commit succeeds
+    (each replaces a tmtcontrol output; the last one wins), the result is one
+    complete output whose manifest checks, and nothing is left beside it."""
+    out = tmp_path / "o"
+    procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(out), "25"], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(4)]
+    results = [p.communicate(timeout=300) for p in procs]
+    for p, (stdout, stderr) in zip(procs, results):
+        assert p.returncode == 0 and stdout == "ok\n" and stderr == "", stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o"]
+    m = json.loads((out / MANIFEST).read_text())
+    assert set(m["files"]) == {"sub/run.txt", "summary.json"} and m["folders"] == ["sub"]
+    pid, i = (out / "sub" / "run.txt").read_text().split()
+    assert int(i) == 24 and int(pid) in {p.pid for p in procs}      # the last commit of one of them
+    with OutputFolder(out):                                          # and it is a valid previous output
+        pass
+
+
+def test_the_check_and_the_commit_hold_the_parent_folders_lock(tmp_path, monkeypatch):
+    """The check, the staging folder's creation and the rename happen under an
+    exclusive flock of the target's parent folder."""
+    import fcntl
+
+    import tmtcontrol.files as files
+
+    calls = []
+    real = fcntl.flock
+
+    def flock(fd, op):
+        calls.append((os.path.realpath(f"/proc/self/fd/{fd}"), op))
+        return real(fd, op)
+
+    monkeypatch.setattr(files.fcntl, "flock", flock)
+    with OutputFolder(tmp_path / "a" / "o") as f:
+        assert calls == [(str(tmp_path / "a"), fcntl.LOCK_EX)]
+        f.commit()
+    assert calls == [(str(tmp_path / "a"), fcntl.LOCK_EX)] * 2
+
+
+# -- item 5: a failed run leaves no parent folders it created ---------------------------------
+
+def test_a_failed_run_removes_the_parent_folders_it_created(tmp_path, monkeypatch, capsys):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "mine.txt").write_text("mine")
+    with pytest.raises(RuntimeError):
+        with OutputFolder(tmp_path / "a" / "b" / "c" / "out"):
+            assert (tmp_path / "a" / "b" / "c").is_dir()
+            raise RuntimeError("the run failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a"]          # a/ was there before: kept
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["mine.txt"]
+    # through the CLI: a run that fails after the folder was made (here, a full disk)
+    import tmtcontrol.simulation.output as output
+
+    def full(res, path, **kw):
+        raise _enospc(str(path))
+
+    monkeypatch.setattr(output, "write_timeseries", full)
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", *SHORT, "--out", "x/y/z"]) == 3
+    assert "x/y/z" in capsys.readouterr().err and not (tmp_path / "x").exists()
+    # a successful run keeps them, of course
+    commit(tmp_path / "p" / "q", {"f": b"1"})
+    assert (tmp_path / "p" / "q" / "f").read_bytes() == b"1"
+
+
+def test_an_output_name_too_long_is_one_line(tmp_path):
+    with pytest.raises(OutputError, match=r"^--out: cannot write .* \(File name too long\)$"):
+        OutputFolder(tmp_path / ("n" * 300))
+    assert list(tmp_path.iterdir()) == []
