@@ -51,7 +51,9 @@ def test_example_is_valid_and_its_draws_depend_only_on_the_seed():
     ('[grid]\n"controller.f_d" = { linspace = [1, 2] }', r"grid\.controller\.f_d: expected a list of values, \{ linspace"),
     ('[random]\n"sensor.noise_std" = { uniform = [0.0, 0.1] }', r"random\.samples: required"),
     ('[random]\nsamples = 2\n"sensor.noise_std" = { gauss = [0.0, 0.1] }', r"random\.sensor\.noise_std: expected"),
-    ('[random]\nsamples = 2\n"sensor.noise_std" = { uniform = [-1.0, 0.1] }', r"case 0 .*sensor\.noise_std"),
+    # a random axis is validated over its whole range (both ends), not only on the draws it happens to make
+    ('[random]\nsamples = 2\n"sensor.noise_std" = { uniform = [-1.0, 0.1] }',
+     r"random\.sensor\.noise_std: uniform range \[-1, 0\.1\] reaches -1\.0: sensor\.noise_std: must be >= 0"),
     ('scenario = "missing.toml"\n[grid]\n"controller.f_d" = [1.0]', r"scenario: .*missing\.toml"),
     ('[grids]\n"controller.f_d" = [1.0]', r"grids: unknown key"),
     ('scenario = "paper"', r"a sweep needs at least one axis"),

@@ -805,7 +805,7 @@ def read_text_file(path: str | pathlib.Path, max_bytes: int = MAX_INPUT_BYTES) -
             raise InputFileError(f"{st.st_size / 2**20:.1f} MiB, larger than the {max_bytes / 2**20:g} MiB limit")
         chunks, size = [], 0
         while size <= max_bytes:            # a file growing while it is read stops at the limit too
-            chunk = os.read(fd, max_bytes + 1 - size)
+            chunk = os.read(fd, min(max(st.st_size + 1, 65536), 2**20, max_bytes + 1 - size))   # no 16 MiB buffer
             if not chunk:
                 break
             chunks.append(chunk)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pathlib
 import re
+import sys
 import time
 
 from ..files import OutputFolder, write_json
@@ -26,7 +27,7 @@ def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps
     rows: list[dict] = []
     prog = Progress(len(sweep.cases)) if progress else None
     try:
-        run_cases(sweep, list(sweep.cases), rows.extend, workers, dask, max_steps, prog)
+        run_cases(sweep, sweep.cases, rows.extend, workers, dask, max_steps, prog)
     finally:
         if prog is not None:
             prog.close()
@@ -184,7 +185,8 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
     with folder:
         partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume)
         done = partial.done()
-        todo = [c for c in sweep.cases if c.index not in done]
+        todo = sweep.cases.without(done)           # a view: the cases are generated as they run
+        print(sweep.plan(len(todo), workers), file=sys.stderr, flush=True)
         prog = Progress(len(sweep.cases), len(done))
         t0 = time.perf_counter()
         try:
