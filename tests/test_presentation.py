@@ -188,6 +188,27 @@ def test_analyze_plot_draws_the_printed_limit_at_the_worst_case_mass(monkeypatch
     assert max(limits) > 1.02 * d["max_stable_stiffness"]
 
 
+def test_analyze_plot_says_when_its_chart_leaves_out_the_delay(monkeypatch, tmp_path):
+    from matplotlib.figure import Figure
+
+    from tmtcontrol.stability import analyze
+    from tmtcontrol.stability import figures as sf
+
+    def fake_region(*a, **kw):
+        fig = Figure()
+        fig.add_subplot().set_title("Sampled-data stability margin")
+        return fig
+
+    titles = []
+    monkeypatch.setattr(sf, "stability_region_figure", fake_region)
+    monkeypatch.setattr(sf, "save_figures", lambda makers, data, folder, dpi=0: titles.extend(
+        make(data).axes[0].get_title() for name, make in makers if name == "stability_region"))
+    for delay in (0, 1):
+        sf.save_analysis_figures(analyze(m=1.0, b=60.0, k=100.0, k_e_min=2000.0, k_e_max=20000.0, Ts=1e-3,
+                                         delay=delay), tmp_path)
+    assert "without the delay" not in titles[0] and "without the delay and x_e error" in titles[1]
+
+
 # -- item 14: Figs. 1, 2, 4 ------------------------------------------------------------------
 
 def test_root_locus_and_damping_figures_mark_the_operating_range():
