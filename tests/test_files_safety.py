@@ -684,3 +684,38 @@ def test_an_output_name_too_long_is_one_line(tmp_path):
     with pytest.raises(OutputError, match=r"^--out: cannot write .* \(File name too long\)$"):
         OutputFolder(tmp_path / ("n" * 300))
     assert list(tmp_path.iterdir()) == []
+
+
+# -- item 6: the docs quote the messages the code prints ----------------------------------------
+
+def test_docs_outputs_quote_the_messages_as_printed(tmp_path, monkeypatch):
+    """Each example line in docs/outputs.md is regenerated here from the code."""
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.scenario import ScenarioError
+    from tmtcontrol.simulation.simulator import check_run_size
+
+    docs = (pathlib.Path(__file__).parents[1] / "docs" / "outputs.md").read_text()
+    with pytest.raises(ScenarioError) as err:
+        check_run_size(apply_overrides(paper_scenario(), ["trajectory.cycles=1000"]))
+    assert f"error: {err.value}\n" in docs
+    monkeypatch.chdir(tmp_path)
+    commit(pathlib.Path("cmp"), {"tmt/timeseries.csv": b"1"})
+    (tmp_path / "cmp" / "tmt" / "my_analysis.txt").write_text("notes")
+    with pytest.raises(OutputError) as err:
+        OutputFolder("cmp")
+    assert f"error: {err.value}\n" in docs
+    with pytest.raises(OutputNotSaved) as err:
+        with OutputFolder("tmt-results"):
+            raise _enospc()
+    assert f"error: {err.value}\n" in docs
+
+
+def test_gitignore_lists_every_default_output_folder():
+    """The defaults of every command's --out (from the parser) are ignored by git."""
+    from tmtcontrol.cli import build_parser
+
+    ignored = (pathlib.Path(__file__).parents[1] / ".gitignore").read_text().split()
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    defaults = {p.get_default("out") for p in sub.choices.values()} - {None}
+    assert {"tmt-results", "tmt-compare", "tmt-sweep", "tmt-report"} <= defaults
+    assert {f"{d}/" for d in defaults} <= set(ignored), defaults
