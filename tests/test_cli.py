@@ -76,6 +76,12 @@ def test_scenario_command_round_trips(tmp_path):
     ("name = 't'\n", ["--set", "nope.x=1"], "nope: unknown key"),
     ("", [], "empty scenario"),
     (None, [], "no such scenario file"),
+    # issue #27 items 5-6: an OverflowError, an IndexError, a segment "0.0-0.0", a filter that silently filtered nothing
+    ("[trajectory]\nperiod = 1.3e-289\n", [], "trajectory.period: must be at least 10 control periods"),
+    ("[environment.stiffness]\nsegment = 1e-12\n", [], "environment.stiffness.segment: must be 0"),
+    ("[sensor]\nfilter_cutoff = 1e9\n", [], "sensor.filter_cutoff: must be below the Nyquist frequency"),
+    ("[controller]\ndelay_samples = 1.0\n", [], "controller.delay_samples: expected an integer"),
+    ("name = 't'\n", ["--set", "environment.stiffness.values=[1e300]"], "environment.stiffness.values[0]: must be <= 1e+10"),
 ])
 def test_bad_input_one_line_exit_2_nothing_written(tmp_path, content, args, needle):
     path = tmp_path / "s.toml"

@@ -471,3 +471,18 @@ def test_the_plan_is_printed_before_the_first_case_runs(tmp_path, capsys, monkey
 
     est = (10_000 * SECONDS_PER_STEP + 4 * SECONDS_PER_CASE) / 2
     assert line == f"sweep: 4 cases (2 x 2 grid); about {est:.0f} s on 2 workers (estimate)" and todo == 4
+
+
+def test_the_docs_quote_the_plan_line_of_the_example():
+    # docs/sweeps.md and docs/cli.md quote the line printed before the example sweep's first case
+    import pathlib
+    import re
+    import tomllib
+
+    from tmtcontrol.sweep import EXAMPLE, sweep_from_dict
+
+    line = sweep_from_dict(tomllib.loads(EXAMPLE)).plan(workers=2)
+    docs = pathlib.Path(__file__).parents[1] / "docs"
+    for page in ("sweeps.md", "cli.md"):
+        text = re.sub(r"\s+", " ", (docs / page).read_text())
+        assert f"`{line}`" in text, (page, line)
