@@ -203,9 +203,9 @@ def test_analyze_plot_says_when_its_chart_leaves_out_the_delay(monkeypatch, tmp_
     monkeypatch.setattr(sf, "stability_region_figure", fake_region)
     monkeypatch.setattr(sf, "save_figures", lambda makers, data, folder, dpi=0: titles.extend(
         make(data).axes[0].get_title() for name, make in makers if name == "stability_region"))
-    for delay in (0, 1):
-        sf.save_analysis_figures(analyze(m=1.0, b=60.0, k=100.0, k_e_min=2000.0, k_e_max=20000.0, Ts=1e-3,
-                                         delay=delay), tmp_path)
+    d = analyze(m=1.0, b=60.0, k=100.0, k_e_min=2000.0, k_e_max=20000.0, Ts=1e-3)
+    for delay in (0, 1):            # the chart reads the delay from the analysis (with it: the law's loop, ~1 s)
+        sf.save_analysis_figures(dict(d, delay=delay), tmp_path)
     assert "without the delay" not in titles[0] and "without the delay and x_e error" in titles[1]
 
 
@@ -395,17 +395,18 @@ def test_pdf_is_tagged_headed_by_the_right_section_and_marks_continued_tables(pa
     heading = {f"{n}. {htmllib.unescape(t)}": int(n) for n, t in titles}
     current, seen_tables, continued = 0, set(), 0
     for i, page in enumerate(pdf.pages):
-        lines = [line.strip() for line in page.extract_text().splitlines()]
+        text = page.extract_text()
+        lines = [line.strip() for line in text.splitlines()]
         header = next(m.group(1).strip() for line in lines if (m := re.search(r"scenario paper ·(.*)$", line)))
         on_page = [heading[line] for line in lines if line in heading]
         first = next(line for line in lines if line)
         expected = heading[first] if first in heading else current
         if i > 0:                       # page 1's header names the title block (no section yet)
             assert header == next(k for k, v in heading.items() if v == expected), (i + 1, header)
-        for m in re.finditer(r"Table (\d+) \(continued\)", page.extract_text()):
+        for m in re.finditer(r"Table (\d+) \(continued\)", text):
             assert int(m.group(1)) in seen_tables, (i + 1, m.group(0))
             continued += 1
-        seen_tables |= {int(n) for n in re.findall(r"^Table (\d+)\.", page.extract_text(), flags=re.M)}
+        seen_tables |= {int(n) for n in re.findall(r"^Table (\d+)\.", text, flags=re.M)}
         current = on_page[-1] if on_page else current
     assert continued >= 2                # the scenario and derivation tables run over a page
 
