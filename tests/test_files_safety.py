@@ -719,3 +719,67 @@ def test_gitignore_lists_every_default_output_folder():
     defaults = {p.get_default("out") for p in sub.choices.values()} - {None}
     assert {"tmt-results", "tmt-compare", "tmt-sweep", "tmt-report"} <= defaults
     assert {f"{d}/" for d in defaults} <= set(ignored), defaults
+
+
+SWEEP = """scenario = "paper"
+[grid]
+"environment.stiffness.values" = [[2000.0], [20000.0]]
+"trajectory.cycles" = [0.1]
+"""
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("command", ["sweep", "report"])
+def test_full_tmpfs_during_sweep_and_report(small_disk, tmp_path, command):
+    """The same for the two other long commands (sweep: its partial folder
+    and its results; report: its HTML written by its second process). A
+    sweep's previous output stays; a report's first run meets the full disk."""
+    (tmp_path / "s.toml").write_text(SWEEP)
+    out = small_disk / "o"
+    args = CLI + (["sweep", str(tmp_path / "s.toml"), "--no-plots", "--out", str(out)] if command == "sweep" else
+                  ["report", "--set", "trajectory.cycles=0.5", "--format", "html", "--out", str(out)])
+    if command == "sweep":
+        assert subprocess.run(args, capture_output=True, text=True).returncode == 0
+    _fill(small_disk, leave=2000 if command == "sweep" else 200_000)
+    before = snapshot(small_disk)
+    r = subprocess.run(args, capture_output=True, text=True)
+    assert r.returncode == 3, r.stderr
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error")]
+    assert errors == [f"error: --out: no space left on the disk holding {out} (No space left on device); free "
+                      f"some space and run again (the results were not saved; {out} was left as it was)"]
+    assert "Traceback" not in r.stderr
+    assert snapshot(small_disk) == before and litter(small_disk) == []
+
+
+def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp_path, monkeypatch):
+    """Ctrl-C arriving between moving the previous output aside and renaming
+    the new one into place is acted on after both renames: the target is
+    then the new, complete output (never missing, never the old one lost)."""
+    import signal
+
+    import tmtcontrol.files as files
+
+    out = commit(tmp_path / "o")
+    real = os.replace
+    calls = []
+
+    def replace(a, b):
+        real(a, b)
+        calls.append(b)
+        if len(calls) == 1:                                   # the previous output is aside now
+            os.kill(os.getpid(), signal.SIGINT)
+
+    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    files.install_signal_handlers()
+    try:
+        monkeypatch.setattr(files.os, "replace", replace)
+        with pytest.raises(files.Interrupted):
+            with OutputFolder(out) as folder:
+                (folder.path / "new.txt").write_text("complete")
+                folder.commit()
+    finally:
+        signal.signal(signal.SIGINT, previous[0])
+        signal.signal(signal.SIGTERM, previous[1])
+        files._pending.clear()
+    assert len(calls) == 2 and (out / "new.txt").read_text() == "complete"
+    assert litter(tmp_path) == []

@@ -469,23 +469,27 @@ class OutputFolder:
                     raise OutputNotSaved(f"{self.flag}: {self.shown} changed during the run: {reason}; the results "
                                          f"were not saved and {self.shown} was left as it was")
                 aside = pathlib.Path(f"{self.path}.old")
-                with _signals_deferred():
-                    (self.path / _OWNER).unlink(missing_ok=True)
-                    try:
-                        if os.path.lexists(self.out):
-                            os.replace(self.out, aside)
-                        os.replace(self.path, self.out)
-                    except OSError as exc:
-                        if os.path.lexists(aside) and not os.path.lexists(self.out):
-                            os.replace(aside, self.out)          # put the previous output back
-                        _write_owner(self.path)
-                        if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
-                            continue          # another (unlocked) writer changed it meanwhile: check again
-                        if disk_full(exc):
-                            raise
-                        raise OutputError(f"{self.flag}: cannot write {self.out} ({exc.strerror})") from None
-                    self.committed = True
-                shutil.rmtree(aside, ignore_errors=True)
+                try:
+                    with _signals_deferred():
+                        (self.path / _OWNER).unlink(missing_ok=True)
+                        try:
+                            if os.path.lexists(self.out):
+                                os.replace(self.out, aside)
+                            os.replace(self.path, self.out)
+                        except OSError as exc:
+                            if os.path.lexists(aside) and not os.path.lexists(self.out):
+                                os.replace(aside, self.out)          # put the previous output back
+                            _write_owner(self.path)
+                            if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
+                                continue          # another (unlocked) writer changed it meanwhile: check again
+                            if disk_full(exc):
+                                raise
+                            raise OutputNotSaved(f"{self.flag}: cannot write {self.shown} ({exc.strerror}); the "
+                                                 "results were not saved") from None
+                        self.committed = True
+                finally:
+                    if self.committed:        # also when a deferred signal is raised just now
+                        shutil.rmtree(aside, ignore_errors=True)
                 return self.out
         raise OutputNotSaved(f"{self.flag}: {self.shown} keeps changing (another program is writing it); "
                              "the results were not saved")
