@@ -337,6 +337,14 @@ def test_report_columns_carry_one_unit_and_the_overshoot_beside_its_bound_reads_
                  if row[col][0].isdigit() or row[col][0] == "−"}
         assert len(units) == 1, (col, units)
     design = _section(html, "design")
+
+    def significant(cell):                  # "0.00210 %" -> 3, "100 %" -> 3, "14.9 %" -> 3
+        digits = re.match(r"[\d,.]+", cell).group(0).replace(",", "").replace(".", "").lstrip("0")
+        return len(digits)
+
+    simulated = _rows(design, "designs simulated")
+    assert {significant(r[1]) for r in simulated} == {3}                  # not 0.0021 % beside 0.00211 %
+    assert {significant(r[4]) for r in rows if r[4][0].isdigit()} == {3}     # the per-segment overshoot
     optimal = next(r for r in _rows(design, "Damping designs") if r[0].startswith("optimal"))
     # IPOPT's optimum sits on the 5 % bound from below (4.995 % measured): not printed as the bound itself
     assert re.split(r"\s", optimal[3])[0] != "5" and float(re.split(r"\s", optimal[3])[0]) < 5.0
