@@ -606,3 +606,22 @@ def test_no_printed_page_is_mostly_blank(paper_report):
                               if isinstance(b, (boxes.LineBox, boxes.ReplacedBox, boxes.TableRowBox))])
         filled.append((bottom - top) / box.height)
     assert len(pages) >= 10 and min(filled[:-1]) >= 0.55, [f"{f:.0%}" for f in filled]
+
+
+def test_outputs_page_lists_what_compare_and_sweep_write(tmp_path):
+    """docs/outputs.md names the files of `compare` and `sweep` and OUT.partial/
+    (the figure names are the ones the code writes)."""
+    from tmtcontrol.sweep.run import PartialFolder
+
+    text = (ROOT / "docs" / "outputs.md").read_text()
+    rows = {m.group(1): m.group(0) for m in re.finditer(r"^\| `(compare|sweep)` \|.*$", text, flags=re.M)}
+    import inspect
+
+    from tmtcontrol.simulation import figures as simf
+
+    written = re.findall(r'\("(compare_\w+)", ', inspect.getsource(simf.save_comparison_figures))
+    assert written and all(f"`{name}.png`" in rows["compare"] for name in written)
+    assert "`summary.json`" in rows["compare"] and "`LAW/timeseries.csv`" in rows["compare"]
+    for name in ("results.parquet", "summary.json", "sweep_map.png", "law_distribution.png"):
+        assert f"`{name}`" in rows["sweep"]
+    assert PartialFolder.path_for(tmp_path / "OUT").name == "OUT.partial" and "`OUT.partial/`" in text
