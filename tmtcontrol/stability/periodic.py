@@ -217,7 +217,7 @@ class PeriodicModel:
             s = s.copy()
             s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
         f = np.ravel(F)
-        if residual > 1e-7:
+        if residual > 1e-6:
             raise AnalysisError(f"k_e = {k_e:.6g} N/m: the periodic orbit did not converge "
                                 f"(residual {residual:.3g} after {it} Newton steps)")
         if not f.min() > 0.0:
