@@ -148,7 +148,7 @@ def check_extensions(rng) -> CheckResult:
                       delay=p["delay"], delta=p["x_e_error"], model_scale=sc.robot.model_mass_scale)
             b = (lambda ke: equilibrium_damping(sc, ke)) if schedule == "zeta" else (lambda ke: p["b"])
             limit = _limit(lambda ke: law_loop(law, sc.controller.law, k_e=ke, b=b(ke), **kw).spectral_radius < 1.0,
-                           k_lo=1e3, k_hi=1e7, rtol=1e-3)
+                           k_lo=3e3, k_hi=1e5, rtol=1e-3)
             runner = LoopRunner(sc, compile=False)
             below = _periodic_decay(runner, (1 - EXTENSION_BAND) * limit, 5)
             above = _periodic_decay(runner, (1 + EXTENSION_BAND) * limit, 5)
