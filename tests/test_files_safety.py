@@ -452,7 +452,7 @@ sys.stdin.read()
 
 
 def _stagings(parent):
-    return sorted(p.name for p in parent.iterdir() if p.name.startswith(".o.tmt-"))
+    return sorted(p.name for p in parent.iterdir() if p.name.startswith(".o.tmt-") and p.is_dir())
 
 
 def test_staging_folders_of_killed_runs_are_cleaned_and_live_ones_kept(tmp_path):
@@ -472,8 +472,11 @@ def test_staging_folders_of_killed_runs_are_cleaned_and_live_ones_kept(tmp_path)
         doomed.send_signal(signal.SIGKILL)
         doomed.wait()
         assert doomed_path.exists()                                       # the litter a SIGKILL leaves
+        assert pathlib.Path(f"{doomed_path}.owner").exists()
         with OutputFolder(out) as mine:
             assert not doomed_path.exists() and live_path.exists()
+            assert not pathlib.Path(f"{doomed_path}.owner").exists() and pathlib.Path(f"{live_path}.owner").exists()
+            assert not any(p.name.startswith(".") for p in live_path.iterdir())   # the record is not an output
             assert (live_path / "half.csv").read_text() == "1,2"
             assert _stagings(tmp_path) == sorted([live_path.name, mine.path.name])
     finally:
@@ -488,7 +491,7 @@ def _fake_staging(parent, name, record):
     p.mkdir()
     (p / "part.csv").write_text("x")
     if record is not None:
-        (p / ".tmt-owner.json").write_text(json.dumps(record))
+        (parent / (name + ".owner")).write_text(json.dumps(record))
     return p
 
 
@@ -510,8 +513,12 @@ def test_a_reused_pid_or_another_host_is_told_apart(tmp_path):
     aside = _fake_staging(tmp_path, ".o.tmt-gone.old", None)
     aside_live = _fake_staging(tmp_path, ".o.tmt-alive.old", None)
     other_target = _fake_staging(tmp_path, ".p.tmt-reused", {**me, "start": "1"})
+    orphan = tmp_path / ".o.tmt-committed.owner"                  # its folder was committed, then a crash
+    orphan.write_text(json.dumps(me))
     with OutputFolder(tmp_path / "o"):
         pass
+    assert not orphan.exists() and not (tmp_path / ".o.tmt-reused.owner").exists()
+    assert (tmp_path / ".o.tmt-alive.owner").exists()
     assert not reused.exists() and not other_boot.exists() and not aside.exists()
     assert alive.exists() and elsewhere.exists() and unknown.exists() and aside_live.exists()
     assert other_target.exists()                                  # only litter of the same target is touched

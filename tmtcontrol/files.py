@@ -20,7 +20,7 @@ Every command that writes goes through :class:`OutputFolder`:
   commit one after the other (the last one wins);
 * on any error, Ctrl-C or SIGTERM the staging folder is removed, and so are
   the parent folders the run created. Staging folders left by a killed run
-  (their owner process, recorded inside, is gone) are removed by the next run
+  (their owner process, recorded beside it, is gone) are removed by the next run
   into the same target.
 
 Errors: :class:`OutputError` (a ``ValueError``: bad input, exit code 2 in the
@@ -66,10 +66,12 @@ folder it describes counts as foreign."""
 NOT_SAVED_EXIT = 3
 """The CLI's exit code for :class:`OutputNotSaved`."""
 
-_OWNER = ".tmt-owner.json"
-"""Inside a staging folder while it is being written: the owner process (host,
-boot, pid, start time), so a later run can tell a live staging folder from
-the litter of a killed one. Removed before the commit."""
+_OWNER = ".owner"
+"""Beside a staging folder ``.NAME.tmt-XXXX`` while it is being written, as
+``.NAME.tmt-XXXX.owner``: the owner process (host, boot, pid, start time), so
+a later run can tell a live staging folder from the litter of a killed one.
+Outside the folder, so the outputs never see it; removed with the folder or
+after the commit."""
 
 
 class OutputError(ValueError):
@@ -234,7 +236,7 @@ def _manifest_of(folder: pathlib.Path, command: str) -> dict:
 
     files, folders = {}, []
     for rel, kind in _walk(folder):
-        if rel in (MANIFEST, _OWNER):
+        if rel == MANIFEST:
             continue
         if kind == "dir":
             folders.append(rel)
@@ -293,8 +295,12 @@ def _owner_gone(record) -> bool:
     return st[0] == "Z" or (record.get("start") is not None and st[1] != record["start"])
 
 
-def _write_owner(folder: pathlib.Path) -> None:
-    (folder / _OWNER).write_text(json.dumps(_owner_record()), encoding="utf-8")
+def _owner_file(staging: pathlib.Path) -> pathlib.Path:
+    return staging.with_name(staging.name + _OWNER)
+
+
+def _write_owner(staging: pathlib.Path) -> None:
+    _owner_file(staging).write_text(json.dumps(_owner_record()), encoding="utf-8")
 
 
 def _clean_stale(parent: pathlib.Path, name: str) -> None:
@@ -307,17 +313,22 @@ def _clean_stale(parent: pathlib.Path, name: str) -> None:
     except OSError:
         return
     for p in entries:
+        if p.name.endswith(_OWNER):
+            if not p.is_symlink() and p.is_file() and not os.path.lexists(p.with_name(p.name[:-len(_OWNER)])):
+                p.unlink(missing_ok=True)             # its folder is gone (committed or removed)
+            continue
         if p.is_symlink() or not p.is_dir():
             continue
         if p.name.endswith(".old"):
             stale = not os.path.lexists(p.with_name(p.name[:-4]))
         else:
             try:
-                stale = _owner_gone(json.loads((p / _OWNER).read_text(encoding="utf-8")))
+                stale = _owner_gone(json.loads(_owner_file(p).read_text(encoding="utf-8")))
             except (OSError, ValueError):
                 stale = False         # no record: it cannot be told from a live one
         if stale:
             shutil.rmtree(p, ignore_errors=True)
+            _owner_file(p).unlink(missing_ok=True)
 
 
 @contextlib.contextmanager
@@ -444,6 +455,10 @@ class OutputFolder:
         (if they are empty); the target is untouched."""
         if self.path is not None:
             shutil.rmtree(self.path, ignore_errors=True)
+            try:
+                _owner_file(self.path).unlink(missing_ok=True)
+            except OSError:
+                pass
         for p in self._made:
             try:
                 p.rmdir()
@@ -471,7 +486,6 @@ class OutputFolder:
                 aside = pathlib.Path(f"{self.path}.old")
                 try:
                     with _signals_deferred():
-                        (self.path / _OWNER).unlink(missing_ok=True)
                         try:
                             if os.path.lexists(self.out):
                                 os.replace(self.out, aside)
@@ -479,7 +493,6 @@ class OutputFolder:
                         except OSError as exc:
                             if os.path.lexists(aside) and not os.path.lexists(self.out):
                                 os.replace(aside, self.out)          # put the previous output back
-                            _write_owner(self.path)
                             if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
                                 continue          # another (unlocked) writer changed it meanwhile: check again
                             if disk_full(exc):
@@ -489,6 +502,7 @@ class OutputFolder:
                         self.committed = True
                 finally:
                     if self.committed:        # also when a deferred signal is raised just now
+                        _owner_file(self.path).unlink(missing_ok=True)
                         shutil.rmtree(aside, ignore_errors=True)
                 return self.out
         raise OutputNotSaved(f"{self.flag}: {self.shown} keeps changing (another program is writing it); "
