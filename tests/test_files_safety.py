@@ -790,3 +790,31 @@ def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp
         files._pending.clear()
     assert len(calls) == 2 and (out / "new.txt").read_text() == "complete"
     assert litter(tmp_path) == []
+
+
+def test_compile_litter_in_the_temporary_folder_is_removed_after_a_day(private_tmp):
+    """Build folders of a killed compile (tmtcontrol-cg-*) and the per-run
+    library folders of older versions (tmtcontrol-lib-*) older than a day
+    go; younger ones (a compile under way), the per-user fallback and
+    anything else stay; ``cache --clear`` removes them whatever their age."""
+    import time
+
+    from tmtcontrol.simulation.cache import clear_cache, fallback_cache, prune_temporary
+
+    now = time.time()                          # clear_cache looks at the real clock
+    made = {}
+    for name, age_h in (("tmtcontrol-cg-abc123", 30), ("tmtcontrol-lib-x_9", 48), ("tmtcontrol-cg-fresh", 2),
+                        ("tmtcontrol-other", 99), ("mine-tmtcontrol-cg-1", 99)):
+        p = private_tmp / name
+        p.mkdir()
+        (p / "lib.so").write_bytes(b"x")
+        os.utime(p, (now - age_h * 3600, now - age_h * 3600))
+        made[name] = p
+    fallback = fallback_cache()
+    os.utime(fallback, (now - 99 * 3600, now - 99 * 3600))
+    assert prune_temporary(now=now) == 2
+    assert sorted(p.name for p in private_tmp.iterdir()) == sorted(
+        ["tmtcontrol-cg-fresh", "tmtcontrol-other", "mine-tmtcontrol-cg-1", fallback.name])
+    clear_cache()
+    assert sorted(p.name for p in private_tmp.iterdir()) == sorted(
+        ["tmtcontrol-other", "mine-tmtcontrol-cg-1", fallback.name])

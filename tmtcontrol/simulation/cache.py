@@ -14,7 +14,10 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
 * After each new library the folder is pruned: libraries unused for
   :data:`MAX_AGE_DAYS` days go, then the least recently used until the
   libraries take at most :data:`MAX_BYTES`; staged files older than an hour
-  (a killed write) go too. Loading a library marks it used (its mtime).
+  (a killed write) go too, and so do this user's build folders
+  (``$TMPDIR/tmtcontrol-cg-*``, left by a compile that was killed) and
+  private library folders of older versions (``tmtcontrol-lib-*``) older
+  than a day. Loading a library marks it used (its mtime).
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -33,7 +36,7 @@ import tempfile
 import time
 
 __all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
-           "mark_used", "prune", "cache_info", "clear_cache", "format_cache_info"]
+           "mark_used", "prune", "prune_temporary", "cache_info", "clear_cache", "format_cache_info"]
 
 MAX_BYTES = 200 * 2**20
 """The compiled libraries kept in one cache folder take at most 200 MiB
@@ -230,6 +233,39 @@ def prune(folder: pathlib.Path, keep: tuple[pathlib.Path, ...] = (), max_bytes: 
     return removed
 
 
+_BUILD_LITTER = re.compile(r"tmtcontrol-(cg|lib)-[A-Za-z0-9_]+")
+"""Temporary folders of a compile killed half-way (``tmtcontrol-cg-*``, the
+build folder) and of versions before the per-user fallback
+(``tmtcontrol-lib-*``, one per run with an unwritable cache)."""
+
+
+def prune_temporary(max_age_days: float = 1.0, now: float | None = None) -> int:
+    """Remove this user's compile litter from the temporary folder: build
+    folders and old private library folders (see :data:`_BUILD_LITTER`)
+    older than ``max_age_days`` (a build takes minutes at most; a library
+    already loaded keeps working without its file). Returns how many."""
+    now = time.time() if now is None else now
+    removed = 0
+    try:
+        entries = list(os.scandir(tempfile.gettempdir()))
+    except OSError:
+        return 0
+    for e in entries:
+        if not _BUILD_LITTER.fullmatch(e.name):
+            continue
+        try:
+            st = e.stat(follow_symlinks=False)
+        except OSError:
+            continue
+        mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
+        if stat.S_ISDIR(st.st_mode) and mine and now - st.st_mtime > max_age_days * 86400.0:
+            import shutil
+
+            shutil.rmtree(e.path, ignore_errors=True)
+            removed += 1
+    return removed
+
+
 def cache_info() -> dict:
     """Path, number of libraries and their size (bytes, sidecars included)
     of the cache and of the per-user fallback if it exists."""
@@ -242,7 +278,10 @@ def cache_info() -> dict:
 
 def clear_cache() -> dict:
     """Remove every file tmtcontrol put in its cache folders (libraries,
-    sidecars, staged files); anything else stays. Returns the counts."""
+    sidecars, staged files) and its compile litter in the temporary folder
+    (:func:`prune_temporary`, whatever its age); anything else stays.
+    Returns the counts."""
+    prune_temporary(max_age_days=0.0)
     count = size = 0
     for folder in cache_folders():
         try:

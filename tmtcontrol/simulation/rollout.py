@@ -211,6 +211,7 @@ class Rollout:
         """Store ``built`` as ``target`` and prune its folder; if that folder
         cannot be written, in the per-user fallback folder; on a full disk,
         nowhere. Returns the path to load."""
+        cache.prune_temporary()
         try:
             cache.store(built, target)
             cache.prune(target.parent, keep=(target,))
