@@ -176,6 +176,9 @@ def test_tolerance_and_band_on_synthetic_forces():
     f = np.full(4000, 10.5)
     assert judge_segment(f, 10.0, 0.1, 0.01) == ("off_target", judge_segment(f, 10.0, 0.1, 0.01)[1])
     assert "bias of +0.5 N" in judge_segment(f, 10.0, 0.1, 0.01)[1]
+    # a segment too short for two windows (10 samples) is judged by the tolerance alone, not assumed
+    assert judge_segment(np.full(10, 10.005), 10.0, 0.1, 0.01)[0] == "converged"
+    assert judge_segment(np.full(10, 10.5), 10.0, 0.1, 0.01)[0] == "off_target"
 
 
 # -- issue 27 item 17: tests that tell each mutation apart ---------------------------------------

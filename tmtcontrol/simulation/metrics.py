@@ -219,21 +219,26 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     segment holds twice (as many whole periods as fit in its last quarter,
     at least one); with no such period (no forcing, or a segment shorter than
     two periods), the two halves of the last quarter. With a_A, a_B the
-    oscillation in each (the largest swing between consecutive extrema): ``diverged`` if a_B > band
-    and a_B > 1.5 a_A; ``limit_cycle`` if the contact is lost in the last
+    oscillation in each (the largest swing between consecutive extrema):
+    ``diverged`` if a_B > band and a_B > 1.5 a_A; ``limit_cycle`` if the
+    contact is lost in the last
     quarter, or a_B > band, a_B >= 0.95 a_A and B does not repeat A (whole
     periods only: max |e_B - e_A| > 0.2 a_B; a repeat is the forced
     response); otherwise stable: ``converged`` if max |e| over the last
-    quarter <= ``tolerance``, else ``off_target``.
+    quarter <= ``tolerance``, else ``off_target``. A segment of fewer than
+    16 samples is judged by the tolerance alone.
     """
     force = np.asarray(force, dtype=float)
     if not np.all(np.isfinite(force)):
         return "diverged", "the force is not finite"
     n = force.size
     last = force[int(n * (1 - STEADY_FRACTION)):]
-    if last.size < 4:
-        return "converged", "too short to judge"
     e = force - f_d
+    if last.size < 4:           # too short for two windows: the tolerance alone, over the whole segment
+        worst = float(np.max(np.abs(e))) if n else 0.0
+        return (("converged", f"|f_e - f_d| <= {worst:.3g} N (a segment of {n} samples)") if worst <= tolerance
+                else ("off_target", f"|f_e - f_d| up to {worst:.3g} N (tolerance {tolerance:.3g} N, a segment of "
+                                    f"{n} samples: too short to judge growth)"))
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
     P = next((p for p in periods if n >= 2 * p), None)
