@@ -486,3 +486,16 @@ def test_the_docs_quote_the_plan_line_of_the_example():
     for page in ("sweeps.md", "cli.md"):
         text = re.sub(r"\s+", " ", (docs / page).read_text())
         assert f"`{line}`" in text, (page, line)
+
+
+def test_steps_of_an_axis_that_sets_a_whole_table(tmp_path):
+    # an axis value that is a whole [trajectory] table: its missing period is the schema's default
+    # (4 s), not the base scenario's (2 s)
+    from tmtcontrol.sweep import load_sweep
+
+    (tmp_path / "base.toml").write_text("[trajectory]\nperiod = 2.0\ncycles = 1.0\n")
+    (tmp_path / "s.toml").write_text('scenario = "base.toml"\n[grid]\n"trajectory" = [{ cycles = 0.5 }, '
+                                     '{ cycles = 0.5, period = 1.0 }]\n')
+    sweep = load_sweep(tmp_path / "s.toml")
+    per_case = [sweep.scenario(c).duration * sweep.scenario(c).controller.rate for c in sweep.cases]
+    assert per_case == [2000.0, 500.0] and sweep.steps() == (2500.0, 2000, 0)

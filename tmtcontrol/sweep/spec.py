@@ -224,12 +224,15 @@ class Sweep:
                 values = {a: self.grid[a][i] for a, i in zip(gkeys, gi)}
                 if rand:
                     values.update({a: v for a, v in self.cases.draw(s).items() if a in relevant})
-                n = math.prod(float(_resolve(self.base, values, [a for a in self.axes if a in values], k))
-                              for k in STEP_KEYS)
+                index = sum(i * strides[a] for a, i in zip(gkeys, gi)) * self.samples + s
+                got = [_resolve(self.base, values, [a for a in self.axes if a in values], k) for k in STEP_KEYS]
+                if None in got:         # a whole table as an axis value: its missing fields take the defaults
+                    sc = self.scenario(self.cases.case(index))
+                    got = [sc.trajectory.cycles, sc.trajectory.period, sc.controller.rate]
+                n = math.prod(float(v) for v in got)
                 total += n * per
                 if n > most:
-                    most = n
-                    where = sum(i * strides[a] for a, i in zip(gkeys, gi)) * self.samples + s
+                    most, where = n, index
         return total, int(round(most)), where
 
     def plan(self, todo: int | None = None, workers: int = 1) -> str:
@@ -273,18 +276,17 @@ def _covers(axis: str, key: str) -> bool:
 
 
 def _resolve(base: dict, values: dict, order: list[str], key: str):
-    """The value of scalar ``key`` once ``values`` (applied in ``order``) are set on ``base``."""
+    """The value of scalar ``key`` once ``values`` (applied in ``order``) are set
+    on ``base``; None when an axis sets a whole table without it (the schema's
+    default then applies, not the base's value)."""
     for axis in reversed(order):
         if axis == key or key.startswith(axis + "."):
             node = values[axis]
             for part in key[len(axis):].split(".")[1:]:
                 if not isinstance(node, dict) or part not in node:
-                    node = None
-                    break
+                    return None
                 node = node[part]
-            if node is not None:
-                return node
-            break
+            return node
     node = base
     for part in key.split("."):
         node = node[part]
