@@ -192,7 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cache)
 
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
-    p.add_argument("name", nargs="?", default="paper", choices=["paper"])
+    p.add_argument("name", nargs="?", default="paper", choices=["paper", "ur5", "panda"])
     p.add_argument("--schema", action="store_true", help="print the JSON Schema of scenario files")
     p.set_defaults(func=_scenario)
     return parser
@@ -221,7 +221,8 @@ def _simulate_with(args, workers) -> int:
     from .files import OutputFolder
     from .simulation.metrics import first_contact, format_table, segment_metrics
     from .simulation.output import save_simulation
-    from .simulation.simulator import Simulator, check_run_size
+    from .simulation.posesim import simulator_for
+    from .simulation.simulator import check_run_size
 
     sc = _load(args)
     check_run_size(sc, args.max_steps)
@@ -232,7 +233,7 @@ def _simulate_with(args, workers) -> int:
         controller = CompiledController(args.controller, flag="--controller", scenario=sc)
     with OutputFolder(args.out, "--out") as out:
         if controller is None:
-            res = Simulator(sc).run(max_steps=args.max_steps)
+            res = simulator_for(sc).run(max_steps=args.max_steps)
         else:
             from .export.sil import simulate_with_controller
 
@@ -541,12 +542,12 @@ def _cache(args) -> int:
 def _scenario(args) -> int:
     import json
 
-    from .simulation.scenario import dump_scenario, paper_scenario, scenario_json_schema
+    from .simulation.scenario import dump_scenario, load_scenario, scenario_json_schema
 
     if args.schema:
         print(json.dumps(scenario_json_schema(), indent=2))
     else:
-        sys.stdout.write(dump_scenario(paper_scenario()))
+        sys.stdout.write(dump_scenario(load_scenario(args.name)))
     return 0
 
 

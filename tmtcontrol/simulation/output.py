@@ -8,14 +8,23 @@ import pathlib
 from ..drawing import _can_fork
 from ..files import versions, write_json
 
-__all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries"]
+__all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries",
+           "timeseries_columns"]
 
 
 TIMESERIES_COLUMNS = (
     "time", "contact_force", "measured_force", "desired_force", "stiffness", "stiffness_estimate",
     "x", "y", "z", "x_ref", "y_ref", "z_ref", "x_cmd", "y_cmd", "z_cmd",
     "q1", "q2", "q3", "dq1", "dq2", "dq3", "tau1", "tau2", "tau3")
-"""Columns of timeseries.csv (SI: s, N, N/m, m, rad, rad/s, N m)."""
+"""Columns of timeseries.csv (SI: s, N, N/m, m, rad, rad/s, N m) for the 3-joint PUMA."""
+
+
+def timeseries_columns(n: int = 3, orientation: bool = False) -> tuple[str, ...]:
+    """Columns of timeseries.csv for an arm with ``n`` joints; a 6-D run
+    (``orientation``) adds the orientation error e_o on the task axes (rad):
+    ``e_n, e_1, e_2``."""
+    joints = tuple(f"{a}{i}" for a in ("q", "dq", "tau") for i in range(1, n + 1))
+    return TIMESERIES_COLUMNS[:15] + joints + (("e_n", "e_1", "e_2") if orientation else ())
 
 FIGURE_MODULE = "tmtcontrol.simulation.figures"
 SIMULATION_FIGURES = (("fig5_position", "position_figure"), ("fig3_stiffness", "stiffness_figure"),
@@ -39,7 +48,9 @@ def write_timeseries(result, path: str | pathlib.Path, processes: int = 1) -> No
     r = result
     data = np.column_stack([r.time, r.contact_force, r.measured_force, r.desired_force, r.stiffness,
                             r.stiffness_estimate, r.position.T, r.reference_position.T,
-                            r.command_position.T, r.q.T, r.dq.T, r.tau.T])
+                            r.command_position.T, r.q.T, r.dq.T, r.tau.T]
+                           + ([r.orientation_error.T] if getattr(r, "orientation_error", None) is not None else []))
+    columns = timeseries_columns(r.q.shape[0], getattr(r, "orientation_error", None) is not None)
     row = ",".join(["%.9g"] * data.shape[1])
     if processes == 2 and data.shape[0] > 1:
         half = data.shape[0] // 2
@@ -48,7 +59,7 @@ def write_timeseries(result, path: str | pathlib.Path, processes: int = 1) -> No
     else:
         text = (_rows(data, row) + "\n").encode()
     with open(path, "wb") as fh:
-        fh.write((",".join(TIMESERIES_COLUMNS) + "\n").encode())
+        fh.write((",".join(columns) + "\n").encode())
         fh.write(text)
 
 

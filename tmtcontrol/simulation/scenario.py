@@ -41,7 +41,7 @@ __all__ = [
     "scenario_to_dict", "dump_scenario", "apply_overrides", "set_key", "scenario_json_schema",
     "read_stiffness_table", "SettingRow", "applicable_settings", "read_text_file", "InputFileError",
     "MAX_INPUT_BYTES", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",
-    "check_filter_cutoff", "setting_bounds",
+    "check_filter_cutoff", "setting_bounds", "BUILTIN_ARMS", "arm_scenario",
 ]
 
 
@@ -98,6 +98,19 @@ class RobotSettings(_Section):
     model_mass_scale: float = num(1.0, "1", "scale of every mass and inertia in the controller's model "
                                   "(D*^, h*^ of eq. 5); 1.1 is a 10 % overestimate", gt=0)
     compensate_friction: StrictBool = Field(False, description="add the controller's friction model to the torque")
+    model: str = Field("puma560", min_length=1, description=(
+        "the arm: 'puma560' (the paper's 3 links, position-only task), a bundled arm ('ur5', 'panda') or the "
+        "path of a .urdf file (a relative path is read from the scenario file's folder); an arm with 6 or more "
+        "joints runs the 6-D task (position and orientation, docs/robots.md)"))
+    tip: str | None = Field(None, min_length=1, description="the tool frame (link or fixed frame); default: the "
+                            "arm's documented tip")
+    q0: tuple[F, ...] | None = Field(None, min_length=1, description=(
+        "start posture guess (one value per joint) for the start-posture solver; default: the middle of the "
+        "joint limits [rad or m]"), json_schema_extra={"unit": "rad"})
+    posture_kp: float = num(25.0, "1/s^2", "null-space posture stiffness of a redundant arm (more than 6 joints)",
+                            ge=0)
+    posture_kd: float = num(10.0, "1/s", "null-space posture damping of a redundant arm (more than 6 joints)",
+                            ge=0)
 
 
 # -- environment ---------------------------------------------------------------------
@@ -214,10 +227,25 @@ class EnvironmentSettings(_Section):
     ``f_e = max(0, k_e(t) d + damping d')`` while the penetration d > 0. The
     plane passes through ``trajectory.center``; its outward normal is base z
     rotated by ``tilt_deg`` about base y."""
-    tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis", ge=-89.0, le=89.0)
+    tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
+                          "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
+    normal: tuple[F, F, F] | None = Field(None, description=(
+        "inward unit normal of the plane (pointing into the surface), base frame; 6-D arms only; default: "
+        "from tilt_deg"), json_schema_extra={"unit": "1"})
+    point: tuple[F, F, F] | None = Field(None, description=(
+        "a point of the plane, base frame; default: trajectory.center (the circle's centre must lie on the "
+        "plane)"), json_schema_extra={"unit": "m"})
     damping: float = num(0.0, "N s/m", "contact damping", ge=0)
     stiffness: StiffnessProfile = Field(default_factory=PiecewiseConstantStiffness,
                                         description="stiffness profile k_e(t), a table with its kind")
+
+    @model_validator(mode="after")
+    def _unit_normal(self):
+        if self.normal is not None:
+            norm = math.sqrt(sum(x * x for x in self.normal))
+            if abs(norm - 1.0) > 1e-6:
+                raise ValueError(f"normal: must be a unit vector (|n| = 1 within 1e-6), got |n| = {norm:.6g}")
+        return self
 
 
 # -- path ----------------------------------------------------------------------------
@@ -231,6 +259,9 @@ class TrajectorySettings(_Section):
     cycles: float = num(4.0, "1", "number of circles (simulated time = cycles x period)", gt=0, le=1000)
     approach_gap: float = num(0.0, "m", "start this far above the surface, along the normal "
                               "(0 = on the surface at zero force, the paper's start)", ge=0, le=0.5)
+    tool_spin_deg: float = num(0.0, "deg", "6-D arms: the commanded tool orientation is tool z along the "
+                               "inward normal, tool x along task axis 1, turned by this angle about the normal",
+                               ge=-180.0, le=180.0)
 
 
 # -- impedance -----------------------------------------------------------------------
@@ -251,6 +282,12 @@ class ImpedanceSettings(_Section):
                                   json_schema_extra={"unit": "1/s"})
     kp: Vec3Pos | None = Field(None, description="inner-loop K_P of eq. (6); default K/M [1/s^2]",
                                json_schema_extra={"unit": "1/s^2"})
+    m_rot: Vec3Pos = Field((1.0, 1.0, 1.0), description="6-D arms: rotational impedance inertia about the task "
+                           "axes [kg m^2]", json_schema_extra={"unit": "kg m^2"})
+    b_rot: Vec3NonNeg = Field((40.0, 40.0, 40.0), description="6-D arms: rotational impedance damping "
+                              "[N m s/rad]", json_schema_extra={"unit": "N m s/rad"})
+    k_rot: Vec3Pos = Field((400.0, 400.0, 400.0), description="6-D arms: rotational impedance stiffness "
+                           "[N m/rad]", json_schema_extra={"unit": "N m/rad"})
 
     @property
     def gains(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -388,6 +425,22 @@ class Scenario(_Section):
         """Simulated time, s: ``cycles * period``."""
         return self.trajectory.cycles * self.trajectory.period
 
+    @model_validator(mode="after")
+    def _plane(self):
+        env = self.environment
+        if env.normal is not None and self.robot.model.lower() == "puma560":
+            raise ValueError("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
+                             "(its analyses and export use it); leave normal unset")
+        if env.point is not None:
+            from .geometry import surface_frame   # the one definition of the task frame's normal
+
+            n = surface_frame(env)[:, 0]
+            off = sum(a * (c - p) for a, c, p in zip(n, self.trajectory.center, env.point))
+            if abs(off) > 1e-9:
+                raise ValueError(f"trajectory.center: must lie on the plane (environment.point, normal), "
+                                 f"it is {off:.6g} m off it")
+        return self
+
     def replace(self, **changes) -> "Scenario":
         """A validated copy with top-level sections replaced."""
         d = scenario_to_dict(self)
@@ -450,6 +503,31 @@ def paper_scenario() -> Scenario:
     B = diag[60, 20, 20], K = diag[100, 100, 100], 4 cycles of 4 s with the
     stiffness stepping 5e3 -> 2e4 -> 2e3 -> 1e4 N/m after each cycle."""
     return Scenario()
+
+
+BUILTIN_ARMS = ("ur5", "panda")
+"""Built-in scenarios beside ``paper``: the paper's experiment on a bundled 6-D arm."""
+
+
+def arm_scenario(name: str) -> Scenario:
+    """The paper's experiment (section V) moved onto a bundled arm: a 0.1 m
+    circle in 4 s on a tilted plane in a comfortable part of the workspace,
+    f_d = 10 N, the stiffness stepping 5e3 -> 2e4 -> 2e3 -> 1e4 N/m after
+    each cycle, 1 kHz, the tool z axis along the inward normal. ``"ur5"``:
+    the paper's 45 deg tilt, centre (0.4, 0.2, 0.2) m; ``"panda"``: 30 deg,
+    centre (0.5, 0, 0.3) m, the tool turned 180 deg about the normal (the
+    hand's comfortable wrist)."""
+    arms = {   # model, start-posture seed (rad), centre (m), tilt (deg), tool spin (deg)
+        "ur5": ("ur5", (0.0, -1.9, 1.9, -1.57, -1.57, 3.14), (0.4, 0.2, 0.2), 45.0, 0.0),
+        "panda": ("panda", (0.0, 0.1, 0.0, -2.0, 0.0, 2.1, 0.785), (0.5, 0.0, 0.3), 30.0, 180.0),
+    }
+    if name not in arms:
+        raise ScenarioError(f"scenario: expected 'paper' or one of {', '.join(BUILTIN_ARMS)}, got {name!r}")
+    model, q0, center, tilt, spin = arms[name]
+    t = math.radians(tilt)
+    return scenario_from_dict({"name": name, "robot": {"model": model, "q0": list(q0)},
+                               "environment": {"normal": [math.sin(t), 0.0, -math.cos(t)]},
+                               "trajectory": {"center": list(center), "tool_spin_deg": spin}})
 
 
 # -- errors ----------------------------------------------------------------------------
@@ -851,6 +929,8 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
     against the scenario file's folder. An empty file is refused."""
     if str(path) == "paper":
         return paper_scenario()
+    if str(path) in BUILTIN_ARMS:
+        return arm_scenario(str(path))
     path = pathlib.Path(path)
     src = str(path)
     data = read_toml(path, "scenario", ScenarioError)
@@ -860,6 +940,10 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
     if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
             and not pathlib.Path(stiff["file"]).is_absolute():
         stiff["file"] = str(path.parent / stiff["file"])
+    robot = data.get("robot")
+    if isinstance(robot, dict) and isinstance(robot.get("model"), str) and robot["model"].lower().endswith(".urdf") \
+            and not pathlib.Path(robot["model"]).is_absolute():
+        robot["model"] = str(path.parent / robot["model"])
     return scenario_from_dict(data, src)
 
 

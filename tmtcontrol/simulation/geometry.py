@@ -1,0 +1,68 @@
+"""Geometry of the task: the surface's task frame, the commanded tool
+orientation and the orientation error on SO(3).
+
+Task frame (base-frame columns, normal axis first): ``e_n`` the plane's
+*inward* unit normal, ``e_1`` base y projected onto the plane (base x when
+the normal is nearly along y), ``e_2 = e_n x e_1``. For the tilt shorthand
+(``environment.tilt_deg``, normal ``(sin t, 0, -cos t)``) this is
+:func:`.environment.task_frame` exactly. The task frame's origin is the
+circle's centre ``trajectory.center``.
+
+Commanded tool orientation (6-D arms): ``R_d = [e_1, e_2, e_n]`` turned by
+``trajectory.tool_spin_deg`` about ``e_n``: tool z along the inward normal.
+
+Orientation error (the minimal representation of the rotational axes): the
+rotation vector ``e_o = log(R_c R^T)^vee`` in the base frame, the axis times
+the angle (rad) of the rotation that takes the tool orientation R to the
+command R_c. It is regular for every angle below pi (no Euler-angle
+singularity); :func:`rotation_vector` computes it from
+``v = vee(R_e - R_e^T)/2 = sin(theta) axis`` and ``theta = atan2(|v|,
+(tr R_e - 1)/2)``, with the series ``theta/sin(theta) = 1 + theta^2/6`` below
+1e-9 rad.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from .environment import task_frame
+
+__all__ = ["surface_frame", "tool_orientation", "rotation_vector"]
+
+
+def surface_frame(environment) -> np.ndarray:
+    """Rotation R (3x3): the task axes (normal, 1, 2) in the base frame, from
+    ``environment.normal`` or, when unset, ``environment.tilt_deg``."""
+    if environment.normal is None:
+        return task_frame(environment.tilt_deg)
+    e_n = np.asarray(environment.normal, dtype=float)
+    e_n = e_n / np.linalg.norm(e_n)
+    ref = np.array([0.0, 1.0, 0.0]) if abs(e_n[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e_1 = ref - (ref @ e_n) * e_n
+    e_1 /= np.linalg.norm(e_1)
+    return np.column_stack([e_n, e_1, np.cross(e_n, e_1)])
+
+
+def tool_orientation(R: np.ndarray, spin_deg: float = 0.0) -> np.ndarray:
+    """The commanded tool orientation (3x3, base frame) on the task frame
+    ``R``: tool z = e_n, tool x = e_1 turned by ``spin_deg`` about e_n."""
+    s = math.radians(spin_deg)
+    e_n, e_1, e_2 = R[:, 0], R[:, 1], R[:, 2]
+    x = math.cos(s) * e_1 + math.sin(s) * e_2
+    return np.column_stack([x, np.cross(e_n, x), e_n])
+
+
+def rotation_vector(R_e):
+    """``log(R_e)^vee`` (3, rad) of a rotation matrix (CasADi symbol or NumPy
+    array), valid for angles below pi."""
+    if isinstance(R_e, np.ndarray):
+        R_e = ca.DM(R_e)
+        return np.array(rotation_vector(R_e)).ravel()
+    v = 0.5 * ca.vertcat(R_e[2, 1] - R_e[1, 2], R_e[0, 2] - R_e[2, 0], R_e[1, 0] - R_e[0, 1])
+    s = ca.norm_2(v)
+    theta = ca.atan2(s, 0.5 * (R_e[0, 0] + R_e[1, 1] + R_e[2, 2] - 1))
+    scale = ca.if_else(s > 1e-9, theta / ca.fmax(s, 1e-9), 1 + s * s / 6)
+    return scale * v

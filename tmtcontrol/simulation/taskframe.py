@@ -1,0 +1,211 @@
+"""The 6-D closed loop in the surface's task frame, for arms with 6 or more joints.
+
+The task is the tool frame's pose: three translational axes (the surface
+normal and the two tangential axes of :mod:`.geometry`) and three rotational
+axes. Position-based impedance control, eqs. (2)-(6), on each axis:
+
+* normal axis: the force-tracking law (any registered law of
+  ``control.laws``, unchanged declarations) gives the command x_c of eq. (4);
+  the force-sensor filter, the guarded approach and the damping schedule are
+  :mod:`.closedloop`'s own expressions (its ``_control`` without the inner
+  loop), so the normal axis of a 6-D arm is the PUMA's normal axis;
+* tangential axes: the impedance adjustment is zero (no tangential force)
+  and the command is the circle;
+* rotational axes: the command is the tool orientation R_c of
+  :func:`.geometry.tool_orientation`. The rotational impedance filter's input
+  is the contact moment about the tool point, zero for the point contact
+  modelled here, so its adjustment X_a stays 0 and eq. (4) gives X_c = R_c;
+  the rotational axes track it with the inner-loop gains of eq. (9),
+  K_D = B_rot/M_rot, K_P = K_rot/M_rot. The orientation error is the rotation
+  vector e_o = log(R_c R^T)^vee (base frame, rad) expressed on the task axes;
+  the angular velocity is omega = J_w dq.
+
+Inner loop, eqs. (5)-(6), as the operational-space computed torque with the
+controller's model (M^, n^ = C^ dq + g^, J, dJ dq)::
+
+    U   = [R (ddX_c + K_D (dX_c - dX) + K_P (X_c - X));  R (K_D,rot (-omega_task) + K_P,rot e_o,task)]
+    Lambda = (J M^-1 J^T)^-1                      (D*^ of eq. 5)
+    F   = Lambda (U - dJ dq) + F_e,  F_e = [f_m e_n; 0]
+    tau = J^T F + n^ + N^T tau_0,  N^T = I - J^T Lambda J M^-1
+
+For a square J (6 joints) J^T Lambda J M^-1 = I and N^T = 0: tau is eq. (5)
+exactly. For a redundant arm (7 joints) ``tau_0 = M^ (K_post (q_post - q) -
+D_post dq)`` is the null-space posture task (``robot.posture_kp``,
+``robot.posture_kd``; q_post the solved start posture) and N^T is the
+dynamically consistent projector: J M^-1 N^T = 0, so the posture torque does
+not change the task acceleration (tested).
+
+The plant is eq. (1) of the robot (``load_robot``) with the unilateral
+contact acting on the tool point along the normal, integrated as the PUMA's
+(RK4 with contact refinement, or CVODES). Nothing here asks which arm it
+is: the task dimension follows from the robot (the 3-joint PUMA keeps its
+position-only loop in :mod:`.closedloop`, bit for bit). This is a separate
+builder sharing the law, the impedance helpers, the normal-axis controller
+and the plant integrator with :mod:`.closedloop`, not a rewrite of it: the
+PUMA's expressions there must serialise identically.
+
+Not yet in the 6-D loop: the computation delay (``controller.delay_samples``
+must be 0) and the exported controller (``tmtcontrol export``).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..control.impedance import inner_loop
+from ..control.laws import Law
+from .closedloop import INPUT, Layout, _control, _rk4, param_layout
+from .environment import contact_force
+from .geometry import rotation_vector
+
+__all__ = ["pose_state_layout", "pose_param_layout", "pose_log_layout", "POSE_INPUT", "build_pose_step",
+           "operational_space_torque", "pose_step_name"]
+
+POSE_INPUT = INPUT
+"""Per-sample inputs, as the PUMA's loop: tangential reference, k_e, noise."""
+
+
+def pose_state_layout(n: int, law: Law) -> Layout:
+    """Closed-loop state: joints (n, rad; n, rad/s) then the normal axis'
+    controller state of :func:`.closedloop.state_layout` (no delay queue)."""
+    return Layout(("q", n), ("dq", n), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
+                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", 0), ("law", len(law.states)))
+
+
+def pose_param_layout(n: int, law: Law) -> Layout:
+    """The PUMA loop's parameters (:func:`.closedloop.param_layout`), then the
+    commanded tool orientation R_d (column-major), the rotational inner-loop
+    gains K_D,rot (1/s) and K_P,rot (1/s^2), the posture q_post (n) and the
+    null-space gains K_post (1/s^2), D_post (1/s)."""
+    base = param_layout(law)
+    return Layout(*((k, s.stop - s.start) for k, s in base.slices.items()),
+                  ("R_d", 9), ("kd_rot", 3), ("kp_rot", 3), ("q_post", n), ("kp_post", 1), ("kd_post", 1))
+
+
+def pose_log_layout(n: int) -> Layout:
+    """Per-sample log at t_k: joints, torque (N m), tool position (base, m),
+    task position X, reference X_r, command X_c (task, m), true and measured
+    normal force (N), normal damping (N s/m), desired force in use (N),
+    surface estimate (m), and the orientation error e_o (rad, task axes)."""
+    return Layout(("q", n), ("dq", n), ("tau", n), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
+                  ("f_e", 1), ("f_m", 1), ("b_n", 1), ("f_d", 1), ("x_e_hat", 1), ("e_o", 3))
+
+
+def pose_step_name(law: Law, n: int) -> str:
+    return f"pose{n}_step_{law.name}"
+
+
+def operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0=None):
+    """Eq. (5) mapped to the joints for a 6 x n Jacobian (n >= 6):
+    ``tau = J^T (Lambda (U - dJ dq) + F_e) + n + N^T tau_0`` with
+    ``Lambda = (J M^-1 J^T)^-1`` and the dynamically consistent null-space
+    projector ``N^T = I - J^T Lambda J M^-1`` (``tau_0``: None for no
+    null-space torque). CasADi symbols; base frame."""
+    A = ca.solve(M, J.T, "symbolicqr")                  # M^-1 J^T (n x 6)
+    Linv = ca.mtimes(J, A)                              # J M^-1 J^T
+    tau = ca.mtimes(J.T, ca.solve(Linv, U - Jdot_dq, "symbolicqr") + F_e) + n_bias
+    if tau_0 is not None:
+        tau = tau + tau_0 - ca.mtimes(J.T, ca.solve(Linv, ca.mtimes(A.T, tau_0), "symbolicqr"))
+    return tau
+
+
+def _kinematics(robot, q, dq, R, c):
+    T = robot.functions.fk(q)
+    J = robot.functions.jacobian(q)
+    p = T[:3, 3]
+    return p, T[:3, :3], J, ca.mtimes(R.T, p - c), ca.mtimes(R.T, ca.mtimes(J[:3, :], dq))
+
+
+def _plant_step(plant, integrator: str, substeps: int, tol: float, contact_refine: int):
+    """As :func:`.closedloop._plant_step` for an n-joint robot:
+    ``pz = [tau (n), k_e, d_e, R (9), c (3), Ts]``."""
+    n = plant.n
+    z = ca.SX.sym("z", 2 * n)
+    pz = ca.SX.sym("pz", n + 1 + 1 + 9 + 3 + 1)
+    tau, k_e, d_e = pz[0:n], pz[n], pz[n + 1]
+    R = ca.reshape(pz[n + 2:n + 11], 3, 3)
+    c, Ts = pz[n + 11:n + 14], pz[n + 14]
+
+    def ode(z):
+        q, dq = z[:n], z[n:]
+        _, _, J, X, dX = _kinematics(plant, q, dq, R, c)
+        f_env = contact_force(X[0], dX[0], k_e, d_e)
+        ddq = plant.functions.forward_dynamics(q, dq, tau - ca.mtimes(J[:3, :].T, R[:, 0] * f_env))
+        return Ts * ca.vertcat(dq, ddq), f_env > 0
+
+    if integrator == "cvodes":
+        flow = ca.integrator("plant", "cvodes", {"x": z, "p": pz, "ode": ode(z)[0]}, 0.0, 1.0,
+                             {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
+        return None, None, flow
+    if integrator != "fixed":
+        raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
+    coarse = _rk4(ode, z, pz, substeps)
+    choose = None
+    if contact_refine > 1:
+        zm, z1, pm = ca.MX.sym("z", 2 * n), ca.MX.sym("z1", 2 * n), ca.MX.sym("pz", pz.numel())
+        k = int(contact_refine)
+        zr, p_sub = zm, ca.vertcat(pm[:-1], pm[-1] / k)
+        for _ in range(k):
+            zr = coarse(zr, p_sub)[0]
+        choose = ca.Function.conditional("refine_at_contact_switch",
+                                         [ca.Function("keep", [zm, z1, pm], [z1])],
+                                         ca.Function("refine", [zm, z1, pm], [zr]))
+    return coarse, choose, None
+
+
+def build_pose_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+                    contact_refine: int = 4) -> ca.Function:
+    """One control period of the 6-D loop, ``["s","u","p"] -> ["s_next","log"]``
+    (layouts :func:`pose_state_layout`, :data:`POSE_INPUT`,
+    :func:`pose_param_layout`, :func:`pose_log_layout`). ``plant`` and
+    ``model`` are robots from ``load_robot`` with the same joints (the model
+    may be mass-scaled or carry friction to compensate)."""
+    n = plant.n
+    if model.n != n or n < 6:
+        raise ValueError(f"the 6-D loop needs a robot with >= 6 joints and a model with as many, got {n}, {model.n}")
+    coarse, choose, flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
+    STATE, PARAM = pose_state_layout(n, law), pose_param_layout(n, law)
+    s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", POSE_INPUT.size), ca.MX.sym("p", PARAM.size)
+    S, U_in, P = STATE.split(s), POSE_INPUT.split(u), PARAM.split(p)
+    R, c0 = ca.reshape(P["R"], 3, 3), P["c"]
+    q, dq = S["q"], S["dq"]
+    pos, R_tool, J, X, dX = _kinematics(model, q, dq, R, c0)        # encoders through fk
+    f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
+    c = _control(None, law, S, P, U_in, R, q, dq, J[:3, :], X, dX, f_true + U_in["noise"], 0, torque=False)
+    # translational axes, eq. (6) on the task axes (normal damping possibly scheduled, K_D = B/M)
+    kd = ca.vertcat(ca.if_else(P["sched"] > 0, c["b_n"] / P["m"][0], P["kd"][0]), P["kd"][1:])
+    U_pos = inner_loop(c["ddX_c"], c["dX_c"], c["X_c"], dX, X, kd, P["kp"])
+    # rotational axes: X_c = R_d (X_a = 0), error and angular velocity on the task axes
+    e_o = ca.mtimes(R.T, rotation_vector(ca.mtimes(ca.reshape(P["R_d"], 3, 3), R_tool.T)))
+    w = ca.mtimes(R.T, ca.mtimes(J[3:, :], dq))
+    U_rot = inner_loop(0, 0, e_o, w, 0, P["kd_rot"], P["kp_rot"])
+    U = ca.vertcat(ca.mtimes(R, U_pos), ca.mtimes(R, U_rot))
+    F_e = ca.vertcat(R[:, 0] * c["f_m"], ca.MX.zeros(3))
+    M = model.functions.mass_matrix(q)
+    tau_0 = None
+    if n > 6:                                                        # null-space posture task
+        tau_0 = ca.mtimes(M, P["kp_post"] * (P["q_post"] - q) - P["kd_post"] * dq)
+    tau = operational_space_torque(M, model.functions.bias(q, dq), J, model.functions.jacobian_dot(q, dq),
+                                   U, F_e, tau_0) + model.functions.friction(dq)
+    pz = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], c0, P["Ts"])
+    z0 = ca.vertcat(q, dq)
+    rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
+                      c["law_next"])
+    log = ca.vertcat(q, dq, tau, pos, X, c["X_r"], c["X_c"], f_true, c["f_m"], c["b_n"], c["f_d"],
+                     c["x_e_hat"], e_o)
+    name = pose_step_name(law, n)
+    if flow is not None:
+        zf = flow(x0=z0, p=pz)["xf"]
+        return ca.Function(name, [s, u, p], [ca.vertcat(zf, rest), log], ["s", "u", "p"], ["s_next", "log"])
+    ctrl = ca.Function("ctrl", [s, u, p], [z0, pz, rest, log]).expand()
+    sx = [ca.SX.sym(k, ctrl.size1_in(i)) for i, k in enumerate(("s", "u", "p"))]
+    z0s, pzs, rests, logs = ctrl(*sx)
+    zc, switched = coarse(z0s, pzs)
+    if choose is None:
+        return ca.Function(name, sx, ca.cse([ca.vertcat(zc, rests), logs]), ["s", "u", "p"], ["s_next", "log"])
+    fused = ca.Function(f"{name}_ctrl_plant", sx, ca.cse([z0s, pzs, zc, switched, rests, logs]))
+    sm, um, pm = (ca.MX.sym(k, fused.size1_in(i)) for i, k in enumerate(("s", "u", "p")))
+    z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
+    return ca.Function(name, [sm, um, pm], [ca.vertcat(choose(sw, z0m, zcm, pzm), restm), logm],
+                       ["s", "u", "p"], ["s_next", "log"])
