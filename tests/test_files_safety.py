@@ -72,6 +72,14 @@ def test_a_previous_output_is_replaced_whole(tmp_path):
     assert litter(tmp_path) == []
 
 
+def test_a_file_deleted_from_a_previous_output_does_not_stop_its_replacement(tmp_path):
+    """Nothing of the user's is lost by replacing it (documented rule)."""
+    out = commit(tmp_path / "o")
+    (out / "sub" / "deeper" / "x.bin").unlink()
+    commit(out, {"new.txt": b"n"})
+    assert (out / "new.txt").read_bytes() == b"n" and not (out / "sub").exists()
+
+
 def _add_user_file(out):
     (out / "sub" / "my_analysis.txt").write_text("notes")
 
