@@ -50,7 +50,8 @@ def test_toy_law_registered_from_a_test_file_is_simulated():
         seg = segment_metrics(res)[0]
         # tangential coupling leaves ~2e-4 N (the tmt runs show the same); 2e-3 N is 10x that
         assert abs(res.contact_force[-500:].mean() - want) < 2e-3
-        assert seg.verdict == "converged"
+        # it settles (no oscillation) on its own force, not f_d: off target against the 0.01 N tolerance
+        assert seg.verdict == "off_target" and "bias" in seg.reason
     finally:
         unregister_law("toy_offset")
     assert "toy_offset" not in laws()
@@ -194,7 +195,8 @@ def test_adaptive_sigma_bound_in_simulation(factor, converges):
         verdict = seg.verdict
     except Exception as exc:                          # a runaway is also "does not converge"
         verdict = f"raised {exc}"
-    assert (verdict == "converged") is converges, verdict
+    # stable below the bound (at 4 s still decaying within 0.3 N: converged or off_target), not above it
+    assert (verdict in ("converged", "off_target")) is converges, verdict
 
 
 # -- RLS ---------------------------------------------------------------------------------

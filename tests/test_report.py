@@ -136,7 +136,7 @@ def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
     assert len(rows) == 5 and all((row[within] == "yes") == (number(row[err]) <= 0.01) for row in rows)
     by_law = {row[0].split()[0]: row for row in rows}
     # "known" settles (converged) on the force its nominal k_e gives, not on f_d (eqs. 11-12)
-    assert by_law["known"][within] == "no" and by_law["known"][-1] == "✔ converged"
+    assert by_law["known"][within] == "no" and by_law["known"][-1] == "◐ off target"
     assert by_law["tmt"][within] == "yes"
 
 
