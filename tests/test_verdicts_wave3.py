@@ -370,3 +370,15 @@ def test_the_reports_tracking_verdict_uses_the_scenarios_tolerance():
         assert f"(tolerance {fmt.qty(tol, 'N')})" in v.value
         passed.append(v.passed)
     assert passed == [False, True]
+
+
+def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, capsys):
+    from tmtcontrol.cli import main
+
+    # 5 mm surface-location error, 1 s at 5e3 N/m: the TMT bias (about 0.29 N, as above) is the reason
+    code = main(["simulate", "--no-plots", "--out", str(tmp_path / "o"), "--set", "trajectory.cycles=0.25",
+                 "--set", "controller.x_e_error=0.005"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1
+    assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5000 N/m, predicted limit")
+    assert "(tolerance 0.01 N): a bias of +0.2" in err[0]
