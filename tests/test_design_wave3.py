@@ -23,6 +23,7 @@ def paper_spec():
                       f_d=p["f_d"], m_p=p["m_p_max"], delay=0, alpha=p["alpha"])
 
 
+@pytest.mark.heavy          # ~3-7 s; the report's own test (test_report.py) checks the verdict row by default
 def test_the_papers_damping_fails_the_bounds_the_report_designs_for(paper_spec):
     # b = 60 N s/m at k_e max = 2e4 N/m: damping ratio 60 / (2 sqrt(20100)) = 0.21 and eq. (22)'s
     # overshoot exp(-pi zeta / sqrt(1 - zeta^2)) = 50.6 %; the sampled loop overshoots more
