@@ -18,7 +18,7 @@ import numpy as np
 from ..control.laws import get_law, laws
 from .metrics import VERDICTS, SegmentMetrics, segment_metrics
 from .scenario import Scenario, scenario_to_dict
-from .simulator import SimulationError, SimulationResult, Simulator, check_run_size
+from .simulator import SimulationError, SimulationResult, Simulator, check_run_size  # noqa: F401 (Simulator: API)
 
 __all__ = ["check_law_names", "LawRun", "Comparison", "compare_laws", "with_law", "save_comparison", "format_comparison"]
 
@@ -96,7 +96,9 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
     for n in names:
         sc = with_law(scenario, n)
         try:
-            res = Simulator(sc).run(sc, max_steps=max_steps)
+            from .posesim import simulator_for    # the PUMA's loop or the 6-D loop, by the arm's joints
+
+            res = simulator_for(sc).run(sc, max_steps=max_steps)
         except SimulationError as exc:
             runs[n] = LawRun(n, sc, None, [], str(exc))
             continue

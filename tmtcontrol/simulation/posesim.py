@@ -28,7 +28,7 @@ from .geometry import surface_frame, tool_orientation
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError
-from .simulator import (STIFFNESS_ESTIMATE_FORCE, SimulationError, SimulationResult, check_run_size,
+from .simulator import (STIFFNESS_ESTIMATE_FORCE, SimulationError, SimulationResult, _structure, check_run_size,
                         contact_detection_threshold)
 from .taskframe import build_pose_step, pose_log_layout, pose_param_layout, pose_state_layout
 from .trajectory import circle_reference
@@ -136,6 +136,7 @@ class PoseSimulator:
         self.rollout = Rollout(build_pose_step(self.plant, self.model, self.law, s.integrator, s.substeps, s.tol,
                                                s.contact_refine), compile=compile)
         self.build_time = time.perf_counter() - t0
+        self._structure = _structure(sc)
 
     @property
     def step(self):
@@ -146,6 +147,9 @@ class PoseSimulator:
         arm and integrator)."""
         sc = scenario or self.scenario
         check_run_size(sc, max_steps)
+        if _structure(sc) != self._structure:
+            raise ValueError("run(): scenario differs in robot options, integrator, law or delay from the "
+                             "one this PoseSimulator was built for; build a new one")
         path = pose_path(self.plant, sc)
         U, P, s0, t = self._inputs(sc, path)
         t0 = time.perf_counter()

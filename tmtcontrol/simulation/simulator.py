@@ -101,7 +101,7 @@ class PathReport:
 def _structure(scenario: Scenario):
     """What changes the compiled step (everything else is a runtime input)."""
     r, s = scenario.robot, scenario.simulation
-    return (r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
+    return (r.model, r.tip, r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
             scenario.controller.law.kind,
             scenario.controller.delay_samples)
@@ -242,6 +242,10 @@ class Simulator:
     def __init__(self, scenario: Scenario | None = None, compile: bool | str = "auto"):
         self.scenario = scenario or paper_scenario()
         sc = self.scenario
+        if sc.robot.model.lower() != "puma560":      # this loop is built on the PUMA's own model class
+            raise ScenarioError(f"robot.model: the position-only loop runs the 3-joint PUMA 560 only, got "
+                                f"{sc.robot.model!r}; an arm with 6 or more joints runs the 6-D loop "
+                                "(tmtcontrol.simulation.posesim.simulator_for)")
         t0 = time.perf_counter()
         self.plant = Puma560(armature=sc.robot.armature,
                              friction="smooth" if sc.robot.friction else False)

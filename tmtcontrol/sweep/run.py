@@ -64,14 +64,15 @@ def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
     up), ``max_steady_error`` (N, worst segment), the first contact and the
     per-segment metrics."""
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
-    from ..simulation.simulator import SimulationError, Simulator, _structure
+    from ..simulation.posesim import simulator_for
+    from ..simulation.simulator import SimulationError, _structure
 
     sc = case_scenario(base, case.values)
     key = _structure(sc)
     if key not in _SIMS:
         if len(_SIMS) >= 8:
             _SIMS.clear()
-        _SIMS[key] = Simulator(sc)
+        _SIMS[key] = simulator_for(sc)
     row: dict[str, Any] = {"case": case.index, **{k: _flat(v) for k, v in case.values.items()}}
     t0 = time.perf_counter()
     try:
