@@ -243,9 +243,8 @@ class Simulator:
         self.scenario = scenario or paper_scenario()
         sc = self.scenario
         if sc.robot.model.lower() != "puma560":      # this loop is built on the PUMA's own model class
-            raise ScenarioError(f"robot.model: the position-only loop runs the 3-joint PUMA 560 only, got "
-                                f"{sc.robot.model!r}; an arm with 6 or more joints runs the 6-D loop "
-                                "(tmtcontrol.simulation.posesim.simulator_for)")
+            raise ScenarioError(f"robot.model: this runs the 3-joint PUMA 560 only so far, got {sc.robot.model!r} "
+                                "(simulate, compare and sweep run arms with 6 or more joints; docs/robots.md)")
         t0 = time.perf_counter()
         self.plant = Puma560(armature=sc.robot.armature,
                              friction="smooth" if sc.robot.friction else False)

@@ -47,8 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from ..simulation.scenario import (SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings, load_scenario,
-                                   paper_scenario, read_toml, scenario_from_dict, scenario_to_dict, set_key)
+from ..simulation.scenario import (BUILTIN_ARMS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
+                                   load_scenario, read_toml, scenario_from_dict, scenario_to_dict,
+                                   set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "Cases", "load_sweep", "sweep_from_dict", "EXAMPLE", "DEFAULT_MAX_CASES",
            "check_sweep_size"]
@@ -549,8 +550,11 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
         raise SweepError(f"--max-cases: the sweep has {total:,} cases ({shape}), more than the limit of "
                          f"{max_cases:,}; shrink its axes or raise --max-cases")
     try:
-        base_sc = paper_scenario() if src == "paper" else load_scenario(
-            (folder / src) if folder is not None and not pathlib.Path(src).is_absolute() else src)
+        if src == "paper" or src in BUILTIN_ARMS:            # the built-in scenarios by name
+            base_sc = load_scenario(src)
+        else:
+            base_sc = load_scenario((folder / src) if folder is not None and not pathlib.Path(src).is_absolute()
+                                    else src)
     except ScenarioError as exc:
         raise SweepError(f"scenario: {exc}") from None
     base = scenario_to_dict(base_sc)
