@@ -256,9 +256,12 @@ def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[
             return 1.0
 
     if bracket is None:
+        from .analysis import scenario_stiffness_limit
         from .wholeloop import whole_loop_limit
 
-        lo_lim, per_point = whole_loop_limit(mdl.scenario, points=8, rtol=1e-3, model=mdl.frozen)
+        # the 1-D limit as the frozen search's guess (its log grid would start at 10 N/m, 1 m deep)
+        lo_lim, per_point = whole_loop_limit(mdl.scenario, points=8, rtol=1e-3, model=mdl.frozen,
+                                             guess=scenario_stiffness_limit(mdl.scenario))
         hi_lim = max(l for _, l in per_point)
         if not (np.isfinite(lo_lim) and lo_lim > 0):
             raise AnalysisError("the frozen loop has no finite stiffness limit to start the periodic search from")
