@@ -207,6 +207,7 @@ class WholeLoopModel:
             return s
 
         guesses = ([lambda: from_previous(*self._warm[i])] if i in self._warm else []) + [from_1d]
+        s_eq = None
         for guess in guesses:
             try:
                 start = guess()
@@ -216,6 +217,9 @@ class WholeLoopModel:
             if residual < 1e-8:
                 self._warm[i] = (s_eq, float(k_e))
                 break
+        if s_eq is None:
+            raise AnalysisError(f"k_e = {k_e:.6g} N/m: the equilibrium lies outside the robot's workspace "
+                                f"(penetration f_d/k_e = {ctl.f_d / k_e:.3g} m)")
         A_full = np.array(self._jac(s_eq, u))
         d = self.dynamic
         A = A_full[np.ix_(d, d)]
