@@ -1,0 +1,374 @@
+"""Test strength measured by a mutation-testing tool (cosmic-ray), not a hand-written list.
+
+benchmarks/mutation_score.py applies a list of one-line bugs written by hand
+beside the tests that kill them; this script lets a well-kept tool choose the
+bugs.  It applies Cosmic Ray's own mutation operators (a comparison, binary,
+unary or boolean operator replaced, a number shifted by one, ``True`` for
+``False``, ``not`` added, a ``break`` for a ``continue``, a loop run zero
+times, an exception handler widened, a decorator removed, ...) to the modules
+that decide safety and verdicts, one mutant at a time, and counts the mutants
+the test suite kills.
+
+Why Cosmic Ray (8.7) and not mutmut (3.x): many tests run the ``tmtcontrol``
+CLI in a subprocess (``python -m tmtcontrol.cli``), so the mutated code must
+be what a fresh interpreter imports.  Cosmic Ray rewrites the source file on
+disk (parso keeps the rest of the file byte for byte) and runs any test
+command, so a scratch clone with ``PYTHONPATH`` pointing at it reaches every
+subprocess.  mutmut 3 instead copies the package into ``mutants/`` with every
+function turned into a trampoline that picks its variant from an environment
+variable inside the pytest process it forks; a CLI subprocess imports the
+installed (editable) package, not ``mutants/``, so it would run unmutated code
+and report false survivors.  mutmut 3 also leaves decorated functions (the
+pydantic validators of the scenario schema) and module- and class-level code
+(the schema's bounds, the module constants) unmutated, which is where much of
+this package's safety lives.  Cosmic Ray mutates those too.
+
+How a mutant is judged:
+
+1. a scratch clone of this checkout's HEAD (``git clone``; the working tree,
+   shared with others, is never modified) is made in a temporary folder and a
+   subprocess with ``PYTHONPATH`` set to it is checked to import it;
+2. each module's test files (``TESTS`` below, the fast and targeted ones
+   first, since ``-x`` stops at the first failure) are run once unmutated; a
+   test that fails unmutated is deselected for that module's mutants and
+   reported (a file that does not run at all leaves the module unmeasured);
+3. a mutant is applied in the clone (``cosmic_ray.mutating.use_mutation``, the
+   file is restored afterwards) and its module's test files run with
+   ``pytest -n 0 -x``; a failure, an error or a timeout kills it;
+4. a survivor of step 3 runs the whole default suite (``pytest -x``, unless
+   ``--no-full``); only a mutant that also survives that is a survivor.
+
+Mutants listed in benchmarks/equivalent_mutants.toml (argued, one line each,
+that no input can tell them apart from the original) are counted as
+equivalent and not run; an entry whose line no longer matches the mutant is
+reported as stale and ignored.  The score of a module is
+killed / (killed + survived); with ``--sample N`` a seeded random sample of N
+mutants per module is run and the score is given with its 95 % Wilson
+interval (an estimate of the score over all of the module's mutants).
+
+    python benchmarks/mutation_tool.py --count                # mutants per module (fast)
+    python benchmarks/mutation_tool.py --sample 12 --seed 1 --json mutation_tool.json
+    python benchmarks/mutation_tool.py --modules tmtcontrol/files.py --sample 0   # every mutant of one module
+    python benchmarks/mutation_tool.py --show tmtcontrol/files.py:core/NumberReplacer:3
+
+Slow (each mutant runs test files that simulate), so it is a benchmark, not
+part of CI; docs/testing.md gives the last measured table.  Requires
+``pip install cosmic-ray==8.7.0``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import math
+import os
+import pathlib
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import asdict, dataclass
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+EQUIVALENTS = ROOT / "benchmarks" / "equivalent_mutants.toml"
+
+# module (or package folder) -> the test files that exercise it, run first for each of its mutants
+TESTS: dict[str, tuple[str, ...]] = {
+    "tmtcontrol/files.py": ("tests/test_files_safety.py", "tests/test_outputs.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/simulation/metrics.py": ("tests/test_verdicts_wave3.py", "tests/test_verdicts.py",
+                                         "tests/test_mutation_kills.py"),
+    "tmtcontrol/simulation/scenario.py": ("tests/test_scenario.py", "tests/test_scenario_fuzz.py",
+                                          "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/control/laws": ("tests/test_laws.py", "tests/test_mutations.py", "tests/test_derivations.py",
+                                "tests/test_mutation_kills.py"),
+    "tmtcontrol/stability/analysis.py": ("tests/test_stability.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/stability/sampled.py": ("tests/test_mutations.py", "tests/test_stability.py",
+                                        "tests/test_mutation_kills.py"),
+    "tmtcontrol/stability/lawloop.py": ("tests/test_limits.py", "tests/test_laws.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/sweep/spec.py": ("tests/test_sweep.py", "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/model/urdf.py": ("tests/test_urdf.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/export": ("tests/test_export.py", "tests/test_mutation_kills.py"),
+}
+
+
+@dataclass(frozen=True)
+class Mutant:
+    module: str          # the group in TESTS it belongs to
+    file: str            # path of the mutated file, relative to the checkout
+    operator: str        # Cosmic Ray operator name
+    occurrence: int      # the operator's n-th position in the file (Cosmic Ray's numbering)
+    line: int            # 1-based line where the mutation starts
+
+    @property
+    def id(self) -> str:
+        return f"{self.file}:{self.operator}:{self.occurrence}"
+
+
+def module_files(module: str, root: pathlib.Path = ROOT) -> list[str]:
+    """The Python files of a TESTS key (a file, or every file of a package folder)."""
+    path = root / module
+    files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
+    return [str(f.relative_to(root)) for f in files]
+
+
+def load_equivalents(path: pathlib.Path = EQUIVALENTS) -> dict[str, dict]:
+    """The argued-equivalent mutants: id -> {line, reason}.  Raises ValueError on a malformed entry."""
+    data = tomllib.loads(path.read_text()) if path.exists() else {}
+    out = {}
+    for i, entry in enumerate(data.get("mutant", [])):
+        missing = {"file", "operator", "occurrence", "line", "reason"} - set(entry)
+        if missing:
+            raise ValueError(f"{path.name}: mutant #{i + 1} lacks {', '.join(sorted(missing))}")
+        if not str(entry["reason"]).strip():
+            raise ValueError(f"{path.name}: mutant #{i + 1} has an empty reason")
+        key = f"{entry['file']}:{entry['operator']}:{int(entry['occurrence'])}"
+        if key in out:
+            raise ValueError(f"{path.name}: {key} is listed twice")
+        out[key] = {"line": int(entry["line"]), "reason": str(entry["reason"])}
+    return out
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a proportion k/n (nan, nan for n = 0)."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z / d * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def enumerate_mutants(root: pathlib.Path, modules) -> dict[str, list[Mutant]]:
+    """Every mutant Cosmic Ray's operators (those that take no arguments) make in each module,
+    in Cosmic Ray's own order and occurrence numbering (as ``cosmic-ray init`` makes them)."""
+    import cosmic_ray.plugins
+    from cosmic_ray.ast import ast_nodes, get_ast_from_path
+
+    ops = []
+    for name in sorted(cosmic_ray.plugins.operator_names()):
+        cls = cosmic_ray.plugins.get_operator(name)
+        if not cls.arguments():
+            ops.append((name, cls()))
+    out = {}
+    for module in modules:
+        found = []
+        for file in module_files(module, root):
+            tree = get_ast_from_path(root / file)
+            nodes = list(ast_nodes(tree))
+            for name, op in ops:
+                positions = [start for node in nodes for start, _ in op.mutation_positions(node)]
+                found += [Mutant(module, file, name, i, start[0]) for i, start in enumerate(positions)]
+        out[module] = found
+    return out
+
+
+def mutated_source(root: pathlib.Path, m: Mutant) -> tuple[str, str | None]:
+    import cosmic_ray.plugins
+    from cosmic_ray.mutating import mutate_code
+
+    code = (root / m.file).read_text()
+    return code, mutate_code(code, cosmic_ray.plugins.get_operator(m.operator)(), m.occurrence)
+
+
+def diff_of(root: pathlib.Path, m: Mutant) -> str:
+    random.seed(m.id)
+    old, new = mutated_source(root, m)
+    if new is None:
+        return ""
+    return "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+
+
+def markdown_table(doc: dict) -> str:
+    """The per-module table of a results JSON (as --json writes it), in Markdown for docs/testing.md."""
+    lines = ["| module | mutants | run | killed | survived | equivalent | score | 95 % CI |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in doc["modules"]:
+        if r.get("score") is None:
+            lines.append(f"| `{r['module']}` | {r['mutants']} | {r['run']} | | | | not measured | |")
+            continue
+        lo, hi = r["ci95"]
+        lines.append(f"| `{r['module']}` | {r['mutants']} | {r['run']} | {r['killed']} | {r['survived']} | "
+                     f"{r['equivalent']} | {100 * r['score']:.0f} % | {100 * lo:.0f}-{100 * hi:.0f} % |")
+    return "\n".join(lines) + "\n"
+
+
+def _pytest(root, args, env, timeout) -> tuple[str, float, str]:
+    """Run pytest in the clone: ('pass'|'fail'|'timeout', seconds, tail of the output)."""
+    t0 = time.perf_counter()
+    try:
+        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *args],
+                           cwd=root, env=env, capture_output=True, text=True, timeout=timeout,
+                           start_new_session=True)
+    except subprocess.TimeoutExpired:
+        return "timeout", time.perf_counter() - t0, ""
+    tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-3:])
+    return ("pass" if r.returncode == 0 else "fail"), time.perf_counter() - t0, tail
+
+
+def _failing(root, tests, env, timeout) -> list[str] | None:
+    """The tests of ``tests`` that fail unmutated (deselected for the module's mutants, and
+    reported), or None if the files do not run at all (collection error, timeout)."""
+    try:
+        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "0", "-rf", "-p", "no:cacheprovider",
+                            *tests], cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return None
+    if r.returncode not in (0, 1):
+        return None
+    return [line.split()[1] for line in r.stdout.splitlines() if line.startswith("FAILED ")]
+
+
+def _clone(dest: pathlib.Path) -> str:
+    subprocess.run(["git", "clone", "-q", "--no-hardlinks", str(ROOT), str(dest)], check=True)
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=dest, capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--modules", nargs="+", default=list(TESTS), metavar="MODULE",
+                    help="keys of TESTS to measure (default: all)")
+    ap.add_argument("--sample", type=int, default=0, help="mutants per module, drawn at random (0: all)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the sample")
+    ap.add_argument("--timeout", type=float, default=240.0,
+                    help="seconds a mutant's module tests may take (a timeout kills it); the whole suite gets 3x")
+    ap.add_argument("--only", nargs="+", metavar="ID", help="run these mutants (FILE:OPERATOR:OCCURRENCE) only")
+    ap.add_argument("--no-full", action="store_true", help="do not rerun survivors against the whole suite")
+    ap.add_argument("--count", action="store_true", help="print the number of mutants per module and stop")
+    ap.add_argument("--show", metavar="ID", help="print the diff of one mutant (FILE:OPERATOR:OCCURRENCE) and stop")
+    ap.add_argument("--json", metavar="PATH", help="write the table and every mutant's outcome as JSON")
+    ap.add_argument("--markdown", metavar="JSON", help="print the Markdown table of a results JSON and stop")
+    a = ap.parse_args(argv)
+    if a.markdown:
+        print(markdown_table(json.loads(pathlib.Path(a.markdown).read_text())), end="")
+        return 0
+    unknown = [m for m in a.modules if m not in TESTS]
+    if unknown:
+        print(f"--modules: {unknown[0]} is not one of {', '.join(TESTS)}", file=sys.stderr)
+        return 2
+    equivalents = load_equivalents()
+
+    if a.count or a.show:
+        muts = enumerate_mutants(ROOT, a.modules)
+        if a.show:
+            m = next((m for ms in muts.values() for m in ms if m.id == a.show), None)
+            if m is None:
+                print(f"--show: no mutant {a.show}", file=sys.stderr)
+                return 2
+            print(diff_of(ROOT, m), end="")
+            return 0
+        for mod, ms in muts.items():
+            print(f"{mod:40s} {len(ms):5d} mutants")
+        return 0
+
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))   # a kill still removes the scratch clone
+    scratch = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-mutation-"))
+    root = scratch / "src"
+    try:
+        commit = _clone(root)
+        env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1",
+                   TMTCONTROL_CACHE=str(scratch / "cache"))
+        where = subprocess.run([sys.executable, "-c", "import tmtcontrol; print(tmtcontrol.__file__)"],
+                               cwd=scratch, env=env, capture_output=True, text=True).stdout.strip()
+        if not where.startswith(str(root)):
+            print(f"a subprocess imports tmtcontrol from {where}, not the scratch clone {root}", file=sys.stderr)
+            return 1
+        muts = enumerate_mutants(root, a.modules)
+        started = time.perf_counter()
+        rows, results, deselected = [], [], {}
+        for mod in a.modules:
+            population = muts[mod]
+            chosen = population
+            if 0 < a.sample < len(population):   # one generator per module: its sample does not depend on --modules
+                chosen = sorted(random.Random(f"{a.seed}:{mod}").sample(population, a.sample),
+                                key=lambda m: (m.file, m.line, m.operator, m.occurrence))
+            if a.only:
+                chosen = [m for m in population if m.id in a.only]
+                if not chosen:
+                    continue
+            tests = [t for t in TESTS[mod] if (root / t).exists()]
+            failing = _failing(root, tests, env, a.timeout * 2)
+            if failing is None:
+                print(f"\n{mod}: baseline of {' '.join(tests)} does not run, module not measured", flush=True)
+                rows.append(dict(module=mod, mutants=len(population), run=0, baseline="fails"))
+                continue
+            tests += [f"--deselect={t}" for t in failing]
+            names = " ".join(t for t in tests if not t.startswith("-"))
+            print(f"\n{mod}: {len(population)} mutants, {len(chosen)} run; tests {names}"
+                  + (f"; failing unmutated, deselected: {' '.join(failing)}" if failing else ""), flush=True)
+            deselected[mod] = failing
+            counts = dict(killed=0, survived=0, equivalent=0, incompetent=0)
+            for m in chosen:
+                rec = dict(asdict(m), id=m.id)
+                eq = equivalents.get(m.id)
+                if eq and eq["line"] != m.line:
+                    print(f"  stale equivalent entry {m.id}: listed at line {eq['line']}, now {m.line}", flush=True)
+                    eq = None
+                if eq:
+                    rec.update(outcome="equivalent", reason=eq["reason"])
+                else:
+                    import cosmic_ray.plugins
+                    from cosmic_ray.mutating import use_mutation
+
+                    op = cosmic_ray.plugins.get_operator(m.operator)()
+                    random.seed(m.id)   # VariableReplacer/VariableInserter draw a number/operator: reproducible
+                    with use_mutation(root / m.file, op, m.occurrence) as (old, new):
+                        if new is None:
+                            rec.update(outcome="incompetent", stage="no mutation applied")
+                        else:
+                            rec["diff"] = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True),
+                                                                       m.file, m.file, n=0))
+                            status, dt, tail = _pytest(root, ["-n", "0", *tests], env, a.timeout)
+                            rec.update(module_tests=status, module_seconds=round(dt, 1))
+                            if status == "pass" and not a.no_full:
+                                status, dt, tail = _pytest(root, ["-n", "2"], env, 3 * a.timeout)
+                                rec.update(full_suite=status, full_seconds=round(dt, 1))
+                            rec["outcome"] = "survived" if status == "pass" else "killed"
+                            if status == "fail":
+                                rec["killed_by"] = tail.splitlines()[-1] if tail else ""
+                counts[rec["outcome"]] += 1
+                results.append(rec)
+                first = rec.get("diff", "").splitlines()[3:5]
+                print(f"  {rec['outcome']:10s} {m.id} (line {m.line}) {' | '.join(s.strip() for s in first)}",
+                      flush=True)
+            k, s = counts["killed"], counts["survived"]
+            lo, hi = wilson(k, k + s)
+            rows.append(dict(module=mod, mutants=len(population), run=len(chosen), **counts,
+                             score=k / (k + s) if k + s else None, ci95=[lo, hi] if k + s else None))
+        elapsed = time.perf_counter() - started
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+    print(f"\nCosmic Ray mutants on {commit}, sample {a.sample or 'all'} per module, seed {a.seed}, "
+          f"{'module tests then whole suite' if not a.no_full else 'module tests only'}, {elapsed / 60:.1f} min\n")
+    print(f"{'module':36s} {'mutants':>7s} {'run':>4s} {'killed':>6s} {'surv.':>5s} {'equiv.':>6s} "
+          f"{'score':>6s}  95 % CI")
+    for r in rows:
+        if "score" not in r:
+            print(f"{r['module']:36s} {r['mutants']:7d}  baseline fails")
+            continue
+        ci = "" if r["score"] is None else f"{100 * r['ci95'][0]:.0f}-{100 * r['ci95'][1]:.0f} %"
+        sc = "-" if r["score"] is None else f"{100 * r['score']:.0f} %"
+        print(f"{r['module']:36s} {r['mutants']:7d} {r['run']:4d} {r['killed']:6d} {r['survived']:5d} "
+              f"{r['equivalent']:6d} {sc:>6s}  {ci}")
+    survivors = [r for r in results if r["outcome"] == "survived"]
+    if survivors:
+        print("\nSurvivors (each a missing test, or an equivalent mutant to argue in equivalent_mutants.toml):")
+        for r in survivors:
+            print(f"--- {r['id']}\n{r['diff']}")
+    if a.json:
+        doc = dict(tool="cosmic-ray", commit=commit, sample=a.sample, seed=a.seed, full_suite=not a.no_full,
+                   timeout=a.timeout, minutes=round(elapsed / 60, 1), deselected=deselected, modules=rows,
+                   mutants=results)
+        pathlib.Path(a.json).write_text(json.dumps(doc, indent=1, default=str) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

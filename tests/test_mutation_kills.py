@@ -1,0 +1,84 @@
+"""Tests that kill the survivors of the Cosmic Ray mutation run (benchmarks/mutation_tool.py,
+docs/testing.md): each names the mutant it kills and the case that tells the bug apart.
+Synthetic inputs with hand-computed answers; no simulation."""
+import errno
+import os
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tmtcontrol import paper_scenario
+from tmtcontrol.files import OutputFolder, OutputNotSaved
+from tmtcontrol.simulation.metrics import segment_metrics, settling_time
+
+
+# -- simulation/metrics.py ---------------------------------------------------------------------
+
+def test_settling_time_counts_from_a_segment_start_later_than_the_settling():
+    """metrics.py:core/ReplaceBinaryOperator_Sub_Mod:3 (t[last + 1] % t[0]): a segment starting at
+    t = 1 s that settles 1.5 s later; the modulo gives 2.5 % 1 = 0.5 s (it agrees only while the
+    settling is shorter than the start time, as in the first seconds of the paper's run)."""
+    t = 1.0 + 0.5 * np.arange(10)
+    err = np.array([5.0, -4.0, 3.0, 0.5, 0.2, 0.0, 0.1, 0.0, 0.0, 0.0])
+    assert settling_time(err, 1.0, t) == pytest.approx(1.5, abs=1e-12)    # leaves the band for good at t[3]
+
+
+def _one_segment(force):
+    """A result of the paper scenario's kind holding one segment (constant stiffness) with the
+    contact force ``force`` sampled every 1 ms, the tool on its reference."""
+    sc = paper_scenario()
+    n = force.size
+    return SimpleNamespace(scenario=sc, Ts=1e-3, time=1e-3 * np.arange(n), contact_force=force,
+                           force_error=force - sc.controller.f_d, stiffness=np.full(n, 5000.0),
+                           position_task=np.zeros((3, n)), reference_task=np.zeros((3, n)))
+
+
+def test_overshoot_of_an_approach_from_below_is_its_peak_over_f_d():
+    """metrics.py:core/NumberReplacer:142 (f[1] > f_d picks the direction) and
+    core/ReplaceBinaryOperator_Mul_Pow:13 (overshoot / f_d ** 100): the force starts at 0 (below
+    f_d = 10 N), jumps to 12 N at the second sample and settles at 10 N; the overshoot is
+    (12 - 10) / 10 = 20 %.  Judged by f[1] = 12 N > f_d the segment would count as starting above
+    f_d and report no overshoot."""
+    f = np.r_[0.0, 12.0, np.linspace(12.0, 10.0, 50), np.full(2000, 10.0)]
+    (seg,) = segment_metrics(_one_segment(f))
+    assert seg.overshoot_pct == pytest.approx(20.0, abs=1e-9)
+
+
+def test_overshoot_of_a_segment_starting_above_f_d_is_its_dip_under_f_d():
+    """The other direction of the same line: starting at 14 N, dipping to 9 N, settling at 10 N:
+    the overshoot is (10 - 9) / 10 = 10 %."""
+    f = np.r_[14.0, np.linspace(14.0, 9.0, 40), np.linspace(9.0, 10.0, 40), np.full(2000, 10.0)]
+    (seg,) = segment_metrics(_one_segment(f))
+    assert seg.overshoot_pct == pytest.approx(10.0, abs=1e-9)
+
+
+# -- files.py ----------------------------------------------------------------------------------
+
+def test_full_disk_elsewhere_names_the_current_folder_for_a_bare_file_name(tmp_path):
+    """files.py:core/ReplaceOrWithAnd:15 (dirname(name) and '.'): the disk that filled holds a file
+    named without a folder (a path relative to the current folder), outside the output; the
+    message names '.' as the full disk, not an empty name."""
+    with pytest.raises(OutputNotSaved) as info:
+        with OutputFolder(tmp_path / "o"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "scratch.bin")
+    assert f"{tmp_path / 'o'} (. is full)" in str(info.value)
+    with pytest.raises(OutputNotSaved) as info:
+        with OutputFolder(tmp_path / "p"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "/elsewhere/scratch.bin")
+    assert f"{tmp_path / 'p'} (/elsewhere is full)" in str(info.value)
+
+
+# -- simulation/scenario.py --------------------------------------------------------------------
+
+def test_applicable_settings_keep_the_unconditional_keys_with_their_units():
+    """scenario.py:core/ReplaceTrueWithFalse in _applies (every key without a rule of its own
+    dropped from the report's settings table) and core/ReplaceComparisonOperator_Eq_Lt on
+    ``unit == "–"`` (the en dash sorts after ASCII, so ``unit < "–"`` blanks every unit): the
+    paper scenario's f_d is 10 N and its stiffness values are in N/m, as in the paper's Table 1."""
+    from tmtcontrol.simulation.scenario import applicable_settings
+
+    rows = {r.key: r for r in applicable_settings(paper_scenario())}
+    assert (rows["controller.f_d"].value, rows["controller.f_d"].unit) == (10.0, "N")
+    assert rows["environment.stiffness.values"].unit == "N/m"
+    assert rows["impedance.b"].unit == "N s/m" and rows["controller.rate"].unit == "Hz"
