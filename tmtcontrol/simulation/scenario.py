@@ -918,9 +918,37 @@ def read_toml(path: pathlib.Path, what: str, error: type[Exception]) -> dict:
             raise error(f"{src}: {reason}, expected a {what} TOML file") from None
         raise error(f"{src}: {reason}" + (f" of a {what} file" if "limit" in reason else "")) from None
     try:
-        return tomllib.loads(text)
+        return parse_toml(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{src}: malformed TOML ({exc})") from None
+    except InputFileError as exc:
+        raise error(f"{src}: {exc}") from None
+
+
+MAX_KEY_PARTS = 64
+"""The most parts a dotted TOML key may have (scenario and sweep keys have at
+most five): tomllib keeps every prefix of a dotted key, memory quadratic in
+its length (10,000 parts took 450 MB)."""
+
+_KEY_PART = r"""(?:[A-Za-z0-9_-]++|"[^"\n]*+"|'[^'\n]*+')"""
+_LONG_KEY = re.compile(r"(?<![A-Za-z0-9_-])" + _KEY_PART + r"(?:[ \t]*+\.[ \t]*+" + _KEY_PART + r"){%d}"
+                       % MAX_KEY_PARTS)
+
+
+def parse_toml(text: str) -> dict:
+    """``tomllib.loads(text)`` within bounds: a dotted key of more than
+    :data:`MAX_KEY_PARTS` parts (found by a linear scan before parsing; a run
+    inside a string or comment counts too, conservatively) and arrays or
+    tables nested past the parser's recursion raise :class:`InputFileError`
+    with the reason; malformed TOML raises ``tomllib.TOMLDecodeError``."""
+    long_key = _LONG_KEY.search(text)
+    if long_key:
+        raise InputFileError(f"a key of more than {MAX_KEY_PARTS} dotted parts (line "
+                             f"{text.count(chr(10), 0, long_key.start()) + 1}); no key is that deep")
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise InputFileError("arrays or tables nested too deeply") from None
 
 
 def load_scenario(path: str | pathlib.Path) -> Scenario:
@@ -998,10 +1026,14 @@ def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
         if "=" not in item:
             raise ScenarioError(f"--set {item!r}: expected dotted.key=value")
         key, raw = (s.strip() for s in item.split("=", 1))
+        if not key:
+            raise ScenarioError(f"--set {item!r}: expected dotted.key=value")
         try:
-            value = tomllib.loads(f"v = {raw}")["v"]
+            value = parse_toml(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:
             value = raw
+        except InputFileError as exc:
+            raise ScenarioError(f"--set {key}: {exc}") from None
         set_key(d, key, value)
     return scenario_from_dict(d, "--set")
 

@@ -1,0 +1,74 @@
+"""Review of the bad-input and fault paths (issues #27, #32) with cases the first
+tests did not write: TOML that is valid but pathological (arrays nested past
+the parser's recursion, a dotted key of thousands of parts whose parsing takes
+memory quadratic in its length), the ``--set`` syntax, the command-line flags
+named in every refusal, and output folders with unusual names.
+
+Every refusal: exit code 2, one line on stderr naming the file, key or flag,
+nothing on stdout, nothing written."""
+import pytest
+
+from tmtcontrol.cli import main
+
+
+def _refused(capsys, tmp_path, needle, *args):
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(list(args))
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert code == 2 and cap.out == "" and len(lines) == 1, (code, cap.out, lines[:3])
+    assert needle in lines[0] and "Traceback" not in lines[0], lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before        # nothing written
+    return lines[0]
+
+
+# -- TOML that parses only with unbounded recursion or memory --------------------------
+
+@pytest.mark.parametrize("what", ["scenario", "sweep"])
+@pytest.mark.parametrize("body", ["x = " + "[" * 5000 + "]" * 5000,
+                                  "x = " + "{a = " * 5000 + "1" + "}" * 5000],
+                         ids=["arrays", "inline tables"])
+def test_toml_nested_past_the_recursion_limit_is_one_line(capsys, tmp_path, what, body):
+    # tomllib parses nested arrays and inline tables recursively: 5,000 levels (a 10 kB file)
+    # raised RecursionError, a 3,000-line traceback with exit code 1
+    f = tmp_path / "deep.toml"
+    f.write_text(body + "\n")
+    args = ["simulate", str(f)] if what == "scenario" else ["sweep", str(f)]
+    line = _refused(capsys, tmp_path, "nested too deeply", *args, "--out", str(tmp_path / "o"))
+    assert str(f) in line
+
+
+def test_a_dotted_key_of_thousands_of_parts_is_refused_before_parsing(capsys, tmp_path):
+    # tomllib keeps every prefix of a dotted key: a key of n parts costs memory ~ n^2 / 2 tuple slots.
+    # 10,000 parts (a 20 kB file) took 450 MB, 100,000 parts (200 kB) had the process killed.
+    # The bound is on the key's parts (no scenario or sweep key has more than a few), so the
+    # refusal comes before tomllib is called: 100,000 parts here, answered at once
+    f = tmp_path / "dotted.toml"
+    f.write_text("a" + ".a" * 100_000 + " = 1\n")
+    line = _refused(capsys, tmp_path, "dotted parts", "simulate", str(f), "--out", str(tmp_path / "o"))
+    assert str(f) in line and "line 1" in line
+
+
+def test_a_dotted_run_inside_strings_and_numbers_is_not_a_key(tmp_path):
+    # the bound must not refuse ordinary files: float arrays, dotted names in strings, comments
+    from tmtcontrol.simulation.scenario import load_scenario
+
+    f = tmp_path / "ok.toml"
+    f.write_text('name = "v1.2.3 of the test.bench.cell"  # see sec. 5.1.2\n'
+                 "[environment.stiffness]\nkind = \"piecewise_constant\"\nvalues = [" + ", ".join(["5000.5"] * 2000) + "]\n")
+    sc = load_scenario(f)
+    assert sc.name == "v1.2.3 of the test.bench.cell" and len(sc.environment.stiffness.values) == 2000
+
+
+@pytest.mark.parametrize("value", ["[" * 3000 + "]" * 3000, "{" + "a." * 5000 + "a = 1}"],
+                         ids=["nested", "dotted"])
+def test_set_value_nested_or_dotted_past_the_bound_names_set(capsys, tmp_path, value):
+    line = _refused(capsys, tmp_path, "--set", "simulate", "--set", f"controller.f_d={value}",
+                    "--out", str(tmp_path / "o"))
+    assert "controller.f_d" in line
+
+
+def test_set_with_an_empty_key_names_set(capsys, tmp_path):
+    # was "error: : malformed key" (neither the flag nor what was given)
+    line = _refused(capsys, tmp_path, "--set", "simulate", "--set", "=5", "--out", str(tmp_path / "o"))
+    assert "'=5'" in line
