@@ -23,6 +23,7 @@ _EXPORTS = {
     "tmtcontrol.simulation.scenario": ("Scenario", "ScenarioError", "paper_scenario", "load_scenario",
                                        "dump_scenario", "apply_overrides"),
     "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError"),
+    "tmtcontrol.simulation.posesim": ("PoseSimulator", "PoseSimulationResult", "simulator_for"),
     "tmtcontrol.simulation.metrics": ("SegmentMetrics", "segment_metrics"),
     "tmtcontrol.simulation.compare": ("compare_laws", "Comparison", "LawRun"),
     "tmtcontrol.export.generate": ("export_controller", "ExportError"),
@@ -39,7 +40,7 @@ __all__ = [
     "paper_scenario", "load_scenario", "dump_scenario", "apply_overrides", "Simulator",
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
     "LawRun", "load_robot", "Robot", "URDFError", "export_controller", "ExportError", "CompiledController",
-    "simulate_with_controller",
+    "simulate_with_controller", "PoseSimulator", "PoseSimulationResult", "simulator_for",
 ]
 
 
@@ -65,4 +66,5 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .simulation.metrics import SegmentMetrics, segment_metrics
     from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,
                                       paper_scenario)
+    from .simulation.posesim import PoseSimulationResult, PoseSimulator, simulator_for
     from .simulation.simulator import SimulationError, SimulationResult, Simulator

@@ -31,7 +31,7 @@ _RAW = argparse.RawDescriptionHelpFormatter
 
 
 def _add_scenario_args(p, out_default: str):
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper' (default)")
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda'")
     p.add_argument("--out", default=out_default,
                    help=f"output folder (default ./{out_default}); an existing folder is replaced only "
                         "if tmtcontrol wrote it")
@@ -176,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "a Makefile, example_loop.c, replay.c and README.md to --out.",
                        epilog="examples:\n  tmtcontrol export paper --out tmt-c\n"
                               "  tmtcontrol export paper --inner-loop --out tmt-c && tmtcontrol simulate paper --controller tmt-c")
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file or 'paper' (default)")
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda'")
     p.add_argument("--out", default="tmt-export",
                    help="output folder (default ./tmt-export); an existing folder is replaced only if tmtcontrol wrote it")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -528,7 +528,7 @@ def _robot(args) -> int:
 
 
 def _cache(args) -> int:
-    from .simulation.cache import cache_info, clear_cache, format_cache_info
+    from .cache import cache_info, clear_cache, format_cache_info
 
     if args.clear:
         done = clear_cache()

@@ -18,7 +18,7 @@ import numpy as np
 from ..control.laws import get_law, laws
 from .metrics import VERDICTS, SegmentMetrics, segment_metrics
 from .scenario import Scenario, scenario_to_dict
-from .simulator import SimulationError, SimulationResult, Simulator, check_run_size  # noqa: F401 (Simulator: API)
+from .simulator import SimulationError, SimulationResult, check_run_size
 
 __all__ = ["check_law_names", "LawRun", "Comparison", "compare_laws", "with_law", "save_comparison", "format_comparison"]
 
