@@ -300,3 +300,36 @@ def test_cli_simulates_the_ur5_briefly(tmp_path, capsys):
     assert "scenario 'ur5': 1000 steps of 1 ms" in text
     header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
     assert header[15:21] == [f"q{i}" for i in range(1, 7)] and header[-3:] == ["e_n", "e_1", "e_2"]
+
+
+def test_robot_model_path_is_read_relative_to_the_scenario_file(tmp_path):
+    """A user's URDF next to the scenario file: the path resolves against the
+    file's folder and the arm loads with the named tip; a missing file is one
+    line naming robot.model."""
+    from importlib import resources
+
+    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol.simulation.scenario import dump_scenario
+
+    (tmp_path / "arms").mkdir()
+    urdf = resources.files("tmtcontrol.model").joinpath("data", "ur5.urdf").read_text()
+    (tmp_path / "arms" / "my_arm.urdf").write_text(urdf)
+    sc = apply_overrides(arm_scenario("ur5"), ['robot.model="arms/my_arm.urdf"', 'robot.tip="tool0"'])
+    f = tmp_path / "my.toml"
+    f.write_text(dump_scenario(sc))
+    loaded = load_scenario(f)
+    assert loaded.robot.model == str(tmp_path / "arms" / "my_arm.urdf")
+    robot = robot_of(loaded)
+    assert robot.n == 6 and robot.tip == "tool0"
+    missing = apply_overrides(sc, ['robot.model="nowhere.urdf"'])
+    with pytest.raises(ScenarioError) as exc:
+        robot_of(missing)
+    assert str(exc.value).startswith("robot.model: ") and "\n" not in str(exc.value)
+
+
+def test_start_posture_seed_of_the_wrong_length_is_one_line():
+    from tmtcontrol.simulation.posesim import pose_path, robot_of
+
+    sc = apply_overrides(arm_scenario("ur5"), ["robot.q0=[0.0, 0.1, 0.2]"])
+    with pytest.raises(ScenarioError, match=r"^robot\.q0: expected 6 values"):
+        pose_path(robot_of(sc), sc)
