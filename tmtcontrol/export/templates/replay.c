@@ -21,6 +21,7 @@
 #include "tmt_controller.h"
 
 #define MAX_LINE 8192
+#define MEAS_HEADER "t,@MEAS_COLUMNS@"
 
 static int parse_row(char *line, double *t, double *v)
 {
@@ -42,7 +43,21 @@ static int parse_row(char *line, double *t, double *v)
         }
         p = end;
     }
-    return 0;
+    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') {    /* CRLF, trailing blanks */
+        ++p;
+    }
+    return *p == '\0' ? 0 : -1;     /* an extra column is an error, not ignored */
+}
+
+/* The header must name the columns in replay's order (a reordered or
+ * different table would otherwise be read silently into the wrong fields). */
+static int header_ok(char *line)
+{
+    size_t n = strlen(line);
+    while (n > 0 && (line[n - 1] == '\n' || line[n - 1] == '\r' || line[n - 1] == ' ')) {
+        line[--n] = '\0';
+    }
+    return strcmp(line, MEAS_HEADER) == 0;
 }
 
 static void set_measurement(tmt_measurement *meas, const double *v)
@@ -57,40 +72,66 @@ static void write_command(FILE *out, double t, const tmt_command *cmd)
     fputc('\n', out);
 }
 
+/* Reads the rows of path into *rows and *times; returns their number, or -1
+ * after printing one line saying why (the arrays are then freed). */
 static long read_all(const char *path, double **rows, double **times)
 {
     FILE *in = fopen(path, "r");
     char line[MAX_LINE];
     long n = 0, cap = 1024;
-    if (in == NULL) {
-        return -1;
-    }
+    double *r, *t;
     *rows = malloc(sizeof(double) * TMT_N_MEASUREMENT * cap);
     *times = malloc(sizeof(double) * cap);
-    if (*rows == NULL || *times == NULL || fgets(line, sizeof line, in) == NULL) {   /* header */
-        fclose(in);
-        return -1;
+    if (in == NULL || *rows == NULL || *times == NULL) {
+        fprintf(stderr, "replay: cannot read measurements from %s\n", path);
+        goto fail;
+    }
+    if (fgets(line, sizeof line, in) == NULL) {
+        fprintf(stderr, "replay: %s: empty file (expected the header line %s)\n", path, MEAS_HEADER);
+        goto fail;
+    }
+    if (!header_ok(line)) {
+        fprintf(stderr, "replay: %s: row 1: expected the header line %s\n", path, MEAS_HEADER);
+        goto fail;
     }
     while (fgets(line, sizeof line, in) != NULL) {
         if (n == cap) {
             cap *= 2;
-            *rows = realloc(*rows, sizeof(double) * TMT_N_MEASUREMENT * cap);
-            *times = realloc(*times, sizeof(double) * cap);
-            if (*rows == NULL || *times == NULL) {
-                fclose(in);
-                return -1;
+            r = realloc(*rows, sizeof(double) * TMT_N_MEASUREMENT * cap);
+            if (r != NULL) {
+                *rows = r;
+            }
+            t = realloc(*times, sizeof(double) * cap);
+            if (t != NULL) {
+                *times = t;
+            }
+            if (r == NULL || t == NULL) {
+                fprintf(stderr, "replay: %s: out of memory at row %ld\n", path, n + 2);
+                goto fail;
             }
         }
         if (parse_row(line, *times + n, *rows + n * TMT_N_MEASUREMENT) != 0) {
-            fprintf(stderr, "replay: %s: row %ld: expected %d numbers after t\n", path, n + 2,
-                    TMT_N_MEASUREMENT);
-            fclose(in);
-            return -1;
+            fprintf(stderr, "replay: %s: row %ld: expected t and %d numbers separated by commas\n", path,
+                    n + 2, TMT_N_MEASUREMENT);
+            goto fail;
         }
         ++n;
     }
+    if (n == 0) {
+        fprintf(stderr, "replay: %s: no measurement rows after the header\n", path);
+        goto fail;
+    }
     fclose(in);
     return n;
+fail:
+    if (in != NULL) {
+        fclose(in);
+    }
+    free(*rows);
+    free(*times);
+    *rows = NULL;
+    *times = NULL;
+    return -1;
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -110,11 +151,13 @@ static int bench(long calls, const char *path)
     struct timespec a, b;
 
     if (path != NULL && (nrows = read_all(path, &rows, &times)) <= 0) {
-        fprintf(stderr, "replay: cannot read measurements from %s\n", path);
         return 2;
     }
     dt = malloc(sizeof(double) * (size_t)calls);
     if (dt == NULL) {
+        fprintf(stderr, "replay: --bench: cannot allocate the times of %ld calls\n", calls);
+        free(rows);
+        free(times);
         return 2;
     }
     tmt_default_params(&params);
@@ -150,11 +193,13 @@ int main(int argc, char **argv)
     static tmt_command cmd;
     double *rows = NULL, *times = NULL;
     long n, k;
+    int rc;
     FILE *out;
 
     if (argc >= 3 && strcmp(argv[1], "--bench") == 0) {
-        long calls = strtol(argv[2], NULL, 10);
-        if (calls < 1) {
+        char *end;
+        long calls = strtol(argv[2], &end, 10);
+        if (calls < 1 || end == argv[2] || *end != '\0') {
             fprintf(stderr, "replay: --bench: expected a number of calls >= 1, got %s\n", argv[2]);
             return 2;
         }
@@ -166,12 +211,13 @@ int main(int argc, char **argv)
     }
     n = read_all(argv[1], &rows, &times);
     if (n < 0) {
-        fprintf(stderr, "replay: cannot read measurements from %s\n", argv[1]);
         return 2;
     }
     out = fopen(argv[2], "w");
     if (out == NULL) {
         fprintf(stderr, "replay: cannot write %s\n", argv[2]);
+        free(rows);
+        free(times);
         return 2;
     }
     fprintf(out, "t,@CMD_COLUMNS@\n");
@@ -179,9 +225,12 @@ int main(int argc, char **argv)
     tmt_init(&params, &state);
     for (k = 0; k < n; ++k) {
         set_measurement(&meas, rows + k * TMT_N_MEASUREMENT);
-        if (tmt_step(&params, &state, &meas, &cmd) != 0) {
-            fprintf(stderr, "replay: tmt_step failed at row %ld\n", k + 2);
+        if ((rc = tmt_step(&params, &state, &meas, &cmd)) != 0) {
+            fprintf(stderr, "replay: %s: row %ld: tmt_step returned %d%s\n", argv[1], k + 2, rc,
+                    rc == TMT_E_NONFINITE ? " (a non-finite result: check the measurement)" : "");
             fclose(out);
+            free(rows);
+            free(times);
             return 1;
         }
         write_command(out, times[k], &cmd);

@@ -7,6 +7,8 @@
  * the generated function with the work arrays held in tmt_state, and copies
  * the results back.
  */
+#include <math.h>
+
 #include "tmt_controller.h"
 
 /* The generated code declares parameters it does not use (iw, w, mem) in its
@@ -53,9 +55,12 @@ int tmt_init(const tmt_params *params, tmt_state *state)
     return 0;
 }
 
+/* A non-finite measurement or parameter (a NaN force reading, say) would make
+ * the state non-finite for good: tmt_step refuses that period instead, leaving
+ * the state and the command as they were (fixed-count checks, no early exit). */
 int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *meas, tmt_command *cmd)
 {
-    int i, rc;
+    int i, rc, bad = 0;
 @PACK_PARAMS@
 @PACK_MEAS@
     state->arg[0] = state->s;
@@ -65,6 +70,15 @@ int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *
     state->res[1] = state->out;
     state->res[2] = state->out + TMT_N_COMMAND;
     rc = @GEN@(state->arg, state->res, state->iw, state->w, 0);
+    for (i = 0; i < TMT_N_STATE; ++i) {
+        bad |= !isfinite(state->s_next[i]);
+    }
+    for (i = 0; i < TMT_N_OUT; ++i) {
+        bad |= !isfinite(state->out[i]);
+    }
+    if (rc != 0 || bad) {
+        return rc != 0 ? rc : TMT_E_NONFINITE;
+    }
     for (i = 0; i < TMT_N_STATE; ++i) {
         state->s[i] = state->s_next[i];
     }

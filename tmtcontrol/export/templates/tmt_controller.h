@@ -35,12 +35,14 @@ extern "C" {
 #define TMT_N_MEASUREMENT @NY@
 #define TMT_N_COMMAND @NC@
 #define TMT_N_DIAG @ND@
+#define TMT_N_OUT (TMT_N_COMMAND + TMT_N_DIAG)
 /* work sizes of the generated function (its _work() at generation time) */
 #define TMT_SZ_ARG @SZ_ARG@
 #define TMT_SZ_RES @SZ_RES@
 #define TMT_SZ_IW @SZ_IW@
 #define TMT_SZ_W @SZ_W@
 #define TMT_ALLOC(n) ((n) > 0 ? (n) : 1)
+#define TMT_E_NONFINITE (-1)            /* tmt_step: a non-finite result; state and command not updated */
 
 /* Parameters: may be changed between two calls of tmt_step(). */
 typedef struct {
@@ -82,7 +84,11 @@ void tmt_default_params(tmt_params *params);
 int tmt_init(const tmt_params *params, tmt_state *state);
 
 /* One control period: reads meas, writes cmd, advances state. Returns 0 on
- * success (the generated function's return code otherwise). */
+ * success; TMT_E_NONFINITE if a result would be NaN or infinite (a NaN or
+ * infinite measurement or parameter), or the generated function's non-zero
+ * return code: then state and cmd are left as they were (the last good
+ * command; stop the robot safely) and the next call starts from that state.
+ * Call tmt_init() before the first call. */
 int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *meas, tmt_command *cmd);
 
 /* Struct sizes, for callers through a foreign-function interface. */
