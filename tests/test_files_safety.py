@@ -416,7 +416,8 @@ def test_full_disk_while_caching_a_library_leaves_nothing_partial(tmp_path, priv
     """Injected ENOSPC while the library is staged: the staged .so.PID.tmp is
     removed, nothing is cached, the run uses the library it built (one
     warning), and the build folder is gone."""
-    from tmtcontrol.simulation import cache, rollout
+    from tmtcontrol import cache
+    from tmtcontrol.simulation import rollout
 
     if rollout.compiler() is None:
         pytest.skip("no C compiler")
@@ -533,7 +534,8 @@ def test_a_reused_pid_or_another_host_is_told_apart(tmp_path):
 
 
 def test_unwritable_cache_reuses_one_private_fallback_folder(tmp_path, private_tmp, monkeypatch):
-    from tmtcontrol.simulation import cache, rollout
+    from tmtcontrol import cache
+    from tmtcontrol.simulation import rollout
 
     if rollout.compiler() is None:
         pytest.skip("no C compiler")
@@ -572,7 +574,7 @@ def test_prune_keeps_the_most_recently_used_libraries_within_the_bound(tmp_path)
     sidecars), the rest go, then a library unused for 40 days goes even under
     the size bound; staged files older than an hour go; files tmtcontrol does
     not name, and the library just built, always stay."""
-    from tmtcontrol.simulation.cache import prune
+    from tmtcontrol.cache import prune
 
     now = 1.8e9
     libs = [_fake_library(tmp_path, f"law{i}", 100_000, now - (i + 1) * 86400) for i in range(5)]
@@ -807,7 +809,7 @@ def test_compile_litter_in_the_temporary_folder_is_removed_after_a_day(private_t
     anything else stay; ``cache --clear`` removes them whatever their age."""
     import time
 
-    from tmtcontrol.simulation.cache import clear_cache, fallback_cache, prune_temporary
+    from tmtcontrol.cache import clear_cache, fallback_cache, prune_temporary
 
     now = time.time()                          # clear_cache looks at the real clock
     made = {}

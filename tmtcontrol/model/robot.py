@@ -25,7 +25,7 @@ The robot offers, for the ``n`` actuated joints:
 
 Building a URDF robot's Functions is cached on disk keyed by the URDF's
 content and the options (the folder of the compiled rollouts,
-:func:`tmtcontrol.simulation.rollout.cache_dir`), so a second load of the same
+:func:`tmtcontrol.cache.cache_dir`), so a second load of the same
 arm deserialises them instead of rebuilding the expressions.
 """
 
@@ -401,7 +401,7 @@ def cache_key(chain: Chain, text: str, arm, friction, coulomb_velocity, mass_sca
 def _cached_functions(chain, text, arm, friction, coulomb_velocity, mass_scale, use_cache) -> RobotFunctions:
     if not use_cache:
         return _build_functions(chain, arm, friction, coulomb_velocity)
-    from ..simulation.rollout import cache_dir      # the one definition of the cache folder
+    from ..cache import cache_dir      # the one definition of the cache folder
 
     key = cache_key(chain, text, arm, friction, coulomb_velocity, mass_scale)
     path = cache_dir() / "robots" / f"{_safe(chain.name)}_{key}.casadi"
@@ -442,7 +442,7 @@ def _compiled(fn: ca.Function, key: str) -> ca.Function:
     import subprocess
     import tempfile
 
-    from ..simulation.rollout import cache_dir, compiler      # the one cache folder and compiler choice
+    from ..cache import cache_dir, compiler      # the one cache folder and compiler choice
 
     h = hashlib.sha256(f"{key} {' '.join(_CFLAGS)} {ca.__version__} {os.uname().machine}".encode())
     lib = cache_dir() / "robots" / f"{fn.name()}_{h.hexdigest()[:20]}.so"

@@ -16,7 +16,7 @@ the caller's key when it gives one (the Simulator's: the package's sources,
 the structural settings and the law, so a warm run does not even build the
 step; the library's own sparsity tables give the sizes), else the
 Function's serialisation. Storage, verification, the per-user fallback of
-an unwritable cache and pruning are in :mod:`tmtcontrol.simulation.cache`: a
+an unwritable cache and pruning are in :mod:`tmtcontrol.cache`: a
 library that does not match its recorded size and SHA-256 (a crash during a
 write) is rebuilt, never loaded; a full disk leaves nothing partial and the
 library is used uncached; with no compiler a valid cached library is still
@@ -34,7 +34,6 @@ import hashlib
 import os
 import pathlib
 import platform
-import shutil
 import subprocess
 import tempfile
 import warnings
@@ -42,8 +41,8 @@ import warnings
 import casadi as ca
 import numpy as np
 
-from . import cache
-from .cache import cache_dir
+from .. import cache
+from ..cache import cache_dir, compiler
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
@@ -71,13 +70,6 @@ def _cpu_id() -> str:
         pass
     return platform.machine() + platform.processor() + model
 
-
-def compiler() -> str | None:
-    """The C compiler to use (``$CC``, else cc/gcc/clang on PATH), or None."""
-    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
-        if name and shutil.which(name):
-            return shutil.which(name)
-    return None
 
 
 class Rollout:

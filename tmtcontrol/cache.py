@@ -1,5 +1,5 @@
-"""The compile cache of :mod:`tmtcontrol.simulation.rollout`: where compiled
-libraries live, how they are written (staged, fsync'ed, renamed, verified),
+"""The compile cache (the simulation's rollouts, the robots' model functions) and the
+C compiler that fills it: where compiled libraries live, how they are written (staged, fsync'ed, renamed, verified),
 found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
 
 * The cache is ``$TMTCONTROL_CACHE`` if set, else ``$XDG_CACHE_HOME/tmtcontrol``
@@ -31,11 +31,12 @@ import json
 import os
 import pathlib
 import re
+import shutil
 import stat
 import tempfile
 import time
 
-__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
+__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
            "mark_used", "prune", "prune_temporary", "cache_info", "clear_cache", "format_cache_info"]
 
 MAX_BYTES = 200 * 2**20
@@ -49,6 +50,14 @@ _STALE_TMP_SECONDS = 3600
 _LIBRARY = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so")
 _SIDECAR = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.json")
 _STAGED = re.compile(r"\.[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.(so|json)\.[0-9]+\.tmp")
+
+
+def compiler() -> str | None:
+    """The C compiler to use (``$CC``, else cc/gcc/clang on PATH), or None."""
+    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if name and shutil.which(name):
+            return shutil.which(name)
+    return None
 
 
 def cache_dir() -> pathlib.Path:
