@@ -65,6 +65,13 @@ FORCED = 0.2
 """An oscillation that repeats from one whole forcing period to the next
 within this fraction of its amplitude is the forced response (stable)."""
 
+REPEAT_GROWTH = 0.02
+"""A window that repeats the previous one scaled by more than 1 + this (the
+least-squares gain of e_B on e_A, means removed) grows: not the forced
+response, whose windows repeat at gain 1 (an oscillation whose period
+divides the window, e.g. the sampled loop's Nyquist mode, growing up to
+1.67x per window passed the repeat test alone)."""
+
 STEP_SAMPLES = 10
 """Knots of a piecewise-linear or table profile closer than this many samples
 to the previous segment boundary make one step (the later knot starts the
@@ -204,6 +211,14 @@ def _amplitude(e: np.ndarray) -> float:
     return float(np.max(np.abs(np.diff(v))))
 
 
+def _gain(e_A: np.ndarray, e_B: np.ndarray) -> float:
+    """The least-squares gain g of ``e_B ~ g e_A`` (means removed): 1 for a
+    repeat, above 1 for growth, below for decay."""
+    a, b = e_A - np.mean(e_A), e_B - np.mean(e_B)
+    aa = float(a @ a)
+    return float(a @ b) / aa if aa > 0.0 else 0.0
+
+
 def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
                   periods: tuple[int, ...] = (), Ts: float = 1.0) -> tuple[str, str]:
     """``(verdict, reason)`` for one segment's force (N) against f_d (N).
@@ -223,7 +238,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     ``diverged`` if a_B > band and a_B > 1.5 a_A; ``limit_cycle`` if the
     contact is lost in the last
     quarter, or a_B > band, a_B >= 0.95 a_A and B does not repeat A (whole
-    periods only: max |e_B - e_A| > 0.2 a_B; a repeat is the forced
+    periods only: max |e_B - e_A| > 0.2 a_B, or B is A grown by more
+    than 2 % (:data:`REPEAT_GROWTH`); a repeat is the forced
     response); otherwise stable: ``converged`` if max |e| over the last
     quarter <= ``tolerance``, else ``off_target``. A segment of fewer than
     16 samples is judged by the tolerance alone.
@@ -248,7 +264,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     over = f"{W * Ts:.3g} s" + (" (whole periods)" if P else "")
     if a_B > band and a_B > GROWTH * a_A:
         return "diverged", f"oscillation grows {a_B / max(a_A, 1e-300):.3g}x over {over}"
-    forced = P is not None and float(np.max(np.abs(e_B - e_A))) <= FORCED * a_B
+    forced = (P is not None and float(np.max(np.abs(e_B - e_A))) <= FORCED * a_B
+              and _gain(e_A, e_B) <= 1.0 + REPEAT_GROWTH)
     if a_B > band and a_B >= SUSTAINED * a_A and not forced:
         return "limit_cycle", f"oscillation of {a_B:.3g} N peak-to-peak does not decay over {over}"
     worst = float(np.max(np.abs(e[n - last.size:])))

@@ -58,17 +58,19 @@ __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "des
 SAMPLING_MARGIN = 1e-3
 """Relative margin inside the overshoot bound for the sampled NLP constraint."""
 
-INTERSAMPLE = 4
-"""Default points per control period at which the NLP bounds the continuous
-contact force (the exact ZOH solution between samples, :func:`_intersample`;
-``DesignSpec.intersample``). A swing at up to the Nyquist frequency is then
-seen at 8 points per cycle, its peak underestimated by at most 1 - cos(pi/8)
-= 7.6 % of its amplitude; the verification uses :data:`VERIFY_INTERSAMPLE`."""
-
 VERIFY_INTERSAMPLE = 16
 """Points per control period of the verification (:func:`sampled_overshoot`,
 ``worst_overshoot``): a peak underestimated by at most 1 - cos(pi/32) =
 0.5 % of the swing's amplitude."""
+
+INTERSAMPLE = VERIFY_INTERSAMPLE
+"""Default points per control period at which the NLP bounds the continuous
+contact force (the exact ZOH solution between samples, :func:`_intersample`;
+``DesignSpec.intersample``): as many as the verification, so the optimum it
+finds passes it (with 4, a swing seen at 8 points per cycle was
+underestimated by up to 7.6 % of its amplitude: at 5 ms, [5e3, 5e4] N/m,
+10 %, IPOPT's b = 307.0 N s/m overshot 10.4 % and the design exited 1,
+while b in about 309.1-360 N s/m meets the bound)."""
 
 
 class DesignError(ValueError):
