@@ -132,6 +132,40 @@ def test_replay_stops_at_a_non_finite_row_naming_it(built):
     assert r.returncode == 1 and "row 3" in r.stderr and "non-finite" in r.stderr, r.stderr
 
 
+# -- tmt_init from edited parameters -------------------------------------------------------------------
+
+EDITED = ["controller.x_e_error=0.002", "impedance.b=[100.0, 20.0, 20.0]", "controller.law.initial_stiffness=5000.0"]
+
+
+def test_parameters_edited_before_tmt_init_start_the_controller_as_their_export(tmp_path):
+    """The README's pattern: tmt_default_params, edit fields, tmt_init. tmt_init ignored params and started
+    from the exported scenario's state (its surface estimate x_e_hat, scheduled damping b_n and the RLS
+    law's initial estimates), so a controller with x_e_hat edited to 2 mm commanded up to 2 m away from
+    one exported with that value. Now both run bit for bit alike: the exported library with edited
+    parameters against the library exported from the scenario with those values."""
+    base = ["controller.law=rls", "controller.damping_schedule.kind='zeta'"]
+    ctl = {}
+    for name, sets in (("exported", base), ("edited", base + EDITED)):
+        folder = tmp_path / name
+        folder.mkdir()
+        export_controller(apply_overrides(paper_scenario(), sets), folder, True)
+        _run(["gcc", "-std=c99", "-O0", "-fPIC", "-shared", "tmt_controller.c", "-o", "lib.so", "-lm"], folder)
+        ctl[name] = CompiledController(folder, library=folder / "lib.so")
+    want = ctl["edited"].default_params()
+    edited = ctl["exported"].Params.from_buffer_copy(bytes(want))
+    assert bytes(edited) != bytes(ctl["exported"].default_params())        # the edit changes parameters
+    runs = []
+    for c, p in ((ctl["exported"], edited), (ctl["edited"], want)):
+        s, m, cmd = c.new_state(p), c.Measurement(), c.Command()
+        first = bytes(s.s)
+        m.q[1], m.q[2] = -0.5, 0.8
+        for k in range(300):
+            m.force[0] = -5.0 if k > 100 else 0.0
+            assert c.step(p, s, m, cmd) == 0
+        runs.append((first, bytes(cmd), bytes(s.s)))
+    assert runs[0] == runs[1]
+
+
 # -- heavy: compilers, sanitizers, valgrind, the header, the Makefile, replay of every structure --------
 
 VARIANTS = {

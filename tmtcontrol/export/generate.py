@@ -34,7 +34,7 @@ from ..simulation.scenario import Scenario
 
 __all__ = ["ExportError", "Field", "MEASUREMENT_FIELDS", "COMMAND_FIELDS", "DIAGNOSTIC_FIELDS", "param_fields",
            "command_fields", "controller_function", "check_exportable", "scenario_values", "export_controller",
-           "GENERATED_FUNCTION", "CODEGEN_CLASSES", "METADATA"]
+           "GENERATED_FUNCTION", "CODEGEN_CLASSES", "METADATA", "initial_function"]
 
 METADATA = "export.json"
 """Written beside the code: law, delay, inner loop, the controller's model
@@ -213,6 +213,38 @@ def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.nd
     return p, s
 
 
+def initial_function(scenario: Scenario, law: Law, torque: bool) -> ca.Function:
+    """``tmt_init``'s state as a Function of the parameter vector,
+    ``<GENERATED_FUNCTION>_init: p -> s0``: the simulator's initial controller
+    state (``Simulator._inputs``) with the entries it takes from the
+    parameters written as expressions of them (the normal damping b_n, the
+    surface estimate x_e_hat, the law's ``initial``), so parameters edited
+    before ``tmt_init`` start the controller as an export with those values
+    would. The approach phase (where the scenario starts) is structural."""
+    cp = controller_param_layout(law)
+    p = ca.SX.sym("p", cp.size)
+    P = cp.split(p)
+    p0, s0 = scenario_values(scenario, torque)
+    cs = controller_state_layout(law, scenario.controller.delay_samples, torque)
+    s = ca.SX(ca.DM(s0))
+    b = P["b"][0]
+    s[cs["b_n"]] = ca.if_else(P["sched"] != 0, ca.fmin(ca.fmax(b, P["b_min"]), P["b_max"]), b)
+    s[cs["x_e_hat"]] = P["x_e_hat"]
+    if law.initial is not None and law.states:
+        names = dict(zip(law.parameter_names, ca.vertsplit(P["law"])))
+        try:
+            init = law.initial(type("LawParameters", (), names))
+            for name, value in init.items():
+                i = cs["law"].start + law.states.index(name)
+                s[i] = value
+        except Exception:         # an initial() that is not symbolic: the scenario's numbers
+            s[cs["law"]] = s0[cs["law"]]
+    fn = ca.Function(GENERATED_FUNCTION + "_init", [p], [s], ["p"], ["s0"])
+    back = np.asarray(fn(p0)).ravel()
+    assert np.array_equal(back, s0), (back, s0)       # the defaults give the simulator's state
+    return fn
+
+
 # -- writing ----------------------------------------------------------------------------------
 
 def _c_num(x: float) -> str:
@@ -275,7 +307,10 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     gen = ca.CodeGenerator("tmt_controller_gen.c", {"with_header": True, "casadi_real": "double",
                                                       "casadi_int": "long long int", "mex": False,
                                                       "avoid_stack": True, "prefix": "tmt_gen_"})
+    init = initial_function(scenario, law, inner_loop)
     gen.add(fn)
+    gen.add(init)
+    work = {k: max(getattr(fn, f"sz_{k}")(), getattr(init, f"sz_{k}")()) for k in ("arg", "res", "iw", "w")}
     gen.generate(str(folder) + "/")
     pf, cf = param_fields(law), command_fields(inner_loop)
     state = controller_state_layout(law, scenario.controller.delay_samples, inner_loop)
@@ -288,8 +323,8 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "VERSION": __version__, "CASADI": ca.__version__, "SCENARIO": scenario.name, "LAW": law.name,
         "DELAY": scenario.controller.delay_samples, "INNER": "yes" if inner_loop else "no",
         "INNER_FLAG": int(inner_loop), "NS": state.size, "NP": controller_param_layout(law).size,
-        "NY": MEASUREMENT.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": fn.sz_arg(), "SZ_RES": fn.sz_res(),
-        "SZ_IW": fn.sz_iw(), "SZ_W": fn.sz_w(), "GEN": GENERATED_FUNCTION, "TS": _c_num(scenario.controller.Ts),
+        "NY": MEASUREMENT.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
+        "SZ_IW": work["iw"], "SZ_W": work["w"], "GEN": GENERATED_FUNCTION, "TS": _c_num(scenario.controller.Ts),
         "STATE_NAMES": state_names, "LAW_STATES": law_states,
         "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(MEASUREMENT_FIELDS),
         "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(DIAGNOSTIC_FIELDS),
@@ -297,7 +332,6 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "UNPACK_CMD": _copy_out(cf, "state->out", "cmd"),
         "UNPACK_DIAG": _copy_out(DIAGNOSTIC_FIELDS, "state->out", "cmd", n_cmd),
         "DEFAULT_PARAMS": _defaults(pf, p0),
-        "INITIAL_STATE": ", ".join(_c_num(v) for v in s0) if s0.size else "0.0",
         "MEAS_COLUMNS": ",".join(c for f in MEASUREMENT_FIELDS for c in f.columns),
         "CMD_COLUMNS": ",".join(c for f in (*cf, *DIAGNOSTIC_FIELDS) for c in f.columns),
         "READ_MEAS": _csv_read(MEASUREMENT_FIELDS), "WRITE_CMD": _csv_write((*cf, *DIAGNOSTIC_FIELDS)),
@@ -311,8 +345,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
             "scenario": scenario.name, "law": law.name, "inner_loop": inner_loop,
             "delay": scenario.controller.delay_samples, "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
-            "sizes": {"state": state.size, "param": controller_param_layout(law).size, "arg": fn.sz_arg(),
-                      "res": fn.sz_res(), "iw": fn.sz_iw(), "w": fn.sz_w()},
+            "sizes": {"state": state.size, "param": controller_param_layout(law).size, **work},
             "instructions": fn.n_instructions()}
     (folder / METADATA).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return {**meta, "files": sorted(p.name for p in folder.iterdir())}

@@ -22,19 +22,19 @@
 #pragma GCC diagnostic pop
 #endif
 
-static const double tmt_initial_state[TMT_ALLOC(TMT_N_STATE)] = {@INITIAL_STATE@};
-
 void tmt_default_params(tmt_params *params)
 {
 @DEFAULT_PARAMS@
 }
 
+/* The initial state is generated too (@GEN@_init): the scenario's, with the
+ * entries the simulator derives from the parameters (b_n, x_e_hat, the law's
+ * initial state) computed from params. */
 int tmt_init(const tmt_params *params, tmt_state *state)
 {
     int i;
-    (void)params;
     for (i = 0; i < TMT_N_STATE; ++i) {
-        state->s[i] = tmt_initial_state[i];
+        state->s[i] = 0.0;
         state->s_next[i] = 0.0;
     }
     for (i = 0; i < TMT_N_COMMAND + TMT_N_DIAG; ++i) {
@@ -52,7 +52,10 @@ int tmt_init(const tmt_params *params, tmt_state *state)
     for (i = 0; i < TMT_ALLOC(TMT_SZ_RES); ++i) {
         state->res[i] = 0;
     }
-    return 0;
+@PACK_PARAMS@
+    state->arg[0] = state->p;
+    state->res[0] = state->s;
+    return @GEN@_init(state->arg, state->res, state->iw, state->w, 0);
 }
 
 /* A non-finite measurement or parameter (a NaN force reading, say) would make
