@@ -82,7 +82,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "tmtcontrol/files.py": ("tests/test_files_safety.py", "tests/test_outputs.py", "tests/test_mutation_kills.py"),
     "tmtcontrol/simulation/metrics.py": ("tests/test_verdicts_wave3.py", "tests/test_verdicts.py",
                                          "tests/test_mutation_kills.py"),
-    "tmtcontrol/simulation/scenario.py": ("tests/test_scenario.py", "tests/test_scenario_fuzz.py",
+    "tmtcontrol/simulation/scenario.py": ("tests/test_scenario.py", "tests/test_docs.py", "tests/test_scenario_fuzz.py",
                                           "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),
     "tmtcontrol/control/laws": ("tests/test_laws.py", "tests/test_mutations.py", "tests/test_derivations.py",
                                 "tests/test_mutation_kills.py"),
@@ -243,6 +243,8 @@ def main(argv=None) -> int:
     ap.add_argument("--count", action="store_true", help="print the number of mutants per module and stop")
     ap.add_argument("--show", metavar="ID", help="print the diff of one mutant (FILE:OPERATOR:OCCURRENCE) and stop")
     ap.add_argument("--json", metavar="PATH", help="write the table and every mutant's outcome as JSON")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the modules already measured in the --json file and run the others")
     ap.add_argument("--markdown", metavar="JSON", help="print the Markdown table of a results JSON and stop")
     a = ap.parse_args(argv)
     if a.markdown:
@@ -282,7 +284,24 @@ def main(argv=None) -> int:
         muts = enumerate_mutants(root, a.modules)
         started = time.perf_counter()
         rows, results, deselected = [], [], {}
+        if a.resume and a.json and pathlib.Path(a.json).exists():
+            old = json.loads(pathlib.Path(a.json).read_text())
+            rows = [r for r in old["modules"] if r.get("score") is not None]
+            kept = {r["module"] for r in rows}
+            results = [r for r in old["mutants"] if r["module"] in kept]
+            deselected = {m: t for m, t in old.get("deselected", {}).items() if m in kept}
+            print(f"resumed from {a.json}: {', '.join(sorted(kept))}", flush=True)
+
+        def save():      # after every module, so an interrupted run keeps what it measured
+            if a.json:
+                doc = dict(tool="cosmic-ray 8.7", sample=a.sample, seed=a.seed, full_suite=not a.no_full,
+                           timeout=a.timeout, deselected=deselected,
+                           modules=sorted(rows, key=lambda r: list(TESTS).index(r["module"])), mutants=results)
+                pathlib.Path(a.json).write_text(json.dumps(doc, indent=1, default=str) + "\n")
+
         for mod in a.modules:
+            if any(r["module"] == mod for r in rows):
+                continue
             population = muts[mod]
             chosen = population
             if 0 < a.sample < len(population):   # one generator per module: its sample does not depend on --modules
@@ -292,11 +311,13 @@ def main(argv=None) -> int:
                 chosen = [m for m in population if m.id in a.only]
                 if not chosen:
                     continue
+            t_mod = time.perf_counter()
             tests = [t for t in TESTS[mod] if (root / t).exists()]
             failing = _failing(root, tests, env, a.timeout * 2)
             if failing is None:
                 print(f"\n{mod}: baseline of {' '.join(tests)} does not run, module not measured", flush=True)
-                rows.append(dict(module=mod, mutants=len(population), run=0, baseline="fails"))
+                rows.append(dict(module=mod, commit=commit, mutants=len(population), run=0, baseline="fails"))
+                save()
                 continue
             tests += [f"--deselect={t}" for t in failing]
             names = " ".join(t for t in tests if not t.startswith("-"))
@@ -339,8 +360,11 @@ def main(argv=None) -> int:
                       flush=True)
             k, s = counts["killed"], counts["survived"]
             lo, hi = wilson(k, k + s)
-            rows.append(dict(module=mod, mutants=len(population), run=len(chosen), **counts,
+            rows.append(dict(module=mod, commit=commit, sample=a.sample, seed=a.seed, full_suite=not a.no_full,
+                             mutants=len(population), run=len(chosen), **counts,
+                             minutes=round((time.perf_counter() - t_mod) / 60, 1),
                              score=k / (k + s) if k + s else None, ci95=[lo, hi] if k + s else None))
+            save()
         elapsed = time.perf_counter() - started
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
@@ -362,11 +386,6 @@ def main(argv=None) -> int:
         print("\nSurvivors (each a missing test, or an equivalent mutant to argue in equivalent_mutants.toml):")
         for r in survivors:
             print(f"--- {r['id']}\n{r['diff']}")
-    if a.json:
-        doc = dict(tool="cosmic-ray", commit=commit, sample=a.sample, seed=a.seed, full_suite=not a.no_full,
-                   timeout=a.timeout, minutes=round(elapsed / 60, 1), deselected=deselected, modules=rows,
-                   mutants=results)
-        pathlib.Path(a.json).write_text(json.dumps(doc, indent=1, default=str) + "\n")
     return 0
 
 

@@ -82,3 +82,16 @@ def test_applicable_settings_keep_the_unconditional_keys_with_their_units():
     assert (rows["controller.f_d"].value, rows["controller.f_d"].unit) == (10.0, "N")
     assert rows["environment.stiffness.values"].unit == "N/m"
     assert rows["impedance.b"].unit == "N s/m" and rows["controller.rate"].unit == "Hz"
+
+
+def test_override_of_an_unset_optional_key_is_accepted_and_an_unknown_key_refused():
+    """scenario.py:core/ReplaceComparisonOperator_Is_IsNot in _set_dotted (``known is not None or
+    ...``): impedance.kd is unset by default (B/M), so it is absent from the scenario's dict; the
+    schema knows it, so ``--set impedance.kd=[...]`` must be accepted, while a key the schema does
+    not know is still refused in one line naming it."""
+    from tmtcontrol import apply_overrides
+    from tmtcontrol.simulation.scenario import ScenarioError
+
+    assert apply_overrides(paper_scenario(), ["impedance.kd=[30,20,20]"]).impedance.kd == (30.0, 20.0, 20.0)
+    with pytest.raises(ScenarioError, match=r"^impedance\.nonsense: unknown key"):
+        apply_overrides(paper_scenario(), ["impedance.nonsense=1"])
