@@ -295,9 +295,12 @@ def test_cli_simulates_the_ur5_briefly(tmp_path, capsys):
     from tmtcontrol.cli import main
 
     out = tmp_path / "run"
-    assert main(["simulate", "ur5", "--set", "trajectory.cycles=0.25", "--out", str(out), "--no-plots"]) == 0
+    assert main(["simulate", "ur5", "--set", "trajectory.cycles=0.25", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "scenario 'ur5': 1000 steps of 1 ms" in text
+    # the PUMA's four figures and the orientation error of a 6-D arm
+    assert {p.name for p in out.glob("*.png")} == {"fig3_stiffness.png", "fig4_force.png", "fig5_position.png",
+                                                   "path3d.png", "orientation_error.png"}
     header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
     assert header[15:21] == [f"q{i}" for i in range(1, 7)] and header[-3:] == ["e_n", "e_1", "e_2"]
 

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from ..drawing import save_figures
 from ..plotstyle import fixed_layout, legend_below, legend_margin
-from .output import SIMULATION_FIGURES
+from .output import simulation_figures
 from .traces import SimulationTraces
 
 if TYPE_CHECKING:
@@ -183,10 +183,26 @@ def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
 
 
+def orientation_figure(res: SimulationResult | SimulationTraces) -> Figure:
+    """6-D arms: the angle between the tool orientation and its command (mrad)."""
+    res = _traces(res)
+    fig = Figure(figsize=(7, 3.2))
+    ax = fig.add_subplot()
+    t, a = envelope(res.time, 1e3 * res.orientation_error)
+    ax.plot(t, np.maximum(a, 1e-9), label="|log(R_c R^T)|")
+    ax.set(xlabel="time (s)", ylabel="orientation error (mrad)", title="Tool orientation error")
+    ax.set_yscale("log")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    return fixed_layout(fig)
+
+
 def save_simulation_figures(res: SimulationResult | SimulationTraces,
                             folder: str | pathlib.Path) -> list[pathlib.Path]:
-    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png."""
-    return save_figures([(name, globals()[make]) for name, make in SIMULATION_FIGURES], _traces(res), folder)
+    """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png
+    (and orientation_error.png for a 6-D arm)."""
+    tr = _traces(res)
+    return save_figures([(name, globals()[make]) for name, make in simulation_figures(tr)], tr, folder)
 
 
 _LAW_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "D"), ((0, (5, 1, 1, 1)), "v"), ((0, (1, 2)), "P"))

@@ -9,7 +9,7 @@ from ..drawing import _can_fork
 from ..files import versions, write_json
 
 __all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries",
-           "timeseries_columns"]
+           "timeseries_columns", "simulation_figures"]
 
 
 TIMESERIES_COLUMNS = (
@@ -17,6 +17,14 @@ TIMESERIES_COLUMNS = (
     "x", "y", "z", "x_ref", "y_ref", "z_ref", "x_cmd", "y_cmd", "z_cmd",
     "q1", "q2", "q3", "dq1", "dq2", "dq3", "tau1", "tau2", "tau3")
 """Columns of timeseries.csv (SI: s, N, N/m, m, rad, rad/s, N m) for the 3-joint PUMA."""
+
+
+def simulation_figures(traces) -> tuple:
+    """The figures of a run: :data:`SIMULATION_FIGURES`, and for a 6-D arm
+    (traces with an orientation error) ``orientation_error`` (the angle
+    between the tool and its command)."""
+    return SIMULATION_FIGURES + ((("orientation_error", "orientation_figure"),)
+                                 if getattr(traces, "orientation_error", None) is not None else ())
 
 
 def timeseries_columns(n: int = 3, orientation: bool = False) -> tuple[str, ...]:
@@ -141,7 +149,9 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, work
     r = result
     drawing = None
     if plots:
-        drawing = (workers or FigureWorkers(FIGURE_MODULE, processes=0)).draw(SIMULATION_FIGURES, r.traces, folder)
+        traces = r.traces
+        drawing = (workers or FigureWorkers(FIGURE_MODULE, processes=0)).draw(simulation_figures(traces), traces,
+                                                                              folder)
     with contextlib.ExitStack() as stack:
         if drawing is not None:
             stack.callback(drawing.cancel)          # on any error: no worker writes into folder after it

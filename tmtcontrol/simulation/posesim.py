@@ -53,7 +53,8 @@ class PoseSimulationResult(SimulationResult):
             time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
             reference_position=self.reference_position, surface_frame=surface_frame(sc.environment),
-            center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius))
+            center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius),
+            orientation_error=self.orientation_error_norm)
 
     @property
     def orientation_error_norm(self) -> np.ndarray:

@@ -31,3 +31,4 @@ class SimulationTraces:
     surface_frame: np.ndarray        # (3, 3) task axes (e_n, e_1, e_2) as columns
     center: np.ndarray               # (3,) centre of the circle, m
     radius: float                    # radius of the circle, m
+    orientation_error: np.ndarray | None = None   # (N,) angle between tool and command, rad (6-D arms only)
