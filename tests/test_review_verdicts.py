@@ -117,3 +117,101 @@ def test_design_meets_its_bound_on_the_brute_force_continuous_force():
     worst = max(_bf_overshoot(1.0, r.b, 100.0, ke, 0.005, 3.718) for ke in np.geomspace(5e3, 5e4, 25))
     assert worst <= 10.0 + 0.05, (r.b, worst)
     assert 309.0 <= r.b <= 310.0, r.b
+
+
+def _bf_radius(m, b, k, k_e, Ts, m_p, f_d=10.0):
+    """Spectral radius of the brute-force loop's one-period map linearised at
+    its equilibrium x = f_d/k_e, x_a = f_d/k (eqs. 23-24), by central
+    differences of the same step as :func:`_bf_overshoot` (states x, v, x_a, v_a)."""
+    import control
+
+    d = control.c2d(control.ss([[0, 1], [-k_e / m_p, 0]], [[0], [1]], [[1, 0]], [[0]]), Ts, "zoh")
+    Ad, Bd = np.asarray(d.A), np.asarray(d.B).ravel()
+
+    def step(z):
+        x, v, xa, va = z
+        f = k_e * x
+        x_r = f_d / k + f_d * min(max(x / max(f, 0.5), 0.0), 1 / 100.0)      # f near f_d: the full eq. (18)
+        acc = (f - b * va - k * xa) / m
+        U = -acc + b / m * (-va - v) + k / m * (x_r - xa - x)
+        h = Ts / 4
+        for _ in range(4):
+            a = lambda xa_, va_: (f - b * va_ - k * xa_) / m     # noqa: E731
+            k1 = (va, a(xa, va))
+            k2 = (va + h / 2 * k1[1], a(xa + h / 2 * k1[0], va + h / 2 * k1[1]))
+            k3 = (va + h / 2 * k2[1], a(xa + h / 2 * k2[0], va + h / 2 * k2[1]))
+            k4 = (va + h * k3[1], a(xa + h * k3[0], va + h * k3[1]))
+            xa, va = (xa + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+                      va + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+        xv = Ad @ np.array([x, v]) + Bd * (U + f / m_p)
+        return np.array([xv[0], xv[1], xa, va])
+
+    z0 = np.array([f_d / k_e, 0.0, f_d / k, 0.0])
+    J = np.empty((4, 4))
+    for i in range(4):
+        e = np.zeros(4)
+        e[i] = 1e-7 * max(abs(z0[i]), 1e-4)
+        J[:, i] = (step(z0 + e) - step(z0 - e)) / (2 * e[i])
+    return float(max(abs(np.linalg.eigvals(J))))
+
+
+def _bf_bisect(ok, lo, hi, tol=1e-3):
+    """The boundary of ``ok`` in [lo, hi] (ok(lo) != ok(hi)) to ``tol`` N s/m."""
+    ok_lo = ok(lo)
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) == ok_lo else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+SPEC5MS = ["design", "--m", "1", "--k", "100", "--ke-min", "5000", "--ke-max", "50000", "--ts", "0.005",
+           "--mp", "3.718"]
+
+
+@pytest.mark.heavy
+def test_design_finds_an_overshoot_window_narrower_than_its_grid(capsys):
+    """5 ms, [5e3, 5e4] N/m, 6 %: the brute force meets 6 % at k_e_max for b in
+    about [331.4, 340.7] N s/m (a window 2.8 % wide, between two points of the
+    scan's 7 % grid) and the loop is stable at 2 k_e_max there; the design said
+    "no b in [1, 5000] N s/m does" (exit 1). It must return a b whose
+    brute-force overshoot over 25 stiffnesses is within 6 % + 0.05 points
+    (16 vs 64 intersample points) and within 0.5 N s/m of the window's lower
+    end (the optimum: the cost falls with b there)."""
+    import json
+
+    from tmtcontrol.cli import main
+
+    os_lo = _bf_bisect(lambda b: _bf_overshoot(1.0, b, 100.0, 5e4, 0.005, 3.718) <= 6.0, 320.0, 336.0, 0.05)
+    assert 331.0 < os_lo < 332.0
+    assert _bf_radius(1.0, os_lo, 100.0, 1e5, 0.005, 3.718) < 1.0
+    code = main(SPEC5MS + ["--max-overshoot", "6", "--json"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    b = json.loads(out.out)["b"]
+    assert b == pytest.approx(os_lo, abs=0.5)
+    assert max(_bf_overshoot(1.0, b, 100.0, ke, 0.005, 3.718) for ke in np.geomspace(5e3, 5e4, 25)) <= 6.05
+
+
+@pytest.mark.heavy
+def test_design_conflict_quotes_both_sides_of_two_sided_windows(capsys):
+    """The same spec with stability required at 3.4 k_e_max = 1.7e5 N/m: the
+    brute force puts the 6 % window at about [331.4, 340.7] N s/m and the
+    stable b at >= 344.4 N s/m (two-sided: stability needs *more* damping
+    here), so it is infeasible. The design (one-sided boundaries assumed)
+    started IPOPT at b = 346 and failed with "IPOPT did not converge";
+    it must exit 1 quoting the three boundaries, each within 0.5 N s/m of the
+    brute force's (the stability one within 0.01: the same linear map)."""
+    import re
+
+    from tmtcontrol.cli import main
+
+    os_lo = _bf_bisect(lambda b: _bf_overshoot(1.0, b, 100.0, 5e4, 0.005, 3.718) <= 6.0, 320.0, 336.0, 0.05)
+    os_hi = _bf_bisect(lambda b: _bf_overshoot(1.0, b, 100.0, 5e4, 0.005, 3.718) <= 6.0, 336.0, 350.0, 0.05)
+    st_lo = _bf_bisect(lambda b: _bf_radius(1.0, b, 100.0, 1.7e5, 0.005, 3.718) < 1.0, 330.0, 352.0)
+    assert os_hi < st_lo
+    code = main(SPEC5MS + ["--max-overshoot", "6", "--margin", "3.4"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1, err
+    nums = [float(v) for v in re.findall(r"b in \[([\d.]+), ([\d.]+)\].*b >= ([\d.]+)", err[0])[0]]
+    assert nums[0] == pytest.approx(os_lo, abs=0.5) and nums[1] == pytest.approx(os_hi, abs=0.5)
+    assert nums[2] == pytest.approx(st_lo, abs=0.01)

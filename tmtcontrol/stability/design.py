@@ -374,7 +374,11 @@ def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
     meets it) and of sampled stability (the largest b that keeps it) are
     then bracketed between grid points and bisected to
     :data:`BRACKET_RTOL`, so a window narrower than the grid is found and an
-    infeasible spec quotes the real boundaries, not grid points."""
+    infeasible spec quotes the real boundaries, not grid points. An
+    overshoot window that holds no grid point is found at the overshoot's
+    minimum, refined between the grid neighbours of its smallest grid value
+    (at 5 ms, [5e3, 5e4] N/m, 6 %: b in about 327.5-344 N s/m, between two
+    grid points 7 % apart, was called unreachable)."""
     bs = np.geomspace(*spec.b_bounds, 120)
     ks = np.geomspace(*spec.k_bounds, 7) if spec.optimize_k else [spec.k]
     os_ok = np.zeros((len(ks), len(bs)), bool)      # overshoot within the bound (stable or not)
@@ -390,14 +394,37 @@ def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
     def stable(k):
         return lambda b: _radius(spec, b, k) < 1
 
-    resps = []
+    def peak(resp, k):
+        def over(b):
+            with np.errstate(all="ignore"):
+                f = np.ravel(np.array(resp(b, k)))
+            return float(f.max()) / spec.f_d - 1.0 if np.all(np.isfinite(f)) else math.inf
+        return over
+
+    resps, extra = [], []
     for i, k in enumerate(ks):
         resp = _contact_response(spec, spec.k_e_max, max(_overshoot_horizon(spec.m, k, spec.k_e_max),
                                                           20 * spec.Ts))
         resps.append(resp)
+        over = [peak(resp, k)(b) for b in bs]
         for j, b in enumerate(bs):
             st_ok[i, j] = stable(k)(b)
-            os_ok[i, j] = meets(resp, k)(b)
+            os_ok[i, j] = over[j] * 100.0 <= spec.max_overshoot + 1e-9
+        if not os_ok[i].any() and np.isfinite(min(over)):
+            # an overshoot window narrower than the grid: the overshoot's minimum between the grid
+            # neighbours of its smallest grid value (bounded Brent), a point of the window if it meets the bound
+            from scipy.optimize import minimize_scalar
+
+            j = int(np.argmin(over))
+            lo, hi = bs[max(j - 1, 0)], bs[min(j + 1, len(bs) - 1)]
+            res = minimize_scalar(lambda lb: peak(resp, k)(math.exp(lb)), bounds=(math.log(lo), math.log(hi)),
+                                  method="bounded", options={"xatol": 1e-6})
+            if res.fun * 100.0 <= spec.max_overshoot + 1e-9:
+                extra.append(float(math.exp(res.x)))
+    if extra:       # the grid with the windows' points added, rescanned
+        bs = np.unique(np.r_[bs, extra])
+        os_ok = np.array([[meets(resps[i], k)(b) for b in bs] for i, k in enumerate(ks)])
+        st_ok = np.array([[stable(k)(b) for b in bs] for k in ks])
     brange = f"b in [{spec.b_bounds[0]:g}, {spec.b_bounds[1]:g}] N s/m"
     if not st_ok.any():
         return (f"Ts: no {brange} keeps the sampled loop stable at {spec.stiffness_margin:g} x k_e_max "
@@ -418,22 +445,32 @@ def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
     if both.any():
         i, j = np.argwhere(both)[len(np.argwhere(both)) // 2]
         return None, float(bs[j])
-    # no grid point meets both: bracket each boundary between grid points and bisect, per k
+    # no grid point meets both: bracket each boundary of each window (overshoot: V-shaped in b; stability:
+    # two-sided, K_D Ts -> 2) between grid points and bisect, per k; the windows either overlap or not
+    def window(row, ok):
+        j0, j1 = int(np.argmax(row)), int(len(bs) - 1 - np.argmax(row[::-1]))
+        return (bs[j0] if j0 == 0 else _bisect(ok, bs[j0 - 1], bs[j0]),
+                bs[j1] if j1 == len(bs) - 1 else _bisect(ok, bs[j1], bs[j1 + 1]))
+
     best = None
     for i, k in enumerate(ks):
         if not (os_ok[i].any() and st_ok[i].any()):
             continue
-        j_os, j_st = int(np.argmax(os_ok[i])), int(len(bs) - 1 - np.argmax(st_ok[i][::-1]))
-        b_os = bs[j_os] if j_os == 0 else _bisect(meets(resps[i], k), bs[j_os - 1], bs[j_os])
-        b_st = bs[j_st] if j_st == len(bs) - 1 else _bisect(stable(k), bs[j_st], bs[j_st + 1])
-        if b_os <= b_st:
-            return None, math.sqrt(b_os * b_st)
-        if best is None or b_os / b_st < best[0] / best[1]:
-            best = (b_os, b_st)
+        (os_lo, os_hi), (st_lo, st_hi) = window(os_ok[i], meets(resps[i], k)), window(st_ok[i], stable(k))
+        lo, hi = max(os_lo, st_lo), min(os_hi, st_hi)
+        if lo <= hi:
+            return None, math.sqrt(lo * hi)
+        if best is None or lo / hi < best[0]:
+            best = (lo / hi, os_lo, os_hi, st_lo, st_hi)
     if best is None:
         b_os, b_st = bs[os_ok.any(axis=0)].min(), bs[st_ok.any(axis=0)].max()
     else:
-        b_os, b_st = best
+        _, os_lo, os_hi, st_lo, st_hi = best
+        if os_hi < st_lo:
+            return (f"max_overshoot and Ts conflict: overshoot <= {spec.max_overshoot:g} % needs b in "
+                    f"[{os_lo:.6g}, {os_hi:.6g}] N s/m, but sampled stability at Ts = {spec.Ts:g} s needs "
+                    f"b >= {st_lo:.6g} N s/m (boundaries bisected to {BRACKET_RTOL:g})"), None
+        b_os, b_st = os_lo, st_hi
     return (f"max_overshoot and Ts conflict: overshoot <= {spec.max_overshoot:g} % needs b >= {b_os:.6g} "
             f"N s/m, but sampled stability at Ts = {spec.Ts:g} s allows b <= {b_st:.6g} N s/m "
             f"(boundaries bisected to {BRACKET_RTOL:g})"), None
