@@ -95,3 +95,60 @@ def test_override_of_an_unset_optional_key_is_accepted_and_an_unknown_key_refuse
     assert apply_overrides(paper_scenario(), ["impedance.kd=[30,20,20]"]).impedance.kd == (30.0, 20.0, 20.0)
     with pytest.raises(ScenarioError, match=r"^impedance\.nonsense: unknown key"):
         apply_overrides(paper_scenario(), ["impedance.nonsense=1"])
+
+
+# -- sweep/spec.py -----------------------------------------------------------------------------
+
+def test_random_draws_follow_the_documented_recipe_across_blocks():
+    """spec.py:core/NumberReplacer on DRAW_BLOCK = 1024 (1025): the manifest documents the draws as
+    PCG64([seed, block]) in blocks of 1024, each axis's 1024 values in turn; recomputed here with
+    NumPy alone for two axes (the second axis's values shift with the block size) in the first and
+    the second block."""
+    from tmtcontrol.sweep.spec import Cases
+
+    cases = Cases({}, {"a": {"uniform": [0.0, 1.0]}, "b": {"uniform": [2.0, 3.0]}}, samples=2000, seed=7)
+    for sample in (3, 1500):
+        block, k = divmod(sample, 1024)
+        rng = np.random.default_rng([7, block])
+        a, b = rng.uniform(0.0, 1.0, 1024), rng.uniform(2.0, 3.0, 1024)
+        assert cases.draw(sample) == {"a": a[k], "b": b[k]}
+
+
+def test_a_normal_of_zero_spread_is_accepted_at_its_mean_and_refused_outside_its_bounds():
+    """spec.py:core/AddNot in _normal_mass (std = 0: mass 1 inside the bounds, 0 outside, negated):
+    normal(5, 0) puts all its mass at 5, so it is a valid axis unless the bounds exclude 5."""
+    from tmtcontrol.sweep.spec import SweepError, _check_random
+
+    assert _check_random("x", {"normal": [5.0, 0.0]}) == {"normal": [5.0, 0.0]}
+    assert _check_random("x", {"normal": [5.0, 0.0], "bounds": [4.0, 6.0]})
+    with pytest.raises(SweepError, match=r"^random\.x: bounds \[6, 7\] too far in the tail"):
+        _check_random("x", {"normal": [5.0, 0.0], "bounds": [6.0, 7.0]})
+
+
+# -- model/urdf.py -----------------------------------------------------------------------------
+
+_PENDULUM_WITH_TOOL = """<robot name="pendulum">
+  <link name="base"/>
+  <link name="arm"><inertial><origin xyz="0 0 -0.3"/><mass value="2"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="tool"><inertial><mass value="1"/>
+    <inertia ixx="5" iyy="5" izz="{izz}" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="2"/></joint>
+  <joint name="flange" type="fixed"><parent link="arm"/><child link="tool"/><origin xyz="0 0 -0.5"/></joint>
+</robot>"""
+
+
+def test_fixed_link_inertia_within_rounding_of_semi_definite_is_accepted(tmp_path):
+    """urdf.py:core/ReplaceBinaryOperator_Mul_Pow on ``-1e-12 * max(1, |eig|)`` (``-1e-12 ** max``,
+    a tolerance of about -1e-60): a fixed tool link whose inertia diag(5, 5, -1e-13) kg m^2 is
+    semi-definite up to rounding (1e-13 is below 1e-12 x 5) is accepted; diag(5, 5, -1e-6) is not."""
+    from tmtcontrol import URDFError, load_robot
+
+    ok = tmp_path / "ok.urdf"
+    ok.write_text(_PENDULUM_WITH_TOOL.format(izz="-1e-13"))
+    assert load_robot(ok).n == 1
+    bad = tmp_path / "bad.urdf"
+    bad.write_text(_PENDULUM_WITH_TOOL.format(izz="-1e-6"))
+    with pytest.raises(URDFError, match="link 'tool': inertia is not positive semi-definite"):
+        load_robot(bad)
