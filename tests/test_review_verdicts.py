@@ -215,3 +215,26 @@ def test_design_conflict_quotes_both_sides_of_two_sided_windows(capsys):
     nums = [float(v) for v in re.findall(r"b in \[([\d.]+), ([\d.]+)\].*b >= ([\d.]+)", err[0])[0]]
     assert nums[0] == pytest.approx(os_lo, abs=0.5) and nums[1] == pytest.approx(os_hi, abs=0.5)
     assert nums[2] == pytest.approx(st_lo, abs=0.01)
+
+
+@pytest.mark.parametrize("bias, verdict", [(0.009, "converged"), (0.011, "off_target")])
+def test_a_bias_just_inside_or_outside_the_tolerance(paper_sim, bias, verdict):
+    """The TMT law with a surface-location error delta > f_d/k_e has its
+    compliance estimate clipped at 0 (eq. 18), so f_e = k_eff (delta + f_d/k)
+    (eqs. 11-12) at 5e3 N/m: delta chosen for a steady bias of 9 mN / 11 mN,
+    1 mN either side of the default 0.01 N tolerance (the simulated robot
+    settles within 0.2 mN of the closed form by 1 s), must be converged /
+    off_target, the latter saying it is a bias."""
+    from tmtcontrol.simulation.metrics import segment_metrics
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+
+    k_eff = 100.0 * 5e3 / (100.0 + 5e3)
+    delta = (10.0 + bias) / k_eff - 10.0 / 100.0
+    assert delta > 10.0 / 5e3
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.25", "environment.stiffness.values=[5e3]",
+                                            f"controller.x_e_error={delta!r}"])
+    (m,) = segment_metrics(paper_sim.run(sc))
+    assert m.steady_state_error == pytest.approx(bias, abs=5e-4)
+    assert m.verdict == verdict, m.reason
+    if verdict == "off_target":
+        assert "a bias of +0.011" in m.reason
