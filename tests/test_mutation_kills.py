@@ -152,3 +152,18 @@ def test_fixed_link_inertia_within_rounding_of_semi_definite_is_accepted(tmp_pat
     bad.write_text(_PENDULUM_WITH_TOOL.format(izz="-1e-6"))
     with pytest.raises(URDFError, match="link 'tool': inertia is not positive semi-definite"):
         load_robot(bad)
+
+
+# -- export/sil.py -----------------------------------------------------------------------------
+
+def test_measured_force_vector_has_the_contact_force_as_its_length(paper_result):
+    """sil.py:core/ReplaceBinaryOperator_Mul_FloorDiv in measurement_table (``-normal // f``): the
+    force the exported controller reads is the contact force along the surface normal (the
+    paper's run has no sensor noise), so its length is |f_e| (1e-9 N: float rounding of a
+    unit normal) and, the surface tilted about y, its y component is 0."""
+    from tmtcontrol.export.sil import measurement_table
+
+    rows, names = measurement_table(paper_result)
+    force = rows[:, [names.index(c) for c in ("force_x", "force_y", "force_z")]]
+    assert np.allclose(np.linalg.norm(force, axis=1), np.abs(paper_result.contact_force), rtol=0, atol=1e-9)
+    assert np.all(force[:, 1] == 0.0) and np.abs(force).max() > 5.0
