@@ -72,3 +72,36 @@ def test_set_with_an_empty_key_names_set(capsys, tmp_path):
     # was "error: : malformed key" (neither the flag nor what was given)
     line = _refused(capsys, tmp_path, "--set", "simulate", "--set", "=5", "--out", str(tmp_path / "o"))
     assert "'=5'" in line
+
+
+# -- worker counts ------------------------------------------------------------------------
+
+def test_a_huge_worker_count_is_refused_before_anything_starts(capsys, tmp_path):
+    # --workers 1000000 on a 2-case sweep forked processes until the machine ran out of memory
+    # (3,400 processes in 30 s; the OOM killer ended it, leaving OUT.partial/ and a staging folder)
+    f = tmp_path / "s.toml"
+    f.write_text('[grid]\n"controller.f_d" = [1.0, 2.0]\n')
+    line = _refused(capsys, tmp_path, "--workers", "sweep", str(f), "--workers", "1000000", "--out",
+                    str(tmp_path / "o"))
+    assert "1000000" in line and "per CPU" in line
+
+
+def test_the_local_pool_starts_no_more_workers_than_cases(monkeypatch):
+    # a fork pool starts all its workers at the first submit: 6 asked for 2 cases started 6
+    import concurrent.futures as cf
+
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.run import run_cases
+
+    asked = []
+
+    class Pool:
+        def __init__(self, max_workers, **kw):
+            asked.append(max_workers)
+            raise RuntimeError("stop here")
+
+    monkeypatch.setattr(cf, "ProcessPoolExecutor", Pool)
+    sweep = sweep_from_dict({"grid": {"controller.f_d": [1.0, 2.0]}})
+    with pytest.raises(RuntimeError, match="stop here"):
+        run_cases(sweep, sweep.cases, lambda rows: None, workers=6)
+    assert asked == [2]

@@ -445,6 +445,11 @@ def _sweep(args) -> int:
         raise UsageError("SWEEP: a sweep file is required (tmtcontrol sweep --example prints one)")
     if args.workers < 1:
         raise UsageError(f"--workers: must be >= 1, got {args.workers}")
+    import os
+
+    cpus = os.cpu_count() or 1
+    if args.workers > 4 * cpus:          # each worker is a process of ~150 MB: a huge count is a fork bomb
+        raise UsageError(f"--workers: at most {4 * cpus} (4 per CPU, {cpus} CPUs here), got {args.workers}")
     if args.dask is not None and not (args.dask == "local" or "://" in args.dask):
         raise UsageError(f"--dask: expected 'local' or a scheduler address like tcp://host:8786, got {args.dask!r}")
     from .sweep import load_sweep, save_sweep

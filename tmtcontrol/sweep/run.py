@@ -302,7 +302,8 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
 
         # the platform's default start method (fork on Linux): a user's script or notebook needs no
         # `if __name__ == "__main__"` guard; each worker dies with this process and pins BLAS to one thread
-        with cf.ProcessPoolExecutor(max_workers=workers, initializer=worker_init) as pool:
+        # a fork pool starts all its workers at the first submit: never more than there are chunks
+        with cf.ProcessPoolExecutor(max_workers=min(workers, len(chunks)), initializer=worker_init) as pool:
             try:
                 with signals_held():        # the workers fork at the first submit
                     futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
