@@ -105,3 +105,37 @@ def test_the_local_pool_starts_no_more_workers_than_cases(monkeypatch):
     with pytest.raises(RuntimeError, match="stop here"):
         run_cases(sweep, sweep.cases, lambda rows: None, workers=6)
     assert asked == [2]
+
+
+# -- every refusal names the flag the user typed -----------------------------------------
+
+_DESIGN = ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "20000", "--ts", "0.001",
+           "--max-overshoot", "5"]
+
+
+@pytest.mark.parametrize("flag, value", [("--max-overshoot", "nan"), ("--max-overshoot", "-1"),
+                                         ("--margin", "nan"), ("--margin", "0"), ("--margin", "0.5"),
+                                         ("--mp", "nan"), ("--mp", "-5"), ("--ke-min", "30000")])
+def test_design_refusals_name_the_flag(capsys, tmp_path, flag, value):
+    # the messages named the library's fields (max_overshoot, stiffness_margin, m_p, k_e_min)
+    args = list(_DESIGN)
+    if flag in args:
+        args[args.index(flag) + 1] = value
+    else:
+        args += [flag, value]
+    line = _refused(capsys, tmp_path, flag, *args)
+    assert line.startswith(f"error: {flag}: "), line
+
+
+@pytest.mark.parametrize("extra, flag", [(["--ke", "5000", "--ts", "0.001", "--mp", "nan"], "--mp"),
+                                         (["--ke", "5000", "--ts", "0.001", "--mp", "0"], "--mp"),
+                                         (["--ke-min", "30000", "--ke-max", "20000"], "--ke-min")])
+def test_analyze_refusals_name_the_flag(capsys, tmp_path, extra, flag):
+    line = _refused(capsys, tmp_path, flag, "analyze", "--m", "1", "--b", "60", "--k", "100", *extra)
+    assert line.startswith(f"error: {flag}: "), line
+
+
+def test_robot_negative_seed_names_the_flag(capsys, tmp_path):
+    # was "error: expected non-negative integer" (NumPy's words, no flag)
+    line = _refused(capsys, tmp_path, "--seed", "robot", "puma560", "--seed", "-1", "--samples", "1")
+    assert "-1" in line

@@ -353,7 +353,7 @@ def _analyze(args) -> int:
                   Ts=args.ts, m_p=args.mp, delay=args.delay or 0,
                   x_e_error=0.0 if args.x_e_error is None else args.x_e_error)
         kw.update(dict(k_e=args.ke) if args.ke is not None else dict(k_e_min=args.ke_min, k_e_max=args.ke_max))
-        run = lambda: analyze(**kw)
+        run = lambda: _flags_named(analyze, **kw)
     out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
     with out if out is not None else contextlib.nullcontext():
         result = run()
@@ -386,6 +386,23 @@ def _check_numbers(args) -> None:
             check_filter_cutoff("--filter-hz", args.filter_hz, args.ts)
 
 
+_FLAGS = {"m": "--m", "b": "--b", "k": "--k", "f_d": "--fd", "k_e": "--ke", "k_e_min": "--ke-min",
+          "k_e_max": "--ke-max", "Ts": "--ts", "m_p": "--mp", "delay": "--delay", "x_e_error": "--x-e-error",
+          "max_overshoot": "--max-overshoot", "stiffness_margin": "--margin"}
+
+
+def _flags_named(fn, **kw):
+    """``fn(**kw)``; a bad-input error (``ValueError``) whose message starts with
+    one of its argument names (``m_p: must be > 0``) names the flag instead."""
+    try:
+        return fn(**kw)
+    except ValueError as exc:
+        name, sep, rest = str(exc).partition(": ")
+        if sep and name in kw and name in _FLAGS:
+            raise UsageError(f"{_FLAGS[name]}: {rest}") from None
+        raise
+
+
 def _filter_pole(cutoff: float, Ts: float) -> float:
     from .simulation.scenario import filter_pole
 
@@ -400,7 +417,7 @@ def _design(args) -> int:
     from .stability.design import DesignSpec, design_impedance, format_design
 
     _check_numbers(args)
-    spec = DesignSpec(m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
+    spec = _flags_named(DesignSpec, m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
                       max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
                       m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),
                       stiffness_margin=args.margin, delay=args.delay,
@@ -523,6 +540,8 @@ def _robot(args) -> int:
     from .model.robot import load_robot
     from .model.verify import check_robot, describe
 
+    if args.seed < 0:
+        raise UsageError(f"--seed: must be >= 0, got {args.seed}")
     if args.samples < 1:
         raise UsageError(f"--samples: must be >= 1, got {args.samples}")
     joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
