@@ -8,7 +8,7 @@ import numpy as np
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
 
-__all__ = ["scenario_stiffness_limit", "predicted_limits", "scenario_parameters", "paper_effective_mass", "analyze",
+__all__ = ["scenario_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
@@ -318,13 +318,32 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
             from .periodic import periodic_limit
 
             hi = max(l for _, l in per_point)
-            periodic = periodic_limit(scenario, bracket=(limit / 1.02, hi * 1.02))
+            note = periodic_note(scenario)
+            if note is None:
+                periodic = periodic_limit(scenario, bracket=(limit / 1.02, hi * 1.02))
+            else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in
+                periodic = limit
+                out["periodic_note"] = note
             first = first_contact_limit(scenario, periodic)
             decisive = min(periodic, first)
             out.update({"periodic_limit": periodic, "first_contact_limit": first, "limit": decisive,
-                        "limit_from": "first contact" if first < periodic else "periodic orbit",
+                        "limit_from": "first contact" if first < periodic else (
+                            "periodic orbit" if note is None else "frozen-point minimum"),
                         "sampled_stable": bool(k_max < decisive)})
     return out
+
+
+def periodic_note(scenario) -> str | None:
+    """Why the periodic analysis (``stability.periodic``) cannot run on the
+    scenario, as one line, or None: it needs a path period that is a whole
+    number of control periods (else the sampled loop is not periodic); the
+    frozen-point minimum (conservative) is then quoted in its place."""
+    Ts, period = scenario.controller.Ts, scenario.trajectory.period
+    N = int(round(period / Ts))
+    if N >= 1 and abs(N * Ts - period) <= 1e-9 * period:
+        return None
+    return (f"trajectory.period = {period:g} s is not a whole number of control periods ({Ts:g} s): the loop "
+            "is not periodic, so the frozen-point minimum stands in for the limit along the path")
 
 
 def format_analysis(d: dict) -> str:
@@ -363,10 +382,14 @@ def format_analysis(d: dict) -> str:
             pts = d["whole_loop_points"]
             rows.append(f"whole loop           {d['whole_loop_limit']:.6g} N/m (smallest over {len(pts)} path "
                         f"points; largest {max(p['limit'] for p in pts):.6g} N/m)")
-        if "periodic_limit" in d:
+        if "periodic_note" in d:
+            rows += [f"along the path       {d['periodic_limit']:.6g} N/m (the frozen-point minimum; "
+                     "no periodic analysis)", f"note                 {d['periodic_note']}"]
+        elif "periodic_limit" in d:
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (periodic orbit: monodromy "
-                     "over one period; the frozen-point minimum above is the conservative bound)",
-                     f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
+                     "over one period; the frozen-point minimum above is the conservative bound)"]
+        if "periodic_limit" in d:
+            rows += [f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
                      "settles below it, else a contact limit cycle)",
                      f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
                      "decides the verdict)"]
