@@ -5,7 +5,7 @@ beside the tests that kill them; this script lets a well-kept tool choose the
 bugs.  It applies Cosmic Ray's own mutation operators (a comparison, binary,
 unary or boolean operator replaced, a number shifted by one, ``True`` for
 ``False``, ``not`` added, a ``break`` for a ``continue``, a loop run zero
-times, an exception handler widened, a decorator removed, ...) to the modules
+times, an exception handler narrowed, a decorator removed, ...) to the modules
 that decide safety and verdicts, one mutant at a time, and counts the mutants
 the test suite kills.
 
@@ -53,7 +53,7 @@ interval (an estimate of the score over all of the module's mutants).
 
 Slow (each mutant runs test files that simulate), so it is a benchmark, not
 part of CI; docs/testing.md gives the last measured table.  Requires
-``pip install cosmic-ray==8.7.0``.
+``pip install ".[bench]"`` (cosmic-ray 8.7.0).
 """
 
 from __future__ import annotations
