@@ -139,3 +139,23 @@ def test_robot_negative_seed_names_the_flag(capsys, tmp_path):
     # was "error: expected non-negative integer" (NumPy's words, no flag)
     line = _refused(capsys, tmp_path, "--seed", "robot", "puma560", "--seed", "-1", "--samples", "1")
     assert "-1" in line
+
+
+# -- output names ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["a" * 250, "é" * 127], ids=["250 ASCII", "254 bytes UTF-8"])
+def test_a_long_but_legal_output_name_is_written(tmp_path, name):
+    # a name of up to 255 bytes is legal; the staging folder beside it (.NAME.tmt-XXXXXXXX, and its
+    # .owner record) made every name above 234 bytes fail with 'File name too long'
+    from tmtcontrol.files import OutputFolder
+
+    out = tmp_path / name
+    with OutputFolder(out, "--out") as folder:
+        (folder.path / "a.txt").write_text("x")
+        folder.commit()
+    assert (out / "a.txt").read_text() == "x"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]     # no staging folder or record left
+    with OutputFolder(out, "--out") as folder:                       # and it is replaced as an output
+        (folder.path / "b.txt").write_text("y")
+        folder.commit()
+    assert sorted(p.name for p in out.iterdir()) == [".tmtcontrol-output.json", "b.txt"]

@@ -307,7 +307,7 @@ def _clean_stale(parent: pathlib.Path, name: str) -> None:
     """Remove ``.NAME.tmt-*`` staging folders beside the target whose owner is
     gone, and ``.NAME.tmt-*.old`` folders (a previous output moved aside by a
     commit) whose staging folder no longer exists."""
-    prefix = f".{name}.tmt-"
+    prefix = _staging_prefix(name)
     try:
         entries = [p for p in parent.iterdir() if p.name.startswith(prefix)]
     except OSError:
@@ -329,6 +329,17 @@ def _clean_stale(parent: pathlib.Path, name: str) -> None:
         if stale:
             shutil.rmtree(p, ignore_errors=True)
             _owner_file(p).unlink(missing_ok=True)
+
+
+def _staging_prefix(name: str) -> str:
+    """``.NAME.tmt-``, the prefix of the staging folders of the target ``NAME``;
+    a name longer than 200 bytes is cut and a hash of it added, so the staging
+    folder's name (8 random characters, ``.old``, ``.owner`` added) stays within
+    the 255 bytes a file name may have."""
+    raw = os.fsencode(name)
+    if len(raw) > 200:
+        name = raw[:180].decode("utf-8", "ignore") + "~" + hashlib.sha256(raw).hexdigest()[:12]
+    return f".{name}.tmt-"
 
 
 @contextlib.contextmanager
@@ -393,6 +404,8 @@ class OutputFolder:
         self.path = None
         if self.out.parent == self.out:
             raise OutputError(f"{flag}: {self.out} is a file system root; name a folder inside it")
+        if len(os.fsencode(self.out.name)) > 255:   # NAME_MAX: refused now, not when the results are ready
+            raise OutputError(f"{flag}: cannot write {self.out} ({os.strerror(errno.ENAMETOOLONG)})")
         parent = self.out.parent
         self._made = []               # parent folders this run creates, deepest first
         p = parent
@@ -409,7 +422,8 @@ class OutputFolder:
                             raise OutputError(f"{flag}: {reason}; choose another folder or move it "
                                               "(nothing was written)")
                         _clean_stale(parent, self.out.name)
-                        self.path = pathlib.Path(tempfile.mkdtemp(prefix=f".{self.out.name}.tmt-", dir=parent))
+                        self.path = pathlib.Path(tempfile.mkdtemp(prefix=_staging_prefix(self.out.name),
+                                                                  dir=parent))
                         _write_owner(self.path)
                     break
                 except FileNotFoundError:
