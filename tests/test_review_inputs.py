@@ -159,3 +159,11 @@ def test_a_long_but_legal_output_name_is_written(tmp_path, name):
         (folder.path / "b.txt").write_text("y")
         folder.commit()
     assert sorted(p.name for p in out.iterdir()) == [".tmtcontrol-output.json", "b.txt"]
+
+
+def test_a_malformed_wide_csv_row_is_quoted_short(capsys, tmp_path):
+    # a row of 200,000 fields was quoted whole: a 1 MB error "line"
+    (tmp_path / "k.csv").write_text("t, k_e\n" + ",".join(["1"] * 200_000) + "\n")
+    (tmp_path / "s.toml").write_text('[environment.stiffness]\nkind = "table"\nfile = "k.csv"\n')
+    line = _refused(capsys, tmp_path, "row 2", "simulate", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"))
+    assert len(line) < 400 and "200000 fields" in line, line[:500]

@@ -207,7 +207,10 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
         elif i == 0 and all(v is None for v in vals):
             continue  # header: no number in it
         else:
-            raise ValueError(f"file: row {i + 1} of {str(path)!r} is not 't, k_e' numbers: {row!r}")
+            shown = repr(row)
+            if len(shown) > 200:            # one short line, whatever the row
+                shown = f"{shown[:120]}... ({len(row)} fields)"
+            raise ValueError(f"file: row {i + 1} of {str(path)!r} is not 't, k_e' numbers: {shown}")
     if not data:
         raise ValueError(f"file: no data rows in {str(path)!r}")
     arr = np.array(data)
