@@ -13,18 +13,24 @@ from tmtcontrol.simulation.scenario import apply_overrides, dump_scenario, paper
 NOT_WHOLE = ["controller.rate=250", "trajectory.period=1.001"]
 
 
-def test_analyze_scenario_with_a_period_not_whole_samples_falls_back_to_the_frozen_minimum(tmp_path, capsys):
+def test_analyze_scenario_with_a_period_not_whole_samples_falls_back_to_the_frozen_minimum(tmp_path, capsys,
+                                                                                            monkeypatch):
     """Was exit 2 ("not a whole number of control periods"). Now exit 0 and the JSON's
-    periodic_limit is the whole-loop (frozen-point) minimum, computed independently in
-    this run; the note names the key and why; the first-contact search still runs
-    (bounded by that minimum)."""
+    periodic_limit is the whole-loop (frozen-point) minimum (stubbed here at 4e4 N/m, with
+    the periodic analysis made to fail if it is called: what is tested is the wiring); the
+    note names the key and why; the first-contact search still runs (bounded by that
+    minimum; the real search)."""
     from tmtcontrol.cli import main
+    from tmtcontrol.stability import periodic, wholeloop
+
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **k: (4e4, [(0.0, 4e4), (0.5, 4.2e4)]))
+    monkeypatch.setattr(periodic, "periodic_limit", lambda *a, **k: pytest.fail("periodic analysis called"))
 
     path = tmp_path / "s.toml"
     path.write_text(dump_scenario(apply_overrides(paper_scenario(), NOT_WHOLE)))
     assert main(["analyze", "--scenario", str(path), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["periodic_limit"] == d["whole_loop_limit"]
+    assert d["periodic_limit"] == d["whole_loop_limit"] == 4e4
     assert "trajectory.period" in d["periodic_note"] and "not a whole number" in d["periodic_note"]
     assert 0 < d["first_contact_limit"] <= d["periodic_limit"]
     assert d["limit"] == min(d["periodic_limit"], d["first_contact_limit"])
@@ -41,3 +47,36 @@ def test_periodic_note_only_when_the_period_is_not_whole_samples():
     assert periodic_note(apply_overrides(paper_scenario(), ["controller.rate=300"])) is None   # 4 s = 1200 Ts
     assert periodic_note(paper_scenario()) is None
     assert "1.001 s" in periodic_note(apply_overrides(paper_scenario(), NOT_WHOLE))
+
+
+def test_each_sweep_case_carries_its_own_limits_and_the_smaller_predicts_its_verdict():
+    """Paper scenario at constant k_e, delta = 0 and -10 mm (issue 28 item 1). Known
+    independently: at delta = 0 the small-signal limit is the closed-form 1-D loop's
+    (stability.sampled, worst path mass) and the start settles up to it; at -10 mm the
+    start locks into a contact limit cycle from about 1.2e5 N/m (the case's own
+    simulation says so: its verdict is limit_cycle at 1.3e5), below the small-signal
+    limit (1.438e5). So at 1.3e5 N/m the prediction must come from the first-contact
+    limit and say unstable, and at 1e5 N/m both say stable and the run converges."""
+    from tmtcontrol.stability.analysis import scenario_parameters
+    from tmtcontrol.stability.sampled import max_stable_stiffness
+    from tmtcontrol.sweep import run_sweep, sweep_from_dict
+
+    sweep = sweep_from_dict({"grid": {"environment.stiffness.values": [[1e5], [1.3e5]],
+                                      "controller.x_e_error": [0.0, -0.01]}})
+    df = run_sweep(sweep).set_index(["environment.stiffness.values", "controller.x_e_error"])
+    # (1.3e5, 0) is the closed form too, the same check: the four cases' simulations cost ~0.2 s
+    p = scenario_parameters(paper_scenario())
+    closed = min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, kd=p["kd"], kp=p["kp"])
+                 for mp in (p["m_p_min"], p["m_p_max"]))
+    for ke in (1e5, 1.3e5):
+        row = df.loc[(ke, 0.0)]
+        assert row["small_signal_limit"] == pytest.approx(closed, rel=1e-3)     # the bisection's tolerance
+        assert row["first_contact_limit"] == row["small_signal_limit"]          # the start settles up to it
+        assert row["predicted_stable"] and row["verdict"] == "converged"
+    cyc, ok = df.loc[(1.3e5, -0.01)], df.loc[(1e5, -0.01)]
+    assert cyc["verdict"] == "limit_cycle"
+    assert 1e5 < cyc["first_contact_limit"] < 1.3e5 < cyc["small_signal_limit"]
+    assert cyc["predicted_limit"] == cyc["first_contact_limit"] and not cyc["predicted_stable"]
+    assert ok["predicted_stable"] and ok["verdict"] == "converged"
+    assert ok["first_contact_limit"] == cyc["first_contact_limit"]    # the same inputs: the same limit
+    assert (df["limits_error"] == "").all()

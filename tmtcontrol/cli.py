@@ -143,6 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue an interrupted sweep of the same file")
     p.add_argument("--example", action="store_true", help="print a commented example sweep file and exit")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--no-limits", action="store_true", help="skip each case's predicted stiffness limits "
+                   "(small-signal and first-contact columns)")
     p.add_argument("--max-steps", type=int, default=None, metavar="N",
                    help="refuse cases longer than N control steps (default 1,000,000)")
     p.add_argument("--max-cases", type=int, default=100_000, metavar="N",

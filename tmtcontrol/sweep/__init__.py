@@ -18,16 +18,17 @@ __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_
 
 
 def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps: int | None = None,
-              progress: bool = False):
+              progress: bool = False, limits: bool = True):
     """Run every case in memory and return a pandas DataFrame, one row per
     case (for notebooks; ``tmtcontrol sweep`` writes the same rows to
-    ``results.parquet``)."""
+    ``results.parquet``). ``limits``: each case's own predicted stiffness
+    limits (``sweep.run.case_limits``)."""
     import pandas as pd
 
     rows: list[dict] = []
     prog = Progress(len(sweep.cases)) if progress else None
     try:
-        run_cases(sweep, sweep.cases, rows.extend, workers, dask, max_steps, prog)
+        run_cases(sweep, sweep.cases, rows.extend, workers, dask, max_steps, prog, limits)
     finally:
         if prog is not None:
             prog.close()
@@ -46,7 +47,10 @@ def _facet_axis(sweep: Sweep, df) -> str | None:
 def _predicted(sweep: Sweep, df) -> dict | None:
     """The analysis' stiffness limit per value of the other map axis (and of
     the facet axis: keys are then ``(other, facet)`` pairs), when the stiffness
-    is one of the first two axes and the law has a linear verdict."""
+    is one of the first two axes and the law has a linear verdict: the
+    smallest ``predicted_limit`` of the group's cases (each the smaller of its
+    small-signal and first-contact limits, with its own drawn values) when the
+    rows have it, else the small-signal limit of the group's first case."""
     from ..stability.analysis import scenario_stiffness_limit
 
     axes = sweep.axes[:2]
@@ -60,6 +64,9 @@ def _predicted(sweep: Sweep, df) -> dict | None:
                                         for k, g in df.groupby(by if len(by) > 1 else by[0], sort=True)]
     out = {}
     for k, g in groups:
+        if "predicted_limit" in g and g["predicted_limit"].notna().any():
+            out[k[0] if len(k) == 1 else (k if k else None)] = float(g["predicted_limit"].min())
+            continue
         case = sweep.cases[int(g["case"].iloc[0])]
         try:
             limit = scenario_stiffness_limit(sweep.scenario(case))
@@ -173,7 +180,7 @@ def boundary_lines(sweep: Sweep, summary: dict) -> list[str]:
 
 def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: str | None = None,
                resume: bool = False, plots: bool = True, max_steps: int | None = None,
-               command_line: str = "") -> dict:
+               command_line: str = "", limits: bool = True) -> dict:
     """Run the sweep into ``out``: finished chunks go to ``OUT.partial/`` as
     they complete; at the end ``results.parquet``, ``summary.json`` and the
     figures are committed to ``out`` (replaced atomically) and the partial
@@ -191,7 +198,7 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         t0 = time.perf_counter()
         try:
             if todo:
-                run_cases(sweep, todo, partial.write, workers, dask, max_steps, prog)
+                run_cases(sweep, todo, partial.write, workers, dask, max_steps, prog, limits)
         except BaseException:
             if partial.fresh and not partial.parts():   # no case finished (no scheduler, an early Ctrl-C)
                 partial.remove()

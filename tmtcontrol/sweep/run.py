@@ -35,7 +35,7 @@ from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
 from .spec import Case, Sweep, case_scenario
 
-__all__ = ["run_cases", "case_row", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
+__all__ = ["run_cases", "case_row", "case_limits", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
 
 CONNECT_TIMEOUT = 3.0
@@ -58,11 +58,12 @@ def _flat(value):
     return value
 
 
-def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
+def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool = True) -> dict:
     """Simulate one case and return its row: the swept values (by dotted key),
     the case verdict (the worst segment's; ``diverged`` if the simulation blew
     up), ``max_steady_error`` (N, worst segment), the first contact and the
-    per-segment metrics."""
+    per-segment metrics. With ``limits``, also the case's own predicted
+    stiffness limits (:func:`case_limits`)."""
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
     from ..simulation.posesim import simulator_for
     from ..simulation.simulator import SimulationError, _structure
@@ -74,6 +75,8 @@ def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
             _SIMS.clear()
         _SIMS[key] = simulator_for(sc)
     row: dict[str, Any] = {"case": case.index, **{k: _flat(v) for k, v in case.values.items()}}
+    if limits:
+        row.update(case_limits(sc, _SIMS[key]))
     t0 = time.perf_counter()
     try:
         res = _SIMS[key].run(sc, max_steps=max_steps)
@@ -95,10 +98,61 @@ def case_row(base: dict, case: Case, max_steps: int | None = None) -> dict:
     return row
 
 
-def run_chunk(base: dict, cases: list[Case], max_steps: int | None = None) -> list[dict]:
+_SMALL: dict = {}     # per worker process: the small-signal limit per distinct set of analysis inputs
+
+
+def case_limits(sc, sim=None) -> dict:
+    """A case's predicted stiffness limits with its own values (x_e error,
+    delay, rate, impedance, law parameters ... as drawn), N/m:
+    ``small_signal_limit``, the 1-D sampled loop's at the worst path mass
+    (``stability.analysis.scenario_stiffness_limit``; memoised per worker on
+    its inputs), ``first_contact_limit``, the largest stiffness up to it from
+    which the case's own start settles instead of locking into a contact
+    limit cycle (``stability.first_contact``: bisection on short simulations
+    with the case's simulator ``sim``), ``predicted_limit``, the smaller of
+    the two, and ``predicted_stable``: the case's largest stiffness below it.
+    NaN (and ``predicted_stable`` None) for a law without a linear verdict, a
+    6-D arm, or an analysis that fails (``limits_error`` says why)."""
+    from ..stability.analysis import arm_has_6d_task, scenario_parameters, scenario_stiffness_limit
+    from ..stability.first_contact import LoopRunner, first_contact_limit
+
+    nan = math.nan
+    out = {"small_signal_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
+           "predicted_stable": None, "limits_error": ""}
+    try:
+        if arm_has_6d_task(sc):
+            out["limits_error"] = "6-D arm: no first-contact search"
+            return out
+        ctl, p = sc.controller, scenario_parameters(sc)
+        k_max = p["k_e_max"]
+        inputs = {k: v for k, v in p.items() if not k.startswith("k_e")}     # the limit does not depend on k_e
+        key = json.dumps([inputs, ctl.law.model_dump(mode="json"), ctl.x_e_error,
+                          ctl.delay_samples, ctl.damping_schedule.model_dump(mode="json")], sort_keys=True,
+                         default=str)
+        if key not in _SMALL:
+            if len(_SMALL) >= 4096:
+                _SMALL.clear()
+            _SMALL[key] = scenario_stiffness_limit(sc, params=p)
+        small = _SMALL[key]
+        if small is None:
+            out["limits_error"] = "the law has no linear verdict"
+            return out
+        small = float(small)
+        first = (first_contact_limit(sc, small, runner=LoopRunner(sc, sim=sim))
+                 if math.isfinite(small) and small > 0 else small)
+    except Exception as exc:          # an analysis that does not apply to this case: said in the row
+        out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+        return out
+    limit = min(small, first)
+    out.update({"small_signal_limit": small, "first_contact_limit": float(first), "predicted_limit": limit,
+                "predicted_stable": bool(k_max < limit)})
+    return out
+
+
+def run_chunk(base: dict, cases: list[Case], max_steps: int | None = None, limits: bool = True) -> list[dict]:
     """The rows of a chunk of cases (runs in a worker, with one BLAS thread)."""
     with blas_threads_limited():
-        return [case_row(base, c, max_steps) for c in cases]
+        return [case_row(base, c, max_steps, limits) for c in cases]
 
 
 class SchedulerUnavailable(ValueError):
@@ -281,7 +335,8 @@ def _chunks(cases: list[Case], workers: int) -> list[list[Case]]:
 
 
 def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None], workers: int = 1,
-              dask: str | None = None, max_steps: int | None = None, progress: Progress | None = None) -> None:
+              dask: str | None = None, max_steps: int | None = None, progress: Progress | None = None,
+              limits: bool = True) -> None:
     """Run ``todo`` and hand every finished chunk's rows to ``write``, in
     completion order: in this process (``workers == 1``, no Dask), on
     ``workers`` local processes, or on Dask (``dask="local"``: a LocalCluster
@@ -292,7 +347,7 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
     if dask is None and workers == 1:
         with blas_threads_limited():
             for chunk in chunks:
-                rows = run_chunk(sweep.base, chunk, max_steps)
+                rows = run_chunk(sweep.base, chunk, max_steps, limits)
                 check_interrupt()
                 write(rows)
                 tick(len(rows))
@@ -306,7 +361,7 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
         with cf.ProcessPoolExecutor(max_workers=min(workers, len(chunks)), initializer=worker_init) as pool:
             try:
                 with signals_held():        # the workers fork at the first submit
-                    futures = [pool.submit(run_chunk, sweep.base, c, max_steps) for c in chunks]
+                    futures = [pool.submit(run_chunk, sweep.base, c, max_steps, limits) for c in chunks]
                 say(f"sweep: {len(todo)} cases running on {workers} worker processes")
                 for fut in cf.as_completed(futures):
                     rows = fut.result()
@@ -337,7 +392,8 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
                                        ) from None
     interrupted = False
     try:
-        futures = client.map(run_chunk, [sweep.base] * len(chunks), chunks, [max_steps] * len(chunks), pure=False)
+        futures = client.map(run_chunk, [sweep.base] * len(chunks), chunks, [max_steps] * len(chunks),
+                             [limits] * len(chunks), pure=False)
         say(f"sweep: {len(todo)} cases running on Dask ({dask})")
         for fut in as_completed(futures):
             rows = fut.result()
