@@ -478,7 +478,7 @@ def _sweep(args) -> int:
     check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
-                             plots=not args.no_plots, max_steps=args.max_steps,
+                             plots=not args.no_plots, max_steps=args.max_steps, limits=not args.no_limits,
                              command_line="tmtcontrol " + " ".join(sys.argv[1:]))
     except KeyboardInterrupt as exc:      # finished cases stay in OUT.partial/: say so, and how to go on
         from .sweep.run import kept_note
