@@ -80,3 +80,22 @@ def test_each_sweep_case_carries_its_own_limits_and_the_smaller_predicts_its_ver
     assert ok["predicted_stable"] and ok["verdict"] == "converged"
     assert ok["first_contact_limit"] == cyc["first_contact_limit"]    # the same inputs: the same limit
     assert (df["limits_error"] == "").all()
+
+
+def test_limits_on_by_default_unless_a_random_axis_makes_each_case_a_new_analysis():
+    """The default (--limits auto): a grid, or random draws of stiffness or noise (which
+    leave the small-signal analysis as it was: memoised), compute the limits; random draws
+    of the x_e error (a new law-loop analysis per case, ~1 s) do not, and say so."""
+    import tomllib
+
+    from tmtcontrol.sweep import EXAMPLE, run_sweep, sweep_from_dict
+    from tmtcontrol.sweep.run import limits_by_default
+
+    assert limits_by_default(sweep_from_dict(tomllib.loads(EXAMPLE)))[0] is True
+    drawn = sweep_from_dict({"grid": {"environment.stiffness.values": [[1e4]], "trajectory.cycles": [0.1]},
+                             "random": {"samples": 2, "seed": 1,
+                                        "controller.x_e_error": {"uniform": [-0.01, 0.0]}}})
+    on, why = limits_by_default(drawn)
+    assert on is False and "controller.x_e_error" in why and "--limits on" in why
+    df = run_sweep(drawn)
+    assert "predicted_limit" not in df and len(df) == 2

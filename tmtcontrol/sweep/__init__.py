@@ -10,7 +10,7 @@ import sys
 import time
 
 from ..files import OutputFolder, write_json
-from .run import PartialFolder, Progress, case_row, check_dask, run_cases
+from .run import PartialFolder, Progress, case_row, check_dask, limits_by_default, run_cases
 from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
@@ -18,11 +18,12 @@ __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_
 
 
 def run_sweep(sweep: Sweep, workers: int = 1, dask: str | None = None, max_steps: int | None = None,
-              progress: bool = False, limits: bool = True):
+              progress: bool = False, limits: bool | None = None):
     """Run every case in memory and return a pandas DataFrame, one row per
     case (for notebooks; ``tmtcontrol sweep`` writes the same rows to
     ``results.parquet``). ``limits``: each case's own predicted stiffness
-    limits (``sweep.run.case_limits``)."""
+    limits (``sweep.run.case_limits``); None: on unless a random axis makes
+    every case a new analysis (``sweep.run.limits_by_default``)."""
     import pandas as pd
 
     rows: list[dict] = []
@@ -180,7 +181,7 @@ def boundary_lines(sweep: Sweep, summary: dict) -> list[str]:
 
 def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: str | None = None,
                resume: bool = False, plots: bool = True, max_steps: int | None = None,
-               command_line: str = "", limits: bool = True) -> dict:
+               command_line: str = "", limits: bool | None = None) -> dict:
     """Run the sweep into ``out``: finished chunks go to ``OUT.partial/`` as
     they complete; at the end ``results.parquet``, ``summary.json`` and the
     figures are committed to ``out`` (replaced atomically) and the partial
@@ -194,6 +195,9 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         done = partial.done()
         todo = sweep.cases.without(done)           # a view: the cases are generated as they run
         print(sweep.plan(len(todo), workers), file=sys.stderr, flush=True)
+        if limits is None:
+            limits, why = limits_by_default(sweep)
+            print(why, file=sys.stderr, flush=True)
         prog = Progress(len(sweep.cases), len(done))
         t0 = time.perf_counter()
         try:

@@ -35,7 +35,7 @@ from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
 from .spec import Case, Sweep, case_scenario
 
-__all__ = ["run_cases", "case_row", "case_limits", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
+__all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
 
 CONNECT_TIMEOUT = 3.0
@@ -99,6 +99,25 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
 
 
 _SMALL: dict = {}     # per worker process: the small-signal limit per distinct set of analysis inputs
+
+ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
+"""Random axes under these keys leave a case's small-signal analysis as it was
+(the limit does not depend on k_e, the noise or the run length), so the
+memoised analysis is reused across their draws."""
+
+
+def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
+    """Whether a sweep computes each case's predicted limits when the user did
+    not say (``--limits auto``), and why, as one line. On unless a random axis
+    changes the small-signal analysis (:data:`ANALYSIS_FREE_PREFIXES`): a grid
+    has few distinct analyses (memoised per worker; then about 0.02-0.1 s per
+    case for the first-contact search), but every draw of, e.g., the x_e error
+    is a new analysis of the law's loop (about 1 s per case, 25x a simulation)."""
+    costly = [k for k in sweep.random if not k.startswith(ANALYSIS_FREE_PREFIXES)]
+    if costly:
+        return False, (f"sweep: predicted limits off (random {', '.join(costly)}: each draw is a new stability "
+                       "analysis, about 1 s per case); --limits on computes them")
+    return True, "sweep: predicted limits on (each case's small-signal and first-contact limits; --limits off skips)"
 
 
 def case_limits(sc, sim=None) -> dict:
@@ -336,11 +355,14 @@ def _chunks(cases: list[Case], workers: int) -> list[list[Case]]:
 
 def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None], workers: int = 1,
               dask: str | None = None, max_steps: int | None = None, progress: Progress | None = None,
-              limits: bool = True) -> None:
+              limits: bool | None = None) -> None:
     """Run ``todo`` and hand every finished chunk's rows to ``write``, in
     completion order: in this process (``workers == 1``, no Dask), on
     ``workers`` local processes, or on Dask (``dask="local"``: a LocalCluster
-    of ``workers`` processes; else a scheduler address)."""
+    of ``workers`` processes; else a scheduler address). ``limits``: each
+    case's predicted limits (:func:`case_limits`); None: :func:`limits_by_default`."""
+    if limits is None:
+        limits = limits_by_default(sweep)[0]
     chunks = _chunks(todo, workers)
     tick = progress.update if progress is not None else (lambda k: None)
     say = progress.say if progress is not None else (lambda line: None)
