@@ -143,8 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue an interrupted sweep of the same file")
     p.add_argument("--example", action="store_true", help="print a commented example sweep file and exit")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--no-limits", action="store_true", help="skip each case's predicted stiffness limits "
-                   "(small-signal and first-contact columns)")
+    p.add_argument("--limits", choices=("auto", "on", "off"), default="auto",
+                   help="each case's predicted stiffness limits (small-signal and first-contact columns); auto "
+                   "(default): on unless a random axis makes every case a new analysis")
     p.add_argument("--max-steps", type=int, default=None, metavar="N",
                    help="refuse cases longer than N control steps (default 1,000,000)")
     p.add_argument("--max-cases", type=int, default=100_000, metavar="N",
@@ -478,7 +479,8 @@ def _sweep(args) -> int:
     check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
-                             plots=not args.no_plots, max_steps=args.max_steps, limits=not args.no_limits,
+                             plots=not args.no_plots, max_steps=args.max_steps,
+                             limits={"auto": None, "on": True, "off": False}[args.limits],
                              command_line="tmtcontrol " + " ".join(sys.argv[1:]))
     except KeyboardInterrupt as exc:      # finished cases stay in OUT.partial/: say so, and how to go on
         from .sweep.run import kept_note
