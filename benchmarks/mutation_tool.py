@@ -87,7 +87,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "tmtcontrol/control/laws": ("tests/test_laws.py", "tests/test_mutations.py", "tests/test_derivations.py",
                                 "tests/test_mutation_kills.py"),
     "tmtcontrol/stability/analysis.py": ("tests/test_stability.py", "tests/test_mutation_kills.py"),
-    "tmtcontrol/stability/sampled.py": ("tests/test_mutations.py", "tests/test_stability.py",
+    "tmtcontrol/stability/sampled.py": ("tests/test_mutations.py", "tests/test_stability.py", "tests/test_laws.py",
                                         "tests/test_mutation_kills.py"),
     "tmtcontrol/stability/lawloop.py": ("tests/test_limits.py", "tests/test_laws.py", "tests/test_mutation_kills.py"),
     "tmtcontrol/sweep/spec.py": ("tests/test_sweep.py", "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),

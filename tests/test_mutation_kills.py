@@ -167,3 +167,17 @@ def test_measured_force_vector_has_the_contact_force_as_its_length(paper_result)
     force = rows[:, [names.index(c) for c in ("force_x", "force_y", "force_z")]]
     assert np.allclose(np.linalg.norm(force, axis=1), np.abs(paper_result.contact_force), rtol=0, atol=1e-9)
     assert np.all(force[:, 1] == 0.0) and np.abs(force).max() > 5.0
+
+
+# -- stability/analysis.py ---------------------------------------------------------------------
+
+def test_the_closed_form_sampled_model_is_used_only_without_delay_or_x_e_error():
+    """analysis.py:core/NumberReplacer in closed_form_applies (``delay == 1``): the 1-D closed
+    form (stability.sampled) has no delay states, so a loop with a one-sample delay must go to
+    the law's own loop, and the undelayed TMT or known-law loop may use the closed form."""
+    from tmtcontrol.stability.analysis import closed_form_applies
+
+    assert closed_form_applies("tmt", 0, 0.0) and closed_form_applies("known", 0, 0.0)
+    assert not closed_form_applies("tmt", 1, 0.0)
+    assert not closed_form_applies("tmt", 0, 1e-3)
+    assert not closed_form_applies("integral", 0, 0.0)
