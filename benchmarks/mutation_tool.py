@@ -385,7 +385,7 @@ def main(argv=None) -> int:
     if survivors:
         print("\nSurvivors (each a missing test, or an equivalent mutant to argue in equivalent_mutants.toml):")
         for r in survivors:
-            print(f"--- {r['id']}\n{r['diff']}")
+            print(f"--- {r['id']}\n{r.get('diff') or '(no diff recorded)'}")
     return 0
 
 

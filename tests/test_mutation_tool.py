@@ -1,0 +1,66 @@
+"""benchmarks/mutation_tool.py (the Cosmic Ray mutation benchmark, not run in CI): its module -> tests
+map names files that exist, its equivalent-mutant list parses and points into mapped modules, its 95 %
+interval agrees with SciPy's, and docs/testing.md shows the table of the committed results."""
+import importlib.util
+import json
+import pathlib
+import sys
+
+import pytest
+from scipy.stats import binomtest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def tool():
+    spec = importlib.util.spec_from_file_location("mutation_tool", ROOT / "benchmarks" / "mutation_tool.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod          # its dataclass looks its module up there
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_every_mapped_module_and_test_file_exists(tool):
+    for module, tests in tool.TESTS.items():
+        assert (ROOT / module).exists(), module
+        assert tool.module_files(module), module
+        assert tests and all((ROOT / t).is_file() for t in tests), (module, tests)
+
+
+def test_the_issue_modules_are_all_mapped(tool):
+    for module in ["tmtcontrol/files.py", "tmtcontrol/simulation/metrics.py", "tmtcontrol/simulation/scenario.py",
+                   "tmtcontrol/control/laws", "tmtcontrol/stability/analysis.py", "tmtcontrol/stability/sampled.py",
+                   "tmtcontrol/stability/lawloop.py", "tmtcontrol/sweep/spec.py"]:
+        assert module in tool.TESTS, module
+
+
+def test_equivalent_list_parses_and_names_mapped_files(tool):
+    entries = tool.load_equivalents()
+    mapped = {f for module in tool.TESTS for f in tool.module_files(module)}
+    for key, entry in entries.items():
+        file = key.split(":")[0]
+        assert file in mapped, key
+        assert entry["line"] <= len((ROOT / file).read_text().splitlines()), key
+        assert len(entry["reason"]) > 10, key
+
+
+def test_equivalent_list_refuses_an_entry_without_a_reason(tool, tmp_path):
+    bad = tmp_path / "eq.toml"
+    bad.write_text('[[mutant]]\nfile = "tmtcontrol/files.py"\noperator = "core/AddNot"\noccurrence = 1\nline = 3\n')
+    with pytest.raises(ValueError, match="lacks reason"):
+        tool.load_equivalents(bad)
+
+
+@pytest.mark.parametrize("k,n", [(0, 10), (7, 10), (10, 10), (19, 20), (1, 3)])
+def test_wilson_interval_matches_scipy(tool, k, n):
+    # SciPy's binomtest(...).proportion_ci(method="wilson") is an independent implementation; it uses
+    # z = 1.959964 where the script rounds to 1.96, which moves the bounds by less than 1e-4
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    lo, hi = tool.wilson(k, n)
+    assert lo == pytest.approx(ci.low, abs=1e-4) and hi == pytest.approx(ci.high, abs=1e-4)
+
+
+def test_docs_table_is_the_committed_run(tool):
+    doc = json.loads((ROOT / "benchmarks" / "mutation_tool_results.json").read_text())
+    assert tool.markdown_table(doc) in (ROOT / "docs" / "testing.md").read_text()
