@@ -336,3 +336,18 @@ def test_start_posture_seed_of_the_wrong_length_is_one_line():
     sc = apply_overrides(arm_scenario("ur5"), ["robot.q0=[0.0, 0.1, 0.2]"])
     with pytest.raises(ScenarioError, match=r"^robot\.q0: expected 6 values"):
         pose_path(robot_of(sc), sc)
+
+
+@pytest.mark.heavy           # the law-loop limit search of the report line takes seconds
+def test_a_segment_off_target_on_the_ur5_is_reported_and_exits_1(tmp_path, capsys):
+    """The 'known' law told the wrong stiffness (2e4 N/m instead of 5e3) misses
+    f_d on the UR5: the run still writes its outputs, prints the segment with
+    the 1-D prediction and exits 1 (the first-contact limit is the PUMA's only)."""
+    from tmtcontrol.cli import main
+
+    out = tmp_path / "run"
+    rc = main(["simulate", "ur5", "--set", "trajectory.cycles=0.25", "--set", "controller.law=known",
+               "--set", "controller.law.assumed_stiffness=2e4", "--out", str(out), "--no-plots"])
+    err = capsys.readouterr().err
+    assert rc == 1 and (out / "timeseries.csv").exists()
+    assert "segment 1" in err and "not computed for a 6-D arm" in err

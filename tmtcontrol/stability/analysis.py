@@ -132,10 +132,13 @@ def predicted_limits(scenario) -> dict:
     (:func:`scenario_stiffness_limit`, N/m), and ``first_contact``, the
     largest stiffness up to it from which the scenario's own start settles
     (``stability.first_contact``, N/m; short simulations). Both ``None``
-    for a law without a linear verdict."""
+    for a law without a linear verdict; ``first_contact`` ``None`` for a 6-D
+    arm (its search simulates the PUMA's loop)."""
     limit = scenario_stiffness_limit(scenario)
     if limit is None or not np.isfinite(limit) or limit <= 0:
         return {"small_signal": limit, "first_contact": limit}
+    if arm_has_6d_task(scenario):       # the first-contact search simulates the PUMA's loop: not for a 6-D arm
+        return {"small_signal": limit, "first_contact": None}
     from .first_contact import first_contact_limit
 
     return {"small_signal": limit, "first_contact": first_contact_limit(scenario, limit)}
