@@ -257,19 +257,27 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     from ..stability import figures as sf
     from ..stability.analysis import closed_form_applies, scenario_stiffness_limit
 
-    a = analyze_scenario(sc)
+    a = analyze_scenario(sc, limits=True)     # as `analyze --scenario`: the smaller of the limits decides
     limit_1d = a["max_stable_stiffness"]
     whole = a.get("whole_loop_limit")
-    verdict_limit = whole if whole is not None else limit_1d
+    periodic, first = a.get("periodic_limit"), a.get("first_contact_limit")
+    verdict_limit = a["limit"] if "limit" in a else whole if whole is not None else limit_1d
     margin = verdict_limit / p["k_e_max"]
     Ts = p["Ts"]
+    if "limit" in a:
+        path = "frozen-point minimum; the path period is not whole control periods" if "periodic_note" in a \
+            else "monodromy over one period"
+        how = (f"the smaller of the limit along the path ({path}) and the limit from first contact (the "
+               f"scenario's own start): {a['limit_from']}")
+    elif whole is not None:
+        how = f"whole-loop linearisation of the compiled step at {len(a.get('whole_loop_points', []))} path points"
+    else:
+        how = a["sampled_model"]
     rep.verdicts.append(Verdict(
         f"Stable in the sampled implementation (Ts = {fmt.qty(Ts, 's')})", bool(a["sampled_stable"]),
         f"largest stable stiffness {fmt.qty(verdict_limit, 'N/m')} vs k_e max {fmt.qty(p['k_e_max'], 'N/m')} "
         f"(margin {fmt.ratio(margin)})",
-        ("whole-loop linearisation of the compiled step at " f"{len(a.get('whole_loop_points', []))} path points"
-         if whole is not None else a["sampled_model"]) +
-        f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"))
+        how + f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"))
     rows = [[fmt.qty(w["path_time"], "s"), fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])]
             for w in a.get("whole_loop_points", [])]
     # the boundary against Ts: the same law loop at other rates
@@ -280,18 +288,33 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         lim = scenario_stiffness_limit(sc, dict(p, Ts=T, alpha=sc.sensor.pole(T)))
         limits.append(np.nan if lim is None else lim)
     points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
+    cell = lambda v: [fmt.num(v), fmt.ratio(v / p["k_e_max"])] if v is not None else ["–", "–"]
+    model_rows = [["whole-loop linearisation (frozen-point minimum over the path)", *cell(whole)],
+                  [f"1-D: {a['sampled_model']}", *cell(limit_1d)]]
+    if "limit" in a:
+        model_rows = [["along the moving path (" + ("frozen-point minimum: the path period is not whole control "
+                                                    "periods" if "periodic_note" in a else
+                                                    "periodic orbit, monodromy over one period") + ")",
+                       *cell(periodic)],
+                      ["from first contact (the scenario's own start settles below it)", *cell(first)],
+                      *model_rows,
+                      [f"decisive: the smaller of the first two ({a['limit_from']})", *cell(a["limit"])]]
     blocks = [
-        Paragraph("Two models of the sampled loop, side by side. The whole-loop linearisation takes the "
-                  "compiled step itself (robot, law, inner loop, delay, force filter) frozen at points of the "
-                  "path, finds its fixed point and the largest stiffness for which the Jacobian's spectral "
-                  "radius stays below 1; it decides the verdict. The 1-D model is the normal axis alone with "
-                  "the robot's effective mass, which explains the limit: it falls with the control period, "
-                  "the delay, a force filter and a surface located too shallow."),
-        Table("Sampled-data stability: the two models", ["model", "largest stable k_e (N/m)", "margin over k_e max"],
-              [["whole-loop linearisation (worst path point)", fmt.num(whole) if whole is not None else "–",
-                fmt.ratio(whole / p["k_e_max"]) if whole is not None else "–"],
-               [f"1-D: {a['sampled_model']}", fmt.num(limit_1d), fmt.ratio(limit_1d / p["k_e_max"])]]),
+        Paragraph("Models of the sampled loop, side by side. The whole-loop linearisation takes the compiled "
+                  "step itself (robot, law, inner loop, delay, force filter) frozen at points of the path, finds "
+                  "its fixed point and the largest stiffness for which the Jacobian's spectral radius stays "
+                  "below 1: the conservative bound. Along the moving path, the product of the step's linear maps "
+                  "over one period of the path (the monodromy) gives the limit of the loop as it is simulated. "
+                  "From first contact, short simulations of the scenario's own start find the stiffness above "
+                  "which it locks into a contact limit cycle (the small-force region of eq. (18)). The smaller "
+                  "of these two decides the verdict, as in tmtcontrol analyze --scenario. The 1-D model is the "
+                  "normal axis alone with the robot's effective mass, which explains the limit: it falls with "
+                  "the control period, the delay, a force filter and a surface located too shallow."),
+        Table("Sampled-data stability: the models", ["model", "largest stable k_e (N/m)", "margin over k_e max"],
+              model_rows),
     ]
+    if "periodic_note" in a:
+        blocks.append(Paragraph("Note: " + a["periodic_note"] + "."))
     if rows:
         blocks.append(Table("Whole-loop stiffness limit along the path", ["path time", "largest stable k_e (N/m)",
                                                                           "margin over k_e max"], rows))
