@@ -11,9 +11,11 @@ e = f_e - f_d against the scenario's tracking tolerance
 (``controller.force_tolerance``, N) and its growth over whole periods of the
 forcing (the path and a sinusoidal stiffness), never over fractions of one:
 
-* ``converged``: stable (neither of the last two), and |e| within the
-  tolerance (plus 6 sensor-noise standard deviations) over the segment's
-  last quarter;
+* ``converged``: stable (neither of the last two), |e| within the
+  tolerance (plus 6 sensor-noise standard deviations, the ripple the noise
+  itself drives) over the segment's last quarter, and the mean of e there
+  within the tolerance alone (noise averages out of a mean, a bias does not:
+  a large sensor noise cannot hide a bias);
 * ``off_target``: stable (not growing, contact kept), but not within the
   tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
   forced response to a varying stiffness, or a transient still decaying;
@@ -220,12 +222,16 @@ def _gain(e_A: np.ndarray, e_B: np.ndarray) -> float:
 
 
 def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
-                  periods: tuple[int, ...] = (), Ts: float = 1.0) -> tuple[str, str]:
+                  periods: tuple[int, ...] = (), Ts: float = 1.0,
+                  bias_tolerance: float | None = None) -> tuple[str, str]:
     """``(verdict, reason)`` for one segment's force (N) against f_d (N).
 
     ``band`` (N): the oscillation (peak-to-peak) that counts as none;
     ``tolerance`` (N): the largest |f_e - f_d| over the last quarter for
     ``converged`` (the caller adds the sensor noise to both);
+    ``bias_tolerance`` (N): the largest |mean(f_e - f_d)| over the last
+    quarter for ``converged`` (default ``tolerance``; the caller passes the
+    scenario's tolerance without the noise allowance);
     ``periods``: the forcing's periods in samples (:func:`judging_periods`);
     ``Ts`` (s) only for the words of the reason.
 
@@ -269,8 +275,14 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     if a_B > band and a_B >= SUSTAINED * a_A and not forced:
         return "limit_cycle", f"oscillation of {a_B:.3g} N peak-to-peak does not decay over {over}"
     worst = float(np.max(np.abs(e[n - last.size:])))
-    if worst <= tolerance:
+    bias = float(np.mean(e[n - last.size:]))
+    if bias_tolerance is None:
+        bias_tolerance = tolerance
+    if worst <= tolerance and abs(bias) <= bias_tolerance:
         return "converged", f"|f_e - f_d| <= {worst:.3g} N at the end"
+    if worst <= tolerance:
+        return "off_target", (f"a bias of {bias:+.3g} N over the last quarter (tolerance {bias_tolerance:.3g} N; "
+                              f"|f_e - f_d| <= {worst:.3g} N is within the noise allowance)")
     if forced:
         why = f"a periodic forced response of {a_B:.3g} N peak-to-peak"
     elif a_B > band:
@@ -312,7 +324,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         ss_err = float(np.abs(err[ss]).max())
         touching = np.flatnonzero(f > 0.0)
         lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
-        verdict, reason = judge_segment(f, f_d, band, tol, periods, result.Ts)
+        verdict, reason = judge_segment(f, f_d, band, tol, periods, result.Ts,
+                                        bias_tolerance=sc.controller.force_tolerance)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
