@@ -547,8 +547,8 @@ def _robot(args) -> int:
 
     if args.seed < 0:
         raise UsageError(f"--seed: must be >= 0, got {args.seed}")
-    if args.samples < 1:
-        raise UsageError(f"--samples: must be >= 1, got {args.samples}")
+    if not 1 <= args.samples <= 100_000:
+        raise UsageError(f"--samples: must be between 1 and 100,000, got {args.samples}")
     joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
     robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
     check = check_robot(robot, samples=args.samples, seed=args.seed)

@@ -271,15 +271,22 @@ class TrajectorySettings(_Section):
 
 Vec3Pos = tuple[Pos, Pos, Pos]
 Vec3NonNeg = tuple[NonNeg, NonNeg, NonNeg]
+# the translational impedance of eq. (2), bounded to what a force-controlled arm can mean (and what the sampled
+# analysis can compute: m = 1e-300 or b = 1e12 N s/m left python-control's step_info an empty response)
+_Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=1e4)]
+_Damping = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=1e6)]
+_Stiffness = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=1e8)]
 
 
 class ImpedanceSettings(_Section):
     """Target impedance (eq. 2) in the task frame, normal axis first. The
     inner-loop gains of eq. (6) default to K_D = B/M, K_P = K/M (eq. 9)."""
-    m: Vec3Pos = Field((1.0, 1.0, 1.0), description="impedance mass M [kg]", json_schema_extra={"unit": "kg"})
-    b: Vec3NonNeg = Field((60.0, 20.0, 20.0), description="impedance damping B [N s/m]",
-                          json_schema_extra={"unit": "N s/m"})
-    k: Vec3Pos = Field((100.0, 100.0, 100.0), description="impedance stiffness K [N/m]",
+    m: tuple[_Mass, _Mass, _Mass] = Field((1.0, 1.0, 1.0), description="impedance mass M [kg]",
+                                          json_schema_extra={"unit": "kg"})
+    b: tuple[_Damping, _Damping, _Damping] = Field((60.0, 20.0, 20.0), description="impedance damping B [N s/m]",
+                                                   json_schema_extra={"unit": "N s/m"})
+    k: tuple[_Stiffness, _Stiffness, _Stiffness] = Field((100.0, 100.0, 100.0),
+                                                         description="impedance stiffness K [N/m]",
                        json_schema_extra={"unit": "N/m"})
     kd: Vec3NonNeg | None = Field(None, description="inner-loop K_D of eq. (6); default B/M [1/s]",
                                   json_schema_extra={"unit": "1/s"})
@@ -354,7 +361,8 @@ class ControllerSettings(_Section):
                             gt=0, le=100)
     force_tolerance: float = num(0.01, "N", "tracking tolerance of the segment verdicts: a segment is "
                                  "'converged' only if the force error f_e - f_d stays within +- this "
-                                 "(plus 6 sensor-noise standard deviations) over its last quarter", gt=0)
+                                 "(plus 6 sensor-noise standard deviations) over its last quarter and its mean "
+                                 "error there within this alone (noise cannot hide a bias)", gt=0)
     law: _law_union() = Field(default_factory=TmtParameters,
                               description="force-tracking law: its kind and parameters")
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,
