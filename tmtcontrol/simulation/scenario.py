@@ -436,22 +436,6 @@ class Scenario(_Section):
         """Simulated time, s: ``cycles * period``."""
         return self.trajectory.cycles * self.trajectory.period
 
-    @model_validator(mode="after")
-    def _plane(self):
-        env = self.environment
-        if env.normal is not None and self.robot.model.lower() == "puma560":
-            raise ValueError("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
-                             "(its analyses and export use it); leave normal unset")
-        if env.point is not None:
-            from .geometry import surface_frame   # the one definition of the task frame's normal
-
-            n = surface_frame(env)[:, 0]
-            off = sum(a * (c - p) for a, c, p in zip(n, self.trajectory.center, env.point))
-            if abs(off) > 1e-9:
-                raise ValueError(f"trajectory.center: must lie on the plane (environment.point, normal), "
-                                 f"it is {off:.6g} m off it")
-        return self
-
     def replace(self, **changes) -> "Scenario":
         """A validated copy with top-level sections replaced."""
         d = scenario_to_dict(self)
@@ -480,8 +464,27 @@ _TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controlle
 """The kind of a tagged table that does not say."""
 
 
-SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate")
+SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
+                "robot.model", "environment.normal", "environment.point", "trajectory.center")
 """The keys :func:`sampling_problem` relates (the only check across sections)."""
+
+
+def _plane_problem(sc: Scenario) -> str | None:
+    """The plane across sections: the PUMA takes ``tilt_deg`` only, and the
+    circle's centre lies on the plane given by ``environment.point``."""
+    env = sc.environment
+    if env.normal is not None and sc.robot.model.lower() == "puma560":
+        return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
+                "(its analyses and export use it); leave normal unset")
+    if env.point is not None:
+        from .geometry import surface_frame   # the one definition of the task frame's normal
+
+        n = surface_frame(env)[:, 0]
+        off = sum(a * (c - p) for a, c, p in zip(n, sc.trajectory.center, env.point))
+        if abs(off) > 1e-9:
+            return (f"trajectory.center: must lie on the plane (environment.point, normal), "
+                    f"it is {off:.6g} m off it")
+    return None
 
 
 def sampling_problem(sc: Scenario) -> str | None:
@@ -491,7 +494,11 @@ def sampling_problem(sc: Scenario) -> str | None:
     samples cannot resolve them: a circle in under 10 samples, a segment whose
     last quarter holds no sample), and a force-filter cut-off at or above the
     Nyquist frequency ``rate/2`` (its discrete pole ``exp(-2 pi f_c Ts)``
-    would be below ``exp(-pi) = 0.04``: no filtering at all, silently)."""
+    would be below ``exp(-pi) = 0.04``: no filtering at all, silently); and
+    the plane's checks across sections (:func:`_plane_problem`)."""
+    plane = _plane_problem(sc)
+    if plane:
+        return plane
     Ts, rate = sc.controller.Ts, sc.controller.rate
     least = MIN_PERIODS * Ts
     why = f"at least {MIN_PERIODS} control periods ({least:g} s at controller.rate = {rate:g} Hz)"
