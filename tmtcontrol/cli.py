@@ -506,12 +506,22 @@ def _report(args) -> int:
     import time
 
     from .files import OutputFolder
-    from .report import STAGES, build_report, prepare_writing, write_report, writing_stages
+    from .report import STAGES, RendererUnavailable, build_report, prepare_writing, write_report, writing_stages
     from .simulation.simulator import check_run_size
 
     formats = _formats(args.format)
     sc = _load(args)
     check_run_size(sc, args.max_steps)
+    no_pdf = None
+    if "pdf" in formats:            # the PDF engine is loaded first: its absence is known before anything is computed
+        try:
+            prepare_writing(("pdf",))
+        except RendererUnavailable as exc:
+            if formats == ("pdf",):
+                raise                                        # nothing else was asked for: bad input, exit 2
+            no_pdf = str(exc)
+            formats = tuple(f for f in formats if f != "pdf")
+            print(f"warning: {no_pdf}; writing report.html only", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     n = len(STAGES) + writing_stages(formats)
 
@@ -528,7 +538,9 @@ def _report(args) -> int:
     for v in rep.verdicts:
         print(f"{'PASS' if v.passed else 'FAIL'}  {v.name}: {v.evidence}")
     print(f"wrote {' and '.join(str(out.out / f.name) for f in files)} ({time.perf_counter() - t0:.1f} s)")
-    return 0 if rep.passed else 1
+    if no_pdf is not None:
+        print("error: report.pdf was not written (WeasyPrint did not load; see the warning above)", file=sys.stderr)
+    return 0 if rep.passed and no_pdf is None else 1
 
 
 def _formats(text: str) -> tuple[str, ...]:
