@@ -160,7 +160,7 @@ DESIGN = ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "2
     ([*ANALYZE, "--ke", "2000", "--ts", "1e-300"], "--ts: must be >= 0.0001 s"),
     ([*ANALYZE, "--ke", "2000", "--ts", "-0.001"], "--ts: must be a finite number > 0 s"),
     ([*ANALYZE, "--ke-min", "2000", "--ke-max", "inf"], "--ke-max: must be finite"),
-    (["analyze", "--m", "0", "--b", "60", "--k", "100", "--ke", "2000"], "--m: must be > 0, got 0.0"),
+    (["analyze", "--m", "0", "--b", "60", "--k", "100", "--ke", "2000"], "--m: must be >= 0.001, got 0.0"),
     (["analyze", "--m", "1", "--b", "-1", "--k", "100", "--ke", "2000"], "--b: must be >= 0, got -1.0"),
     ([*ANALYZE, "--ke", "2000", "--fd", "nan"], "--fd: must be finite"),
     ([*DESIGN, "--ts", "0.001", "--delay", "21"], "--delay: must be <= 20, got 21"),
@@ -267,7 +267,7 @@ def test_numbers_check_is_cheap_and_exact_for_vectors():
     from tmtcontrol.simulation.scenario import check_setting
 
     assert check_setting("--m", "impedance.m", 2.0) == 2.0
-    with pytest.raises(ScenarioError, match=r"^--m: must be > 0, got -1\.0 \(impedance\.m in a scenario\)$"):
+    with pytest.raises(ScenarioError, match=r"^--m: must be >= 0\.001, got -1\.0 \(impedance\.m in a scenario\)$"):
         check_setting("--m", "impedance.m", -1.0)
     assert np.isclose(check_setting("--ke", "environment.stiffness.values", 1e10), 1e10)
 

@@ -43,7 +43,7 @@ def test_frozen():
     ("[controller]\nf_d = nan\n", r"controller\.f_d: must be finite"),
     ("[controller]\nrate = inf\n", r"controller\.rate: must be finite"),
     ("[controller]\nrate = -5\n", r"controller\.rate: must be > 0"),
-    ("[impedance]\nm = [0, 1, 1]\n", r"impedance\.m\[0\]: must be > 0"),
+    ("[impedance]\nm = [0, 1, 1]\n", r"impedance\.m\[0\]: must be >= 0\.001"),
     ("[impedance]\nb = [60, -1, 20]\n", r"impedance\.b\[1\]: must be >= 0"),
     ("[impedance]\nk = [100, 100]\n", r"impedance\.k: expected a list of 3 numbers"),
     ("[environment.stiffness]\nvalues = []\n", r"environment\.stiffness\.values: empty list"),
