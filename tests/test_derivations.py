@@ -124,8 +124,9 @@ def test_cli_check_table_and_json(monkeypatch, capsys):
     data = json.loads(r.stdout)
     from tmtcontrol.control.laws import laws
 
-    # 13 paper checks, then 2 per law plus one per documented polynomial, then 3 loop checks
-    assert len(data) == 13 + sum(2 + (law.characteristic_polynomial is not None) for law in laws().values()) + 3
+    # 13 paper checks, then 2 per law plus one per documented polynomial, then 3 loop checks and the
+    # analysed-vs-simulated loop beyond the paper (checks.loop.check_extensions: delay, filter, m != 1, mass error)
+    assert len(data) == 13 + sum(2 + (law.characteristic_polynomial is not None) for law in laws().values()) + 3 + 1
     assert all(item["passed"] for item in data)
     for item in data:
         assert {"name", "equation", "claim", "method", "residual", "passed"} <= set(item)
