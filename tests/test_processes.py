@@ -257,7 +257,7 @@ def test_ctrl_c_during_the_first_imports_is_one_line_and_exit_130():
         r.stderr
 
 
-def _threads_probe(base, cases, max_steps=None):
+def _threads_probe(base, cases, max_steps=None, *options):
     """Stands in for run_chunk in the worker: each case's row carries the BLAS/OpenMP thread counts."""
     from threadpoolctl import threadpool_info
 
