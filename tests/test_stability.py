@@ -246,6 +246,7 @@ def test_cli_json_keys(tmp_path):
         "root_locus.png", "damping_vs_stiffness.png", "step_responses.png", "stability_region.png"}
 
 
+@pytest.mark.heavy   # 30 s with a fresh cache (compiles the monodromy step); analyze --scenario --json runs in test_limits
 def test_cli_scenario_and_table():
     r = run_cli("--scenario", "paper")
     assert r.returncode == 0 and "max stable k_e" in r.stdout and "BIBO stable          yes" in r.stdout
