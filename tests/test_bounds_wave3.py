@@ -32,3 +32,11 @@ def test_robot_refuses_an_unbounded_number_of_samples(capsys):
     assert main(["robot", "ur5", "--samples", "1000000000"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: --samples:"), err
+
+
+def test_an_unknown_robot_name_lists_the_bundled_arms(capsys):
+    # `robot nope` said only "cannot read (No such file or directory)" (review of issue 29)
+    assert main(["robot", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope: not a bundled arm" in err[0]
+    assert all(name in err[0] for name in ("puma560", "ur5", "panda"))

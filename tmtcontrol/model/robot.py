@@ -286,6 +286,9 @@ def load_robot(source, tip: str | None = None, base: str | None = None, joints=N
         where, label, tip = f"{source.lower()} ({fname})", source.lower(), tip or default_tip
     else:
         path = os.fspath(source)
+        if not os.path.exists(path) and os.sep not in path and not path.endswith(".urdf"):
+            names = ", ".join(["puma560", *BUNDLED])       # a name, not a file: say which names there are
+            raise URDFError(f"{path}: not a bundled arm ({names}) nor a URDF file")
         text = read_urdf(path)
         where = label = path
     chain = parse_chain(text, tip=tip, base=base, joints=joints, where=where)
