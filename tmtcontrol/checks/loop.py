@@ -129,7 +129,8 @@ here; each guarded bug moves the limit by more than 5 %)."""
 def check_extensions(rng) -> CheckResult:
     from ..control.laws import get_law
     from ..simulation.scenario import apply_overrides, paper_scenario
-    from ..stability.analysis import _limit, scenario_parameters
+    from ..stability.analysis import scenario_parameters
+    from ..stability.sampled import largest_stable
     from ..stability.first_contact import LoopRunner, _periodic_decay
     from ..stability.lawloop import law_loop
     from ..stability.wholeloop import equilibrium_damping
@@ -147,8 +148,9 @@ def check_extensions(rng) -> CheckResult:
             kw = dict(m=p["m"], k=p["k"], Ts=p["Ts"], m_p=p["m_p_max"], f_d=p["f_d"], alpha=p["alpha"], d_e=p["d_e"],
                       delay=p["delay"], delta=p["x_e_error"], model_scale=sc.robot.model_mass_scale)
             b = (lambda ke: equilibrium_damping(sc, ke)) if schedule == "zeta" else (lambda ke: p["b"])
-            limit = _limit(lambda ke: law_loop(law, sc.controller.law, k_e=ke, b=b(ke), **kw).spectral_radius < 1.0,
-                           k_lo=3e3, k_hi=1e5, rtol=1e-3)
+            limit = largest_stable(
+                lambda ke: law_loop(law, sc.controller.law, k_e=ke, b=b(ke), **kw).spectral_radius < 1.0,
+                k_lo=3e3, k_hi=1e5, rtol=1e-3)
             runner = LoopRunner(sc, compile=False)
             below = _periodic_decay(runner, (1 - EXTENSION_BAND) * limit, 5)
             above = _periodic_decay(runner, (1 + EXTENSION_BAND) * limit, 5)

@@ -6,32 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
-from .sampled import effective_mass, max_stable_stiffness, sampled_closed_loop, spectral_radius
+from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
+                      spectral_radius)
 
 __all__ = ["scenario_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
 
-def _limit(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6) -> float:
-    """Largest k_e (N/m) with ``stable(k_e)``: the first unstable point of a
-    49-point log grid from ``k_lo`` to ``k_hi``, then bisection to ``rtol``
-    (``inf`` if stable up to ``k_hi``, 0 if unstable at ``k_lo``)."""
-    grid = np.geomspace(k_lo, k_hi, 49)
-    prev = None
-    for ke in grid:
-        if not stable(ke):
-            break
-        prev = ke
-    else:
-        return float("inf")
-    if prev is None:
-        return 0.0
-    lo, hi = prev, ke
-    while hi / lo > 1 + rtol:
-        mid = float(np.sqrt(lo * hi))
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return float(lo)
 
 
 def scenario_parameters(scenario) -> dict:
@@ -111,7 +93,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
         if bk is None:
             return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, **kw)
                        for mp in (p["m_p_min"], p["m_p_max"]))
-        return min(_limit(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
+        return min(largest_stable(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
                                                      **{**kw, **bk(ke)}) < 1.0)
                    for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
@@ -121,7 +103,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
                    for mp in (p["m_p_min"], p["m_p_max"]))
     from .lawloop import law_loop
 
-    return min(_limit(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
+    return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
                                           **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4)
                for mp in (p["m_p_min"], p["m_p_max"]))
 
@@ -242,7 +224,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
             else:
                 radius = lambda ke, mp: spectral_radius(m, k=k, k_e=ke, Ts=Ts, m_p=mp, **{**kw, **bk(ke)})
-                limit = min(_limit(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6) for mp in masses)
+                limit = min(largest_stable(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6) for mp in masses)
                 rho = max(radius(ke, mp) for ke in grid for mp in masses)
                 b, kw["kd"] = bk(hi)["b"], bk(hi)["kd"]
             out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, max(masses), **kw).sys
@@ -259,7 +241,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
             else:
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **{**kw, **bk(ke)}).spectral_radius
-                limit = min(_limit(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4) for mp in masses)
+                limit = min(largest_stable(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4) for mp in masses)
             rho = max(radius(ke, mp) for ke in grid[::3] for mp in masses)
             model = "the law's 1-D loop (stability.lawloop)"
         if damping is not None:

@@ -27,7 +27,6 @@ the derivation checks compare with each law's documented one (eq. 22 for
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -35,7 +34,7 @@ import numpy as np
 
 from ..control.laws import MEASUREMENTS, Law, LawParameters
 from .continuous import AnalysisError, _pos
-from .sampled import _zoh
+from .sampled import _zoh, largest_stable
 
 __all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "continuous_limit", "stiffness_sequence"]
 
@@ -201,21 +200,7 @@ def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: 
     def stable(ke):
         return law_loop(law, params, k_e=ke, **kw).spectral_radius < 1.0
 
-    grid = np.geomspace(k_lo, k_hi, 49)
-    prev = None
-    for ke in grid:
-        if not stable(ke):
-            break
-        prev = ke
-    else:
-        return float("inf")
-    if prev is None:
-        return 0.0
-    lo, hi = prev, ke
-    while hi / lo > 1 + rtol:
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return float(lo)
+    return largest_stable(stable, k_lo, k_hi, rtol)
 
 
 def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,

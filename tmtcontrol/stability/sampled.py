@@ -28,8 +28,8 @@ from .continuous import AnalysisError, _check, _pos
 if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of SampledModel.sys
     import control as ct
 
-__all__ = ["effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius", "spectral_radii",
-           "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
+__all__ = ["largest_stable", "effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
+           "spectral_radii", "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
 
 
 
@@ -158,6 +158,28 @@ def spectral_radii(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0
 def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
     """Largest eigenvalue magnitude of the sampled closed loop (< 1: stable)."""
     return sampled_closed_loop(m, b, k, k_e, Ts, m_p, **kw).spectral_radius
+
+
+def largest_stable(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49) -> float:
+    """Largest k_e (N/m) with ``stable(k_e)``: the first unstable point of a
+    ``points``-point log grid from ``k_lo`` to ``k_hi``, then bisection to
+    ``rtol`` (``inf`` if stable up to ``k_hi``, 0 if unstable at ``k_lo``).
+    For a stability test without a vectorised form (the law loops, the
+    scenario's 1-D loops)."""
+    prev = None
+    for ke in np.geomspace(k_lo, k_hi, points):
+        if not stable(ke):
+            break
+        prev = ke
+    else:
+        return float("inf")
+    if prev is None:
+        return 0.0
+    lo, hi = float(prev), float(ke)
+    while hi / lo > 1 + rtol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return float(lo)
 
 
 def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
