@@ -28,8 +28,8 @@ from .geometry import surface_frame, tool_orientation
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError
-from .simulator import (STIFFNESS_ESTIMATE_FORCE, SimulationError, SimulationResult, _structure, check_run_size,
-                        contact_detection_threshold)
+from .simulator import (STIFFNESS_ESTIMATE_FORCE, SimulationResult, Simulator, _structure,
+                        check_run_size, contact_detection_threshold)
 from .taskframe import build_pose_step, pose_log_layout, pose_param_layout, pose_state_layout
 from .trajectory import circle_reference
 
@@ -157,13 +157,7 @@ class PoseSimulator:
         S, L = self.rollout.run(s0, U, P)
         check_interrupt()
         run_time = time.perf_counter() - t0
-        n = self.plant.n
-        bad = ~(np.all(np.isfinite(S), axis=0) & np.all(np.isfinite(L), axis=0)
-                & (np.abs(S[n:2 * n]).max(axis=0) < 1e3))
-        if bad.any():
-            k = int(np.argmax(bad))
-            raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s (non-finite or runaway joint "
-                                  "velocity); check the stiffness, gains and control rate")
+        Simulator._check_finite(S, L, t, self.plant.n)
         return self._result(sc, t, L, U, path, {"integrator": sc.simulation.integrator, "code": self.rollout.how,
                                                 "build_time_s": self.build_time, "run_time_s": run_time,
                                                 "steps": t.size, "robot": self.plant.name})

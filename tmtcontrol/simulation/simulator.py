@@ -347,13 +347,16 @@ class Simulator:
         return U, P, s0, t
 
     @staticmethod
-    def _check_finite(S, L, t):
+    def _check_finite(S, L, t, n: int = 3):
+        """Raise :class:`SimulationError` at the first sample where the state
+        S or log L is not finite or a joint velocity (rows n..2n of S, an arm
+        of n joints) runs away."""
         # fast path: a sum is finite only if every term is (a false alarm from
         # overflow falls through to the exact test below)
-        if np.isfinite(S.sum()) and np.isfinite(L.sum()) and np.abs(S[3:6]).max() < 1e3:
+        if np.isfinite(S.sum()) and np.isfinite(L.sum()) and np.abs(S[n:2 * n]).max() < 1e3:
             return
         bad = ~(np.all(np.isfinite(S), axis=0) & np.all(np.isfinite(L), axis=0)
-                & (np.abs(S[3:6]).max(axis=0) < 1e3))
+                & (np.abs(S[n:2 * n]).max(axis=0) < 1e3))
         if bad.any():
             k = int(np.argmax(bad))
             raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s (non-finite or runaway "
