@@ -247,7 +247,7 @@ def test_compare_paper_all_laws(compared):
     assert r.stdout.count("converged") == 17 and r.stdout.count("off_target") == 3
     assert [line.split(";")[0] for line in r.stderr.strip().splitlines()] == [
         f"off_target: law known, segment {i} ({a}-{a + 4} s), k_e = {k} N/m"
-        for i, a, k in ((2, 4, "2e+04"), (3, 8, "2000"), (4, 12, "1e+04"))]
+        for i, a, k in ((2, 4, "20,000"), (3, 8, "2,000"), (4, 12, "10,000"))]
 
 
 def test_compare_python_api_returns_the_same_numbers(compared):

@@ -380,5 +380,5 @@ def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, caps
                  "--set", "controller.x_e_error=0.005"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and len(err) == 1
-    assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5000 N/m, predicted limit")
+    assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5,000 N/m, predicted limit")
     assert "(tolerance 0.01 N): a bias of +0.2" in err[0]

@@ -123,6 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_design)
 
     p = sub.add_parser("check", help="symbolic checks of the paper's derivation on the implemented code")
+    p.add_argument("--scenario", metavar="NAME|FILE", help="also check the task-frame loop of this scenario's arm "
+                   "with the ideal inner loop (paper, ur5, panda or a TOML file)")
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
     p.set_defaults(func=_check)
 
@@ -297,12 +299,14 @@ def _compare(args) -> int:
     print(f"scenario {sc.name!r}, {len(names)} laws")
     print(format_comparison(cmp))
     print(f"wrote {out.out}/")
+    from .fmt import num
+
     bad = [(n, i, s) for n, r in cmp.runs.items() for i, s in enumerate(r.segments, 1) if s.verdict != "converged"]
     for n, r in cmp.runs.items():
         if r.result is None:
             print(f"diverged: law {n}: {r.error}", file=sys.stderr)
     for n, i, s in bad:
-        print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m; "
+        print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m; "
               f"{s.reason}", file=sys.stderr)
     return 0 if cmp.converged else 1
 
@@ -314,6 +318,7 @@ def _verdict_exit(sc, segs) -> int:
     if not bad:
         return 0
     from .stability.analysis import predicted_limits
+    from .fmt import num
 
     pred = predicted_limits(sc)
     limit, first = pred["small_signal"], pred["first_contact"]
@@ -321,7 +326,7 @@ def _verdict_exit(sc, segs) -> int:
            + (f"from first contact {first:.4g} N/m" if first is not None else "from first contact: not computed "
               "for a 6-D arm") if limit is not None else "no linear prediction for this law")
     for i, s in bad:
-        print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {s.stiffness:.4g} N/m, {lim}; {s.reason}",
+        print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m, {lim}; {s.reason}",
               file=sys.stderr)
     return 1
 
@@ -448,7 +453,14 @@ def _check(args) -> int:
     from .checks.derivations import format_checks
     from .files import jsonable
 
-    results = all_checks()
+    sc = None
+    if args.scenario is not None:
+        from .simulation.posesim import robot_of
+        from .simulation.scenario import load_scenario
+
+        sc = load_scenario(args.scenario)
+        robot_of(sc)                        # an arm that cannot be loaded: one line, exit 2, before any check
+    results = all_checks(scenario=sc)
     if args.json:
         print(json.dumps(jsonable([r.as_dict() for r in results]), indent=2))
     else:
