@@ -1,35 +1,42 @@
 """Derivation checks of the paper's equations, of every force-tracking
 law's claims and of the analysed against the simulated loop, on the running
-code."""
+code; with a scenario, also the checks that hold for its arm (``checks.arm``:
+the task-frame loop with the ideal inner loop is the paper's loop)."""
 
 from __future__ import annotations
 
 
-def check_groups() -> list[str]:
+def check_groups(scenario=None) -> list[str]:
     """The independent groups of :func:`all_checks`, in its order: the
     paper's derivations, one group per registered law (``"law: NAME"``), the
-    loop (the report runs them in parallel)."""
+    loop, and with a ``scenario`` its arm (``"arm"``; the report runs them in
+    parallel)."""
     from ..control.laws import laws
 
-    return ["derivations", *(f"law: {name}" for name in laws()), "loop"]
+    return ["derivations", *(f"law: {name}" for name in laws()), "loop", *(["arm"] if scenario is not None else [])]
 
 
-def run_check_group(group: str, seed: int = 2024) -> list:
-    """The checks of one of :func:`check_groups`."""
+def run_check_group(group: str, seed: int = 2024, scenario=None) -> list:
+    """The checks of one of :func:`check_groups` (``"arm"`` needs the ``scenario``)."""
     from . import derivations, laws, loop
 
+    if group == "arm" and scenario is not None:
+        from .arm import arm_implementation, run_arm_checks
+
+        return run_arm_checks(arm_implementation(scenario), seed)
     if group == "derivations":
         return derivations.run_checks(seed=seed)
     if group == "loop":
         return loop.run_loop_checks(seed)
     if group.startswith("law: ") and group.removeprefix("law: ") in laws.laws():
         return laws.law_checks(laws.laws()[group.removeprefix("law: ")], seed)
-    raise ValueError(f"group: expected one of {', '.join(check_groups())}, got {group!r}")
+    raise ValueError(f"group: expected one of {', '.join(check_groups(scenario))}, got {group!r}")
 
 
-def all_checks(seed: int = 2024) -> list:
-    """The paper's derivation checks, every registered law's, then the loop checks."""
-    return [r for group in check_groups() for r in run_check_group(group, seed)]
+def all_checks(seed: int = 2024, scenario=None) -> list:
+    """The paper's derivation checks, every registered law's, the loop
+    checks, then (with a ``scenario``) the checks of its arm."""
+    return [r for group in check_groups(scenario) for r in run_check_group(group, seed, scenario)]
 
 
 __all__ = ["all_checks", "run_check_group", "check_groups"]
