@@ -828,3 +828,37 @@ def test_compile_litter_in_the_temporary_folder_is_removed_after_a_day(private_t
     clear_cache()
     assert sorted(p.name for p in private_tmp.iterdir()) == sorted(
         ["tmtcontrol-other", "mine-tmtcontrol-cg-1", fallback.name])
+
+
+# -- the shell's own folder is never replaced ----------------------------------------------
+
+
+def test_out_dot_in_an_empty_current_folder_is_refused(tmp_path):
+    """``--out .`` in an empty folder: the folder is empty, so it would count as
+    replaceable, but replacing it leaves the user's shell in a removed folder.
+    Refused in one line naming --out, exit 2, the folder (same inode) still empty."""
+    here = tmp_path / "work"
+    here.mkdir()
+    inode = here.stat().st_ino
+    r = subprocess.run(CLI + ["simulate", *SHORT, "--out", "."], cwd=here, capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --out: . is the current folder"), lines
+    assert here.stat().st_ino == inode and list(here.iterdir()) == [] and r.stdout == ""
+
+
+def test_a_previous_output_holding_the_current_folder_is_refused(tmp_path, monkeypatch):
+    """A user who ``cd``s into a subfolder of a previous output and names the
+    output itself: replaceable by its manifest, but it holds the current folder."""
+    out = commit(tmp_path / "o")
+    monkeypatch.chdir(out / "sub" / "deeper")
+    before = snapshot(out)
+    with pytest.raises(OutputError, match=r"^--out: \.\./\.\. is the current folder or holds it"):
+        OutputFolder("../..")
+    monkeypatch.chdir(out)
+    with pytest.raises(OutputError, match=r"^--out: \. is the current folder or holds it"):
+        OutputFolder(".")
+    assert snapshot(out) == before and litter(tmp_path) == []
+    monkeypatch.chdir(tmp_path)            # from outside, the same folder is replaced as before
+    commit("o")
+    assert snapshot(out) == before

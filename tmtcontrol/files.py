@@ -404,6 +404,15 @@ class OutputFolder:
         self.path = None
         if self.out.parent == self.out:
             raise OutputError(f"{flag}: {self.out} is a file system root; name a folder inside it")
+        try:
+            here = os.path.realpath(os.getcwd())
+        except OSError:                # the shell's folder was removed: nothing to protect
+            here = None
+        there = os.path.realpath(self.out)
+        if here is not None and os.path.isdir(self.out) and (here == there or here.startswith(there + os.sep)):
+            # replacing it would leave the shell (and any program) in a removed folder
+            raise OutputError(f"{flag}: {self.shown} is the current folder or holds it; name a new folder "
+                              "inside it (nothing was written)")
         if len(os.fsencode(self.out.name)) > 255:   # NAME_MAX: refused now, not when the results are ready
             raise OutputError(f"{flag}: cannot write {self.out} ({os.strerror(errno.ENAMETOOLONG)})")
         parent = self.out.parent
