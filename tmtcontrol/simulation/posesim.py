@@ -128,14 +128,13 @@ class PoseSimulator:
         if self.plant.n < 6:
             raise ScenarioError(f"robot.model: the 6-D loop needs an arm with at least 6 joints, "
                                 f"{self.plant.name} has {self.plant.n}")
-        if sc.controller.delay_samples:
-            raise ScenarioError("controller.delay_samples: the 6-D loop has no computation delay yet; set 0")
         self.model = robot_of(sc, controller=True)
         self.law = get_law(sc.controller.law.kind)
         compile = compile if sc.simulation.integrator == "fixed" else False
         s = sc.simulation
+        self.delay = sc.controller.delay_samples
         self.rollout = Rollout(build_pose_step(self.plant, self.model, self.law, s.integrator, s.substeps, s.tol,
-                                               s.contact_refine), compile=compile)
+                                               s.contact_refine, self.delay), compile=compile)
         self.build_time = time.perf_counter() - t0
         self._structure = _structure(sc)
 
@@ -211,9 +210,9 @@ class PoseSimulator:
         dq0 = np.linalg.pinv(self.plant.jacobian(q0)) @ v0
         b0 = min(max(imp.b[0], sch.b_min), sch.b_max) if on else imp.b[0]
         guarded = gap > 0 and ctl.approach_speed > 0
-        s0 = pose_state_layout(n, law).pack(
+        s0 = pose_state_layout(n, law, self.delay).pack(
             q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=-gap,
-            ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(0),
+            ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(n * self.delay),
             law=law.initial_state(ctl.law))
         return U, P, s0, t
 

@@ -44,8 +44,9 @@ builder sharing the law, the impedance helpers, the normal-axis controller
 and the plant integrator with :mod:`.closedloop`, not a rewrite of it: the
 PUMA's expressions there must serialise identically.
 
-Not yet in the 6-D loop: the computation delay (``controller.delay_samples``
-must be 0) and the exported controller (``tmtcontrol export``).
+The computation delay (``controller.delay_samples`` = d) is the PUMA's: the
+torque computed at t_k is applied over [t_(k+d), t_(k+d+1)), the state's
+``tau_wait`` holding the d waiting torques of n joints (oldest first).
 """
 
 from __future__ import annotations
@@ -66,11 +67,13 @@ POSE_INPUT = INPUT
 """Per-sample inputs, as the PUMA's loop: tangential reference, k_e, noise."""
 
 
-def pose_state_layout(n: int, law: Law) -> Layout:
+def pose_state_layout(n: int, law: Law, delay: int = 0) -> Layout:
     """Closed-loop state: joints (n, rad; n, rad/s) then the normal axis'
-    controller state of :func:`.closedloop.state_layout` (no delay queue)."""
+    controller state of :func:`.closedloop.state_layout`, whose delay queue
+    holds the ``delay`` torques of n joints computed but not yet applied (N m,
+    oldest first)."""
     return Layout(("q", n), ("dq", n), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
-                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", 0), ("law", len(law.states)))
+                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", n * delay), ("law", len(law.states)))
 
 
 def pose_param_layout(n: int, law: Law) -> Layout:
@@ -92,8 +95,9 @@ def pose_log_layout(n: int) -> Layout:
                   ("f_e", 1), ("f_m", 1), ("b_n", 1), ("f_d", 1), ("x_e_hat", 1), ("e_o", 3))
 
 
-def pose_step_name(law: Law, n: int) -> str:
-    return f"pose{n}_step_{law.name}"
+def pose_step_name(law: Law, n: int, delay: int = 0) -> str:
+    """The name of :func:`build_pose_step`'s Function (and of its compiled library)."""
+    return f"pose{n}_step_{law.name}" + (f"_delay{delay}" if delay else "")
 
 
 def operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0=None):
@@ -154,30 +158,31 @@ def _plant_step(plant, integrator: str, substeps: int, tol: float, contact_refin
     return coarse, choose, None
 
 
-def build_pose_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
-                    contact_refine: int = 4) -> ca.Function:
-    """One control period of the 6-D loop, ``["s","u","p"] -> ["s_next","log"]``
-    (layouts :func:`pose_state_layout`, :data:`POSE_INPUT`,
-    :func:`pose_param_layout`, :func:`pose_log_layout`). ``plant`` and
-    ``model`` are robots from ``load_robot`` with the same joints (the model
-    may be mass-scaled or carry friction to compensate)."""
-    n = plant.n
-    if model.n != n or n < 6:
-        raise ValueError(f"the 6-D loop needs a robot with >= 6 joints and a model with as many, got {n}, {model.n}")
-    coarse, choose, flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
-    STATE, PARAM = pose_state_layout(n, law), pose_param_layout(n, law)
-    s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", POSE_INPUT.size), ca.MX.sym("p", PARAM.size)
-    S, U_in, P = STATE.split(s), POSE_INPUT.split(u), PARAM.split(p)
-    R, c0 = ca.reshape(P["R"], 3, 3), P["c"]
-    q, dq = S["q"], S["dq"]
-    pos, R_tool, J, X, dX = _kinematics(model, q, dq, R, c0)        # encoders through fk
-    f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    c = _control(None, law, S, P, U_in, R, q, dq, J[:3, :], X, dX, f_true + U_in["noise"], 0, torque=False)
+def _pose_control(model, law: Law, S: dict, P: dict, ref: dict, R, q, dq, kin, f_sensor, delay: int = 0,
+                  torque: bool = True) -> dict:
+    """The 6-D controller at t_k from the sampled measurements, as MX
+    expressions: :func:`.closedloop._control` on the normal axis (force
+    filter, guarded approach, damping schedule, the law's command of eq. 4),
+    the orientation error e_o, and (``torque``) the inner loop (eq. 6) on the
+    six task axes with the operational-space torque (eq. 5) and the
+    computation delay's queue: the torque computed now is applied ``delay``
+    periods later (``tau``, N m, the one applied over [t_k, t_k+1));
+    ``tau_wait`` the queue after this period, oldest first. ``kin`` is
+    :func:`_kinematics` of the encoders, ``f_sensor`` the normal force read
+    this period (N, before the filter). Used by :func:`build_pose_step` (the
+    simulation) and :func:`build_pose_controller` (the exported controller):
+    one set of expressions for both."""
+    n = model.n
+    pos, R_tool, J, X, dX = kin
+    c = _control(None, law, S, P, ref, R, q, dq, J[:3, :], X, dX, f_sensor, 0, torque=False)
+    # rotational axes: X_c = R_d (X_a = 0), the error on the task axes
+    e_o = ca.mtimes(R.T, rotation_vector(ca.mtimes(ca.reshape(P["R_d"], 3, 3), R_tool.T)))
+    c.update(e_o=e_o, tau=None, tau_wait=None)
+    if not torque:
+        return c
     # translational axes, eq. (6) on the task axes (normal damping possibly scheduled, K_D = B/M)
     kd = ca.vertcat(ca.if_else(P["sched"] > 0, c["b_n"] / P["m"][0], P["kd"][0]), P["kd"][1:])
     U_pos = inner_loop(c["ddX_c"], c["dX_c"], c["X_c"], dX, X, kd, P["kp"])
-    # rotational axes: X_c = R_d (X_a = 0), error and angular velocity on the task axes
-    e_o = ca.mtimes(R.T, rotation_vector(ca.mtimes(ca.reshape(P["R_d"], 3, 3), R_tool.T)))
     w = ca.mtimes(R.T, ca.mtimes(J[3:, :], dq))
     U_rot = inner_loop(0, 0, e_o, w, 0, P["kd_rot"], P["kp_rot"])
     U = ca.vertcat(ca.mtimes(R, U_pos), ca.mtimes(R, U_rot))
@@ -188,13 +193,46 @@ def build_pose_step(plant, model, law: Law, integrator: str = "fixed", substeps:
         tau_0 = ca.mtimes(M, P["kp_post"] * (P["q_post"] - q) - P["kd_post"] * dq)
     tau = operational_space_torque(M, model.functions.bias(q, dq), J, model.functions.jacobian_dot(q, dq),
                                    U, F_e, tau_0) + model.functions.friction(dq)
+    if delay:           # apply the oldest waiting torque; queue this one
+        queue = ca.vertcat(S["tau_wait"], tau)
+        tau, tau_wait = queue[:n], queue[n:]
+    else:
+        tau_wait = ca.MX(0, 1)
+    c.update(tau=tau, tau_wait=tau_wait)
+    return c
+
+
+def build_pose_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+                    contact_refine: int = 4, delay: int = 0) -> ca.Function:
+    """One control period of the 6-D loop, ``["s","u","p"] -> ["s_next","log"]``
+    (layouts :func:`pose_state_layout`, :data:`POSE_INPUT`,
+    :func:`pose_param_layout`, :func:`pose_log_layout`). ``plant`` and
+    ``model`` are robots from ``load_robot`` with the same joints (the model
+    may be mass-scaled or carry friction to compensate). ``delay``: the
+    computation delay in samples, as the PUMA's loop (the torque computed at
+    t_k is applied over [t_(k+delay), t_(k+delay+1)); the log's ``tau`` is
+    the torque applied)."""
+    n = plant.n
+    if model.n != n or n < 6:
+        raise ValueError(f"the 6-D loop needs a robot with >= 6 joints and a model with as many, got {n}, {model.n}")
+    coarse, choose, flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
+    STATE, PARAM = pose_state_layout(n, law, delay), pose_param_layout(n, law)
+    s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", POSE_INPUT.size), ca.MX.sym("p", PARAM.size)
+    S, U_in, P = STATE.split(s), POSE_INPUT.split(u), PARAM.split(p)
+    R, c0 = ca.reshape(P["R"], 3, 3), P["c"]
+    q, dq = S["q"], S["dq"]
+    kin = _kinematics(model, q, dq, R, c0)                         # encoders through fk
+    pos, _, _, X, dX = kin
+    f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
+    c = _pose_control(model, law, S, P, U_in, R, q, dq, kin, f_true + U_in["noise"], delay)
+    tau, e_o = c["tau"], c["e_o"]
     pz = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], c0, P["Ts"])
     z0 = ca.vertcat(q, dq)
     rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
-                      c["law_next"])
+                      *([c["tau_wait"]] if delay else []), c["law_next"])
     log = ca.vertcat(q, dq, tau, pos, X, c["X_r"], c["X_c"], f_true, c["f_m"], c["b_n"], c["f_d"],
                      c["x_e_hat"], e_o)
-    name = pose_step_name(law, n)
+    name = pose_step_name(law, n, delay)
     if flow is not None:
         zf = flow(x0=z0, p=pz)["xf"]
         return ca.Function(name, [s, u, p], [ca.vertcat(zf, rest), log], ["s", "u", "p"], ["s_next", "log"])
