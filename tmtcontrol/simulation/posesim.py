@@ -29,7 +29,7 @@ from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError
 from .simulator import (STIFFNESS_ESTIMATE_FORCE, SimulationResult, Simulator, _structure,
-                        check_run_size, contact_detection_threshold)
+                        check_run_size, contact_threshold_of)
 from .taskframe import build_pose_step, pose_log_layout, pose_param_layout, pose_state_layout
 from .trajectory import circle_reference
 
@@ -201,7 +201,7 @@ class PoseSimulator:
             b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
             k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,
             v_app=ctl.approach_speed,
-            f_contact=contact_detection_threshold(ctl.contact_threshold, sc.sensor.noise_std, alpha),
+            f_contact=contact_threshold_of(sc, alpha),
             ramp_rate=1.0 / ctl.force_ramp, law=law.parameter_vector(ctl.law),
             R_d=R_d.ravel(order="F"), kd_rot=np.divide(imp.b_rot, imp.m_rot), kp_rot=np.divide(imp.k_rot, imp.m_rot),
             q_post=q0, kp_post=sc.robot.posture_kp, kd_post=sc.robot.posture_kd)
