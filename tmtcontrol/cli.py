@@ -98,26 +98,31 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "design", help="optimal normal-axis impedance over a stiffness range (IPOPT)", formatter_class=_RAW,
-        description="All of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot are required.\n"
+        description="Give either --scenario (m, k, the k_e range, Ts, f_d, delay, force filter and the path's\n"
+                    "largest effective normal mass from the scenario; flags given override them; overshoot bound\n"
+                    "5 % unless --max-overshoot), or all of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot.\n"
                     "Exit 1 if the specification is infeasible or the design fails its own verification.",
-        epilog="example:\n  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5")
-    p.add_argument("--m", type=float, required=True, help="impedance mass, kg (required)")
-    p.add_argument("--k", type=float, required=True,
-                   help="impedance stiffness, N/m (required; initial guess with --optimize-k)")
-    p.add_argument("--ke-min", type=float, required=True, help="lower end of the stiffness range, N/m (required)")
-    p.add_argument("--ke-max", type=float, required=True, help="upper end of the stiffness range, N/m (required)")
-    p.add_argument("--ts", type=float, required=True, help="control period, s (required)")
-    p.add_argument("--max-overshoot", type=float, required=True,
-                   help="first-contact force overshoot bound, percent (required)")
+        epilog="examples:\n  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5\n"
+               "  tmtcontrol design --scenario ur5")
+    p.add_argument("--scenario", metavar="NAME|FILE", help="take the specification from a scenario (paper, ur5, "
+                   "panda or a TOML file); for its arm the largest effective normal mass along the checked path")
+    p.add_argument("--m", type=float, help="impedance mass, kg (required without --scenario)")
+    p.add_argument("--k", type=float,
+                   help="impedance stiffness, N/m (required without --scenario; initial guess with --optimize-k)")
+    p.add_argument("--ke-min", type=float, help="lower end of the stiffness range, N/m (required without --scenario)")
+    p.add_argument("--ke-max", type=float, help="upper end of the stiffness range, N/m (required without --scenario)")
+    p.add_argument("--ts", type=float, help="control period, s (required without --scenario)")
+    p.add_argument("--max-overshoot", type=float,
+                   help="first-contact force overshoot bound, percent (required without --scenario; default 5 with it)")
     p.add_argument("--optimize-k", action="store_true", help="optimise k as well as b")
-    p.add_argument("--fd", type=float, default=10.0, help="desired force, N (default 10)")
+    p.add_argument("--fd", type=float, default=None, help="desired force, N (default 10, or the scenario's)")
     p.add_argument("--mp", type=float, default=None, help="robot's effective normal mass, kg "
-                   "(default: largest along the paper path, the worst case)")
+                   "(default: largest along the paper path, or the scenario's path: the worst case)")
     p.add_argument("--margin", type=float, default=2.0,
                    help="sampled stability required up to margin x k_e_max (default 2)")
-    p.add_argument("--delay", type=int, default=0, help="computation delay, samples (default 0)")
-    p.add_argument("--filter-hz", type=float, default=0.0,
-                   help="first-order force-filter cut-off, Hz (default 0: no filter)")
+    p.add_argument("--delay", type=int, default=None, help="computation delay, samples (default 0, or the scenario's)")
+    p.add_argument("--filter-hz", type=float, default=None,
+                   help="first-order force-filter cut-off, Hz (default 0: no filter, or the scenario's)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses to DIR")
     p.set_defaults(func=_design)
@@ -426,11 +431,28 @@ def _design(args) -> int:
     from .stability.design import DesignSpec, design_impedance, format_design
 
     _check_numbers(args)
-    spec = _flags_named(DesignSpec, m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
-                      max_overshoot=args.max_overshoot, f_d=args.fd, optimize_k=args.optimize_k,
-                      m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),
-                      stiffness_margin=args.margin, delay=args.delay,
-                      alpha=_filter_pole(args.filter_hz, args.ts))
+    if args.scenario is not None:
+        from .simulation.scenario import load_scenario
+        from .stability.design import scenario_design_spec
+
+        sc = load_scenario(args.scenario)
+        Ts = args.ts if args.ts is not None else sc.controller.Ts
+        if args.filter_hz is not None:
+            _check_numbers(argparse.Namespace(ts=Ts, filter_hz=args.filter_hz))
+        spec = _flags_named(scenario_design_spec, scenario=sc, m=args.m, k=args.k, k_e_min=args.ke_min,
+                            k_e_max=args.ke_max, Ts=args.ts, max_overshoot=args.max_overshoot, f_d=args.fd,
+                            optimize_k=args.optimize_k, m_p=args.mp, stiffness_margin=args.margin, delay=args.delay,
+                            alpha=None if args.filter_hz is None else _filter_pole(args.filter_hz, Ts))
+    else:
+        for flag in ("m", "k", "ke_min", "ke_max", "ts", "max_overshoot"):
+            if getattr(args, flag) is None:
+                raise UsageError(f"--{flag.replace('_', '-')}: required (or use --scenario)")
+        spec = _flags_named(DesignSpec, m=args.m, k=args.k, k_e_min=args.ke_min, k_e_max=args.ke_max, Ts=args.ts,
+                            max_overshoot=args.max_overshoot, f_d=10.0 if args.fd is None else args.fd,
+                            optimize_k=args.optimize_k,
+                            m_p=args.mp if args.mp is not None else paper_effective_mass(worst=True),
+                            stiffness_margin=args.margin, delay=args.delay or 0,
+                            alpha=_filter_pole(args.filter_hz or 0.0, args.ts))
     out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
     with out if out is not None else contextlib.nullcontext():
         result = design_impedance(spec)

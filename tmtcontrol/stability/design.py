@@ -52,7 +52,8 @@ from .sampled import spectral_radius
 
 __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
            "ImpedanceCheck", "check_impedance",
-           "overshoot_closed_form", "sampled_overshoot", "damping_alternatives", "format_design"]
+           "overshoot_closed_form", "sampled_overshoot", "damping_alternatives", "format_design",
+           "scenario_design_spec", "DESIGN_OVERSHOOT"]
 
 
 SAMPLING_MARGIN = 1e-3
@@ -623,6 +624,34 @@ def damping_alternatives(scenario, result: DesignResult) -> dict:
             f"optimal b = {result.b:.4g}": fixed(result.b),
             "scheduled (zeta = 1)": apply_overrides(scenario, ["controller.damping_schedule=zeta",
                                                                "controller.damping_schedule.zeta=1.0"])}
+
+
+DESIGN_OVERSHOOT = 5.0
+"""The first-contact overshoot bound (percent) of a scenario's design when
+none is given: the report's and ``tmtcontrol design --scenario``'s."""
+
+
+def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> DesignSpec:
+    """The :class:`DesignSpec` of a scenario's normal axis: m, k, f_d, the
+    stiffness range of its profile, Ts, the computation delay, the force
+    filter's pole at Ts, and as m_p the largest effective normal mass along
+    its checked path (kg; the worst case: the sampled limit falls as m_p
+    grows), all from :func:`.analysis.scenario_parameters` (``params``, if
+    already computed): for the PUMA its Cartesian inertia along the path, for
+    an arm with 6 or more joints ``1/(n^T J_v M^-1 J_v^T n)`` at the path
+    poses, as ``analyze --scenario``. The overshoot bound is
+    :data:`DESIGN_OVERSHOOT`. ``overrides`` (DesignSpec fields; None ignored)
+    replace any of these; a new ``Ts`` without an ``alpha`` moves the
+    scenario's filter pole to it."""
+    from .analysis import scenario_parameters
+
+    p = scenario_parameters(scenario) if params is None else params
+    kw = {k: v for k, v in overrides.items() if v is not None}
+    Ts = kw.get("Ts", p["Ts"])
+    alpha = p["alpha"] if Ts == p["Ts"] else scenario.sensor.pole(Ts)
+    base = dict(m=p["m"], k=p["k"], k_e_min=p["k_e_min"], k_e_max=p["k_e_max"], Ts=Ts,
+                max_overshoot=DESIGN_OVERSHOOT, f_d=p["f_d"], m_p=p["m_p_max"], delay=p["delay"], alpha=alpha)
+    return DesignSpec(**{**base, **kw})
 
 
 def format_design(r: DesignResult) -> str:

@@ -1,0 +1,114 @@
+"""``tmtcontrol design --scenario``: the specification from a scenario, the
+effective normal mass from its arm's path (cross-checked with Pinocchio),
+the same design as the equivalent explicit flags, and bad input."""
+import json
+
+import numpy as np
+import pytest
+
+from tmtcontrol.cli import main
+from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+from tmtcontrol.stability.design import DESIGN_OVERSHOOT, scenario_design_spec
+
+
+def _pinocchio_normal_masses(sc):
+    """1/(n^T J_v M^-1 J_v^T n) at the checked path poses, M and J from Pinocchio (not tmtcontrol's model)."""
+    pytest.importorskip("pinocchio")
+    from tmtcontrol.model.verify import pinocchio_model
+    from tmtcontrol.simulation.geometry import surface_frame
+    from tmtcontrol.simulation.posesim import pose_path, robot_of
+
+    robot = robot_of(sc)
+    evaluate = pinocchio_model(robot)
+    n = surface_frame(sc.environment)[:, 0]
+    out = []
+    for q in pose_path(robot, sc).q.T:
+        d = evaluate(q, np.zeros(robot.n), np.zeros(robot.n))
+        Jv = d["J"][:3]
+        out.append(float(1.0 / (n @ Jv @ np.linalg.solve(d["M"], Jv.T @ n))))
+    return out
+
+
+def test_the_ur5_spec_is_the_scenarios_with_the_paths_largest_normal_mass():
+    sc = load_scenario("ur5")
+    spec = scenario_design_spec(sc)
+    masses = _pinocchio_normal_masses(sc)
+    # both from double-precision M and J of the same URDF: agreement to round-off (1e-10 relative)
+    assert spec.m_p == pytest.approx(max(masses), rel=1e-10)
+    assert max(masses) > 1.05 * min(masses)                  # the mass does vary along the path: max is a choice
+    assert (spec.m, spec.k, spec.Ts, spec.f_d) == (sc.impedance.m[0], sc.impedance.k[0], sc.controller.Ts,
+                                                    sc.controller.f_d)
+    values = sc.environment.stiffness.values
+    assert (spec.k_e_min, spec.k_e_max) == (min(values), max(values))
+    assert spec.max_overshoot == DESIGN_OVERSHOOT and spec.delay == sc.controller.delay_samples
+
+
+def test_the_paper_spec_uses_the_pumas_mass_as_analyze_does():
+    from tmtcontrol.stability import paper_effective_mass
+
+    spec = scenario_design_spec(load_scenario("paper"))
+    assert spec.m_p == paper_effective_mass(worst=True)      # the flag-only design's default: the same mass
+
+
+def test_flags_override_the_scenario_and_a_new_ts_moves_the_filter_pole():
+    sc = apply_overrides(load_scenario("paper"), ["sensor.filter_cutoff=50"])
+    spec = scenario_design_spec(sc, Ts=0.002, k_e_max=3e4, m_p=5.0, f_d=None)
+    assert (spec.Ts, spec.k_e_max, spec.m_p, spec.f_d) == (0.002, 3e4, 5.0, sc.controller.f_d)
+    # first-order filter pole exp(-2 pi f_c Ts) at the new period
+    assert spec.alpha == pytest.approx(np.exp(-2 * np.pi * 50 * 0.002), rel=1e-12)
+
+
+def _explicit_flags(sc, m_p):
+    values = sc.environment.stiffness.values
+    return ["design", "--m", repr(sc.impedance.m[0]), "--k", repr(sc.impedance.k[0]), "--ke-min", repr(min(values)),
+            "--ke-max", repr(max(values)), "--ts", repr(sc.controller.Ts), "--max-overshoot", "5",
+            "--fd", repr(sc.controller.f_d), "--mp", repr(m_p), "--json"]
+
+
+def test_design_scenario_ur5_passes_the_spec_of_the_explicit_flags(monkeypatch):
+    """The CLI wiring, without IPOPT: both command lines hand design_impedance the same spec."""
+    import dataclasses
+
+    import tmtcontrol.stability.design as design
+
+    specs = []
+
+    def capture(spec, *a, **kw):
+        specs.append(spec)
+        raise design.DesignError("m: captured")             # stop before IPOPT (exit 2)
+
+    monkeypatch.setattr(design, "design_impedance", capture)
+    sc = load_scenario("ur5")
+    assert main(["design", "--scenario", "ur5"]) == 2
+    assert main(_explicit_flags(sc, max(_pinocchio_normal_masses(sc)))) == 2
+    a, b = (dataclasses.asdict(s) for s in specs)
+    assert a.pop("m_p") == pytest.approx(b.pop("m_p"), rel=1e-10) and a == b
+
+
+@pytest.mark.heavy
+def test_design_scenario_ur5_equals_the_explicit_flags(capsys):
+    """Both designs solved (two IPOPT runs and their verifications, ~10 s)."""
+    sc = load_scenario("ur5")
+    assert main(["design", "--scenario", "ur5", "--json"]) == 0
+    from_scenario = json.loads(capsys.readouterr().out)
+    assert main(_explicit_flags(sc, max(_pinocchio_normal_masses(sc)))) == 0
+    explicit = json.loads(capsys.readouterr().out)
+    assert from_scenario["verified"] and explicit["verified"]
+    # m_p agrees to ~1e-15 between the two sources; IPOPT's optimum moves by far less than its 1e-8 tolerance
+    assert from_scenario["b"] == pytest.approx(explicit["b"], rel=1e-6)
+    for key in ("k", "k_e_min", "k_e_max", "Ts", "max_overshoot", "m"):
+        assert from_scenario[key] == explicit[key]
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["design", "--scenario", "no_such_scenario.toml"], "no_such_scenario.toml"),
+    (["design", "--scenario", "ur5", "--ke-min", "1e5"], "--ke-min: must be <= k_e_max"),
+    (["design", "--scenario", "paper", "--filter-hz", "1e9"], "--filter-hz: must be below the Nyquist"),
+    (["design", "--scenario", "paper", "--mp", "-1"], "--mp: must be"),
+    (["design", "--m", "1", "--k", "100"], "--ke-min: required (or use --scenario)"),
+])
+def test_design_bad_input_is_one_line_exit_2_nothing_written(argv, needle, tmp_path, capsys):
+    assert main([*argv, "--plot", str(tmp_path / "figs")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and needle in err and "Traceback" not in err
+    assert not (tmp_path / "figs").exists()
