@@ -15,7 +15,10 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
   tolerance (plus 6 sensor-noise standard deviations, the ripple the noise
   itself drives) over the segment's last quarter, and the mean of e there
   within the tolerance alone (noise averages out of a mean, a bias does not:
-  a large sensor noise cannot hide a bias);
+  a large sensor noise cannot hide a bias), widened only by the mean's own
+  sampling uncertainty under sensor noise (:data:`BIAS_BATCHES` batch means,
+  a Student-t bound at :data:`BIAS_FALSE_ALARM`), so a noisy but unbiased
+  run is not called off target by chance;
 * ``off_target``: stable (not growing, contact kept), but not within the
   tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
   forced response to a varying stiffness, or a transient still decaying;
@@ -28,6 +31,7 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass
 
@@ -37,7 +41,7 @@ from .scenario import read_stiffness_table
 from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "segment_verdict",
-           "judge_segment", "judging_periods", "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
+           "judge_segment", "judging_periods", "bias_allowance", "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
 
 VERDICTS = ("converged", "off_target", "limit_cycle", "diverged")
 """Per-segment verdicts, best first (see the module docstring)."""
@@ -221,9 +225,40 @@ def _gain(e_A: np.ndarray, e_B: np.ndarray) -> float:
     return float(a @ b) / aa if aa > 0.0 else 0.0
 
 
+BIAS_BATCHES = 20
+"""Batches of the last quarter whose means estimate the standard error of
+the mean force error under sensor noise (the batch-means method: batches of
+50 samples for a 4 s segment at 1 kHz, longer than the loop's correlation
+time, so the batch means are nearly independent)."""
+BIAS_FALSE_ALARM = 1e-3
+"""Chance that an unbiased noisy segment is called off target by its mean:
+the bias allowance is the two-sided Student-t quantile (BIAS_BATCHES - 1
+degrees of freedom) times the batch-means standard error."""
+
+
+def bias_allowance(e: np.ndarray) -> float:
+    """The sampling uncertainty of ``mean(e)`` (N) allowed on top of the bias
+    tolerance under sensor noise: t_(1 - BIAS_FALSE_ALARM/2, B-1) x
+    std(batch means)/sqrt(B), B = :data:`BIAS_BATCHES`; 0 for fewer than
+    2 B samples."""
+    e = np.asarray(e, dtype=float)
+    B = BIAS_BATCHES
+    if e.size < 2 * B:
+        return 0.0
+    means = e[:e.size - e.size % B].reshape(B, -1).mean(axis=1)
+    return float(_t_quantile(1.0 - BIAS_FALSE_ALARM / 2, B - 1) * np.std(means, ddof=1) / math.sqrt(B))
+
+
+@functools.lru_cache(maxsize=4)
+def _t_quantile(p: float, dof: int) -> float:
+    from scipy.stats import t
+
+    return float(t.ppf(p, dof))
+
+
 def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
                   periods: tuple[int, ...] = (), Ts: float = 1.0,
-                  bias_tolerance: float | None = None) -> tuple[str, str]:
+                  bias_tolerance: float | None = None, noisy: bool = False) -> tuple[str, str]:
     """``(verdict, reason)`` for one segment's force (N) against f_d (N).
 
     ``band`` (N): the oscillation (peak-to-peak) that counts as none;
@@ -231,7 +266,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     ``converged`` (the caller adds the sensor noise to both);
     ``bias_tolerance`` (N): the largest |mean(f_e - f_d)| over the last
     quarter for ``converged`` (default ``tolerance``; the caller passes the
-    scenario's tolerance without the noise allowance);
+    scenario's tolerance without the noise allowance), widened by
+    :func:`bias_allowance` when ``noisy`` (the run has sensor noise);
     ``periods``: the forcing's periods in samples (:func:`judging_periods`);
     ``Ts`` (s) only for the words of the reason.
 
@@ -278,6 +314,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     bias = float(np.mean(e[n - last.size:]))
     if bias_tolerance is None:
         bias_tolerance = tolerance
+    if noisy:
+        bias_tolerance += bias_allowance(e[n - last.size:])
     if worst <= tolerance and abs(bias) <= bias_tolerance:
         return "converged", f"|f_e - f_d| <= {worst:.3g} N at the end"
     if worst <= tolerance:
@@ -325,7 +363,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         touching = np.flatnonzero(f > 0.0)
         lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
         verdict, reason = judge_segment(f, f_d, band, tol, periods, result.Ts,
-                                        bias_tolerance=sc.controller.force_tolerance)
+                                        bias_tolerance=sc.controller.force_tolerance, noisy=sc.sensor.noise_std > 0)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
