@@ -589,6 +589,7 @@ def _formats(text: str) -> tuple[str, ...]:
 
 def _robot(args) -> int:
     from .model.robot import load_robot
+    from .model.urdf import TipError
     from .model.verify import check_robot, describe
 
     if args.seed < 0:
@@ -596,7 +597,10 @@ def _robot(args) -> int:
     if not 1 <= args.samples <= 100_000:
         raise UsageError(f"--samples: must be between 1 and 100,000, got {args.samples}")
     joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
-    robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
+    try:
+        robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
+    except TipError as exc:        # the file is fine; the flag is at fault
+        raise UsageError(f"--tip: {exc}") from None
     check = check_robot(robot, samples=args.samples, seed=args.seed)
     print(describe(robot, check))
     return 0 if check.ok else 1
