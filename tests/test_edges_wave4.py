@@ -123,3 +123,24 @@ def test_a_surface_location_error_is_off_target_under_noise_where_the_law_predic
     assert expected == ["off_target", "off_target", "converged", "off_target"]
     for seed in range(4):
         assert [s.verdict for s in segment_metrics(paper_noisy_runs[seed, 0.005])] == expected, seed
+
+
+def test_a_tip_that_is_not_a_link_names_robot_tip_not_the_model():
+    """The URDF is fine; the key at fault is robot.tip (it named robot.model)."""
+    from tmtcontrol.simulation.posesim import robot_of
+
+    sc = apply_overrides(load_scenario("ur5"), ['robot.tip="no_such_link"'])
+    with pytest.raises(ScenarioError, match=r"^robot\.tip: ur5 \(ur5\.urdf\): tip 'no_such_link' is not a link; "
+                                            r"links below 'world': .*tool0$"):
+        robot_of(sc)
+    bad_file = apply_overrides(load_scenario("ur5"), ['robot.model="/nonexistent/arm.urdf"'])
+    with pytest.raises(ScenarioError, match=r"^robot\.model: "):
+        robot_of(bad_file)
+
+
+def test_robot_command_names_the_tip_flag(capsys):
+    from tmtcontrol.cli import main
+
+    assert main(["robot", "ur5", "--tip", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --tip: ur5 (ur5.urdf): tip 'nope' is not a link"), err

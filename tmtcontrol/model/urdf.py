@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["URDFError", "ChainJoint", "Body", "Chain", "MAX_BYTES", "read_urdf", "parse_chain"]
+__all__ = ["URDFError", "TipError", "ChainJoint", "Body", "Chain", "MAX_BYTES", "read_urdf", "parse_chain"]
 
 MAX_BYTES = 20 * 1024 * 1024
 """Largest URDF read, bytes (the biggest arm descriptions are a few hundred kB)."""
@@ -51,6 +51,10 @@ _MOVABLE = ("revolute", "continuous", "prismatic")
 
 class URDFError(ValueError):
     """A URDF that cannot be used; the message is one line."""
+
+
+class TipError(URDFError):
+    """The tip frame asked for is not a link below the base (the key at fault is the tip, not the file)."""
 
 
 @dataclass(frozen=True)
@@ -236,9 +240,9 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
                             "give the tip link (--tip)")
         tip = leaves[0]
     if tip not in links:
-        raise URDFError(f"{where}: tip {tip!r} is not a link; links below {base!r}: {', '.join(frames)}")
+        raise TipError(f"{where}: tip {tip!r} is not a link; links below {base!r}: {', '.join(frames)}")
     if tip not in below or tip == base:
-        raise URDFError(f"{where}: tip {tip!r} is not below the base {base!r}; candidates: {', '.join(frames)}")
+        raise TipError(f"{where}: tip {tip!r} is not below the base {base!r}; candidates: {', '.join(frames)}")
     path = []                                   # joints base -> tip
     link = tip
     while link != base:

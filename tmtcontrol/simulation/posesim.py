@@ -22,6 +22,7 @@ import numpy as np
 from ..control.laws import get_law
 from ..files import check_interrupt
 from ..model import URDFError, load_robot
+from ..model.urdf import TipError
 from .closedloop import INPUT
 from .environment import stiffness_samples
 from .geometry import surface_frame, tool_orientation
@@ -77,7 +78,7 @@ def robot_of(scenario: Scenario, controller: bool = False):
     try:
         return _robot(r.model, r.tip, friction, r.armature, r.model_mass_scale if controller else 1.0)
     except URDFError as exc:
-        key = "robot.tip" if str(exc).startswith("tip") else "robot.model"
+        key = "robot.tip" if isinstance(exc, TipError) else "robot.model"
         raise ScenarioError(f"{key}: {exc}") from None
 
 
