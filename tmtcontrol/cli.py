@@ -630,6 +630,13 @@ def _scenario(args) -> int:
     return 0
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` for the command line: ``warning: MESSAGE`` on one
+    line (Python's default adds the file, line and source line of the caller)."""
+    text = " ".join(str(message).split()).removeprefix("tmtcontrol: ")
+    print(f"warning: {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     import signal
     import threading
@@ -637,6 +644,10 @@ def main(argv: list[str] | None = None) -> int:
     from .files import NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers
     from .processes import defer_in_finalizers
 
+    import warnings
+
+    shown = warnings.showwarning
+    warnings.showwarning = _one_line_warning          # a warning is one line on stderr, like an error
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
@@ -666,6 +677,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return NOT_SAVED_EXIT
     finally:
+        warnings.showwarning = shown
         if previous is not None:
             signal.signal(signal.SIGINT, previous[0])
             signal.signal(signal.SIGTERM, previous[1])
