@@ -144,3 +144,20 @@ def test_robot_command_names_the_tip_flag(capsys):
     assert main(["robot", "ur5", "--tip", "nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: --tip: ur5 (ur5.urdf): tip 'nope' is not a link"), err
+
+
+def test_a_warning_on_the_command_line_is_one_line(tmp_path):
+    """An unusable compile cache (its path runs through a file): the run goes on
+    with the per-user fallback and says so in exactly one stderr line."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "afile").write_text("")
+    env = dict(os.environ, TMTCONTROL_CACHE=str(tmp_path / "afile" / "sub"))
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--set", "trajectory.cycles=3",
+                        "--no-plots", "--out", str(tmp_path / "o")], env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warning: cannot write the compile cache ") \
+        and "(Not a directory)" in lines[0], lines
