@@ -154,7 +154,8 @@ def test_a_warning_on_the_command_line_is_one_line(tmp_path):
     import sys
 
     (tmp_path / "afile").write_text("")
-    env = dict(os.environ, TMTCONTROL_CACHE=str(tmp_path / "afile" / "sub"))
+    (tmp_path / "tmp").mkdir()             # a fresh fallback folder, so the library is stored (and warned about)
+    env = dict(os.environ, TMTCONTROL_CACHE=str(tmp_path / "afile" / "sub"), TMPDIR=str(tmp_path / "tmp"))
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--set", "trajectory.cycles=3",
                         "--no-plots", "--out", str(tmp_path / "o")], env=env, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
