@@ -287,8 +287,8 @@ def test_analyze_scenario_uses_the_arms_effective_normal_mass():
         acc.append(n @ Jv @ ddq)
     # one linear solve each: rounding ~1e-12 relative
     assert np.isclose(p["m_p_min"], 1 / max(acc), rtol=1e-9) and np.isclose(p["m_p_max"], 1 / min(acc), rtol=1e-9)
-    out = analyze_scenario(sc)
-    assert list(out["m_p"]) == [p["m_p_min"], p["m_p_max"]] and "whole_loop_note" in out
+    out = analyze_scenario(sc, points=1)       # one path point: the 6-D whole loop runs too (tests/test_stability_6d.py)
+    assert list(out["m_p"]) == [p["m_p_min"], p["m_p_max"]] and out["whole_loop_limit"] > 0
 
 
 def test_cli_simulates_the_ur5_briefly(tmp_path, capsys):
@@ -342,7 +342,7 @@ def test_start_posture_seed_of_the_wrong_length_is_one_line():
 def test_a_segment_off_target_on_the_ur5_is_reported_and_exits_1(tmp_path, capsys):
     """The 'known' law told the wrong stiffness (2e4 N/m instead of 5e3) misses
     f_d on the UR5: the run still writes its outputs, prints the segment with
-    the 1-D prediction and exits 1 (the first-contact limit is the PUMA's only)."""
+    the 1-D prediction and the first-contact limit of the 6-D loop and exits 1."""
     from tmtcontrol.cli import main
 
     out = tmp_path / "run"
@@ -350,4 +350,4 @@ def test_a_segment_off_target_on_the_ur5_is_reported_and_exits_1(tmp_path, capsy
                "--set", "controller.law.assumed_stiffness=2e4", "--out", str(out), "--no-plots"])
     err = capsys.readouterr().err
     assert rc == 1 and (out / "timeseries.csv").exists()
-    assert "segment 1" in err and "not computed for a 6-D arm" in err
+    assert "segment 1" in err and "from first contact " in err and "not computed" not in err

@@ -49,6 +49,7 @@ def _arm_normal_masses(sc) -> list | None:
     along the surface normal n at the checked path poses,
     ``1/(n^T J_v M^-1 J_v^T n)`` (kg; J_v the linear rows of J: the mass the
     normal axis meets with the other axes free), else None (the PUMA)."""
+    from ..simulation.armloop import normal_mass
     from ..simulation.geometry import surface_frame
     from ..simulation.posesim import pose_path, robot_of
 
@@ -57,18 +58,7 @@ def _arm_normal_masses(sc) -> list | None:
         return None
     path = pose_path(robot, sc)
     n = surface_frame(sc.environment)[:, 0]
-    out = []
-    for q in path.q.T:
-        Jv = robot.jacobian(q)[:3]
-        out.append(float(1.0 / (n @ Jv @ np.linalg.solve(robot.mass_matrix(q), Jv.T @ n))))
-    return out
-
-
-def arm_has_6d_task(scenario) -> bool:
-    """Whether ``scenario``'s arm runs the 6-D loop (6 or more joints)."""
-    from ..simulation.posesim import robot_of
-
-    return robot_of(scenario).n >= 6
+    return [normal_mass(robot, q, n) for q in path.q.T]
 
 
 def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | None:
@@ -113,14 +103,12 @@ def predicted_limits(scenario) -> dict:
     converge: ``small_signal``, the 1-D sampled loop's
     (:func:`scenario_stiffness_limit`, N/m), and ``first_contact``, the
     largest stiffness up to it from which the scenario's own start settles
-    (``stability.first_contact``, N/m; short simulations). Both ``None``
-    for a law without a linear verdict; ``first_contact`` ``None`` for a 6-D
-    arm (its search simulates the PUMA's loop)."""
+    (``stability.first_contact``, N/m; short simulations of the scenario's
+    own loop, the 6-D one on an arm with 6 or more joints). Both ``None``
+    for a law without a linear verdict."""
     limit = scenario_stiffness_limit(scenario)
     if limit is None or not np.isfinite(limit) or limit <= 0:
         return {"small_signal": limit, "first_contact": limit}
-    if arm_has_6d_task(scenario):       # the first-contact search simulates the PUMA's loop: not for a 6-D arm
-        return {"small_signal": limit, "first_contact": None}
     from .first_contact import first_contact_limit
 
     return {"small_signal": limit, "first_contact": first_contact_limit(scenario, limit)}
@@ -278,7 +266,9 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     own start (``first_contact_limit``, N/m; ``stability.first_contact``,
     searched up to the periodic limit). Then the smaller of the two decides
     the sampled verdict, and the frozen-point minimum stays as the
-    conservative bound."""
+    conservative bound. On an arm with 6 or more joints these analyses run
+    the 6-D task-frame loop (``simulation.armloop``), the 1-D model with
+    the arm's effective normal mass along the path."""
     from ..control.laws import get_law
     from .wholeloop import whole_loop_limit
 
@@ -286,11 +276,6 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     bk = _scheduled(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
-    if arm_has_6d_task(scenario):
-        # the whole-loop linearisation and the periodic analysis build the PUMA's loop: not yet for a 6-D arm
-        out["whole_loop_note"] = ("6-D arm: the 1-D sampled model with the arm's effective normal mass along "
-                                  "the path; the whole-loop and periodic analyses run on the PUMA only so far")
-        return out
     if get_law(scenario.controller.law.kind).linear_analysis:
         limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
                                             guess=out["max_stable_stiffness"])
@@ -378,7 +363,5 @@ def format_analysis(d: dict) -> str:
                      "settles below it, else a contact limit cycle)",
                      f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
                      "decides the verdict)"]
-        if "whole_loop_note" in d:
-            rows.append(f"note                 {d['whole_loop_note']}")
         rows.append(f"sampled stable       {yes(d['sampled_stable'])}")
     return "\n".join(rows)

@@ -11,7 +11,8 @@ large swing, and above some stiffness the loop locks into a limit cycle
 that keeps re-entering it, although the equilibrium is locally stable: the
 loop is bistable. :func:`first_contact_limit` finds that stiffness by
 bisection on short simulations of the compiled rollout
-(``simulation.simulator``) from the scenario's start at constant k_e.
+(``simulation.simulator``, or ``simulation.posesim`` on an arm with 6 or
+more joints) from the scenario's start at constant k_e.
 
 :func:`settles` is the verdict on one run: a limit cycle is an oscillation
 of the force of at least ``LIMIT_CYCLE_AMPLITUDE`` x f_d peak to peak over
@@ -83,21 +84,25 @@ def _start_duration(sc) -> float:
 
 class LoopRunner:
     """One simulator for the scenario's structure (``sim``: one already built
-    for it, reused), runs at constant k_e."""
+    for it, reused), runs at constant k_e. The simulator is the scenario's
+    arm's (``simulation.armloop``, by task dimension: the PUMA's loop, or the
+    6-D loop of an arm with 6 or more joints)."""
 
     def __init__(self, scenario, compile="auto", sim=None):
-        from ..simulation.simulator import Simulator, _path, _structure
+        from ..simulation.armloop import arm_loop
+        from ..simulation.simulator import _structure
 
         self.scenario = scenario
         if sim is not None and _structure(sim.scenario) != _structure(scenario):
             raise ValueError("sim: built for another structure (robot options, integrator, law or delay)")
-        self.sim = sim or Simulator(scenario, compile=compile)
-        self.path = _path(self.sim.plant, scenario)
+        self.loop = arm_loop(scenario, compile=compile, sim=sim)
+        self.sim = self.loop.sim
+        self.path = self.loop.path(scenario)
 
     def run(self, k_e: float, duration: float, stiffness: np.ndarray | None = None):
         """The contact force (N) from the scenario's start at constant ``k_e``
         (or the per-sample ``stiffness``), no sensor noise."""
-        from ..simulation.closedloop import INPUT, LOG
+        from ..simulation.closedloop import INPUT
 
         sc = self.scenario
         period = sc.trajectory.period
@@ -105,12 +110,12 @@ class LoopRunner:
                         sensor={**sc.sensor.model_dump(), "noise_std": 0.0},
                         environment={**sc.environment.model_dump(),
                                      "stiffness": {"kind": "piecewise_constant", "values": (float(k_e),)}})
-        U, P, s0, _ = self.sim._inputs(sc, self.path)
+        U, P, s0, _ = self.loop.inputs(sc, self.path)
         if stiffness is not None:
             U[INPUT["k_e"]] = stiffness[:U.shape[1]]
         with np.errstate(all="ignore"):
             _, L = self.sim.rollout.run(s0, U, P)
-        f = L[LOG["f_e"]][0]
+        f = L[self.loop.f_e][0]
         return np.where(np.isfinite(f), f, np.inf)
 
 

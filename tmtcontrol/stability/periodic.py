@@ -4,10 +4,12 @@
 compiled closed-loop step there; the smallest limit over the path is a
 conservative bound, since the simulated loop averages the growth at some
 points of the circle against the decay at others. This module linearises
-the loop *as it runs*: at a constant stiffness k_e the closed loop of
-``simulation.closedloop.build_step`` (the full robot of eq. (1), the
-controller's model of eq. (5), the inner loop of eq. (6), the force filter,
-the law's update, the computation delay) driven by the circle is periodic
+the loop *as it runs*: at a constant stiffness k_e the closed loop of the
+scenario's arm (the full robot of eq. (1), the controller's model of eq.
+(5), the inner loop of eq. (6), the force filter, the law's update, the
+computation delay; the PUMA's ``simulation.closedloop.build_step`` or, on an
+arm with 6 or more joints, the 6-D ``simulation.taskframe.build_pose_step``,
+chosen by task dimension in ``simulation.armloop``) driven by the circle is periodic
 with the path's period ``N = period / Ts`` samples. Its steady periodic
 orbit ``s_0, s_1, ..., s_N = s_0`` is found by Newton shooting on the
 one-period map, and the product of the per-sample Jacobians along the orbit
@@ -28,6 +30,11 @@ the force stays > 0) it is the simulated step. The controller's bookkeeping
 states (approach phase and command, f_d ramp, surface estimate) are
 constants in contact and are left out, as in ``stability.wholeloop``; a
 scheduled damping (``controller.damping_schedule``) is a dynamic state.
+On a 6-D arm the dynamic state is the n joints' q and dq, the force filter,
+the damping and the law's state (16 on the UR5, 18 on the Panda): the
+augmented step carries 16^2 or 18^2 entries of Phi, about 20 times the
+step's operations, and compiling it takes about half a minute (once;
+cached like the PUMA's).
 Units are SI.
 """
 
@@ -40,10 +47,10 @@ import casadi as ca
 import numpy as np
 
 from .continuous import AnalysisError
+from .wholeloop import _BOOKKEEPING
 
 __all__ = ["PeriodicLoop", "PeriodicModel", "periodic_loop", "periodic_limit"]
 
-_BOOKKEEPING = ("approach", "x_app", "ramp", "x_e_hat")
 
 _BUILT: dict = {}
 """Augmented steps (Rollouts) per closed-loop structure."""
@@ -82,20 +89,18 @@ class PeriodicLoop:
         return self.spectral_radius ** (1.0 / self.samples)
 
 
-def _augmented(sim, layout, dynamic, sc):
+def _augmented(loop, dynamic):
     """``(s; vec Phi) -> (step(s); vec(A(s) Phi))`` with log ``f_e``: the
-    orbit and the monodromy in one rollout."""
-    from ..simulation.closedloop import LOG, build_step
-
-    step = build_step(sim.plant, sim.model, sim.law, "fixed", sc.simulation.substeps, delay=sim.delay,
-                      contact_refine=1)
+    orbit and the monodromy in one rollout (``loop``: the scenario's
+    ``simulation.armloop.ArmLoop``)."""
+    step = loop.build_step(contact_refine=1)
     s, u, p = step.sx_in()
     s_next, log = step(s, u, p)
     nd = dynamic.size
     Phi = ca.SX.sym("Phi", nd, nd)
     A = ca.jacobian(s_next[dynamic.tolist()], s)[:, dynamic.tolist()]
     return ca.Function("monodromy_step", [ca.vertcat(s, ca.vec(Phi)), u, p],
-                       [ca.vertcat(s_next, ca.vec(ca.mtimes(A, Phi))), log[LOG["f_e"]]],
+                       [ca.vertcat(s_next, ca.vec(ca.mtimes(A, Phi))), log[loop.f_e]],
                        ["s", "u", "p"], ["s_next", "log"])
 
 
@@ -108,34 +113,32 @@ class PeriodicModel:
     virtual machine until enough steps have run to pay for compiling)."""
 
     def __init__(self, scenario, compile: bool | str = "auto"):
-        from ..simulation.closedloop import state_layout
         from ..simulation.rollout import Rollout
         from ..simulation.simulator import structure_key
-        from .wholeloop import WholeLoopModel
+        from .wholeloop import WholeLoopModel, dynamic_states
 
         self.frozen = WholeLoopModel(scenario)
         sc = self.scenario = self.frozen.scenario
-        sim = self.frozen.sim
+        loop = self.frozen.loop
         Ts, period = sc.controller.Ts, sc.trajectory.period
         N = int(round(period / Ts))
         if N < 1 or abs(N * Ts - period) > 1e-9 * period:
             raise AnalysisError(f"trajectory.period: {period:g} s is not a whole number of control periods "
                                 f"({Ts:g} s); the loop is not periodic")
         self.samples = N
-        self.layout = layout = state_layout(sim.law, sim.delay)
-        self.dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
-                                 for i in range(sl.start, sl.stop)])
+        self.layout = loop.layout
+        self.dynamic = dynamic_states(self.layout)
         self.states = self._names()
-        key = structure_key(sc, sim.law)
-        make = lambda: _augmented(sim, layout, self.dynamic, sc)
+        key = structure_key(sc, loop.law)
+        make = lambda: _augmented(loop, self.dynamic)
         if key is None:                  # a law declared outside the package: keyed by its serialisation
             self.rollout = Rollout(make(), compile=compile)
         else:
             if key not in _BUILT:
                 if len(_BUILT) >= 16:
                     _BUILT.clear()
-                _BUILT[key] = Rollout(make, compile=compile, structure=(f"monodromy_{sim.law.name}_d{sim.delay}",
-                                                                        key + "|monodromy"))
+                _BUILT[key] = Rollout(make, compile=compile, structure=(f"monodromy_{loop.name}",
+                                                                        key + "|monodromy" + loop.cache_tag))
             self.rollout = _BUILT[key]
         U, self.P = self.frozen.U, self.frozen.P
         self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()
@@ -175,7 +178,6 @@ class PeriodicModel:
         """A first state on (near) the orbit: the previous orbit for a nearby
         stiffness, else the frozen loop's fixed point at path time 0 moving
         with the circle."""
-        from ..simulation.environment import task_frame
         from .wholeloop import equilibrium_damping
 
         if self._warm is not None and abs(math.log(k_e / self._warm[0])) < 0.2:
@@ -184,12 +186,11 @@ class PeriodicModel:
             s[self.layout["b_n"]] = equilibrium_damping(self.scenario, k_e)
             return s
 
-        sc, L = self.scenario, self.layout
+        sc, L, loop = self.scenario, self.layout, self.frozen.loop
         s = self.frozen.at(k_e, 0.0).s_eq.copy()
-        R = task_frame(sc.environment.tilt_deg)
+        R, _ = loop.frame(sc)
         vel = self.U[2:4, 0]
-        J = np.asarray(self.frozen.sim.plant.jacobian(s[L["q"]]))
-        s[L["dq"]] = np.linalg.solve(J, R @ np.r_[0.0, vel])
+        s[L["dq"]] = loop.joint_rates(s[L["q"]], R @ np.r_[0.0, vel])
         return s
 
     def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:

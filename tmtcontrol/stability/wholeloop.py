@@ -2,20 +2,25 @@
 
 The 1-D models (``stability.sampled``, ``stability.lawloop``) explain the
 normal axis with an effective mass and an ideal robot. This module
-linearises the *simulated* loop itself: the one-period step that
-``Simulator`` compiles (``simulation.closedloop.build_step``: the full
-3-link PUMA of eq. (1), the controller's model D*^, h*^ of eq. (5) with any
-mass mismatch, the inner loop of eq. (6), the force filter, the law's own
-update, the computation delay), frozen at one point of the path (tangential
-reference held, velocity and acceleration zero, constant k_e).
+linearises the *simulated* loop itself: the one-period step that the
+scenario's simulator compiles (the full robot of eq. (1), the controller's
+model D*^, h*^ of eq. (5) with any mass mismatch, the inner loop of eq. (6),
+the force filter, the law's own update, the computation delay), frozen at one
+point of the path (tangential reference held, velocity and acceleration zero,
+constant k_e). The step is the 3-joint PUMA's position-only loop
+(``simulation.closedloop.build_step``) or, on an arm with 6 or more joints,
+the 6-D task-frame loop (``simulation.taskframe.build_pose_step``, the tool
+orientation held), chosen by task dimension (``simulation.armloop``); the
+algorithm is the same.
 
 At that point the step is an autonomous map ``s -> s_next``. Its fixed
 point (Newton, started from the law's 1-D equilibrium, ``stability.lawloop``)
 is the steady state in contact; the Jacobian ``A = d s_next / d s`` there
 (CasADi, exact) and its spectral radius decide local stability of the
-sampled loop at that point. The controller's bookkeeping states (approach
-phase, approach command, f_d ramp, surface estimate) are constants in
-contact and are left out of ``A``. :func:`whole_loop_limit` bisects on k_e
+sampled loop at that point. The state is the joints q, dq (n each), the
+force filter, the normal damping, the delay queue and the law's state; the
+controller's bookkeeping states (approach phase, approach command, f_d ramp,
+surface estimate) are constants in contact and are left out of ``A``. :func:`whole_loop_limit` bisects on k_e
 at several points of the path and takes the smallest limit. The plant is
 always integrated with the scenario's RK4 substeps (CVODES has no
 Jacobian here). Units are SI.
@@ -32,7 +37,6 @@ import numpy as np
 from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
-from .sampled import effective_mass
 
 __all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -44,26 +48,31 @@ _BUILT: dict = {}
 
 def _build(sc):
     """The step of ``sc``'s structure as ``(s, [u; p]) -> (s_next, f_e)`` and its
-    Jacobian in s, with the simulator that owns it and the dynamic states."""
-    from ..simulation.closedloop import LOG, state_layout
-    from ..simulation.simulator import Simulator
+    Jacobian in s, with the loop that owns it (``simulation.armloop``) and the
+    dynamic states."""
+    from ..simulation.armloop import arm_loop
 
-    sim = Simulator(sc, compile=False)
-    layout = state_layout(sim.law, sim.delay)
+    loop = arm_loop(sc, compile=False)
+    layout, step = loop.layout, loop.sim.step
     s = ca.SX.sym("s", layout.size)
-    u = ca.SX.sym("u", sim.step.size1_in(1))
-    p = ca.SX.sym("p", sim.step.size1_in(2))
-    s_next, log = sim.step(s, u, p)
+    u = ca.SX.sym("u", step.size1_in(1))
+    p = ca.SX.sym("p", step.size1_in(2))
+    s_next, log = step(s, u, p)
     up = ca.vertcat(u, p)
-    dynamic = np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
-                        for i in range(sl.start, sl.stop)])
-    f = ca.Function("whole_step", [s, up], [s_next, log[LOG["f_e"]]], ["s", "up"], ["s_next", "f_e"])
+    f = ca.Function("whole_step", [s, up], [s_next, log[loop.f_e]], ["s", "up"], ["s_next", "f_e"])
     # The Jacobian by algorithmic differentiation through f (MX), not expanded into one SX
     # graph: that graph had 205,000 operations (20x the step), took as long to build as
     # everything else here and evaluated 2-3x slower than the forward sweeps it replaces.
     s_mx, up_mx = ca.MX.sym("s", layout.size), ca.MX.sym("up", up.numel())
     jac = ca.Function("whole_jacobian", [s_mx, up_mx], [ca.jacobian(f(s_mx, up_mx)[0], s_mx)], ["s", "up"], ["A"])
-    return sim, layout, dynamic, f, jac
+    return loop, dynamic_states(layout), f, jac
+
+
+def dynamic_states(layout) -> np.ndarray:
+    """Indices of the state ``layout``'s dynamic entries: all but the
+    controller's bookkeeping (constants in contact)."""
+    return np.array([i for name, sl in layout.slices.items() if name not in _BOOKKEEPING
+                     for i in range(sl.start, sl.stop)])
 
 
 def equilibrium_damping(scenario, k_e: float) -> float:
@@ -124,7 +133,7 @@ class WholeLoopModel:
     :meth:`at` for a stiffness and a path point."""
 
     def __init__(self, scenario):
-        from ..simulation.simulator import _path, _structure
+        from ..simulation.simulator import _structure
 
         if not get_law(scenario.controller.law.kind).linear_analysis:
             raise AnalysisError(f"controller.law: {scenario.controller.law.kind!r} has no linear verdict "
@@ -139,10 +148,10 @@ class WholeLoopModel:
             if len(_BUILT) >= 16:
                 _BUILT.clear()
             _BUILT[key] = _build(sc)
-        self.sim, self.layout, self.dynamic, self._f, self._jac = _BUILT[key]
-        self.law = self.sim.law
-        self.path = _path(self.sim.plant, sc)
-        self.U, self.P, self.s0, self.t = self.sim._inputs(sc, self.path)
+        self.loop, self.dynamic, self._f, self._jac = _BUILT[key]
+        self.sim, self.layout, self.law = self.loop.sim, self.loop.layout, self.loop.law
+        self.path = self.loop.path(sc)
+        self.U, self.P, self.s0, self.t = self.loop.inputs(sc, self.path)
         self._warm: dict = {}
 
     def _u(self, i: int, k_e: float) -> np.ndarray:
@@ -158,24 +167,22 @@ class WholeLoopModel:
     def at(self, k_e: float, path_time: float = 0.0) -> WholeLoop:
         """The linearised loop at stiffness ``k_e`` (N/m), the path frozen at
         ``path_time`` (s, along the circle)."""
-        from ..simulation.environment import task_frame
-
-        sc = self.scenario
+        sc, loop = self.scenario, self.loop
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         period = sc.trajectory.period
         i = int(round((path_time % period) / sc.controller.Ts)) % self.t.size
         u = np.r_[self._u(i, k_e), self.P]
         ctl = sc.controller
-        R = task_frame(sc.environment.tilt_deg)
+        R, c = loop.frame(sc)
         n = R[:, 0]
-        # the tangential point and its joint angles on the surface
+        # the tangential point and its joint angles on the surface (near the checked path's pose there)
         from ..simulation.trajectory import circle_reference
 
         ref = circle_reference(np.array([self.t[i]]), sc.trajectory.radius, period)
-        c = np.asarray(sc.trajectory.center, dtype=float)
-        q_surface = self.sim.plant.inverse_kinematics(c + R @ np.r_[0.0, ref.pos[:, 0]])
-        m_p = effective_mass(np.asarray(self.sim.plant.cartesian_inertia(q_surface)), n)
+        near = self.path.q[:, int(round((self.t[i] % period) / period * self.path.q.shape[1])) % self.path.q.shape[1]]
+        q_surface = loop.joints_at(c + R @ np.r_[0.0, ref.pos[:, 0]], near)
+        m_p = loop.normal_mass(q_surface, n)
         L = self.layout
 
         def from_previous(s_prev, k_prev):
@@ -183,8 +190,8 @@ class WholeLoopModel:
             # the law state carry over, the penetration scales as 1/k_e
             s = s_prev.copy()
             s[L["b_n"]] = equilibrium_damping(sc, k_e)
-            pen = float(n @ (np.asarray(self.sim.plant.fk(s[L["q"]])).ravel() - c))
-            s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[pen * k_prev / k_e, ref.pos[:, 0]])
+            pen = float(n @ (loop.tool_position(s[L["q"]]) - c))
+            s[L["q"]] = loop.joints_at(c + R @ np.r_[pen * k_prev / k_e, ref.pos[:, 0]], s[L["q"]])
             return s
 
         def from_1d():
@@ -199,7 +206,7 @@ class WholeLoopModel:
                              kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,
                              settle=0.5)
             s = self.s0.copy()
-            s[L["q"]] = self.sim.plant.inverse_kinematics(c + R @ np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]])
+            s[L["q"]] = loop.joints_at(c + R @ np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]], q_surface)
             s[L["dq"]] = 0.0
             s[L["b_n"]] = b
             s[L["f_filt"]] = one_d.f_eq

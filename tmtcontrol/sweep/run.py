@@ -130,18 +130,17 @@ def case_limits(sc, sim=None) -> dict:
     limit cycle (``stability.first_contact``: bisection on short simulations
     with the case's simulator ``sim``), ``predicted_limit``, the smaller of
     the two, and ``predicted_stable``: the case's largest stiffness below it.
-    NaN (and ``predicted_stable`` None) for a law without a linear verdict, a
-    6-D arm, or an analysis that fails (``limits_error`` says why)."""
-    from ..stability.analysis import arm_has_6d_task, scenario_parameters, scenario_stiffness_limit
+    NaN (and ``predicted_stable`` None) for a law without a linear verdict
+    or an analysis that fails (``limits_error`` says why). On an arm with 6
+    or more joints the 1-D loop has the arm's effective normal mass and the
+    first-contact runs are the 6-D loop's."""
+    from ..stability.analysis import scenario_parameters, scenario_stiffness_limit
     from ..stability.first_contact import LoopRunner, first_contact_limit
 
     nan = math.nan
     out = {"small_signal_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
            "predicted_stable": None, "limits_error": ""}
     try:
-        if arm_has_6d_task(sc):
-            out["limits_error"] = "6-D arm: no first-contact search"
-            return out
         ctl, p = sc.controller, scenario_parameters(sc)
         k_max = p["k_e_max"]
         inputs = {k: v for k, v in p.items() if not k.startswith("k_e")}     # the limit does not depend on k_e
