@@ -328,8 +328,7 @@ def _verdict_exit(sc, segs) -> int:
     pred = predicted_limits(sc)
     limit, first = pred["small_signal"], pred["first_contact"]
     lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
-           + (f"from first contact {first:.4g} N/m" if first is not None else "from first contact: not computed "
-              "for a 6-D arm") if limit is not None else "no linear prediction for this law")
+           + f"from first contact {first:.4g} N/m" if limit is not None else "no linear prediction for this law")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m, {lim}; {s.reason}",
               file=sys.stderr)
