@@ -10,10 +10,18 @@ thin hand-written wrapper from ``templates/``: ``tmt_controller.h/.c``
 state struct, sized from the generated function's work sizes), a
 ``Makefile``, ``example_loop.c``, ``replay.c`` and a ``README.md``.
 
-The interface tables (:data:`MEASUREMENT_FIELDS`, :data:`COMMAND_FIELDS`,
-:data:`DIAGNOSTIC_FIELDS`, :func:`param_fields`) give every signal's unit and
-frame; the C structs, the CSV columns of ``replay`` and the ctypes mirror in
-:mod:`tmtcontrol.export.sil` are all written from them.
+An arm with 6 or more joints (``robot.model`` a URDF arm: UR5, Panda) exports
+the 6-D task-frame controller instead,
+:func:`~tmtcontrol.simulation.taskframe.build_pose_controller` (the
+expressions of the 6-D simulation's step): n joint positions and velocities
+in, n joint torques (and position commands) out.
+
+The interface tables (:func:`measurement_fields`, :func:`command_fields`,
+:func:`diagnostic_fields`, :func:`param_fields`, sized by the arm's n joints;
+:data:`MEASUREMENT_FIELDS`, :data:`COMMAND_FIELDS`, :data:`DIAGNOSTIC_FIELDS`
+are the PUMA's) give every signal's unit and frame; the C structs, the CSV
+columns of ``replay`` and the ctypes mirror in :mod:`tmtcontrol.export.sil`
+are all written from them.
 """
 
 from __future__ import annotations
@@ -27,13 +35,18 @@ import casadi as ca
 import numpy as np
 
 from ..control.laws import Law, get_law
-from ..simulation.closedloop import (DIAGNOSTICS, MEASUREMENT, build_controller, command_layout, controller_model,
-                                     controller_param_layout, controller_state_layout, param_layout,
+from ..simulation.closedloop import (DIAGNOSTICS, MEASUREMENT, Layout, build_controller, command_layout,
+                                     controller_model, controller_param_layout, controller_state_layout, param_layout,
                                      state_layout)
+from ..simulation.taskframe import (POSE_DIAGNOSTICS, build_pose_controller, pose_command_layout,
+                                    pose_controller_param_layout, pose_controller_state_layout,
+                                    pose_ik_steps, pose_measurement_layout, pose_param_layout,
+                                    pose_state_layout)
 from ..simulation.scenario import Scenario
 
 __all__ = ["ExportError", "Field", "MEASUREMENT_FIELDS", "COMMAND_FIELDS", "DIAGNOSTIC_FIELDS", "param_fields",
-           "command_fields", "controller_function", "check_exportable", "scenario_values", "export_controller",
+           "command_fields", "measurement_fields", "diagnostic_fields", "Interface", "interface",
+           "controller_function", "check_exportable", "scenario_values", "export_controller",
            "GENERATED_FUNCTION", "CODEGEN_CLASSES", "METADATA", "initial_function"]
 
 METADATA = "export.json"
@@ -134,14 +147,66 @@ _PARAM_DOCS = {
     "v_app": ("m/s", "task normal", "guarded approach speed"),
     "f_contact": ("N", "task normal", "measured force that ends the guarded approach"),
     "ramp_rate": ("1/s", "-", "after the approach, f_d rises at this fraction per second"),
+    # the 6-D task-frame controller's (arms with >= 6 joints)
+    "R_d": ("1", "base", "commanded tool orientation, column-major (the tool frame's axes in the base frame)"),
+    "kd_rot": ("1/s", "task", "rotational inner-loop velocity gain B_rot/M_rot, eq. (9)"),
+    "kp_rot": ("1/s^2", "task", "rotational inner-loop position gain K_rot/M_rot, eq. (9)"),
+    "q_post": ("rad", "joint", "null-space posture (redundant arm; unused with 6 joints)"),
+    "kp_post": ("1/s^2", "joint", "null-space posture stiffness (redundant arm)"),
+    "kd_post": ("1/s", "joint", "null-space posture damping (redundant arm)"),
 }
 
 
-def param_fields(law: Law) -> tuple[Field, ...]:
-    """The parameter struct: :func:`controller_param_layout`'s entries, the
-    law's parameters as scalars ``law_<name>`` (units from its schema)."""
+def _joints(n: int) -> tuple[str, ...]:
+    return tuple(str(i) for i in range(1, n + 1))
+
+
+def measurement_fields(n: int = 3) -> tuple[Field, ...]:
+    """``tmt_measurement`` for an arm of ``n`` joints: :data:`MEASUREMENT_FIELDS`
+    (the PUMA's 3) or, for a 6-D arm, n joint positions and velocities."""
+    if n < 6:
+        return MEASUREMENT_FIELDS
+    return (Field("q", n, "rad", "joint", "joint positions (encoders), the URDF's joint order and zero", _joints(n)),
+            Field("dq", n, "rad/s", "joint", "joint velocities", _joints(n)), *MEASUREMENT_FIELDS[2:])
+
+
+def command_fields(torque: bool, n: int = 3) -> tuple[Field, ...]:
+    """``tmt_command``'s commands for an arm of ``n`` joints (``torque``: with
+    the joint torques of eqs. 5-6): :data:`COMMAND_FIELDS` (the PUMA's 3) or,
+    for a 6-D arm, the translational command, the tool point and n joint
+    commands and torques."""
+    if n < 6:
+        return COMMAND_FIELDS if torque else COMMAND_FIELDS[:-1]
+    j = _joints(n)
+    out = (*COMMAND_FIELDS[:3],
+           Field("p_c", 3, "m", "base", "commanded tool-point position R X_c + c", suffixes=_XYZ),
+           Field("q_c", n, "rad", "joint", "joint position command: the tool at p_c in the commanded orientation "
+                 f"R_d ({pose_ik_steps(n)} Newton steps on the pose from q" + ("" if n == 6 else ", least-norm")
+                 + ")", j),
+           Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ [R dX_c; 0]", j),
+           Field("tau", n, "N m", "joint", "joint torques of eqs. (5)-(6), operational space: J^T F + n + N^T tau_0 "
+                 "(only with --inner-loop)", j))
+    return out if torque else out[:-1]
+
+
+def diagnostic_fields(n: int = 3) -> tuple[Field, ...]:
+    """The diagnostics in ``tmt_command``: :data:`DIAGNOSTIC_FIELDS` (the
+    PUMA's) or, for a 6-D arm, the tool point and the orientation error."""
+    if n < 6:
+        return DIAGNOSTIC_FIELDS
+    return (*DIAGNOSTIC_FIELDS[:3], Field("p", 3, "m", "base", "measured tool-point position fk(q)", suffixes=_XYZ),
+            *DIAGNOSTIC_FIELDS[4:],
+            Field("e_o", 3, "rad", "task", "orientation error log(R_d R^T)^vee on the task axes"))
+
+
+def param_fields(law: Law, n: int = 3) -> tuple[Field, ...]:
+    """The parameter struct: the controller's parameter layout
+    (:func:`controller_param_layout`, or for a 6-D arm of ``n`` joints
+    :func:`~tmtcontrol.simulation.taskframe.pose_controller_param_layout`),
+    the law's parameters as scalars ``law_<name>`` (units from its schema)."""
+    layout = controller_param_layout(law) if n < 6 else pose_controller_param_layout(n, law)
     out = []
-    for name, s in controller_param_layout(law).slices.items():
+    for name, s in layout.slices.items():
         if name == "law":
             for pname in law.parameter_names:
                 desc = law.parameters.model_fields[pname].description or ""
@@ -150,27 +215,87 @@ def param_fields(law: Law) -> tuple[Field, ...]:
                 out.append(Field(f"law_{pname}", 1, unit, "-", f"law '{law.name}': {desc}"))
             continue
         unit, frame, doc = _PARAM_DOCS[name]
-        out.append(Field(name, s.stop - s.start, unit, frame, doc))
+        size = s.stop - s.start
+        out.append(Field(name, size, unit, frame, doc, *((_joints(size),) if name == "q_post" else ())))
     return tuple(out)
 
 
-def command_fields(torque: bool) -> tuple[Field, ...]:
-    return COMMAND_FIELDS if torque else COMMAND_FIELDS[:-1]
+@dataclasses.dataclass(frozen=True)
+class Interface:
+    """The exported controller's structure for one scenario: the arm's joint
+    count ``n``, whether it is the 6-D task-frame controller (``pose``), the
+    law, delay and inner loop, the controller's model, the layouts of its
+    vectors and the field tables of its structs."""
+    n: int
+    pose: bool
+    law: Law
+    delay: int
+    torque: bool
+    model: object
+    state: Layout
+    param: Layout
+    measurement: Layout
+    command: Layout
+    diagnostics: Layout
+
+    @property
+    def measurement_fields(self):
+        return measurement_fields(self.n)
+
+    @property
+    def command_fields(self):
+        return command_fields(self.torque, self.n)
+
+    @property
+    def diagnostic_fields(self):
+        return diagnostic_fields(self.n)
+
+    @property
+    def param_fields(self):
+        return param_fields(self.law, self.n)
+
+    @property
+    def builder(self) -> str:
+        return "taskframe.build_pose_controller" if self.pose else "closedloop.build_controller"
+
+
+def interface(scenario: Scenario, torque: bool) -> Interface:
+    """The :class:`Interface` of ``scenario``'s controller: the PUMA's
+    position-only task (:mod:`~tmtcontrol.simulation.closedloop`) or, for an
+    arm with 6 or more joints, the 6-D task-frame controller
+    (:mod:`~tmtcontrol.simulation.taskframe`)."""
+    law = get_law(scenario.controller.law.kind)
+    delay = scenario.controller.delay_samples
+    if scenario.robot.model.lower() == "puma560":
+        model = controller_model(scenario.robot.model_mass_scale, scenario.robot.compensate_friction)
+        return Interface(3, False, law, delay, torque, model, controller_state_layout(law, delay, torque),
+                         controller_param_layout(law), MEASUREMENT, command_layout(torque), DIAGNOSTICS)
+    from ..simulation.posesim import robot_of
+    from ..simulation.scenario import ScenarioError
+
+    model = robot_of(scenario, controller=True)
+    n = model.n
+    if n < 6:
+        raise ScenarioError(f"robot.model: the 6-D loop needs an arm with at least 6 joints, {model.name} has {n}")
+    return Interface(n, True, law, delay, torque, model, pose_controller_state_layout(n, law, delay, torque),
+                     pose_controller_param_layout(n, law), pose_measurement_layout(n), pose_command_layout(n, torque),
+                     POSE_DIAGNOSTICS)
 
 
 def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, Law]:
     """The scenario's controller as one SX Function named
     :data:`GENERATED_FUNCTION` (raises :class:`ExportError` if it cannot be
     generated as C)."""
-    law = get_law(scenario.controller.law.kind)
-    model = controller_model(scenario.robot.model_mass_scale, scenario.robot.compensate_friction)
+    iface = interface(scenario, torque)
+    law = iface.law
+    build = build_pose_controller if iface.pose else build_controller
     try:
-        fn = build_controller(model, law, scenario.controller.delay_samples, torque, name=GENERATED_FUNCTION)
+        fn = build(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION)
     except Exception as exc:       # a law whose update cannot be expanded to SX
         raise ExportError(f"controller.law: law {law.name!r} cannot be exported to C: its update does not "
                           f"expand to CasADi SX ({str(exc).splitlines()[0][:160]})") from None
     check_exportable(fn, law)
-    _check_layouts(fn, law, torque)
+    _check_layouts(fn, iface)
     return fn, law
 
 
@@ -187,28 +312,38 @@ def check_exportable(fn: ca.Function, law: Law) -> None:
                           f"{', '.join(bad)}, which CasADi cannot generate as C")
 
 
-def _check_layouts(fn, law, torque):
+def _check_layouts(fn, iface: Interface):
     """The C structs are written from the field tables: they must match the Function's layouts."""
-    for fields, layout in ((MEASUREMENT_FIELDS, MEASUREMENT), (command_fields(torque), command_layout(torque)),
-                           (DIAGNOSTIC_FIELDS, DIAGNOSTICS)):
+    for fields, layout in ((iface.measurement_fields, iface.measurement), (iface.command_fields, iface.command),
+                           (iface.diagnostic_fields, iface.diagnostics)):
         sizes = [f.size for f in fields]
         assert sizes == [s.stop - s.start for s in layout.slices.values() if s.stop > s.start], (fields, layout)
-    assert fn.size1_in(1) == MEASUREMENT.size and fn.size1_in(2) == controller_param_layout(law).size
+    assert fn.size1_in(1) == iface.measurement.size and fn.size1_in(2) == iface.param.size
+    assert sum(f.size for f in iface.param_fields) == iface.param.size
 
 
 def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.ndarray]:
     """The scenario's controller parameter vector and initial controller
     state, taken from the simulator's own packing (so the exported defaults
     are the simulated ones)."""
-    from ..simulation.simulator import Simulator, check_path
+    iface = interface(scenario, torque)
+    law, delay = iface.law, iface.delay
+    if iface.pose:
+        from ..simulation.posesim import PoseSimulator
 
-    sim = Simulator(scenario, compile=False)      # builds nothing until run
-    _, P, s0, _ = sim._inputs(scenario, check_path(sim.plant, scenario))
-    law, delay = sim.law, scenario.controller.delay_samples
-    full_p = param_layout(law).split(P)
-    p = controller_param_layout(law).pack(**full_p)
-    full_s = state_layout(law, delay).split(s0)
-    cs = controller_state_layout(law, delay, torque)
+        sim = PoseSimulator(scenario, compile=False)      # its step is built, never run
+        _, P, s0, _ = sim.inputs(scenario)
+        full_p = pose_param_layout(iface.n, law).split(P)
+        full_s = pose_state_layout(iface.n, law, delay).split(s0)
+    else:
+        from ..simulation.simulator import Simulator, check_path
+
+        sim = Simulator(scenario, compile=False)      # builds nothing until run
+        _, P, s0, _ = sim._inputs(scenario, check_path(sim.plant, scenario))
+        full_p = param_layout(law).split(P)
+        full_s = state_layout(law, delay).split(s0)
+    p = iface.param.pack(**full_p)
+    cs = iface.state
     s = cs.pack(**{n: full_s[n][:cs[n].stop - cs[n].start] for n in cs.slices})
     return p, s
 
@@ -221,11 +356,12 @@ def initial_function(scenario: Scenario, law: Law, torque: bool) -> ca.Function:
     surface estimate x_e_hat, the law's ``initial``), so parameters edited
     before ``tmt_init`` start the controller as an export with those values
     would. The approach phase (where the scenario starts) is structural."""
-    cp = controller_param_layout(law)
+    iface = interface(scenario, torque)
+    cp = iface.param
     p = ca.SX.sym("p", cp.size)
     P = cp.split(p)
     p0, s0 = scenario_values(scenario, torque)
-    cs = controller_state_layout(law, scenario.controller.delay_samples, torque)
+    cs = iface.state
     s = ca.SX(ca.DM(s0))
     b = P["b"][0]
     s[cs["b_n"]] = ca.if_else(P["sched"] != 0, ca.fmin(ca.fmax(b, P["b_min"]), P["b_max"]), b)
@@ -312,31 +448,35 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     gen.add(init)
     work = {k: max(getattr(fn, f"sz_{k}")(), getattr(init, f"sz_{k}")()) for k in ("arg", "res", "iw", "w")}
     gen.generate(str(folder) + "/")
-    pf, cf = param_fields(law), command_fields(inner_loop)
-    state = controller_state_layout(law, scenario.controller.delay_samples, inner_loop)
+    iface = interface(scenario, inner_loop)
+    pf, cf, mf, df = iface.param_fields, iface.command_fields, iface.measurement_fields, iface.diagnostic_fields
+    state = iface.state
     n_cmd = sum(f.size for f in cf)
-    n_diag = sum(f.size for f in DIAGNOSTIC_FIELDS)
+    n_diag = sum(f.size for f in df)
     state_names = ", ".join(f"{n}[{s.stop - s.start}]" if s.stop - s.start != 1 else n
                             for n, s in state.slices.items() if s.stop > s.start)
     law_states = ", ".join(law.states) or "none"
     values = {
         "VERSION": __version__, "CASADI": ca.__version__, "SCENARIO": scenario.name, "LAW": law.name,
         "DELAY": scenario.controller.delay_samples, "INNER": "yes" if inner_loop else "no",
-        "INNER_FLAG": int(inner_loop), "NS": state.size, "NP": controller_param_layout(law).size,
-        "NY": MEASUREMENT.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
+        "INNER_FLAG": int(inner_loop), "NS": state.size, "NP": iface.param.size,
+        "NY": iface.measurement.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
         "SZ_IW": work["iw"], "SZ_W": work["w"], "GEN": GENERATED_FUNCTION, "TS": _c_num(scenario.controller.Ts),
-        "STATE_NAMES": state_names, "LAW_STATES": law_states,
-        "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(MEASUREMENT_FIELDS),
-        "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(DIAGNOSTIC_FIELDS),
-        "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(MEASUREMENT_FIELDS, "meas", "state->y"),
+        "STATE_NAMES": state_names, "LAW_STATES": law_states, "BUILDER": iface.builder,
+        "EXAMPLE_START": "" if not iface.pose else (
+            "\n    /* the skeleton's robot stands at the scenario's start posture (q = 0 may be a singular pose) */\n"
+            + "\n".join(f"    meas.q[{i}] = params.q_post[{i}];" for i in range(iface.n))),
+        "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(mf),
+        "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(df),
+        "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(mf, "meas", "state->y"),
         "UNPACK_CMD": _copy_out(cf, "state->out", "cmd"),
-        "UNPACK_DIAG": _copy_out(DIAGNOSTIC_FIELDS, "state->out", "cmd", n_cmd),
+        "UNPACK_DIAG": _copy_out(df, "state->out", "cmd", n_cmd),
         "DEFAULT_PARAMS": _defaults(pf, p0),
-        "MEAS_COLUMNS": ",".join(c for f in MEASUREMENT_FIELDS for c in f.columns),
-        "CMD_COLUMNS": ",".join(c for f in (*cf, *DIAGNOSTIC_FIELDS) for c in f.columns),
-        "READ_MEAS": _csv_read(MEASUREMENT_FIELDS), "WRITE_CMD": _csv_write((*cf, *DIAGNOSTIC_FIELDS)),
-        "MEAS_TABLE": _md_table(MEASUREMENT_FIELDS), "CMD_TABLE": _md_table(cf),
-        "DIAG_TABLE": _md_table(DIAGNOSTIC_FIELDS), "PARAM_TABLE": _md_table(pf),
+        "MEAS_COLUMNS": ",".join(c for f in mf for c in f.columns),
+        "CMD_COLUMNS": ",".join(c for f in (*cf, *df) for c in f.columns),
+        "READ_MEAS": _csv_read(mf), "WRITE_CMD": _csv_write((*cf, *df)),
+        "MEAS_TABLE": _md_table(mf), "CMD_TABLE": _md_table(cf),
+        "DIAG_TABLE": _md_table(df), "PARAM_TABLE": _md_table(pf),
     }
     for name in ("tmt_controller.h", "tmt_controller.c", "Makefile", "example_loop.c", "replay.c", "README.md"):
         text = _fill((_TEMPLATES / name).read_text(encoding="utf-8"), values)
@@ -345,8 +485,11 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
             "scenario": scenario.name, "law": law.name, "inner_loop": inner_loop,
             "delay": scenario.controller.delay_samples, "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
-            "sizes": {"state": state.size, "param": controller_param_layout(law).size, **work},
+            "sizes": {"state": state.size, "param": iface.param.size, **work},
             "instructions": fn.n_instructions()}
+    if iface.pose:      # the arm (the PUMA's export.json is as before: no robot entry means the PUMA)
+        r = scenario.robot
+        meta["robot"] = {"model": r.model, "tip": r.tip, "joints": iface.n, "armature": r.armature}
     (folder / METADATA).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return {**meta, "files": sorted(p.name for p in folder.iterdir())}
 

@@ -36,7 +36,10 @@ import numpy as np
 from ..simulation.closedloop import INPUT, LOG, MEASUREMENT, build_plant, controller_param_layout, param_layout
 from ..simulation.environment import contact_force, task_frame
 from ..simulation.rollout import compiler
-from .generate import COMMAND_FIELDS, DIAGNOSTIC_FIELDS, MEASUREMENT_FIELDS, METADATA, ExportError, param_fields
+from ..simulation.taskframe import (_kinematics, build_pose_plant, pose_controller_param_layout, pose_log_layout,
+                                    pose_param_layout)
+from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
+                       param_fields)
 
 __all__ = ["CompiledController", "compile_export", "simulate_with_controller", "measurement_table",
            "write_measurements", "read_commands", "SIL_FLAGS"]
@@ -108,19 +111,23 @@ class CompiledController:
         self.meta = _read_metadata(self.folder, flag)
         self.law = get_law(self.meta["law"])
         self.torque = bool(self.meta["inner_loop"])
+        self.robot = self.meta.get("robot")        # None: the PUMA's position-only task
+        self.n = self.robot["joints"] if self.robot else 3
         if scenario is not None:            # refused before compiling
             self.check_matches(scenario)
         self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
-        self.cmd_fields = COMMAND_FIELDS if self.torque else COMMAND_FIELDS[:-1]
-        self.Params = _struct("tmt_params", param_fields(self.law))
-        self.Measurement = _struct("tmt_measurement", MEASUREMENT_FIELDS)
-        self.Command = _struct("tmt_command", (*self.cmd_fields, *DIAGNOSTIC_FIELDS))
+        self.cmd_fields = command_fields(self.torque, self.n)
+        self.diag_fields = diagnostic_fields(self.n)
+        self.Params = _struct("tmt_params", param_fields(self.law, self.n))
+        self.Measurement = _struct("tmt_measurement", measurement_fields(self.n))
+        self.Command = _struct("tmt_command", (*self.cmd_fields, *self.diag_fields))
         sz = self.meta["sizes"]
         alloc = lambda n: max(int(n), 1)
-        n_out = sum(f.size for f in (*self.cmd_fields, *DIAGNOSTIC_FIELDS))
+        n_out = sum(f.size for f in (*self.cmd_fields, *self.diag_fields))
+        n_y = sum(f.size for f in measurement_fields(self.n))
         self.State = type("tmt_state", (ctypes.Structure,), {"_fields_": [
             ("s", ctypes.c_double * alloc(sz["state"])), ("s_next", ctypes.c_double * alloc(sz["state"])),
-            ("y", ctypes.c_double * MEASUREMENT.size), ("p", ctypes.c_double * sz["param"]),
+            ("y", ctypes.c_double * n_y), ("p", ctypes.c_double * sz["param"]),
             ("out", ctypes.c_double * n_out), ("arg", ctypes.c_void_p * alloc(sz["arg"])),
             ("res", ctypes.c_void_p * alloc(sz["res"])), ("iw", ctypes.c_longlong * alloc(sz["iw"])),
             ("w", ctypes.c_double * alloc(sz["w"]))]})
@@ -158,7 +165,17 @@ class CompiledController:
     # -- from a scenario ----------------------------------------------------------------------------
     def check_matches(self, scenario) -> None:
         """Raise :class:`ExportError` unless ``scenario`` has the structure
-        this controller was exported with (law, delay, controller model)."""
+        this controller was exported with (arm, law, delay, controller model)."""
+        r = scenario.robot
+        if self.robot:
+            ok = (r.model, r.tip, r.armature) == (self.robot["model"], self.robot["tip"], self.robot["armature"])
+            what = (f"robot.model = {self.robot['model']!r} (tip {self.robot['tip']!r}, armature "
+                    f"{self.robot['armature']!r})")
+        else:
+            ok, what = r.model.lower() == "puma560", "robot.model = 'puma560'"
+        if not ok:
+            raise ExportError(f"{self.flag}: {self.folder} was exported for {what}, the scenario has "
+                              f"robot.model = {r.model!r} (tip {r.tip!r}); export this scenario (tmtcontrol export)")
         want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
                 "model_mass_scale": scenario.robot.model_mass_scale,
                 "compensate_friction": scenario.robot.compensate_friction}
@@ -172,6 +189,10 @@ class CompiledController:
 
     def params_from(self, P_full: np.ndarray):
         """The C parameter struct from the simulator's parameter vector."""
+        if self.robot:
+            vec = pose_controller_param_layout(self.n, self.law).pack(
+                **pose_param_layout(self.n, self.law).split(P_full))
+            return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
         vec = controller_param_layout(self.law).pack(**param_layout(self.law).split(P_full))
         return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
 
@@ -187,6 +208,8 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
 
     check_run_size(scenario, max_steps)
     controller.check_matches(scenario)
+    if controller.robot:
+        return _simulate_pose(scenario, controller)
     sim = Simulator(scenario, compile=False)          # its inputs and result packing; its step is never built
     t0 = time.perf_counter()
     sc = scenario.simulation
@@ -236,15 +259,79 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
                                                  "steps": t.size})
 
 
+def _simulate_pose(scenario, controller: CompiledController):
+    """:func:`simulate_with_controller` for a 6-D arm: the plant of
+    :func:`~tmtcontrol.simulation.taskframe.build_pose_plant` (the 6-D
+    simulator's integrator), the 6-D simulator's inputs and result packing."""
+    import time
+
+    from ..files import check_interrupt
+    from ..simulation.posesim import PoseSimulator, pose_path
+    from ..simulation.simulator import Simulator
+
+    t0 = time.perf_counter()
+    sim = PoseSimulator(scenario, compile=False)      # its inputs and result packing; its step is never run
+    sc = scenario.simulation
+    n = sim.plant.n
+    plant = build_pose_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine)
+    sensor = _sensor(sim.plant)
+    path = pose_path(sim.plant, scenario)
+    U, P, s0, t = sim._inputs(scenario, path)
+    PP = pose_param_layout(n, controller.law).split(P)
+    R, c, Ts, d_e = PP["R"], PP["c"], PP["Ts"], PP["d_e"]
+    build_time = time.perf_counter() - t0
+    params = controller.params_from(P)
+    state = controller.new_state(params)
+    n_s = controller.meta["sizes"]["state"]
+    ctypes.memmove(state.s, np.ascontiguousarray(s0[2 * n:2 * n + n_s]).ctypes.data, 8 * n_s)
+    meas, cmd = controller.Measurement(), controller.Command()
+    y = np.frombuffer(meas, dtype=float)
+    out = np.frombuffer(cmd, dtype=float)
+    n_c = sum(f.size for f in controller.cmd_fields)
+    N = U.shape[1]
+    L = np.empty((pose_log_layout(n).size, N))
+    Uin = INPUT.split(U)
+    z = s0[:2 * n].copy()
+    normal = R.reshape(3, 3, order="F")[:, 0]
+    pz = np.concatenate([np.zeros(n), [0.0], d_e, R, c, Ts])
+    m = 2 * n                                          # the force's place in the measurement
+    t0 = time.perf_counter()
+    for k in range(N):
+        k_e = Uin["k_e"][0, k]
+        f_true = float(sensor(z, k_e, d_e, R, c))
+        y[0:m] = z
+        y[m:m + 3] = -normal * (f_true + Uin["noise"][0, k])
+        y[m + 3:m + 5], y[m + 5:m + 7], y[m + 7:m + 9] = Uin["pos_t"][:, k], Uin["vel_t"][:, k], Uin["acc_t"][:, k]
+        if controller.step(params, state, meas, cmd) != 0:
+            raise RuntimeError(f"tmt_step failed at t = {t[k]:.4f} s")
+        tau = out[n_c - n:n_c]
+        d = out[n_c:]
+        L[:, k] = np.concatenate([z, tau, d[9:12], d[0:3], d[6:9], out[0:3], [f_true], d[12:16], d[16:19]])
+        pz[0:n], pz[n] = tau, k_e
+        z = np.asarray(plant(z, pz)).ravel()
+        if k % 1000 == 0:
+            check_interrupt()
+    run_time = time.perf_counter() - t0
+    S = np.hstack([L[0:2 * n, 1:], z[:, None]])      # the joints after each period, as the built-in run's
+    Simulator._check_finite(S, L, t, n)
+    return sim._result(scenario, t, L, U, path, {"integrator": sc.integrator, "code": "exported C (SIL)",
+                                                 "controller": str(controller.folder), "build_time_s": build_time,
+                                                 "run_time_s": run_time, "steps": t.size, "robot": sim.plant.name})
+
+
 def _sensor(robot) -> ca.Function:
     """The simulated force sensor: the true normal contact force (N) at the
     joints ``z``, as the simulator's step computes it (eq. 1's environment)."""
-    z, k_e, d_e = ca.SX.sym("z", 6), ca.SX.sym("k_e"), ca.SX.sym("d_e")
+    n = getattr(robot, "n", 3)
+    z, k_e, d_e = ca.SX.sym("z", 2 * n), ca.SX.sym("k_e"), ca.SX.sym("d_e")
     Rv, c = ca.SX.sym("R", 9), ca.SX.sym("c", 3)
     R = ca.reshape(Rv, 3, 3)
-    q, dq = z[0:3], z[3:6]
-    X = ca.mtimes(R.T, robot.fk(q) - c)
-    dX = ca.mtimes(R.T, ca.mtimes(robot.jacobian(q), dq))
+    q, dq = z[0:n], z[n:]
+    if n >= 6:                                          # a URDF arm: its tool point, as the 6-D step
+        _, _, _, X, dX = _kinematics(robot, q, dq, R, c)
+    else:
+        X = ca.mtimes(R.T, robot.fk(q) - c)
+        dX = ca.mtimes(R.T, ca.mtimes(robot.jacobian(q), dq))
     return ca.Function("sensor", [z, k_e, d_e, Rv, c], [contact_force(X[0], dX[0], k_e, d_e)])
 
 
@@ -253,16 +340,23 @@ def measurement_table(result) -> tuple[np.ndarray, list[str]]:
     rows ``replay`` reads: ``[t, q, dq, force (base frame), pos_t, vel_t,
     acc_t]`` and the column names. The force is the simulated sensor's
     (contact force plus the scenario's noise, seeded as in the run)."""
+    from ..simulation.geometry import surface_frame
+    from ..simulation.posesim import PoseSimulator
     from ..simulation.simulator import Simulator, check_path
 
     sc = result.scenario
-    sim = Simulator(sc, compile=False)
-    U, _, _, t = sim._inputs(sc, check_path(sim.plant, sc))
+    n = result.q.shape[0]
+    if n >= 6:                  # a 6-D arm: its simulator's inputs (the step is built, never run)
+        U, _, _, t = PoseSimulator(sc, compile=False).inputs(sc)
+        normal = surface_frame(sc.environment)[:, 0]
+    else:
+        sim = Simulator(sc, compile=False)
+        U, _, _, t = sim._inputs(sc, check_path(sim.plant, sc))
+        normal = task_frame(sc.environment.tilt_deg)[:, 0]
     Uin = INPUT.split(U)
-    normal = task_frame(sc.environment.tilt_deg)[:, 0]
     force = -normal[:, None] * (result.contact_force + Uin["noise"][0])[None, :]
     rows = np.vstack([t, result.q, result.dq, force, Uin["pos_t"], Uin["vel_t"], Uin["acc_t"]]).T
-    names = ["t"] + [c for f in MEASUREMENT_FIELDS for c in f.columns]
+    names = ["t"] + [c for f in measurement_fields(n) for c in f.columns]
     return rows, names
 
 

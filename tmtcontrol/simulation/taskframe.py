@@ -61,7 +61,9 @@ from .environment import contact_force
 from .geometry import rotation_vector
 
 __all__ = ["pose_state_layout", "pose_param_layout", "pose_log_layout", "POSE_INPUT", "build_pose_step",
-           "operational_space_torque", "pose_step_name"]
+           "operational_space_torque", "pose_step_name", "build_pose_plant", "build_pose_controller",
+           "pose_controller_state_layout", "pose_controller_param_layout", "pose_measurement_layout",
+           "pose_command_layout", "POSE_DIAGNOSTICS", "pose_ik_steps"]
 
 POSE_INPUT = INPUT
 """Per-sample inputs, as the PUMA's loop: tangential reference, k_e, noise."""
@@ -247,3 +249,126 @@ def build_pose_step(plant, model, law: Law, integrator: str = "fixed", substeps:
     z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
     return ca.Function(name, [sm, um, pm], [ca.vertcat(choose(sw, z0m, zcm, pzm), restm), logm],
                        ["s", "u", "p"], ["s_next", "log"])
+
+
+# -- the same loop split at the sensors: plant and controller as two Functions --------------------
+# (software-in-the-loop: tmtcontrol.export generates C from build_pose_controller and steps build_pose_plant)
+
+def build_pose_plant(plant, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+                     contact_refine: int = 4) -> ca.Function:
+    """The plant of :func:`build_pose_step` alone over one period: ``["z","pz"]
+    -> ["zf"]``, joints ``z = [q, dq]`` (n rad, n rad/s) and ``pz = [tau (n,
+    N m), k_e (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``, with the
+    same integrator and contact refinement."""
+    n = plant.n
+    coarse, choose, flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
+    z, pz = ca.MX.sym("z", 2 * n), ca.MX.sym("pz", n + 15)
+    if flow is not None:
+        zf = flow(x0=z, p=pz)["xf"]
+    else:
+        zc, switched = coarse(z, pz)
+        zf = zc if choose is None else choose(switched, z, zc, pz)
+    return ca.Function("plant", [z, pz], [zf], ["z", "pz"], ["zf"])
+
+
+def pose_controller_state_layout(n: int, law: Law, delay: int = 0, torque: bool = True) -> Layout:
+    """The 6-D controller's own state: :func:`pose_state_layout` without the
+    joints (the delay queue only with ``torque``)."""
+    full = pose_state_layout(n, law, delay if torque else 0)
+    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k not in ("q", "dq")))
+
+
+def pose_controller_param_layout(n: int, law: Law) -> Layout:
+    """The 6-D controller's parameters: :func:`pose_param_layout` without the
+    environment's damping ``d_e`` (a property of the simulated surface)."""
+    full = pose_param_layout(n, law)
+    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k != "d_e"))
+
+
+def pose_measurement_layout(n: int) -> Layout:
+    """The 6-D controller's inputs each period: joint positions (n, rad) and
+    velocities (n, rad/s), the contact force on the tool (N, base frame), the
+    tangential reference position (m), velocity (m/s) and acceleration
+    (m/s^2) on task axes 2 and 3 (as :data:`.closedloop.MEASUREMENT`)."""
+    return Layout(("q", n), ("dq", n), ("force", 3), ("pos_t", 2), ("vel_t", 2), ("acc_t", 2))
+
+
+def pose_command_layout(n: int, torque: bool = True) -> Layout:
+    """The 6-D controller's outputs: the command of eq. (4) on the translational
+    axes X_c, dX_c, ddX_c (task frame: m, m/s, m/s^2), the commanded tool
+    position p_c = R X_c + c (base frame, m), the joint position command q_c
+    (n, rad) with the tool at p_c in the commanded orientation R_d
+    (:func:`pose_ik_steps` Newton steps on the pose from the measured
+    joints, least-norm steps on a redundant arm), the joint velocity
+    command dq_c = J(q_c)^+ [R dX_c; 0] (n, rad/s), and with ``torque`` the
+    joint torques of eqs. (5)-(6) (n, N m)."""
+    return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", n), ("dq_c", n),
+                  ("tau", n if torque else 0))
+
+
+POSE_DIAGNOSTICS = Layout(("X", 3), ("dX", 3), ("X_r", 3), ("p", 3), ("f_m", 1), ("b_n", 1), ("f_d", 1),
+                          ("x_e_hat", 1), ("e_o", 3))
+"""As :data:`.closedloop.DIAGNOSTICS` (tool position instead of the wrist
+centre) and the orientation error e_o (rad, task axes)."""
+
+
+def pose_ik_steps(n: int) -> int:
+    """Newton steps of the 6-D joint position command: 4 on a 6-joint arm
+    (:data:`.closedloop.IK_NEWTON_STEPS`), 8 least-norm steps on a redundant
+    arm, whose first steps converge slower. The command lies up to f_d/k
+    (0.1 m) from the measured pose at the start of the built-in scenarios;
+    these counts reach it to rounding there (tests/test_export_6d.py)."""
+    from .closedloop import IK_NEWTON_STEPS
+
+    return IK_NEWTON_STEPS if n == 6 else 2 * IK_NEWTON_STEPS
+
+
+def _pose_newton(model, J, pos, R_tool, q, p_c, R_d):
+    """:func:`pose_ik_steps` Newton steps on the pose error [p_c - p;
+    log(R_d R^T)^vee] from the measured joints ``q`` (least-norm steps J^T (J
+    J^T)^-1 on a redundant arm): ``(q_c, J(q_c))``."""
+    n = model.n
+    q_c, J_c, p, Rt = q, J, pos, R_tool
+    for _ in range(pose_ik_steps(n)):       # a fixed count: constant execution time
+        e = ca.vertcat(p_c - p, rotation_vector(ca.mtimes(R_d, Rt.T)))
+        q_c = q_c + (ca.solve(J_c, e, "symbolicqr") if n == 6 else
+                     ca.mtimes(J_c.T, ca.solve(ca.mtimes(J_c, J_c.T), e, "symbolicqr")))
+        T = model.functions.fk(q_c)
+        J_c, p, Rt = model.functions.jacobian(q_c), T[:3, 3], T[:3, :3]
+    return q_c, J_c
+
+
+def build_pose_controller(model, law: Law, delay: int = 0, torque: bool = True,
+                          name: str = "tmt_controller") -> ca.Function:
+    """The controller of :func:`build_pose_step` alone (the same expressions,
+    :func:`_pose_control`), expanded to SX: ``name: ["s","y","p"] ->
+    ["s_next","cmd","diag"]`` with the state
+    :func:`pose_controller_state_layout`, the measurement
+    :func:`pose_measurement_layout`, the parameters
+    :func:`pose_controller_param_layout`, the command
+    :func:`pose_command_layout` and :data:`POSE_DIAGNOSTICS`.
+    ``torque=False`` leaves out the inner loop (eqs. 5-6) and the delay
+    queue: the command for a position-controlled robot."""
+    n = model.n
+    STATE, PARAM = pose_controller_state_layout(n, law, delay, torque), pose_controller_param_layout(n, law)
+    MEAS = pose_measurement_layout(n)
+    s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEAS.size), ca.MX.sym("p", PARAM.size)
+    S, Y, P = STATE.split(s), MEAS.split(y), PARAM.split(p)
+    R = ca.reshape(P["R"], 3, 3)
+    q, dq = Y["q"], Y["dq"]
+    kin = _kinematics(model, q, dq, R, P["c"])
+    pos, R_tool, J, X, dX = kin
+    f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
+    c = _pose_control(model, law, S, P, Y, R, q, dq, kin, f_sensor, delay if torque else 0, torque)
+    p_c = ca.mtimes(R, c["X_c"]) + P["c"]
+    q_c, J_c = _pose_newton(model, J, pos, R_tool, q, p_c, ca.reshape(P["R_d"], 3, 3))
+    v_c = ca.vertcat(ca.mtimes(R, c["dX_c"]), ca.MX.zeros(3))
+    dq_c = (ca.solve(J_c, v_c, "symbolicqr") if n == 6 else
+            ca.mtimes(J_c.T, ca.solve(ca.mtimes(J_c, J_c.T), v_c, "symbolicqr")))
+    queue = c["tau_wait"] if torque else ca.MX(0, 1)
+    s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],
+                        c["x_e_hat"], queue, c["law_next"])
+    cmd = ca.vertcat(c["X_c"], c["dX_c"], c["ddX_c"], p_c, q_c, dq_c, c["tau"] if torque else ca.MX(0, 1))
+    diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"], c["e_o"])
+    return ca.Function(name, [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],
+                       ["s_next", "cmd", "diag"]).expand()

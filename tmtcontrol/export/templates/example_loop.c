@@ -54,7 +54,7 @@ int main(int argc, char **argv)
     long k, overruns = 0, failures = 0;
     struct timespec next, now;
 
-    tmt_default_params(&params);
+    tmt_default_params(&params);@EXAMPLE_START@
     tmt_init(&params, &state);
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (k = 0; k < periods; ++k) {

@@ -1,0 +1,196 @@
+"""The exported C controller on a 6-D arm (issue 30): `tmtcontrol export ur5`
+/ `panda` generates the 6-D task-frame controller from the expressions the
+6-D simulation compiles (taskframe.build_pose_controller and the step share
+_pose_control), with n joint angles and velocities in and n joint torques
+out; software in the loop and replay equal the built-in 6-D run.
+
+Tolerance of the equality checks: 1e-9 relative to each signal's largest
+magnitude, as the PUMA's export (tests/test_export.py). What differs is
+rounding: the force enters the controller as a base-frame vector and is
+projected back on the normal, and the controller is compiled apart from the
+plant. Measured over the 16 s UR5 and Panda runs: about 2e-13 (software in the
+loop), 5e-16 (replay).
+"""
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from tmtcontrol.cli import main
+from tmtcontrol.export import generate
+from tmtcontrol.export.generate import export_controller
+from tmtcontrol.simulation.scenario import apply_overrides, load_scenario, paper_scenario
+
+RTOL = 1e-9
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+SHORT = ["trajectory.cycles=0.04"]          # 160 periods of the 4 s circle, in contact
+
+
+def rel_err(a, b):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+@pytest.fixture(scope="module")
+def exported_ur5(tmp_path_factory):
+    """The UR5 controller exported with the inner loop (not compiled)."""
+    folder = tmp_path_factory.mktemp("export6d") / "ur5-c"
+    assert main(["export", "ur5", "--inner-loop", "--out", str(folder)]) == 0
+    return folder
+
+
+# -- the default suite: generation, the tables, one set of expressions, the refusals -----------------
+
+def test_export_of_the_ur5_writes_an_n_joint_interface(exported_ur5):
+    header = (exported_ur5 / "tmt_controller.h").read_text()
+    for decl in ("double q[6];", "double dq[6];", "double force[3];", "double q_c[6];", "double dq_c[6];",
+                 "double tau[6];", "double e_o[3];", "double R_d[9];", "double q_post[6];"):
+        assert decl in header, decl
+    assert "taskframe.build_pose_controller" in header
+    meta = json.loads((exported_ur5 / generate.METADATA).read_text())
+    assert meta["robot"] == {"model": "ur5", "tip": None, "joints": 6, "armature": True}
+    replay = (exported_ur5 / "replay.c").read_text()
+    assert "t,q1,q2,q3,q4,q5,q6,dq1,dq2,dq3,dq4,dq5,dq6,force_x,force_y,force_z," in replay
+
+
+def test_interface_tables_are_sized_by_the_joint_count():
+    for n in (6, 7):
+        m, c = generate.measurement_fields(n), generate.command_fields(True, n)
+        assert [f.size for f in m] == [n, n, 3, 2, 2, 2]
+        assert [f.size for f in c] == [3, 3, 3, 3, n, n, n]
+        assert c[-1].columns == [f"tau{i}" for i in range(1, n + 1)]
+        assert [f.size for f in generate.command_fields(False, n)] == [3, 3, 3, 3, n, n]
+        assert generate.diagnostic_fields(n)[-1].name == "e_o"
+    # the PUMA's tables are the ones its export always had
+    assert generate.measurement_fields(3) is generate.MEASUREMENT_FIELDS
+    assert generate.command_fields(True) is generate.COMMAND_FIELDS
+    assert generate.diagnostic_fields(3) is generate.DIAGNOSTIC_FIELDS
+
+
+@pytest.mark.parametrize("arm, delay", [("ur5", 0), ("ur5", 2), ("panda", 0)])
+def test_exported_function_computes_what_the_6d_step_computes(arm, delay):
+    """The Function generated as C, evaluated on a short built-in run's states
+    and measurements (CasADi's virtual machine), gives the run's logged
+    torques, commands and diagnostics (1e-12 relative: the force enters as a
+    base-frame vector)."""
+    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.taskframe import (POSE_DIAGNOSTICS, pose_command_layout, pose_log_layout,
+                                                pose_param_layout, pose_state_layout)
+
+    sc = apply_overrides(load_scenario(arm), [*SHORT, f"controller.delay_samples={delay}"])
+    sim = PoseSimulator(sc, compile=False)
+    U, P, s0, _ = sim.inputs(sc)
+    S, L = sim.rollout.run(s0, U, P)
+    n, N = sim.plant.n, U.shape[1]
+    iface = generate.interface(sc, True)
+    fn, _ = generate.controller_function(sc, True)
+    before = pose_state_layout(n, sim.law, delay).split(np.hstack([s0[:, None], S[:, :-1]]))
+    s_ctl = np.vstack([before[k] for k, s in iface.state.slices.items() if s.stop > s.start])
+    lg = pose_log_layout(n).split(L)
+    R = pose_param_layout(n, sim.law).split(P)["R"].reshape(3, 3, order="F")
+    force = -R[:, [0]] * (lg["f_e"] + U[-1:])                      # the sensor: contact force plus noise
+    y = np.vstack([before["q"], before["dq"], force, U[:6]])
+    p = iface.param.pack(**pose_param_layout(n, sim.law).split(P))
+    s_next, cmd, diag = (np.array(v) for v in fn.map(N)(s_ctl, y, p))
+    C, D = pose_command_layout(n, True).split(cmd), POSE_DIAGNOSTICS.split(diag)
+    assert lg["f_e"].max() > 1.0                                     # in contact
+    for ours, logged in ((C["tau"], lg["tau"]), (C["X_c"], lg["X_c"]), (D["X_r"], lg["X_r"]), (D["X"], lg["X"]),
+                         (D["p"], lg["p"]), (D["f_m"], lg["f_m"]), (D["b_n"], lg["b_n"]), (D["e_o"], lg["e_o"])):
+        assert rel_err(ours, logged) < 1e-12
+    after = pose_state_layout(n, sim.law, delay).split(S)
+    assert rel_err(s_next[iface.state["law"]], after["law"]) < 1e-12
+    if delay:
+        assert rel_err(s_next[iface.state["tau_wait"]], after["tau_wait"]) < 1e-12
+
+
+def test_a_controller_exported_for_another_arm_is_refused(exported_ur5, tmp_path, capsys):
+    """Refused before compiling: one line naming --controller and the arm, exit 2, nothing written."""
+    out = tmp_path / "run"
+    assert main(["simulate", "paper", "--controller", str(exported_ur5), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --controller:") and "'ur5'" in err and "'puma560'" in err and "\n" not in err
+    assert not out.exists()
+    assert main(["simulate", "ur5", "--set", "controller.delay_samples=1", "--controller", str(exported_ur5),
+                 "--out", str(out)]) == 2
+    assert "delay" in capsys.readouterr().err and not out.exists()
+
+
+# -- heavy: compiled C against the built-in 6-D loop ---------------------------------------------------
+
+def _compilers():
+    return [cc for cc in ("gcc", "clang") if shutil.which(cc)]
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+@pytest.mark.parametrize("inner", [False, True])
+def test_6d_export_compiles_warning_free_with_gcc_and_clang(tmp_path, arm, inner):
+    assert "gcc" in _compilers()
+    export_controller(load_scenario(arm), tmp_path, inner)
+    for cc in _compilers():
+        r = subprocess.run(["make", "-B", f"CC={cc}", f"CFLAGS={' '.join(STRICT)} -O2"], cwd=tmp_path,
+                           capture_output=True, text=True)
+        assert r.returncode == 0 and "warning" not in r.stderr, (cc, r.stderr)
+        r = subprocess.run(["./example_loop", "20"], cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0 and "20 periods" in r.stdout
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("arm, sets", [("ur5", []), ("panda", []), ("ur5", ["controller.delay_samples=1"])])
+def test_6d_software_in_the_loop_equals_the_built_in_run(tmp_path, arm, sets):
+    """The whole 16 s scenario with the exported C controller in place of the
+    built-in one (`simulate --controller`) equals the built-in 6-D run."""
+    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
+    from tmtcontrol.simulation.posesim import PoseSimulator
+
+    sc = apply_overrides(load_scenario(arm), sets)
+    export_controller(sc, tmp_path, True)
+    sil = simulate_with_controller(sc, CompiledController(tmp_path, scenario=sc))
+    ref = PoseSimulator(sc).run()
+    assert sil.info["code"] == "exported C (SIL)" and sil.time.size == ref.time.size == 16000
+    for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "reference_task", "position",
+                 "damping", "desired_force"):
+        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+    # the orientation error is ~1e-6 rad: compared absolutely, far below the 1 mrad bound
+    assert np.abs(sil.orientation_error - ref.orientation_error).max() < 1e-12
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_6d_replay_of_the_logged_measurements_gives_the_logged_commands(tmp_path, arm):
+    """`replay` over the built-in run's measurements gives its torques and
+    commands; the joint command puts the tool at p_c in the commanded
+    orientation (forward kinematics, independent of the Newton steps), from
+    up to 0.1 m away at the start."""
+    from tmtcontrol.export.sil import read_commands, write_measurements
+    from tmtcontrol.simulation.geometry import rotation_vector, surface_frame, tool_orientation
+    from tmtcontrol.simulation.posesim import PoseSimulator, robot_of
+
+    sc = load_scenario(arm)
+    export_controller(sc, tmp_path, True)
+    assert subprocess.run(["make", "replay"], cwd=tmp_path, capture_output=True).returncode == 0
+    res = PoseSimulator(sc).run()
+    write_measurements(res, tmp_path / "measurements.csv")
+    r = subprocess.run(["./replay", "measurements.csv", "commands.csv"], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    cmd = read_commands(tmp_path / "commands.csv")
+    n = res.q.shape[0]
+    np.testing.assert_array_equal(cmd["t"], res.time)
+    checks = {("x_c1", "x_c2", "x_c3"): res.command_task, ("x_r1", "x_r2", "x_r3"): res.reference_task,
+              ("x1", "x2", "x3"): res.position_task, ("p_x", "p_y", "p_z"): res.position,
+              ("f_m",): res.measured_force[None], ("b_n",): res.damping[None], ("f_d",): res.desired_force[None],
+              tuple(f"tau{i}" for i in range(1, n + 1)): res.tau}
+    for cols, logged in checks.items():
+        assert rel_err(np.vstack([cmd[c] for c in cols]), logged) < RTOL, cols
+    assert np.abs(np.vstack([cmd[f"e_o{i}"] for i in (1, 2, 3)]) - res.orientation_error).max() < 1e-12
+    robot = robot_of(sc)
+    R_d = tool_orientation(surface_frame(sc.environment), sc.trajectory.tool_spin_deg)
+    q_c = np.vstack([cmd[f"q_c{i}"] for i in range(1, n + 1)])
+    p_c = np.vstack([cmd[f"p_c_{a}"] for a in "xyz"])
+    assert np.abs(p_c - res.position).max() > 0.05                     # the command starts far from the tool
+    for k in range(0, res.time.size, 50):
+        T = np.array(robot.functions.fk(q_c[:, k]))
+        assert np.abs(T[:3, 3] - p_c[:, k]).max() < 1e-12
+        assert np.linalg.norm(rotation_vector(R_d @ T[:3, :3].T)) < 1e-12
