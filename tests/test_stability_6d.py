@@ -75,6 +75,34 @@ def test_ur5_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_pe
     assert verdicts == [True, False]
 
 
+def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
+    """sweep --limits on a 6-D arm: the case's small-signal limit is the 1-D loop with the
+    UR5's effective normal mass, and the first-contact limit the 6-D loop's own start
+    (surface estimate 10 mm too close: bistable, below the small-signal limit). Checked
+    against longer runs of the 6-D simulator (10 s, ten path periods, instead of the
+    search's 3 s): at 0.97x the start settles (the force's ripple over the last second
+    under 0.2 f_d), at 1.03x it keeps cycling (3 %: the short runs' verdict against ten
+    periods watched; the heavy check below bisects 16 s runs to 2 % at 1 kHz)."""
+    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.stability.analysis import scenario_stiffness_limit
+    from tmtcontrol.stability.first_contact import LoopRunner
+    from tmtcontrol.sweep.run import case_limits
+
+    sc = apply_overrides(arm_scenario("ur5"), [*CHEAP, "controller.x_e_error=-0.01"])
+    sim = PoseSimulator(sc, compile=False)
+    row = case_limits(sc, sim=sim)
+    assert row["limits_error"] == ""
+    assert row["small_signal_limit"] == scenario_stiffness_limit(sc)
+    first = row["first_contact_limit"]
+    assert 0.5 * row["small_signal_limit"] < first < 0.95 * row["small_signal_limit"]
+    assert row["predicted_limit"] == first and row["predicted_stable"] is (2e4 < first)
+    runner = LoopRunner(sc, sim=sim)
+    n = int(round(sc.controller.rate))
+    for factor, cycling in ((0.97, False), (1.03, True)):
+        f = runner.run(factor * first, 10.0)
+        assert bool(np.ptp(f[-n:]) > 0.2 * sc.controller.f_d) is cycling, factor
+
+
 # -- heavy: the UR5 scenario against bisection in the 6-D simulator -------------------------------------------------
 
 @pytest.mark.heavy      # compiles the UR5's augmented monodromy step (~220,000 operations, 0.5-2 min) once
@@ -126,3 +154,30 @@ def test_ur5_first_contact_limit_at_minus_10_mm_matches_full_runs_within_2_perce
     # the bracket checked (0 or inf otherwise), then bisection to 0.1 %
     full_runs = largest_stable(settles_long, k_lo=limit / 1.1, k_hi=min(limit * 1.1, small), rtol=1e-3, points=2)
     assert limit == pytest.approx(full_runs, rel=0.02)
+
+
+@pytest.mark.heavy      # the whole analysis of a short UR5 path (compiles the UR5's steps once)
+def test_analyze_scenario_ur5_reports_the_6d_limits(tmp_path):
+    """analyze --scenario on a UR5 scenario file gives the whole-loop, periodic and
+    first-contact limits like the PUMA's (--json and the text table), the smaller of the
+    last two deciding, the frozen-point minimum below the periodic limit."""
+    import json
+    import subprocess
+    import sys
+
+    from tmtcontrol.simulation.scenario import dump_scenario
+
+    path = tmp_path / "ur5.toml"
+    path.write_text(dump_scenario(apply_overrides(arm_scenario("ur5"), [*CHEAP, "controller.x_e_error=-0.01"])))
+    run = lambda *a: subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "analyze", "--scenario", str(path), *a],
+                                    capture_output=True, text=True, timeout=1800)
+    r = run("--json")
+    assert r.returncode in (0, 1), r.stderr
+    d = json.loads(r.stdout)
+    assert d["whole_loop_limit"] <= d["periodic_limit"] * 1.001
+    assert d["first_contact_limit"] < d["periodic_limit"]
+    assert d["limit"] == d["first_contact_limit"] and d["limit_from"] == "first contact"
+    assert d["sampled_stable"] is (d["k_e_max"] < d["limit"]) and "whole_loop_note" not in d
+    text = run().stdout
+    assert f"along the path       {d['periodic_limit']:.6g} N/m" in text
+    assert f"from first contact   {d['first_contact_limit']:.6g} N/m" in text

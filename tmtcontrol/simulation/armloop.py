@@ -159,8 +159,8 @@ class PoseLoop(ArmLoop):
 
         self.sim = sim or PoseSimulator(scenario, compile=compile)
         n = self.sim.plant.n
-        self.delay = getattr(self.sim, "delay", 0)       # the computation delay (samples), when the loop has one
-        self.layout = pose_state_layout(n, self.sim.law, *((self.delay,) if self.delay else ()))
+        self.delay = self.sim.delay
+        self.layout = pose_state_layout(n, self.sim.law, self.delay)
         self.f_e = pose_log_layout(n)["f_e"]
         self.name = f"pose{n}_{self.sim.law.name}_d{self.delay}"
         self.cache_tag = f"|{self.sim.plant.key}|{self.sim.model.key}"
@@ -171,7 +171,7 @@ class PoseLoop(ArmLoop):
 
         sim = self.sim
         return build_pose_step(sim.plant, sim.model, sim.law, "fixed", sim.scenario.simulation.substeps,
-                               contact_refine=contact_refine, **({"delay": self.delay} if self.delay else {}))
+                               contact_refine=contact_refine, delay=self.delay)
 
     def path(self, scenario):
         from .posesim import pose_path
