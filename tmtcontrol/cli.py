@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "largest effective normal mass from the scenario; flags given override them; overshoot bound\n"
                     "5 % unless --max-overshoot), or all of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot.\n"
                     "Exit 1 if the specification is infeasible or the design fails its own verification.",
-        epilog="examples:\n  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5\n"
+        epilog="examples:\n"
+               "  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5\n"
                "  tmtcontrol design --scenario ur5")
     p.add_argument("--scenario", metavar="NAME|FILE", help="take the specification from a scenario (paper, ur5, "
                    "panda or a TOML file); for its arm the largest effective normal mass along the checked path")

@@ -245,7 +245,8 @@ def check_null_space(impl: ArmImplementation, rng) -> CheckResult:
     else:
         note = "square Jacobian: N^T = 0, so tau_0 must vanish entirely"
     return _result(f"null-space torque leaves the task alone ({impl.plant.name})", "(5), null space",
-                   "J q'' + dJ q' is the same with and without a joint torque tau_0 through N^T = I - J^T Lambda J M^-1",
+                   "J q'' + dJ q' is the same with and without a joint torque tau_0 through "
+                   "N^T = I - J^T Lambda J M^-1",
                    f"CasADi: {impl.plant.name} loop with and without a random tau_0 (20 N m scale); change of the "
                    f"task acceleration over |M^-1 tau_0|; {STATES} random states", res, ARM_RTOL, note)
 
