@@ -117,6 +117,23 @@ def test_a_controller_exported_for_another_arm_is_refused(exported_ur5, tmp_path
     assert "delay" in capsys.readouterr().err and not out.exists()
 
 
+def test_deploy_doc_lists_the_6d_code_sizes_and_tables():
+    """docs/deploy.md's 6-D tables are the field tables the C structs are
+    written from, and its code sizes are the UR5's and the Panda's exports'."""
+    import pathlib
+
+    from tmtcontrol.control.laws import get_law
+
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "deploy.md").read_text()
+    assert generate._md_table(generate.command_fields(True, 6)) in doc
+    assert generate._md_table(generate.measurement_fields(6)[:2]) in doc
+    assert generate._md_table(generate.param_fields(get_law("tmt"), 6)[-6:]) in doc
+    for arm, name in (("ur5", "UR5"), ("panda", "Panda")):
+        for inner, label in ((False, "without inner loop"), (True, "with inner loop")):
+            fn, _ = generate.controller_function(load_scenario(arm), inner)
+            assert f"| {name} {label} | {fn.n_instructions()} | {fn.sz_w()} |" in doc, (arm, label)
+
+
 # -- heavy: compiled C against the built-in 6-D loop ---------------------------------------------------
 
 def _compilers():

@@ -47,6 +47,11 @@ PUMA's expressions there must serialise identically.
 The computation delay (``controller.delay_samples`` = d) is the PUMA's: the
 torque computed at t_k is applied over [t_(k+d), t_(k+d+1)), the state's
 ``tau_wait`` holding the d waiting torques of n joints (oldest first).
+
+The exported controller (``tmtcontrol export``) is :func:`build_pose_controller`,
+the step's controller alone (the same helper :func:`_pose_control`), with the
+joint position command found by Newton steps on the pose; the plant alone is
+:func:`build_pose_plant` (software in the loop).
 """
 
 from __future__ import annotations
