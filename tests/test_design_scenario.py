@@ -41,6 +41,13 @@ def test_the_ur5_spec_is_the_scenarios_with_the_paths_largest_normal_mass():
     values = sc.environment.stiffness.values
     assert (spec.k_e_min, spec.k_e_max) == (min(values), max(values))
     assert spec.max_overshoot == DESIGN_OVERSHOOT and spec.delay == sc.controller.delay_samples
+    # docs/design.md quotes the range to 0.1 kg
+    import pathlib
+    import re
+
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "design.md").read_text()
+    lo, hi = re.search(r"UR5\s+scenario it spans about ([\d.]+)–([\d.]+) kg", doc).groups()
+    assert (lo, hi) == (f"{min(masses):.1f}", f"{max(masses):.1f}")
 
 
 def test_the_paper_spec_uses_the_pumas_mass_as_analyze_does():
