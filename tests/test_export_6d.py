@@ -211,3 +211,112 @@ def test_6d_replay_of_the_logged_measurements_gives_the_logged_commands(tmp_path
         T = np.array(robot.functions.fk(q_c[:, k]))
         assert np.abs(T[:3, 3] - p_c[:, k]).max() < 1e-12
         assert np.linalg.norm(rotation_vector(R_d @ T[:3, :3].T)) < 1e-12
+
+
+HARNESS_6D = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <math.h>
+#include "tmt_controller.h"
+
+static long calls;
+void *__real_malloc(size_t n);
+void *__real_calloc(size_t n, size_t m);
+void *__real_realloc(void *p, size_t n);
+void __real_free(void *p);
+void *__wrap_malloc(size_t n) { ++calls; return __real_malloc(n); }
+void *__wrap_calloc(size_t n, size_t m) { ++calls; return __real_calloc(n, m); }
+void *__wrap_realloc(void *p, size_t n) { ++calls; return __real_realloc(p, n); }
+void __wrap_free(void *p) { ++calls; __real_free(p); }
+
+int main(void)
+{
+    static tmt_params params;
+    static tmt_state state;
+    static tmt_measurement meas;
+    static tmt_command cmd;
+    void *volatile probe;
+    long k, in_steps, failures = 0;
+    size_t i, n = sizeof meas.q / sizeof meas.q[0];
+    tmt_default_params(&params);
+    tmt_init(&params, &state);
+    printf("start\n");                 /* stdio's own buffer is allocated here, not below */
+    calls = 0;
+    probe = malloc(16);                /* the counters count: one malloc and one free */
+    free(probe);
+    printf("probe %ld\n", calls);
+    calls = 0;
+    for (k = 0; k < 20000; ++k) {
+        for (i = 0; i < n; ++i) {      /* near the start posture (away from singular poses) */
+            meas.q[i] = params.q_post[i] + 0.01 * sin(1e-3 * (double)k + (double)i);
+            meas.dq[i] = 1e-5 * cos(1e-3 * (double)k + (double)i);
+        }
+        meas.force[2] = -(double)(k % 3000) / 100.0;
+        failures += tmt_step(&params, &state, &meas, &cmd) != 0;
+    }
+    in_steps = calls;
+    printf("steps %ld failures %ld x_c %.6g\n", in_steps, failures, cmd.x_c[0]);
+    return 0;
+}
+"""
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_6d_tmt_step_calls_no_malloc_and_has_no_global_state(tmp_path, arm):
+    """As the PUMA's (tests/test_export.py): 20,000 calls with the allocator
+    wrapped count no call; the object has no writable data and calls only
+    libm's pure functions."""
+    export_controller(load_scenario(arm), tmp_path, True)
+    (tmp_path / "harness.c").write_text(HARNESS_6D)
+    wrap = "-Wl,--wrap=malloc,--wrap=free,--wrap=realloc,--wrap=calloc"
+    for cmd in (["gcc", *STRICT, "-O2", "-ffp-contract=off", "-c", "tmt_controller.c"],
+                ["gcc", *STRICT, "-O0", "-fno-builtin", "harness.c", "tmt_controller.o", wrap, "-lm", "-o", "harness"]):
+        r = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    out = subprocess.run(["./harness"], cwd=tmp_path, capture_output=True, text=True).stdout.split("\n")
+    assert out[1] == "probe 2"          # the wrapped allocator is the one in use
+    assert out[2].startswith("steps 0 failures 0 "), out[2]
+    syms = subprocess.run(["nm", "tmt_controller.o"], cwd=tmp_path, capture_output=True, text=True).stdout
+    kinds = {line.split()[-2] for line in syms.splitlines() if len(line.split()) >= 2}
+    assert kinds and not kinds & set("DdBbCG"), syms
+    undefined = {line.split()[-1] for line in syms.splitlines() if line.split()[-2:-1] == ["U"]}
+    assert undefined <= {"sin", "cos", "sincos", "tan", "sqrt", "fmax", "fmin", "fabs", "atan2", "exp", "log", "pow",
+                         "tanh", "asin", "acos", "atan", "floor", "ceil", "erf", "sinh", "cosh"}, undefined
+
+
+@pytest.mark.heavy
+def test_6d_two_interleaved_instances_equal_two_separate_ones(tmp_path):
+    """Two UR5 controllers stepped alternately give, bit for bit, what each
+    gives alone (no shared mutable state), on two different measurement
+    sequences near the start posture."""
+    from tmtcontrol.export.sil import CompiledController
+
+    export_controller(load_scenario("ur5"), tmp_path, True)
+    ctl = CompiledController(tmp_path)
+    params = ctl.default_params()
+    q0 = np.array(params.q_post)
+    N, n = 300, ctl.n
+    seqs = []
+    for scale in (1.0, 1.7):
+        rows = np.zeros((N, len(np.frombuffer(ctl.Measurement(), dtype=float))))
+        k = np.arange(N)[:, None]
+        rows[:, :n] = q0 + 0.01 * scale * np.sin(1e-2 * k + np.arange(n))
+        rows[:, 2 * n + 2] = -scale * (k[:, 0] % 100) / 10.0
+        seqs.append(rows)
+
+    def run(states, order):
+        outs = [[] for _ in seqs]
+        meas, cmd = ctl.Measurement(), ctl.Command()
+        y = np.frombuffer(meas, dtype=float)
+        for i, k in order:
+            y[:] = seqs[i][k]
+            assert ctl.step(params, states[i], meas, cmd) == 0
+            outs[i].append(np.frombuffer(cmd, dtype=float).copy())
+        return [np.array(o) for o in outs]
+
+    alone = [run([ctl.new_state(params)] * 2, [(i, k) for k in range(N)])[i] for i in (0, 1)]
+    assert not np.array_equal(alone[0], alone[1])
+    inter = run([ctl.new_state(params), ctl.new_state(params)], [(i, k) for k in range(N) for i in (0, 1)])
+    np.testing.assert_array_equal(inter[0], alone[0])
+    np.testing.assert_array_equal(inter[1], alone[1])
