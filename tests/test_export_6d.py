@@ -320,3 +320,17 @@ def test_6d_two_interleaved_instances_equal_two_separate_ones(tmp_path):
     inter = run([ctl.new_state(params), ctl.new_state(params)], [(i, k) for k in range(N) for i in (0, 1)])
     np.testing.assert_array_equal(inter[0], alone[0])
     np.testing.assert_array_equal(inter[1], alone[1])
+
+
+def test_make_clean_removes_only_what_make_built(tmp_path):
+    """tmtcontrol never deletes a file it did not write: the exported
+    Makefile's clean target leaves the user's measurements.csv and
+    commands.csv (replay's output, the user's data) in place."""
+    export_controller(paper_scenario(), tmp_path, False)
+    built = ("tmt_controller.o", "libtmt_controller.a", "replay", "example_loop")
+    for name in (*built, "measurements.csv", "commands.csv"):
+        (tmp_path / name).write_text("x\n")
+    r = subprocess.run(["make", "clean"], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert not any((tmp_path / name).exists() for name in built)
+    assert (tmp_path / "measurements.csv").read_text() == (tmp_path / "commands.csv").read_text() == "x\n"
