@@ -50,7 +50,9 @@ def test_export_of_the_ur5_writes_an_n_joint_interface(exported_ur5):
         assert decl in header, decl
     assert "taskframe.build_pose_controller" in header
     meta = json.loads((exported_ur5 / generate.METADATA).read_text())
-    assert meta["robot"] == {"model": "ur5", "tip": None, "joints": 6, "armature": True}
+    assert {k: meta["robot"][k] for k in ("model", "tip", "joints", "armature")} == {
+        "model": "ur5", "tip": None, "joints": 6, "armature": True}
+    assert meta["robot"]["key"]
     replay = (exported_ur5 / "replay.c").read_text()
     assert "t,q1,q2,q3,q4,q5,q6,dq1,dq2,dq3,dq4,dq5,dq6,force_x,force_y,force_z," in replay
 
@@ -358,3 +360,29 @@ def test_6d_software_in_the_loop_equals_the_built_in_run_for_other_structures(tm
     for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "damping", "desired_force"):
         assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
     assert np.abs(sil.orientation_error - ref.orientation_error).max() < 1e-12
+
+
+def test_the_arm_an_export_was_made_for_is_checked_by_its_content(exported_ur5, tmp_path):
+    """The same URDF read from another path (a scenario file elsewhere) is the
+    same arm and is accepted; an edited URDF (another link mass) is another
+    arm; a changed controller-model setting is named as that setting. All
+    decided from export.json, before compiling."""
+    from importlib import resources
+
+    from tmtcontrol.export.generate import ExportError
+    from tmtcontrol.export.sil import check_export_matches
+
+    meta = json.loads((exported_ur5 / generate.METADATA).read_text())
+    text = resources.files("tmtcontrol.model").joinpath("data", "ur5.urdf").read_text()
+    (tmp_path / "my_arm.urdf").write_text(text)
+    same = apply_overrides(load_scenario("ur5"), [f"robot.model='{tmp_path / 'my_arm.urdf'}'", "robot.tip='tool0'"])
+    check_export_matches(meta, exported_ur5, same)                       # accepted
+    with pytest.raises(ExportError, match=r"^--controller: .* model_mass_scale = 1.0, the scenario has 1.1;"):
+        check_export_matches(meta, exported_ur5, apply_overrides(same, ["robot.model_mass_scale=1.1"]))
+    i = text.index('<mass value="') + len('<mass value="')
+    (tmp_path / "edited.urdf").write_text(text[:i] + "1" + text[i:])        # a mass 4.0 -> 14.0 kg
+    edited = apply_overrides(same, [f"robot.model='{tmp_path / 'edited.urdf'}'"])
+    with pytest.raises(ExportError, match="or another version of it"):
+        check_export_matches(meta, exported_ur5, edited)
+    with pytest.raises(ExportError, match=r"was exported for robot.model = 'ur5'.*'puma560'"):
+        check_export_matches(meta, exported_ur5, paper_scenario())

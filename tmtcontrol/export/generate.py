@@ -489,7 +489,8 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
             "instructions": fn.n_instructions()}
     if iface.pose:      # the arm (the PUMA's export.json is as before: no robot entry means the PUMA)
         r = scenario.robot
-        meta["robot"] = {"model": r.model, "tip": r.tip, "joints": iface.n, "armature": r.armature}
+        meta["robot"] = {"model": r.model, "tip": r.tip, "joints": iface.n, "armature": r.armature,
+                         "key": iface.model.key}      # the controller model's identity (URDF content, options)
     (folder / METADATA).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return {**meta, "files": sorted(p.name for p in folder.iterdir())}
 

@@ -41,8 +41,8 @@ from ..simulation.taskframe import (_kinematics, build_pose_plant, pose_controll
 from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
                        param_fields)
 
-__all__ = ["CompiledController", "compile_export", "simulate_with_controller", "measurement_table",
-           "write_measurements", "read_commands", "SIL_FLAGS"]
+__all__ = ["CompiledController", "compile_export", "check_export_matches", "simulate_with_controller",
+           "measurement_table", "write_measurements", "read_commands", "SIL_FLAGS"]
 
 SIL_FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared"]
 """-ffp-contract=off: no fused multiply-adds, as in the simulator's compiled
@@ -165,27 +165,8 @@ class CompiledController:
     # -- from a scenario ----------------------------------------------------------------------------
     def check_matches(self, scenario) -> None:
         """Raise :class:`ExportError` unless ``scenario`` has the structure
-        this controller was exported with (arm, law, delay, controller model)."""
-        r = scenario.robot
-        if self.robot:
-            ok = (r.model, r.tip, r.armature) == (self.robot["model"], self.robot["tip"], self.robot["armature"])
-            what = (f"robot.model = {self.robot['model']!r} (tip {self.robot['tip']!r}, armature "
-                    f"{self.robot['armature']!r})")
-        else:
-            ok, what = r.model.lower() == "puma560", "robot.model = 'puma560'"
-        if not ok:
-            raise ExportError(f"{self.flag}: {self.folder} was exported for {what}, the scenario has "
-                              f"robot.model = {r.model!r} (tip {r.tip!r}); export this scenario (tmtcontrol export)")
-        want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
-                "model_mass_scale": scenario.robot.model_mass_scale,
-                "compensate_friction": scenario.robot.compensate_friction}
-        for key, value in want.items():
-            if self.meta[key] != value:
-                raise ExportError(f"{self.flag}: {self.folder} was exported with {key} = {self.meta[key]!r}, "
-                                  f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
-        if not self.torque:
-            raise ExportError(f"{self.flag}: {self.folder} was exported without --inner-loop, so it gives no "
-                              "joint torques for the simulated (torque-driven) robot; export with --inner-loop")
+        this controller was exported with (:func:`check_export_matches`)."""
+        check_export_matches(self.meta, self.folder, scenario, self.flag)
 
     def params_from(self, P_full: np.ndarray):
         """The C parameter struct from the simulator's parameter vector."""
@@ -195,6 +176,43 @@ class CompiledController:
             return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
         vec = controller_param_layout(self.law).pack(**param_layout(self.law).split(P_full))
         return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
+
+
+def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller") -> None:
+    """Raise :class:`ExportError` (one line naming ``flag``) unless
+    ``scenario`` has the structure the export in ``folder`` (its metadata
+    ``meta``) was made for: the arm (for a 6-D arm its controller model's
+    identity, the URDF's content and chain, not the path it was read from),
+    law, delay, controller model, and the inner loop (the simulated robot is
+    torque-driven)."""
+    robot = meta.get("robot")
+    r = scenario.robot
+    what = (f"robot.model = {robot['model']!r} (tip {robot['tip']!r}, armature "
+            f"{robot['armature']!r})" if robot else "robot.model = 'puma560'")
+
+    def other_arm():
+        return ExportError(f"{flag}: {folder} was exported for {what}, the scenario has "
+                           f"robot.model = {r.model!r} (tip {r.tip!r}, armature {r.armature!r})"
+                           + (" or another version of it" if robot and r.model.lower() != "puma560" else "")
+                           + "; export this scenario (tmtcontrol export)")
+
+    if bool(robot) != (r.model.lower() != "puma560"):
+        raise other_arm()
+    want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
+            "model_mass_scale": scenario.robot.model_mass_scale,
+            "compensate_friction": scenario.robot.compensate_friction}
+    for key, value in want.items():
+        if meta[key] != value:
+            raise ExportError(f"{flag}: {folder} was exported with {key} = {meta[key]!r}, "
+                              f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
+    if robot:          # the same arm: URDF content, chain and model options (the robot's key)
+        from ..simulation.posesim import robot_of
+
+        if robot_of(scenario, controller=True).key != robot["key"]:
+            raise other_arm()
+    if not meta["inner_loop"]:
+        raise ExportError(f"{flag}: {folder} was exported without --inner-loop, so it gives no "
+                          "joint torques for the simulated (torque-driven) robot; export with --inner-loop")
 
 
 def simulate_with_controller(scenario, controller: CompiledController, max_steps: int | None = None):
