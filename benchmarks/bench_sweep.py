@@ -1,40 +1,87 @@
 """Throughput of `tmtcontrol sweep`: paper-length cases (16 s at 1 kHz) per second.
 
-Run: python benchmarks/bench_sweep.py [--cases N]   (default 1000)
+Run: python benchmarks/bench_sweep.py [--cases N] [--arm-cases N]   (defaults 1000, 64)
 The compiled step is built once before timing (warm). Each case draws its
 noise level, so no two cases are alike. Prints cases/s for 1 and 2 local
-workers and for a Dask LocalCluster of 2 workers, and checks that the three
-give identical rows. Target (issue #15): 1,000 cases in <= 30 s on 2 cores.
+workers and for a Dask LocalCluster of 2 workers on the PUMA's paper
+scenario, and checks that the three give identical rows; then the same sweep
+(``--arm-cases`` draws) on the UR5 scenario (the 6-D loop, issue 30) with 1
+and 2 local workers, and the two arms' 2-worker throughput side by side with
+the workers' start-up apart (:func:`marginal_rate`: a short sweep is mostly
+start-up).
+Target (issue #15): 1,000 PUMA cases in <= 30 s on 2 cores. The 2-worker
+figures also go into the arm speed table (``bench_arm.py`` calls
+:func:`marginal_rate`).
 """
 import argparse
 import time
 import tomllib
 
-from tmtcontrol import Simulator, paper_scenario
 from tmtcontrol.sweep import run_sweep, sweep_from_dict
+
+
+def noise_sweep(scenario: str, cases: int):
+    """``cases`` runs of ``scenario`` (a built-in name), each with its own noise level in [0, 0.1] N."""
+    return sweep_from_dict(tomllib.loads(f"""
+    scenario = "{scenario}"
+    [random]
+    samples = {cases}
+    seed = 7
+    "sensor.noise_std" = {{ uniform = [0.0, 0.1] }}
+    """))
+
+
+def warm(scenario: str) -> None:
+    """Compile (or load) the scenario's step, so the timed sweeps below run warm."""
+    from tmtcontrol import load_scenario
+    from tmtcontrol.simulation.posesim import simulator_for
+
+    simulator_for(load_scenario(scenario)).run()
+
+
+def throughput(scenario: str, cases: int, workers: int = 2, dask: str | None = None):
+    """``(seconds, table)``: one sweep of :func:`noise_sweep` on ``workers`` local workers
+    (fresh worker processes: their start-up is part of the time)."""
+    sweep = noise_sweep(scenario, cases)
+    t0 = time.perf_counter()
+    frame = run_sweep(sweep, workers=workers, dask=dask).drop(columns="run_time_s")
+    return time.perf_counter() - t0, frame
+
+
+def marginal_rate(scenario: str, cases: int, workers: int = 2, base: int = 16):
+    """``(cases/s, start-up s)`` on ``workers`` local workers, start-up apart: sweeps of ``base``
+    and ``base + cases`` cases, the rate ``cases / (t_large - t_small)`` and the start-up
+    ``t_small - base / rate`` (fresh worker processes, loading the compiled step, the scenario's
+    path check and each worker's memoised stability analysis), which a short sweep would
+    otherwise count as per-case time."""
+    t_small, _ = throughput(scenario, base, workers)
+    t_large, _ = throughput(scenario, base + cases, workers)
+    rate = cases / (t_large - t_small)
+    return rate, t_small - base / rate
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--cases", type=int, default=1000)
+    ap.add_argument("--cases", type=int, default=1000, help="PUMA (paper scenario) cases")
+    ap.add_argument("--arm-cases", type=int, default=64, help="UR5 scenario cases")
     args = ap.parse_args()
-    sweep = sweep_from_dict(tomllib.loads(f"""
-    [random]
-    samples = {args.cases}
-    seed = 7
-    "sensor.noise_std" = {{ uniform = [0.0, 0.1] }}
-    """))
-    Simulator(paper_scenario()).run()            # compile (or load) the paper step: warm runs below
+    warm("paper")
     frames = {}
     for label, kw in (("1 worker", dict(workers=1)), ("2 workers", dict(workers=2)),
                       ("dask local, 2 workers", dict(workers=2, dask="local"))):
-        t0 = time.perf_counter()
-        frames[label] = run_sweep(sweep, **kw).drop(columns="run_time_s")
-        dt = time.perf_counter() - t0
-        print(f"{label:>22}: {args.cases} cases in {dt:.1f} s = {args.cases / dt:.1f} cases/s "
+        dt, frames[label] = throughput("paper", args.cases, **kw)
+        print(f"puma560 {label:>22}: {args.cases} cases in {dt:.1f} s = {args.cases / dt:.1f} cases/s "
               f"(1,000 cases: {1000 * dt / args.cases:.0f} s)")
     same = all(f.equals(frames["1 worker"]) for f in frames.values())
     print(f"identical rows on every engine: {same}")
+    warm("ur5")
+    for label, w in (("1 worker", 1), ("2 workers", 2)):
+        dt, _ = throughput("ur5", args.arm_cases, workers=w)
+        print(f"ur5     {label:>22}: {args.arm_cases} cases in {dt:.1f} s = {args.arm_cases / dt:.1f} cases/s")
+    side = {arm: marginal_rate(sc, args.arm_cases) for arm, sc in (("puma560", "paper"), ("ur5", "ur5"))}
+    print("2 workers, paper-length cases/s after the workers' start-up (sweeps of 16 and "
+          f"{16 + args.arm_cases} cases): " + ", ".join(f"{arm} {r:.1f} (start-up {s0:.1f} s)"
+                                                         for arm, (r, s0) in side.items()))
 
 
 if __name__ == "__main__":      # Dask and process pools may start fresh interpreters

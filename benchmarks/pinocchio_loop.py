@@ -34,7 +34,7 @@ One control period, as ``taskframe.build_pose_step`` (paper eqs. 1-6, 13, 18):
   all agree on contact on/off is integrated again from its start with
   ``contact_refine`` times as many steps.
 
-Supported: the TMT law, no guarded approach, fixed normal damping, the
+Supported: the TMT law, no guarded approach, no computation delay, fixed normal damping, the
 controller's model equal to the plant (no mass scaling, no friction); the
 built-in ``ur5`` and ``panda`` scenarios are such. Anything else raises
 ValueError naming the setting.
@@ -104,6 +104,8 @@ class PinocchioLoop:
             raise ValueError(f"controller.law: only 'tmt' is written here, got {ctl.law.kind!r}")
         if ctl.damping_schedule.kind != "off":
             raise ValueError("controller.damping_schedule: only 'off' is written here")
+        if ctl.delay_samples:
+            raise ValueError("controller.delay_samples: the computation delay is not written here; set 0")
         if sc.trajectory.approach_gap > 0:
             raise ValueError("trajectory.approach_gap: the guarded approach is not written here; set 0")
         if r.model_mass_scale != 1.0 or r.friction or r.compensate_friction:
