@@ -1,7 +1,8 @@
 """The whole-loop linearisation, the periodic (monodromy) analysis and the first-contact
 limit on a 6-D arm (issue 30): the PUMA's algorithms run on the UR5's 6-D task-frame loop
 (simulation.armloop picks the loop by task dimension), checked against closed forms and
-against bisection in the 6-D simulator (PoseSimulator at constant k_e)."""
+against bisection in the 6-D simulator (PoseSimulator at constant k_e); the heavy checks
+also on the Panda (7 joints, null-space posture task)."""
 import numpy as np
 import pytest
 
@@ -75,6 +76,40 @@ def test_ur5_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_pe
     assert verdicts == [True, False]
 
 
+def test_panda_guess_rests_where_its_null_space_posture_task_is_balanced():
+    """The redundant Panda: the analyses' first guess puts the tool at the point with the
+    commanded orientation and the posture task balanced, so the whole loop's Newton
+    starts at the fixed point. Checked with the projector of the 6-D loop's inner loop
+    written out in NumPy (N^T = I - J^T Lambda J M^-1, Lambda = (J M^-1 J^T)^-1): the
+    projected posture torque N^T M (q_post - q) vanishes (1e-12 of M (q_post - q):
+    rounding of a 7 x 7 solve), while the pose closest to q_post in plain joint distance
+    leaves a torque (the guess is not the naive one)."""
+    from tmtcontrol.simulation.armloop import PoseLoop, arm_loop
+    from tmtcontrol.simulation.posture import solve_pose
+
+    sc = apply_overrides(arm_scenario("panda"), CHEAP)
+    loop = arm_loop(sc, compile=False)
+    assert isinstance(loop, PoseLoop) and loop.plant.n == 7
+    path = loop.path(sc)
+    loop.inputs(sc, path)
+    R, c = loop.frame(sc)
+    point = c + R @ np.r_[1e-4, 0.05, 0.0]
+
+    def projected(q):
+        M, J = loop.sim.model.mass_matrix(q), loop.sim.model.jacobian(q)
+        Lam = np.linalg.inv(J @ np.linalg.solve(M, J.T))
+        NT = np.eye(7) - J.T @ Lam @ J @ np.linalg.inv(M)
+        v = M @ (loop._posture - q)
+        return np.abs(NT @ v).max() / np.abs(v).max()
+
+    q = loop.joints_at(point, path.q[:, 0])
+    T = loop.plant.fk(q)
+    assert np.abs(T[:3, 3] - point).max() < 1e-9 and np.abs(T[:3, :3] - loop._R_d).max() < 1e-9
+    assert projected(q) < 1e-12
+    naive, ok = solve_pose(loop.plant, loop._solver, point, loop._R_d, loop._posture)
+    assert ok and projected(naive) > 1e-3
+
+
 def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
     """sweep --limits on a 6-D arm: the case's small-signal limit is the 1-D loop with the
     UR5's effective normal mass, and the first-contact limit the 6-D loop's own start
@@ -105,23 +140,29 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
 
 # -- heavy: the UR5 scenario against bisection in the 6-D simulator -------------------------------------------------
 
-@pytest.mark.heavy      # compiles the UR5's augmented monodromy step (~220,000 operations, 0.5-2 min) once
-def test_ur5_periodic_limit_matches_simulated_bisection_within_1_percent():
-    """The UR5 scenario (1 kHz, 4 s circle): the periodic limit against the simulated
+@pytest.mark.heavy      # compiles the arm's augmented monodromy step (~220,000 operations on the UR5, ~360,000
+@pytest.mark.parametrize("arm", ["ur5", "panda"])      # on the Panda: 0.5-3 min) once
+def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):
+    """The built-in scenario (1 kHz, 4 s circle): the periodic limit against the simulated
     6-D loop's own limit (first_contact.simulated_limit: runs at constant k_e started near
     the orbit, converged if the difference between successive periods shrinks; bisection
     to 0.1 %). 1 %: the tolerance of the PUMA's check; the simulated verdict is judged
     from a decay ratio measured over five periods, whose resolution near the boundary
     (per-period radius within ~1e-3 of 1) is a few tenths of a percent in k_e. The frozen
-    loop's smallest and largest limits over the path bracket the periodic one."""
+    loop's smallest and largest limits over the path bracket the periodic one, and its
+    fixed points hold f_d exactly (the TMT's steady state, eqs. 23-24; on the Panda with
+    the null-space posture task balanced)."""
     from tmtcontrol.stability.first_contact import LoopRunner, simulated_limit
     from tmtcontrol.stability.periodic import PeriodicModel, periodic_limit
     from tmtcontrol.stability.wholeloop import whole_loop_limit
 
-    sc = arm_scenario("ur5")
+    sc = arm_scenario(arm)
     mdl = PeriodicModel(sc)
-    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=1.3e5)
+    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=1.4e5)
     frozen_max = max(l for _, l in points)
+    for t, _ in points[::3]:
+        w = mdl.frozen.at(frozen_min / 1.1, t)
+        assert w.residual < 1e-8 and w.f_eq == pytest.approx(sc.controller.f_d, abs=1e-7)
     predicted = periodic_limit(sc, model=mdl, bracket=(frozen_min / 1.02, frozen_max * 1.02))
     assert frozen_min <= predicted * 1.001 and predicted <= frozen_max * 1.001
     simulated = simulated_limit(sc, predicted / 1.05, predicted * 1.05, rtol=1e-3, runner=LoopRunner(sc))

@@ -165,6 +165,7 @@ class PoseLoop(ArmLoop):
         self.name = f"pose{n}_{self.sim.law.name}_d{self.delay}"
         self.cache_tag = f"|{self.sim.plant.key}|{self.sim.model.key}"
         self._R_d = _frames(scenario)[1]
+        self._posture = None
 
     def build_step(self, contact_refine: int):
         from .taskframe import build_pose_step
@@ -178,19 +179,61 @@ class PoseLoop(ArmLoop):
 
         return pose_path(self.plant, scenario)
 
+    def inputs(self, scenario, path):
+        from .taskframe import pose_param_layout
+
+        U, P, s0, t = self.sim._inputs(scenario, path)
+        self._posture = pose_param_layout(self.plant.n, self.law).split(P)["q_post"]
+        return U, P, s0, t
+
     def frame(self, scenario):
         from .geometry import surface_frame
 
         return surface_frame(scenario.environment), np.asarray(scenario.trajectory.center, dtype=float)
 
     def joints_at(self, point, seed):
-        from .posture import solve_pose
+        """As :meth:`ArmLoop.joints_at`. On a redundant arm, once :meth:`inputs`
+        has given the null-space posture q_post, the pose where the posture
+        task is balanced, ``M^ (q_post - q) = J^T w`` for some w (then the
+        projected posture torque N^T M^ K_post (q_post - q) is 0): the pose
+        closest to q_post (IPOPT), refined by CasADi's Newton rootfinder on
+        the pose and balance equations; a fixed point of the loop is then
+        found from near it."""
+        from .posture import POSE_TOL, solve_pose
 
+        if self.plant.n > 6 and self._posture is not None:
+            q, ok = solve_pose(self.plant, self._solver, point, self._R_d, self._posture)
+            if ok:
+                par = np.r_[np.asarray(point, float), self._R_d.ravel(order="F"), self._posture]
+                J, M = np.asarray(self.sim.model.jacobian(q)), np.asarray(self.sim.model.mass_matrix(q))
+                w = np.linalg.lstsq(J.T, M @ (self._posture - q), rcond=None)[0]
+                qb = np.array(self._balanced(np.r_[q, w], par)).ravel()[:self.plant.n]
+                T = self.plant.fk(qb)
+                if np.all(np.isfinite(qb)) and np.abs(T[:3, 3] - point).max() < POSE_TOL \
+                        and np.abs(T[:3, :3] - self._R_d).max() < POSE_TOL:
+                    return qb
+                return q
         q, ok = solve_pose(self.plant, self._solver, point, self._R_d, seed)
         if not ok:
             raise ValueError(f"no pose with the tool at {np.round(point, 4).tolist()} m and the commanded "
                              "orientation near the given joints")
         return q
+
+    @functools.cached_property
+    def _balanced(self):
+        import casadi as ca
+
+        from .posture import _pose_equations
+
+        n, model = self.plant.n, self.sim.model
+        x, par = ca.SX.sym("x", n + 6), ca.SX.sym("par", 12 + n)
+        q, w = x[:n], x[n:]
+        pose, _ = _pose_equations(self.plant, q, par)
+        balance = (ca.mtimes(model.functions.mass_matrix(q), par[12:] - q)
+                   - ca.mtimes(model.functions.jacobian(q).T, w))
+        g = ca.Function("balanced_pose_equations", [x, par], [ca.vertcat(pose, balance)], ["x", "par"], ["g"])
+        return ca.rootfinder("balanced_pose", "newton", g, {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50,
+                                                             "error_on_fail": False})
 
     @functools.cached_property
     def _solver(self):

@@ -227,6 +227,9 @@ class WholeLoopModel:
         if s_eq is None:
             raise AnalysisError(f"k_e = {k_e:.6g} N/m: the equilibrium lies outside the robot's workspace "
                                 f"(penetration f_d/k_e = {ctl.f_d / k_e:.3g} m)")
+        if not np.isfinite(residual):
+            raise AnalysisError(f"k_e = {k_e:.6g} N/m: no fixed point found at path time {self.t[i]:g} s "
+                                "(the Newton iteration diverged)")
         A_full = np.array(self._jac(s_eq, u))
         d = self.dynamic
         A = A_full[np.ix_(d, d)]
