@@ -113,3 +113,14 @@ def test_cli_check_scenario_bad_input_is_one_line_exit_2(argv, flag, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and flag in err and "Traceback" not in err
+
+
+def test_cli_check_scenario_with_an_arm_that_cannot_be_loaded_is_exit_2(tmp_path, capsys):
+    from tmtcontrol.simulation.scenario import dump_scenario
+
+    text = dump_scenario(load_scenario("ur5")).replace('model = "ur5"', 'model = "missing_arm.urdf"')
+    assert 'model = "missing_arm.urdf"' in text
+    (tmp_path / "arm.toml").write_text(text)
+    assert main(["check", "--scenario", str(tmp_path / "arm.toml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("error: robot.model: ") and "missing_arm.urdf" in err
