@@ -19,7 +19,8 @@ it is. The PUMA's side calls exactly what the analyses called before (its
 closed-form inverse kinematics, Cartesian inertia D* and 3 x 3 Jacobian), so
 its numbers are unchanged bit for bit. On a 6-D arm the tool also holds its
 commanded orientation R_d: the joints at a point are solved with it
-(:func:`.posture.solve_pose`, CasADi's rootfinder or IPOPT), a tool velocity
+(:func:`.posture.solve_pose`, CasADi's rootfinder or IPOPT; on a redundant
+arm the pose where the null-space posture task is balanced), a tool velocity
 has zero angular velocity (least-norm joint rates, as the 6-D simulator's
 start) and the effective normal mass is ``1/(n^T J_v M^-1 J_v^T n)`` (J_v the
 linear rows of J: the mass the normal axis meets with the other axes free).
