@@ -31,10 +31,11 @@ states (approach phase and command, f_d ramp, surface estimate) are
 constants in contact and are left out, as in ``stability.wholeloop``; a
 scheduled damping (``controller.damping_schedule``) is a dynamic state.
 On a 6-D arm the dynamic state is the n joints' q and dq, the force filter,
-the damping and the law's state (16 on the UR5, 18 on the Panda): the
-augmented step carries 16^2 or 18^2 entries of Phi, about 20 times the
-step's operations, and compiling it takes about half a minute (once;
-cached like the PUMA's).
+the damping, the delay queue and the law's state (16 on the UR5, 18 on the
+Panda, without delay): the augmented step carries 16^2 or 18^2 entries of
+Phi, about 20 times the step's operations (220,000 and 360,000), and
+compiling it takes about half a minute of CPU on the UR5, more on the Panda
+(once per structure; cached like the PUMA's).
 Units are SI.
 """
 
