@@ -9,7 +9,7 @@ from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze
 from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
                       spectral_radius)
 
-__all__ = ["scenario_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
+__all__ = ["scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
@@ -96,6 +96,23 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
                                           **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4)
                for mp in (p["m_p_min"], p["m_p_max"]))
+
+
+def with_stiffness_limit(result):
+    """``result`` (a simulation) with ``info["stiffness_limit"]``, the
+    scenario's :func:`scenario_stiffness_limit` (N/m), attached: its segment
+    verdicts (``simulation.metrics.segment_metrics``) then call a segment
+    whose stiffness exceeds the limit ``diverged`` even when the run ended
+    before the instability grew (a ramp or a short hold above the limit).
+    The 1-D sampled limit is on the safe side of the simulated loop's (the
+    report of issue #28: within 2.5 %). Unchanged for a law without a linear
+    verdict or when no positive limit is found."""
+    import dataclasses
+
+    limit = scenario_stiffness_limit(result.scenario)
+    if limit is None or not np.isfinite(limit) or limit <= 0:
+        return result
+    return dataclasses.replace(result, info={**(result.info or {}), "stiffness_limit": float(limit)})
 
 
 def predicted_limits(scenario) -> dict:
