@@ -234,6 +234,7 @@ def _simulate_with(args, workers) -> int:
     from .simulation.output import save_simulation
     from .simulation.posesim import simulator_for
     from .simulation.simulator import check_run_size
+    from .stability.analysis import with_stiffness_limit
 
     sc = _load(args)
     check_run_size(sc, args.max_steps)
@@ -249,6 +250,7 @@ def _simulate_with(args, workers) -> int:
             from .export.sil import simulate_with_controller
 
             res = simulate_with_controller(sc, controller, max_steps=args.max_steps)
+        res = with_stiffness_limit(res)           # a segment beyond the predicted limit is not stable
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
                         csv_processes=2 if args.no_plots else 1)
@@ -299,7 +301,9 @@ def _compare(args) -> int:
             raise UsageError(f"--laws: {exc}") from None
     check_run_size(sc, args.max_steps)
     with OutputFolder(args.out, "--out") as out:
-        cmp = compare_laws(sc, names, max_steps=args.max_steps)
+        from .stability.analysis import with_stiffness_limit
+
+        cmp = compare_laws(sc, names, max_steps=args.max_steps, prepare=with_stiffness_limit)
         save_comparison(cmp, out.path, plots=not args.no_plots)
         out.commit()
     print(f"scenario {sc.name!r}, {len(names)} laws")

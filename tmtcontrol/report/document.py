@@ -369,6 +369,9 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         rep.verdicts.append(Verdict("Force tracking within tolerance (simulation)", False, "diverged", str(exc)))
         rep.data["simulation"] = {"result": None, "error": str(exc), "segments": []}
         return Section("simulation", "Simulation", [Paragraph(f"The simulation diverged: {exc}")]), sim, None
+    from ..stability.analysis import with_stiffness_limit
+
+    res = with_stiffness_limit(res)           # a segment beyond the predicted limit is not stable
     segs = segment_metrics(res)
     worst = max(s.steady_state_error for s in segs)
     # the scenario's own tolerance judges the run (the segment verdicts use it too, plus the sensor noise)

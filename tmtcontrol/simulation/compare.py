@@ -84,8 +84,11 @@ def check_law_names(names) -> list[str]:
 
 
 def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None = None, *,
-                 max_steps: int | None = None) -> Comparison:
-    """Run ``scenario`` once per law (default: every registered law).
+                 max_steps: int | None = None, prepare=None) -> Comparison:
+    """Run ``scenario`` once per law (default: every registered law);
+    ``prepare(result) -> result``, if given, runs on each result before its
+    segments are judged (the CLI attaches the law's predicted stiffness
+    limit there, ``stability.analysis.with_stiffness_limit``).
 
     Returns a :class:`Comparison`; a law whose run diverges is kept with
     ``error`` set rather than raising. Unknown law names raise ValueError
@@ -102,6 +105,8 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
         except SimulationError as exc:
             runs[n] = LawRun(n, sc, None, [], str(exc))
             continue
+        if prepare is not None:
+            res = prepare(res)
         runs[n] = LawRun(n, sc, res, segment_metrics(res))
     return Comparison(scenario, runs)
 

@@ -12,13 +12,8 @@ e = f_e - f_d against the scenario's tracking tolerance
 forcing (the path and a sinusoidal stiffness), never over fractions of one:
 
 * ``converged``: stable (neither of the last two), |e| within the
-  tolerance (plus 6 sensor-noise standard deviations, the ripple the noise
-  itself drives) over the segment's last quarter, and the mean of e there
-  within the tolerance alone (noise averages out of a mean, a bias does not:
-  a large sensor noise cannot hide a bias), widened only by the mean's own
-  sampling uncertainty under sensor noise (:data:`BIAS_BATCHES` batch means,
-  a Student-t bound at :data:`BIAS_FALSE_ALARM`), so a noisy but unbiased
-  run is not called off target by chance;
+  tolerance over the segment's last quarter, and the mean of e there within
+  the tolerance too;
 * ``off_target``: stable (not growing, contact kept), but not within the
   tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
   forced response to a varying stiffness, or a transient still decaying;
@@ -26,7 +21,31 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
   above the ripple band that does not decay and is not the periodic response
   to the forcing;
 * ``diverged``: a force that is not finite, or an oscillation growing by more
-  than 1.5x from one judging window to the next.
+  than 1.5x from one judging window to the next; or, when the caller has
+  attached the loop's predicted stiffness limit (``result.info
+  ["stiffness_limit"]``, N/m, from ``stability``), a segment whose stiffness
+  exceeds it: the linearised loop is unstable there even if the run ended
+  before the growth showed.
+
+Sensor noise (``sensor.noise_std`` > 0). The verdict judges the true
+contact force, which the noise moves much less than the sensor itself (the
+loop filters it). The run's noise-free twin (the same scenario with
+``sensor.noise_std = 0``, :func:`noise_free_twin`) separates the two parts:
+d = f_e - f_e(no noise) is what the noise did. The segment is judged
+twice, and the worse verdict stands, so noise can never make a verdict
+better than the noise-free run's:
+
+* the twin against the plain tolerance (a bias, a forced response or a
+  decaying transient stays visible however large the noise);
+* the noisy run for contact loss, and against the tolerance widened by 6
+  standard deviations of d over the last quarter, with the mean of e within
+  the tolerance plus :func:`bias_allowance` of d (the mean's own sampling
+  uncertainty: batch means, as many batches as the correlation time of d
+  allows, a Student-t bound at :data:`BIAS_FALSE_ALARM`), so an unbiased
+  noisy run is not called off target by chance, while a mean shift the
+  noise itself causes (eq. (18) divides by the noisy force) is judged.
+  Growth and sustained oscillation are judged on the twin only: on a noisy
+  force the swing between consecutive extrema measures the noise.
 """
 
 from __future__ import annotations
@@ -111,7 +130,8 @@ class SegmentMetrics:
       contact an upward stiffness switch loses, behind an overshoot of
       100 % (the force fell to zero);
     * ``tolerance``: the tracking tolerance the verdict used (N, the
-      scenario's ``controller.force_tolerance`` plus 6 noise sigmas);
+      scenario's ``controller.force_tolerance``, plus 6 standard deviations
+      of what the sensor noise did to the force under noise);
     * ``verdict``: :func:`judge_segment`; ``reason``: why, in words.
     """
     start: float
@@ -226,26 +246,47 @@ def _gain(e_A: np.ndarray, e_B: np.ndarray) -> float:
 
 
 BIAS_BATCHES = 20
-"""Batches of the last quarter whose means estimate the standard error of
-the mean force error under sensor noise (the batch-means method: batches of
-50 samples for a 4 s segment at 1 kHz, longer than the loop's correlation
-time, so the batch means are nearly independent)."""
+"""The most batches of the last quarter whose means estimate the standard
+error of the mean under sensor noise (batch-means method). Fewer, longer
+batches when the noise-driven force is correlated: each batch spans at
+least :data:`BATCH_CORRELATION_TIMES` integrated correlation times (never
+fewer than 4 batches), so the batch means are nearly independent."""
+BATCH_CORRELATION_TIMES = 4.0
 BIAS_FALSE_ALARM = 1e-3
 """Chance that an unbiased noisy segment is called off target by its mean:
-the bias allowance is the two-sided Student-t quantile (BIAS_BATCHES - 1
-degrees of freedom) times the batch-means standard error."""
+the allowance is the two-sided Student-t quantile (batches - 1 degrees of
+freedom) times the batch-means standard error."""
 
 
-def bias_allowance(e: np.ndarray) -> float:
-    """The sampling uncertainty of ``mean(e)`` (N) allowed on top of the bias
-    tolerance under sensor noise: t_(1 - BIAS_FALSE_ALARM/2, B-1) x
-    std(batch means)/sqrt(B), B = :data:`BIAS_BATCHES`; 0 for fewer than
-    2 B samples."""
-    e = np.asarray(e, dtype=float)
-    B = BIAS_BATCHES
-    if e.size < 2 * B:
+def correlation_time(x: np.ndarray, window: float = 5.0) -> float:
+    """Integrated autocorrelation time of ``x`` in samples, tau = 1 + 2 sum
+    rho_k, summed up to the first lag M >= ``window`` tau(M) (Sokal's
+    automatic window); 1 for white noise, at least 1."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    n = x.size
+    if n < 4 or not np.any(x):
+        return 1.0
+    f = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:n]
+    acf = acf / acf[0]
+    taus = 2.0 * np.cumsum(acf) - 1.0
+    lags = np.arange(n)
+    stop = np.flatnonzero(lags >= window * taus)
+    return float(max(taus[stop[0]] if stop.size else taus[-1], 1.0))
+
+
+def bias_allowance(d: np.ndarray) -> float:
+    """The sampling uncertainty of ``mean(d)`` (N) allowed on top of the bias
+    tolerance under sensor noise, ``d`` the noise-driven part of the force
+    error over the last quarter: t_(1 - BIAS_FALSE_ALARM/2, B-1) x
+    std(batch means)/sqrt(B), with B = :data:`BIAS_BATCHES` batches, fewer
+    (down to 4) when d's :func:`correlation_time` needs longer ones; 0 for
+    fewer than 8 samples."""
+    d = np.asarray(d, dtype=float)
+    if d.size < 8:
         return 0.0
-    means = e[:e.size - e.size % B].reshape(B, -1).mean(axis=1)
+    B = int(np.clip(d.size // (BATCH_CORRELATION_TIMES * correlation_time(d)), 4, BIAS_BATCHES))
+    means = d[:d.size - d.size % B].reshape(B, -1).mean(axis=1)
     return float(_t_quantile(1.0 - BIAS_FALSE_ALARM / 2, B - 1) * np.std(means, ddof=1) / math.sqrt(B))
 
 
@@ -258,7 +299,7 @@ def _t_quantile(p: float, dof: int) -> float:
 
 def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
                   periods: tuple[int, ...] = (), Ts: float = 1.0,
-                  bias_tolerance: float | None = None, noisy: bool = False) -> tuple[str, str]:
+                  bias_tolerance: float | None = None) -> tuple[str, str]:
     """``(verdict, reason)`` for one segment's force (N) against f_d (N).
 
     ``band`` (N): the oscillation (peak-to-peak) that counts as none;
@@ -266,8 +307,7 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     ``converged`` (the caller adds the sensor noise to both);
     ``bias_tolerance`` (N): the largest |mean(f_e - f_d)| over the last
     quarter for ``converged`` (default ``tolerance``; the caller passes the
-    scenario's tolerance without the noise allowance), widened by
-    :func:`bias_allowance` when ``noisy`` (the run has sensor noise);
+    scenario's tolerance, plus :func:`bias_allowance` under sensor noise);
     ``periods``: the forcing's periods in samples (:func:`judging_periods`);
     ``Ts`` (s) only for the words of the reason.
 
@@ -314,8 +354,6 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     bias = float(np.mean(e[n - last.size:]))
     if bias_tolerance is None:
         bias_tolerance = tolerance
-    if noisy:
-        bias_tolerance += bias_allowance(e[n - last.size:])
     if worst <= tolerance and abs(bias) <= bias_tolerance:
         return "converged", f"|f_e - f_d| <= {worst:.3g} N at the end"
     if worst <= tolerance:
@@ -339,15 +377,61 @@ def segment_verdict(force: np.ndarray, f_d: float, band: float, tolerance: float
     return judge_segment(force, f_d, band, tolerance, periods)[0]
 
 
+_TWINS: dict = {}
+
+
+def noise_free_twin(result: SimulationResult) -> SimulationResult:
+    """``result``'s scenario run again with ``sensor.noise_std = 0`` (same
+    arm, path, stiffness and law; the built-in loop); kept for the last few
+    scenarios, so judging one run several times simulates its twin once."""
+    from .posesim import simulator_for
+    from .scenario import apply_overrides
+
+    sc0 = apply_overrides(result.scenario, ["sensor.noise_std=0"])
+    key = sc0.model_dump_json()
+    if key not in _TWINS:
+        if len(_TWINS) >= 4:
+            _TWINS.pop(next(iter(_TWINS)))
+        _TWINS[key] = simulator_for(sc0).run()
+    return _TWINS[key]
+
+
+_RANK = {v: i for i, v in enumerate(("converged", "off_target", "limit_cycle", "diverged"))}
+
+
+def _judge(result: SimulationResult, twin: SimulationResult | None, i0: int, i1: int,
+           periods: tuple[int, ...]) -> tuple[str, str, float]:
+    """``(verdict, reason, tolerance used)`` of one segment (module docstring)."""
+    sc = result.scenario
+    f_d, tol0 = sc.controller.f_d, sc.controller.force_tolerance
+    f = result.contact_force[i0:i1]
+    if twin is None:
+        return (*judge_segment(f, f_d, RIPPLE_BAND * f_d, tol0, periods, result.Ts), tol0)
+    f0 = twin.contact_force[i0:i1]
+    d = (f - f0)[int((i1 - i0) * (1 - STEADY_FRACTION)):]
+    spread = NOISE_SIGMAS * float(np.std(d)) if np.all(np.isfinite(d)) else 0.0
+    tol = tol0 + spread
+    # growth and sustained oscillation are the twin's to show (the swing between consecutive extrema of a
+    # noisy force measures the noise, not the oscillation); the noisy run adds contact loss, the
+    # tolerance and the bias
+    noisy = judge_segment(f, f_d, math.inf, tol, periods, result.Ts,
+                          bias_tolerance=tol0 + bias_allowance(d) if np.all(np.isfinite(d)) else tol0)
+    clean = judge_segment(f0, f_d, RIPPLE_BAND * f_d, tol0, periods, result.Ts)
+    if _RANK[clean[0]] > _RANK[noisy[0]]:
+        return clean[0], f"without the sensor noise: {clean[1]}", tol
+    return (*noisy, tol)
+
+
 def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
-    """:class:`SegmentMetrics` for every segment of ``result``."""
+    """:class:`SegmentMetrics` for every segment of ``result`` (with sensor
+    noise, judged against its :func:`noise_free_twin` as well; with
+    ``result.info["stiffness_limit"]``, a segment beyond it is ``diverged``)."""
     out = []
     sc = result.scenario
     f_d = sc.controller.f_d
-    noise = NOISE_SIGMAS * sc.sensor.noise_std
-    band = RIPPLE_BAND * f_d + noise
-    tol = sc.controller.force_tolerance + noise
     periods = judging_periods(result)
+    twin = noise_free_twin(result) if sc.sensor.noise_std > 0 else None
+    limit = (getattr(result, "info", None) or {}).get("stiffness_limit")
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -362,8 +446,12 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         ss_err = float(np.abs(err[ss]).max())
         touching = np.flatnonzero(f > 0.0)
         lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
-        verdict, reason = judge_segment(f, f_d, band, tol, periods, result.Ts,
-                                        bias_tolerance=sc.controller.force_tolerance, noisy=sc.sensor.noise_std > 0)
+        verdict, reason, tol = _judge(result, twin, i0, i1, periods)
+        k_max = float(np.max(result.stiffness[i0:i1]))
+        if limit is not None and np.isfinite(limit) and k_max > limit and _RANK[verdict] < _RANK["limit_cycle"]:
+            verdict, reason = "diverged", (f"k_e reaches {k_max:,.0f} N/m, above the loop's predicted limit "
+                                           f"{limit:,.0f} N/m: unstable there, although this run ended before "
+                                           f"the growth showed ({verdict}: {reason})")
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),

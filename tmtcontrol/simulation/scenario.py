@@ -361,9 +361,9 @@ class ControllerSettings(_Section):
                             gt=0, le=100)
     force_tolerance: float = num(0.01, "N", "tracking tolerance of the segment verdicts: a segment is "
                                  "'converged' only if the force error f_e - f_d stays within +- this "
-                                 "(plus 6 sensor-noise standard deviations) over its last quarter and its mean "
-                                 "error there within this alone, widened under sensor noise only by the mean's own sampling "
-                                 "uncertainty at a 0.1 % false-alarm rate (noise cannot hide a bias)", gt=0)
+                                 "over its last quarter, and its mean error there; with sensor noise also its noise-free "
+                                 "twin, the noisy run's limits widened only by what the noise did to the force "
+                                 "(docs/simulation.md)", gt=0)
     law: _law_union() = Field(default_factory=TmtParameters,
                               description="force-tracking law: its kind and parameters")
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,

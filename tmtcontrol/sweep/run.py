@@ -21,6 +21,7 @@ checked (:func:`check_dask`) before anything is created.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -85,6 +86,8 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                     "first_contact_peak": None, "first_contact_ratio": None, "first_contact_bounces": None,
                     "error": str(exc), "run_time_s": time.perf_counter() - t0})
         return row
+    if limits and row["small_signal_limit"] > 0:       # NaN (no linear verdict) compares False
+        res = dataclasses.replace(res, info={**res.info, "stiffness_limit": row["small_signal_limit"]})
     segs = segment_metrics(res)
     fc = first_contact(res)
     row.update({"verdict": max((s.verdict for s in segs), key=VERDICTS.index),
