@@ -7,7 +7,7 @@ import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
-                      spectral_radius)
+                      spectral_radius, stable_band, stiffness_band)
 
 __all__ = ["scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
@@ -66,7 +66,10 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     sampled normal-axis loop of its law (``stability.lawloop``), the worse
     of the path's two extreme effective masses, with the scenario's x_e
     error, computation delay, force filter, contact damping and inner-loop
-    gains. ``None`` for
+    gains: the upper edge of the stable band of k_e that contains the
+    scenario's smallest stiffness (a stiff contact damper makes the loop
+    unstable on soft surfaces, below that band), 0 if the loop is unstable
+    there (the limit is below the scenario). ``None`` for
     a law without a linear verdict (``Law.linear_analysis``)."""
     from ..control.laws import get_law
     from .lawloop import law_stiffness_limit
@@ -81,20 +84,21 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
         # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
         kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
         if bk is None:
-            return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, **kw)
+            return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, within=p["k_e_min"], **kw)
                        for mp in (p["m_p_min"], p["m_p_max"]))
         return min(largest_stable(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
-                                                     **{**kw, **bk(ke)}) < 1.0)
+                                                     **{**kw, **bk(ke)}) < 1.0, within=p["k_e_min"])
                    for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
               d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
     if bk is None:
-        return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, **kw)
+        return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, within=p["k_e_min"], **kw)
                    for mp in (p["m_p_min"], p["m_p_max"]))
     from .lawloop import law_loop
 
     return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
-                                          **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4)
+                                          **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4,
+                              within=p["k_e_min"])
                for mp in (p["m_p_min"], p["m_p_max"]))
 
 
@@ -161,6 +165,16 @@ def closed_form_applies(law: str, delay: int, x_e_error: float) -> bool:
     return law in ("tmt", "known") and delay == 0 and x_e_error == 0.0
 
 
+def _band_dict(bands) -> dict:
+    """The stable band of k_e common to the masses' bands (``StiffnessBand``)
+    as plain values (N/m; None where no stiffness of the scan is stable)."""
+    lower, upper = max(bd.lower for bd in bands), min(bd.upper for bd in bands)
+    if not (lower <= upper):            # NaN: no stable band found
+        return {"lower": None, "upper": None, "unstable_below": True, "scan_from": bands[0].scan_from}
+    return {"lower": float(lower), "upper": float(upper), "unstable_below": bool(lower > bands[0].scan_from),
+            "scan_from": bands[0].scan_from}
+
+
 def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_p=None,
             kd=None, kp=None, alpha=0.0, d_e=0.0, law="tmt", delay=0, x_e_error=0.0, law_params=None,
             damping=None) -> dict:
@@ -225,34 +239,35 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         if closed_form_applies(law, delay, x_e_error):
             kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
             if damping is None:
-                limit = min(max_stable_stiffness(m, b, k, Ts, mp, **kw) for mp in masses)
+                bands = [stiffness_band(m, b, k, Ts, mp, within=lo, **kw) for mp in masses]
                 rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
             else:
                 radius = lambda ke, mp: spectral_radius(m, k=k, k_e=ke, Ts=Ts, m_p=mp, **{**kw, **bk(ke)})
-                limit = min(largest_stable(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6) for mp in masses)
+                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6, within=lo) for mp in masses]
                 rho = max(radius(ke, mp) for ke in grid for mp in masses)
                 b, kw["kd"] = bk(hi)["b"], bk(hi)["kd"]
             out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, max(masses), **kw).sys
             model = "closed-form 1-D (stability.sampled)"
         else:
-            from .lawloop import law_loop, law_stiffness_limit
+            from .lawloop import law_loop, law_stiffness_band
 
             if not lw.linear_analysis:
                 raise AnalysisError(f"law: {law!r} has no linear stability verdict (a continuum of equilibria)")
             kw = dict(m=m, b=b, k=k, Ts=Ts, f_d=f_d, kd=kd, kp=kp, alpha=alpha, d_e=d_e, delta=x_e_error,
                       delay=delay)
             if damping is None:
-                limit = min(law_stiffness_limit(lw, params, m_p=mp, **kw) for mp in masses)
+                bands = [law_stiffness_band(lw, params, m_p=mp, within=lo, **kw) for mp in masses]
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
             else:
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **{**kw, **bk(ke)}).spectral_radius
-                limit = min(largest_stable(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4) for mp in masses)
+                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4, within=lo) for mp in masses]
             rho = max(radius(ke, mp) for ke in grid[::3] for mp in masses)
             model = "the law's 1-D loop (stability.lawloop)"
         if damping is not None:
             model += ", scheduled damping b(k_e)"
+        limit = min(bd.limit for bd in bands)
         out.update({"Ts": Ts, "m_p": list(masses), "delay": delay, "x_e_error": x_e_error,
-                    "sampled_model": model, "max_stable_stiffness": limit,
+                    "sampled_model": model, "max_stable_stiffness": limit, "stable_band": _band_dict(bands),
                     "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
     return out
 
@@ -294,13 +309,19 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     if get_law(scenario.controller.law.kind).linear_analysis:
+        # an unstable band of soft surfaces below the 1-D band (contact damping): scan the whole loop
+        # from the scenario's smallest stiffness, not through that band
+        scan = {"k_lo": p["k_e_min"]} if out["stable_band"]["unstable_below"] else {}
         limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
-                                            guess=out["max_stable_stiffness"])
+                                            guess=out["max_stable_stiffness"], **scan)
         k_max = out.get("k_e_max", out.get("k_e"))
         out.update({"whole_loop_limit": limit,
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
                     "sampled_stable": bool(out["sampled_stable"] and k_max < limit)})
-        if limits:
+        if limits and not (out["max_stable_stiffness"] > 0 and limit > 0):
+            # unstable at the scenario's smallest stiffness: no limit above it to search along the path
+            out.update({"limit": 0.0, "limit_from": "unstable at the smallest stiffness", "sampled_stable": False})
+        elif limits:
             from .first_contact import first_contact_limit
             from .periodic import periodic_limit
 
@@ -365,6 +386,17 @@ def format_analysis(d: dict) -> str:
                  f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm",
                  f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']})",
                  f"spectral radius      {d['spectral_radius']:.6f}"]
+        band = d.get("stable_band")
+        if band is not None and band["unstable_below"]:     # an unstable band of soft surfaces (contact damping)
+            smallest = d.get("k_e_min", d.get("k_e"))
+            if band["lower"] is None:
+                rows.append(f"stable band          none: unstable at every k_e scanned from {band['scan_from']:.6g} N/m")
+            else:
+                rows.append(f"stable band          k_e in [{band['lower']:.6g}, {band['upper']:.6g}] N/m (unstable "
+                            f"from {band['scan_from']:.6g} N/m up to {band['lower']:.6g} N/m)")
+            if band["lower"] is None or smallest < band["lower"]:
+                rows.append(f"below the band       the smallest stiffness {smallest:.6g} N/m: unstable, so the "
+                            "limit is below it (max stable k_e 0)")
         if "whole_loop_limit" in d:
             pts = d["whole_loop_points"]
             rows.append(f"whole loop           {d['whole_loop_limit']:.6g} N/m (smallest over {len(pts)} path "

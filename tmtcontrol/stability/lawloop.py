@@ -19,10 +19,10 @@ the law:
 :func:`law_loop` finds the loop's equilibrium (Newton on the symbolic
 one-period map), its Jacobian there and the spectral radius, which decides
 local stability of the sampled loop; :func:`law_stiffness_limit` bisects on
-it. :func:`continuous_limit` gives the law's continuous-time normal-axis
-system with the ideal inner loop (x = x_c), whose characteristic polynomial
-the derivation checks compare with each law's documented one (eq. 22 for
-``tmt``/``known``). Units are SI.
+it (the stable band of k_e: :func:`law_stiffness_band`). :func:`continuous_limit`
+gives the law's continuous-time normal-axis system with the ideal inner loop
+(x = x_c), whose characteristic polynomial the derivation checks compare with
+each law's documented one (eq. 22 for ``tmt``/``known``). Units are SI.
 """
 
 from __future__ import annotations
@@ -34,9 +34,10 @@ import numpy as np
 
 from ..control.laws import MEASUREMENTS, Law, LawParameters
 from .continuous import AnalysisError, _pos
-from .sampled import _zoh, largest_stable
+from .sampled import StiffnessBand, _zoh, stable_band
 
-__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "continuous_limit", "stiffness_sequence"]
+__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "law_stiffness_band", "continuous_limit",
+           "stiffness_sequence"]
 
 
 @dataclass(frozen=True)
@@ -192,15 +193,27 @@ def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: f
     return out
 
 
-def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
-                        k_hi: float = 1e9, rtol: float = 1e-4, **kw) -> float:
-    """Largest k_e (N/m) for which :func:`law_loop` is locally stable: scan a
-    log grid for the first unstable stiffness, then bisect to ``rtol``.
-    ``inf`` if stable up to ``k_hi``, 0 if unstable at ``k_lo``."""
+def law_stiffness_band(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
+                       k_hi: float = 1e9, rtol: float = 1e-4, within: float | None = None,
+                       **kw) -> StiffnessBand:
+    """The band of k_e (N/m) in which :func:`law_loop` is locally stable:
+    ``stability.sampled.stable_band`` (a log grid from ``k_lo``, then
+    bisection of each edge to ``rtol``); ``within`` the scenario's smallest
+    stiffness (N/m), whose band is wanted."""
     def stable(ke):
         return law_loop(law, params, k_e=ke, **kw).spectral_radius < 1.0
 
-    return largest_stable(stable, k_lo, k_hi, rtol)
+    return stable_band(stable, k_lo, k_hi, rtol, within=within)
+
+
+def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
+                        k_hi: float = 1e9, rtol: float = 1e-4, within: float | None = None, **kw) -> float:
+    """Largest k_e (N/m) for which :func:`law_loop` is locally stable: the
+    ``limit`` of :func:`law_stiffness_band`, the upper edge of the stable
+    band that contains ``within`` (default: of the lowest stable band from
+    ``k_lo``). ``inf`` if stable up to ``k_hi``; 0 if unstable at ``within``
+    and at every stiffness scanned below it."""
+    return law_stiffness_band(law, params, k_lo=k_lo, k_hi=k_hi, rtol=rtol, within=within, **kw).limit
 
 
 def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,

@@ -28,7 +28,7 @@ from .continuous import AnalysisError, _check, _pos
 if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of SampledModel.sys
     import control as ct
 
-__all__ = ["largest_stable", "effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
+__all__ = ["largest_stable", "stable_band", "StiffnessBand", "stiffness_band", "effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
            "spectral_radii", "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
 
 
@@ -160,53 +160,157 @@ def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
     return sampled_closed_loop(m, b, k, k_e, Ts, m_p, **kw).spectral_radius
 
 
-def largest_stable(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49) -> float:
-    """Largest k_e (N/m) with ``stable(k_e)``: the first unstable point of a
-    ``points``-point log grid from ``k_lo`` to ``k_hi``, then bisection to
-    ``rtol`` (``inf`` if stable up to ``k_hi``, 0 if unstable at ``k_lo``).
-    For a stability test without a vectorised form (the law loops, the
-    scenario's 1-D loops)."""
-    prev = None
-    for ke in np.geomspace(k_lo, k_hi, points):
-        if not stable(ke):
-            break
-        prev = ke
-    else:
-        return float("inf")
-    if prev is None:
-        return 0.0
-    lo, hi = float(prev), float(ke)
+@dataclass(frozen=True)
+class StiffnessBand:
+    """The band of environment stiffness (N/m) in which a loop is stable,
+    as :func:`stable_band` finds it on its log scan from ``scan_from``.
+
+    ``lower``, ``upper``: the band's edges; ``lower`` is ``scan_from`` when
+    the loop is stable there (nothing below the scan is searched), ``upper``
+    is ``inf`` when it is stable up to the scan's end; both NaN when no
+    scanned stiffness is stable. The band is the one containing ``within``
+    (the scenario's smallest stiffness), else the nearest band below it,
+    else the nearest above; without ``within``, the lowest band of the scan.
+    ``limit``: the largest stable stiffness for ``within``, the number a
+    verdict compares with the scenario's largest stiffness: ``upper`` when
+    the band starts at or below ``within``, 0 when the loop is unstable at
+    ``within`` and at every scanned stiffness below it (the limit is then
+    below the scenario, so a verdict on it fails)."""
+    lower: float
+    upper: float
+    limit: float
+    scan_from: float
+    within: float | None = None
+
+    @property
+    def unstable_below(self) -> bool:
+        """The loop is unstable from the scan's start up to ``lower``: an
+        unstable band of softer surfaces lies below this one."""
+        return bool(self.lower > self.scan_from)
+
+
+def _bisect_edge(stable, good: float, bad: float, rtol: float) -> float:
+    """The stability edge between a stable ``good`` and an unstable ``bad``
+    stiffness (either order), by bisection in log k_e to ``rtol``: the
+    last stable stiffness found."""
+    lo, hi = (good, bad) if good < bad else (bad, good)
+    lo, hi = float(lo), float(hi)
     while hi / lo > 1 + rtol:
         mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return float(lo)
-
-
-def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, **kw) -> float:
-    """Largest k_e for which the sampled loop is stable at Ts (N/m).
-
-    Scans a log grid from ``k_lo`` for the first unstable stiffness, then
-    bisects (relative precision 1e-6). Returns ``inf`` if stable up to
-    ``k_hi`` and 0 if unstable already at ``k_lo``. ``k_lo`` = 10 N/m as in
-    ``stability.lawloop``: below it a contact damper dominates the spring
-    (at d_e = 20 N s/m the TMT loop is unstable at 1 N/m, a surface that
-    would need 10 m of penetration for 10 N), which is not the limit
-    sought."""
-    grid = np.geomspace(k_lo, k_hi, 121)
-    unstable = np.flatnonzero(spectral_radii(m, b, k, grid, Ts, m_p, **kw) >= 1.0)
-    if not unstable.size:
-        return float("inf")
-    i = int(unstable[0])
-    if i == 0:
-        return 0.0
-    lo, hi = grid[i - 1], grid[i]
-    while hi / lo > 1 + 1e-6:
-        mid = math.sqrt(lo * hi)
-        if spectral_radius(m, b, k, mid, Ts, m_p, **kw) < 1.0:
+        if stable(mid) == (good < bad):
             lo = mid
         else:
             hi = mid
-    return float(lo)
+    return lo if good < bad else hi
+
+
+def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49,
+                within: float | None = None, scan=None) -> StiffnessBand:
+    """The band of k_e (N/m) in which ``stable(k_e)`` holds: a ``points``-
+    point log grid from ``k_lo`` (or ``within`` if smaller) to ``k_hi``, then
+    bisection of each edge in log k_e to ``rtol``.
+
+    With ``within`` (N/m, the scenario's smallest stiffness) the band is the
+    one that contains it, else the nearest below, else the nearest above
+    (see :class:`StiffnessBand`; its ``limit`` is the scenario's limit);
+    without, the lowest stable band of the grid. For a loop stable from the
+    scan's start up to its first unstable grid point this is exactly a plain
+    upward scan (bisection between that point and the stable grid point
+    before it); a loop unstable at the scan's start (a stiff contact damper
+    on a soft surface: the TMT reference's ``d_e x'/k_e`` term is then a
+    sampled velocity feedback too strong for Ts) gets its lower edge
+    searched and the band above it. Grid points are evaluated lazily
+    (downward from ``within`` and upward to the band's end), unless ``scan``,
+    a vectorised ``stable`` (array in, boolean array out), gives the whole
+    grid at once. The package's one grid-and-bisection stiffness search:
+    :func:`largest_stable`, :func:`max_stable_stiffness`,
+    ``stability.lawloop.law_stiffness_limit`` and ``stability.analysis``
+    call it."""
+    start = float(k_lo if within is None else min(k_lo, within))
+    grid = np.geomspace(start, k_hi, points)
+    known = {} if scan is None else dict(enumerate(np.asarray(scan(grid), dtype=bool).tolist()))
+    nan = float("nan")
+
+    def ok(i):
+        if i not in known:
+            known[i] = bool(stable(grid[i]))
+        return known[i]
+
+    def upper_edge(i0, seed):
+        # the first unstable grid point from index i0 (the first above the stable seed)
+        i = next((i for i in range(i0, points) if not ok(i)), None)
+        if i is None:
+            return float("inf")
+        # bracket from the stable grid point before it (a plain upward scan's), else from the seed
+        edge = _bisect_edge(stable, grid[i - 1] if i > 0 and ok(i - 1) else seed, grid[i], rtol)
+        return edge if edge >= seed else _bisect_edge(stable, seed, grid[i], rtol)
+
+    def lower_edge(i0, seed):
+        # the first unstable grid point downward from index i0 (the last below the stable seed)
+        i = next((i for i in range(i0, -1, -1) if not ok(i)), None)
+        if i is None:
+            return start
+        return _bisect_edge(stable, grid[i + 1] if i < i0 else seed, grid[i], rtol)
+
+    if within is None:
+        j = next((i for i in range(points) if ok(i)), None)
+        if j is None:
+            return StiffnessBand(nan, nan, 0.0, start)
+        upper = upper_edge(j + 1, grid[j])
+        return StiffnessBand(lower_edge(j - 1, grid[j]), upper, upper, start)
+    w = float(within)
+    above = int(np.searchsorted(grid, w, side="right"))        # the first grid index above w
+    below = int(np.searchsorted(grid, w, side="left")) - 1     # the last grid index below w
+    if stable(w):
+        upper = upper_edge(above, w)
+        return StiffnessBand(lower_edge(below, w), upper, upper, start, w)
+    j = next((i for i in range(below, -1, -1) if ok(i)), None)
+    if j is not None:           # the nearest band below the scenario: its upper edge (< w) is the limit
+        bad = grid[j + 1] if j < below or (j + 1 < points and not ok(j + 1)) else w
+        upper = _bisect_edge(stable, grid[j], bad, rtol)
+        if upper >= w:          # the grid's bracket straddled w: the edge is below w
+            upper = _bisect_edge(stable, grid[j], w, rtol)
+        return StiffnessBand(lower_edge(j - 1, grid[j]), upper, upper, start, w)
+    j = next((i for i in range(above, points) if ok(i)), None)
+    if j is None:
+        return StiffnessBand(nan, nan, 0.0, start, w)
+    lower = _bisect_edge(stable, grid[j], grid[j - 1] if j > above else w, rtol)
+    return StiffnessBand(lower, upper_edge(j + 1, grid[j]), 0.0, start, w)
+
+
+def largest_stable(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49,
+                   within: float | None = None) -> float:
+    """Largest k_e (N/m) with ``stable(k_e)``: :func:`stable_band`'s
+    ``limit`` (``inf`` if stable up to ``k_hi``; the upper edge of the band
+    that contains ``within``, or without it of the lowest stable band of the
+    scan; 0 if no band starts at or below ``within``). For a stability
+    test without a vectorised form (the law loops, the scenario's 1-D
+    loops)."""
+    return stable_band(stable, k_lo, k_hi, rtol, points, within).limit
+
+
+def stiffness_band(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **kw) -> StiffnessBand:
+    """The band of k_e (N/m) in which the sampled loop is stable at Ts:
+    :func:`stable_band` on the spectral radius, a 121-point log grid from
+    ``k_lo`` to ``k_hi`` (evaluated as one stack) and bisection to 1e-6
+    relative. ``within``: the scenario's smallest stiffness (N/m), whose
+    band is wanted. ``k_lo`` = 10 N/m as in ``stability.lawloop``: a
+    surface that would need 1 m of penetration for 10 N is not the limit
+    sought."""
+    return stable_band(lambda ke: spectral_radius(m, b, k, ke, Ts, m_p, **kw) < 1.0, k_lo, k_hi, 1e-6, 121,
+                       within, scan=lambda g: spectral_radii(m, b, k, g, Ts, m_p, **kw) < 1.0)
+
+
+def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **kw) -> float:
+    """Largest k_e for which the sampled loop is stable at Ts (N/m): the
+    ``limit`` of :func:`stiffness_band`, the upper edge of the stable band
+    that contains ``within`` (default: of the lowest stable band from
+    ``k_lo``). ``inf`` if stable up to ``k_hi``; 0 if the loop is unstable at
+    ``within`` and at every stiffness scanned below it. A contact damper
+    ``d_e`` makes the TMT loop unstable on soft surfaces (at d_e = 200 N s/m
+    and the paper's gains, below about 100 N/m): the band then starts
+    above ``k_lo`` and its upper edge is still the limit."""
+    return stiffness_band(m, b, k, Ts, m_p, k_lo, k_hi, within, **kw).limit
 
 
 def stability_region(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> np.ndarray:
