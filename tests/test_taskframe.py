@@ -351,3 +351,23 @@ def test_a_segment_off_target_on_the_ur5_is_reported_and_exits_1(tmp_path, capsy
     err = capsys.readouterr().err
     assert rc == 1 and (out / "timeseries.csv").exists()
     assert "segment 1" in err and "from first contact " in err and "not computed" not in err
+
+
+def test_square_jacobian_shortcut_equals_the_lambda_form_of_eq_5():
+    """UR5 (square J): operational_space_torque uses tau = M J^-1 (U - dJ dq) + J^T F_e + n;
+    NumPy's Lambda form J^T ((J M^-1 J^T)^-1 (U - dJ dq) + F_e) + n is the reference. Equal to
+    rounding: 1e-9 relative of |tau| (cond(J) on these states is below 1e3)."""
+    from tmtcontrol.model import load_robot
+
+    robot = load_robot("ur5", friction=False)
+    f = robot.functions
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        q = np.clip(rng.uniform(-1.5, 1.5, 6), robot.q_min, robot.q_max)
+        dq, U, F_e = rng.standard_normal(6), rng.standard_normal(6), np.r_[rng.standard_normal(3), 0, 0, 0]
+        M, J = np.array(f.mass_matrix(q)), robot.jacobian(q)
+        assert np.linalg.cond(J) < 1e3
+        jd, nb = np.array(f.jacobian_dot(q, dq)).ravel(), np.array(f.bias(q, dq)).ravel()
+        ref = J.T @ (np.linalg.inv(J @ np.linalg.solve(M, J.T)) @ (U - jd) + F_e) + nb
+        got = _numeric_torque(robot, q, dq, U, F_e, None)
+        assert np.allclose(got, ref, rtol=0, atol=1e-9 * np.abs(ref).max()), (got, ref)
