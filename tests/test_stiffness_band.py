@@ -65,12 +65,12 @@ def test_the_band_of_the_1d_loop_matches_jury_on_its_characteristic_polynomial()
     3e-6). Without contact damping there is no lower edge (stable from the scan's
     start) and the upper edge is the paper's limit."""
     lower, upper = _jury_edges(200.0)
-    assert 10.0 < lower < 20.0 and 5e5 < upper < 1e6
+    assert round(lower) == 11 and 5e5 < upper < 1e6                   # docs/theory.md: "about 11 N/m"
     band = stiffness_band(M, B, K, TS, MP, d_e=200.0)
     assert band.unstable_below
     assert band.lower == pytest.approx(lower, rel=3e-6) and band.upper == pytest.approx(upper, rel=3e-6)
     assert max_stable_stiffness(M, B, K, TS, MP, d_e=200.0) == band.upper           # was 0 (unstable at 10 N/m)
-    assert spectral_radius(M, B, K, 10.0, TS, MP, d_e=200.0) > 1.1                   # the reviewer's 1.20
+    assert spectral_radius(M, B, K, 10.0, TS, MP, d_e=200.0) == pytest.approx(1.20, abs=5e-3)   # the review's
     (edge,) = _jury_edges(0.0)
     plain = stiffness_band(M, B, K, TS, MP)
     assert not plain.unstable_below and plain.lower == 10.0
@@ -89,6 +89,19 @@ def test_the_law_loop_band_agrees_with_the_closed_form():
     assert band.unstable_below
     assert band.lower == pytest.approx(closed.lower, rel=5e-4)
     assert band.upper == pytest.approx(closed.upper, rel=5e-4)
+
+
+def test_the_stiffness_margin_is_negative_below_the_band():
+    """The stability chart's margin (decades) at d_e = 200: negative in the
+    unstable band of soft surfaces (10 N/m), positive inside the band, negative
+    above it; the band's edges from Jury."""
+    from tmtcontrol.stability.sampled import stiffness_margin
+
+    lower, upper = _jury_edges(200.0)
+    limits, margin = stiffness_margin(M, B, K, MP, [TS], [10.0, 1e3, 2 * upper], d_e=200.0)
+    assert limits[0] == pytest.approx(upper, rel=3e-6)
+    assert margin[:, 0] == pytest.approx([math.log10(10.0 / lower), math.log10(upper / 1e3), -math.log10(2)],
+                                         rel=1e-5)
 
 
 def _plain_scan(stable, k_lo=10.0, k_hi=1e9, rtol=1e-6, points=49):
@@ -156,9 +169,11 @@ def test_the_band_that_contains_the_scenario_and_the_verdicts_on_either_side():
 
 def test_contact_damping_limit_and_analyze_report_the_band():
     """environment.damping = 200 N s/m on the paper scenario (2e3-2e4 N/m): the
-    limit is the band's upper edge (~7.11e5 N/m, not 0) and analyze says the band;
-    a scenario that dips to 10 N/m (in the unstable band) is sampled-unstable with
-    max stable k_e 0, and the text says the smallest stiffness lies below the band."""
+    limit is the band's upper edge (~7.11e5 N/m, not 0) and analyze says the band.
+    At d_e = 2000 N s/m the loop is unstable up to ~380 N/m (Jury; the TMT law's
+    compliance clip, below min_stiffness = 100 N/m, plays no part there): a
+    scenario from 150 N/m is sampled-unstable with max stable k_e 0, and the text
+    says its smallest stiffness lies below the band."""
     sc = apply_overrides(paper_scenario(), ["environment.damping=200"])
     p = scenario_parameters(sc)
     limit = scenario_stiffness_limit(sc, p)
@@ -170,13 +185,32 @@ def test_contact_damping_limit_and_analyze_report_the_band():
     assert 10.0 < a["stable_band"]["lower"] < 20.0
     text = format_analysis(a)
     assert re.search(r"stable band +k_e in \[11\.\d+, 711\d{3}\] N/m", text), text
-    low = apply_overrides(sc, ["environment.stiffness.values=[10,2e4]"])
+    (lower, _) = _jury_edges(2000.0)
+    assert round(lower, -1) == 380.0                                  # docs/theory.md: "about 380 N/m"
+    low = apply_overrides(paper_scenario(), ["environment.damping=2000", "environment.stiffness.values=[150,2e4]"])
     p_low = scenario_parameters(low)
     b = analyze(**analysis_kwargs(p_low))
     assert b["max_stable_stiffness"] == 0.0 and not b["sampled_stable"]
+    assert b["stable_band"]["lower"] == pytest.approx(lower, rel=0.03)      # the path's masses 3.30-3.72 kg
     assert scenario_stiffness_limit(low, p_low) == 0.0
     text = format_analysis(b)
-    assert "below the band       the smallest stiffness 10 N/m: unstable" in text and "sampled stable       NO" in text
+    assert "below the band       the smallest stiffness 150 N/m: unstable" in text and "sampled stable       NO" in text
+
+
+def test_below_the_laws_min_stiffness_the_law_loop_decides():
+    """d_e = 200 at 10 N/m: the closed form (no compliance clip) is unstable
+    (radius 1.20), the TMT law clips its compliance below min_stiffness = 100 N/m
+    and its own loop is stable there, so the analysis takes the law loop."""
+    from tmtcontrol.stability.analysis import closed_form_applies
+    from tmtcontrol.stability.lawloop import law_loop
+
+    assert closed_form_applies("tmt", 0, 0.0, 2e3) and not closed_form_applies("tmt", 0, 0.0, 10.0)
+    assert closed_form_applies("known", 0, 0.0, 10.0)
+    law = get_law("tmt")
+    assert not closed_form_applies("tmt", 0, 0.0, 50.0, law.parameters(min_stiffness=60.0))
+    assert closed_form_applies("tmt", 0, 0.0, 50.0, law.parameters(min_stiffness=40.0))
+    assert spectral_radius(M, B, K, 10.0, TS, MP, d_e=200.0) > 1.1
+    assert law_loop(law, m=M, b=B, k=K, k_e=10.0, Ts=TS, m_p=MP, d_e=200.0).spectral_radius < 1.0
 
 
 def test_simulate_no_longer_quotes_a_zero_limit(paper_sim, tmp_path, capsys):

@@ -80,7 +80,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
         return None
     ctl = scenario.controller
     bk = _scheduled(scenario, p["m"])
-    if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error):
+    if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error, p["k_e_min"], ctl.law):
         # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
         kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
         if bk is None:
@@ -158,11 +158,24 @@ def paper_effective_mass(worst: bool = False) -> float:
     return scenario_parameters(paper_scenario())["m_p_max" if worst else "m_p_min"]
 
 
-def closed_form_applies(law: str, delay: int, x_e_error: float) -> bool:
+def closed_form_applies(law: str, delay: int, x_e_error: float, k_e_min: float | None = None,
+                        params=None) -> bool:
     """Whether the closed-form 1-D model (``stability.sampled``) is the law's
-    sampled loop: TMT or the known-stiffness law, no delay, no x_e error.
-    Otherwise the law's own loop (``stability.lawloop``) is needed."""
-    return law in ("tmt", "known") and delay == 0 and x_e_error == 0.0
+    sampled loop: TMT or the known-stiffness law, no delay, no x_e error, and
+    for TMT (given ``k_e_min``, N/m) no stiffness below the law's
+    ``min_stiffness`` (``params``, default the law's), where it clips its
+    compliance estimate and the closed form's unclipped reference does not
+    hold (with contact damping the closed form would call a soft surface
+    unstable that the clipped law holds). Otherwise the law's own loop
+    (``stability.lawloop``) is needed."""
+    if not (law in ("tmt", "known") and delay == 0 and x_e_error == 0.0):
+        return False
+    if law == "tmt" and k_e_min is not None:
+        from ..control.laws import get_law
+
+        floor = getattr(params if params is not None else get_law("tmt").parameters(), "min_stiffness", 0.0)
+        return k_e_min >= floor
+    return True
 
 
 def _band_dict(bands) -> dict:
@@ -236,7 +249,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
         if damping is not None:
             bk = lambda ke: {"b": float(damping(ke)), "kd": float(damping(ke)) / m}   # K_D = b/m (eq. 9)
-        if closed_form_applies(law, delay, x_e_error):
+        if closed_form_applies(law, delay, x_e_error, lo, params):
             kw = {"kd": kd, "kp": kp, "alpha": alpha, "d_e": d_e, "law": law}
             if damping is None:
                 bands = [stiffness_band(m, b, k, Ts, mp, within=lo, **kw) for mp in masses]

@@ -323,12 +323,19 @@ def stiffness_margin(m, b, k, m_p, Ts_grid, k_e_grid, **kw) -> tuple[np.ndarray,
     with ``limits[j]`` the largest stable stiffness at ``Ts_grid[j]``
     (:func:`max_stable_stiffness`, N/m) and ``margin[i, j] =
     log10(limits[j] / k_e_grid[i])`` in decades (> 0 stable; +inf where the
-    loop is stable at any stiffness, -inf where at none). Unlike the spectral
+    loop is stable at any stiffness, -inf where at none). Below a band that
+    starts above the scan (:func:`stiffness_band`: an unstable band of soft
+    surfaces, from contact damping) the margin is ``log10(k_e_grid[i] /
+    lower)`` instead, negative: the decades up to the band. Unlike the spectral
     radius, which on the stable side is often the impedance filter's slow pole
     whatever k_e, the margin says how far k_e may grow."""
-    limits = np.array([max_stable_stiffness(m, b, k, Ts, m_p, **kw) for Ts in Ts_grid])
-    with np.errstate(divide="ignore"):
-        margin = np.log10(limits[None, :] / np.asarray(k_e_grid, float)[:, None])
+    bands = [stiffness_band(m, b, k, Ts, m_p, **kw) for Ts in Ts_grid]
+    limits = np.array([bd.limit for bd in bands])
+    lower = np.array([bd.lower if bd.unstable_below else 0.0 for bd in bands])[None, :]   # NaN: no band
+    k_e = np.asarray(k_e_grid, float)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        margin = np.log10(limits[None, :] / k_e)
+        margin = np.where(k_e < lower, np.log10(k_e / lower), margin)
     return limits, margin
 
 
