@@ -298,7 +298,7 @@ def test_scenario_verdict_follows_the_whole_loop_limit(monkeypatch, factor, stab
     from tmtcontrol.stability import analyze_scenario
 
     monkeypatch.setattr(wholeloop, "whole_loop_limit",
-                        lambda sc, points, rtol, guess: (factor * 2e4, [(0.0, factor * 2e4)]))
+                        lambda sc, points, rtol, guess, **kw: (factor * 2e4, [(0.0, factor * 2e4)]))
     a = analyze_scenario(paper_scenario())
     assert a["max_stable_stiffness"] > 1e5                 # the 1-D model alone: stable
     assert a["whole_loop_limit"] == factor * 2e4 and a["sampled_stable"] is stable

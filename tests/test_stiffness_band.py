@@ -197,6 +197,26 @@ def test_contact_damping_limit_and_analyze_report_the_band():
     assert "below the band       the smallest stiffness 150 N/m: unstable" in text and "sampled stable       NO" in text
 
 
+def test_the_whole_loop_search_takes_the_scenarios_band():
+    """The whole-loop linearisation (stability.wholeloop, the TMT law with its
+    compliance clip) at d_e = 2000 N s/m: stable below the clip (~100 N/m),
+    unstable up to ~380 N/m (as Jury's 1-D band), stable again above. A scenario
+    from 500 N/m gets the upper band's edge (the 1-D loop's 5.84e6 N/m at the
+    worst mass; this path point's mass is smaller, so up to 10 % higher), not the
+    lower band's ~100 N/m that a plain upward scan returns; one from 150 N/m gets a
+    limit below 150 (its verdict fails)."""
+    from tmtcontrol.stability.wholeloop import WholeLoopModel, whole_loop_limit
+
+    sc = apply_overrides(paper_scenario(), ["environment.damping=2000", "environment.stiffness.values=[500,2e4]"])
+    mdl = WholeLoopModel(sc)
+    one_d = scenario_stiffness_limit(sc)
+    limit, _ = whole_loop_limit(sc, points=1, rtol=1e-3, model=mdl, within=500.0)
+    assert one_d < limit < 1.1 * one_d
+    plain, _ = whole_loop_limit(sc, points=1, rtol=1e-3, model=mdl)
+    assert 90.0 < plain < 110.0
+    assert whole_loop_limit(sc, points=1, rtol=1e-3, model=mdl, within=150.0)[0] < 150.0
+
+
 def test_below_the_laws_min_stiffness_the_law_loop_decides():
     """d_e = 200 at 10 N/m: the closed form (no compliance clip) is unstable
     (radius 1.20), the TMT law clips its compliance below min_stiffness = 100 N/m

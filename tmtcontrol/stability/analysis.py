@@ -322,11 +322,9 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     if get_law(scenario.controller.law.kind).linear_analysis:
-        # an unstable band of soft surfaces below the 1-D band (contact damping): scan the whole loop
-        # from the scenario's smallest stiffness, not through that band
-        scan = {"k_lo": p["k_e_min"]} if out["stable_band"]["unstable_below"] else {}
+        # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
         limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
-                                            guess=out["max_stable_stiffness"], **scan)
+                                            guess=out["max_stable_stiffness"], within=p["k_e_min"])
         k_max = out.get("k_e_max", out.get("k_e"))
         out.update({"whole_loop_limit": limit,
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],

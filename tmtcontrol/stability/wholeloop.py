@@ -37,6 +37,7 @@ import numpy as np
 from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
+from .sampled import largest_stable
 
 __all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -264,14 +265,17 @@ def whole_loop(scenario, k_e: float, path_time: float = 0.0) -> WholeLoop:
 
 
 def whole_loop_limit(scenario, points: int = 8, rtol: float = 1e-4, model: WholeLoopModel | None = None,
-                     guess: float | None = None, k_lo: float = 10.0,
-                     k_hi: float = 1e9) -> tuple[float, list[tuple[float, float]]]:
+                     guess: float | None = None, k_lo: float = 10.0, k_hi: float = 1e9,
+                     within: float | None = None) -> tuple[float, list[tuple[float, float]]]:
     """Largest k_e (N/m) for which the linearised whole loop is stable at
     every one of ``points`` equally spaced path points. Per point: bracket
     the first unstable stiffness (around ``guess``, e.g. the 1-D limit, when
-    that brackets it, else on a log grid from ``k_lo`` to ``k_hi``), then
+    that brackets it, else on a log grid from ``k_lo`` to ``k_hi``:
+    ``stability.sampled.largest_stable``, the upper edge of the stable band
+    that contains ``within``, the scenario's smallest stiffness), then
     bisect to ``rtol``. Returns the smallest limit and the list of
-    (path_time, limit); a point stable up to ``k_hi`` gives ``inf``."""
+    (path_time, limit); a point stable up to ``k_hi`` gives ``inf``, one
+    unstable at ``within`` and below it 0."""
     mdl = model or WholeLoopModel(scenario)
     period = mdl.scenario.trajectory.period
     limits = []
@@ -283,17 +287,8 @@ def whole_loop_limit(scenario, points: int = 8, rtol: float = 1e-4, model: Whole
                 and not stable(guess * 1.25):
             lo, hi = guess / 1.25, guess * 1.25
         else:
-            grid = np.geomspace(k_lo, k_hi, 19)
-            if not stable(grid[0]):
-                limits.append((tp, 0.0))
-                continue
-            for a, b in zip(grid[:-1], grid[1:]):
-                if not stable(b):
-                    lo, hi = a, b
-                    break
-            if lo is None:
-                limits.append((tp, math.inf))
-                continue
+            limits.append((tp, largest_stable(stable, k_lo, k_hi, rtol, points=19, within=within)))
+            continue
         while hi / lo > 1 + rtol:
             mid = math.sqrt(lo * hi)
             lo, hi = (mid, hi) if stable(mid) else (lo, mid)
