@@ -11,7 +11,10 @@ filter), ``U_k`` eq. (6) with the eq. (4) command and the TMT reference
 linearised about its equilibrium (``dx_r = dx - df_m/k_e``), and ``m_p`` the
 robot's effective Cartesian mass along the normal, ``1/(n^T D*^-1 n)``. Its
 exact ZOH discretisation gives the discrete closed loop whose spectral radius
-decides stability at Ts. Units are SI.
+decides stability at Ts. :func:`stable_band` is the package's one search for
+the band of k_e in which a loop is stable (with a stiff contact damper the
+loop is also unstable on soft surfaces, below the band); the limit is the
+band's upper edge. Units are SI.
 """
 
 from __future__ import annotations
@@ -307,8 +310,10 @@ def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **
     that contains ``within`` (default: of the lowest stable band from
     ``k_lo``). ``inf`` if stable up to ``k_hi``; 0 if the loop is unstable at
     ``within`` and at every stiffness scanned below it. A contact damper
-    ``d_e`` makes the TMT loop unstable on soft surfaces (at d_e = 200 N s/m
-    and the paper's gains, below about 100 N/m): the band then starts
+    ``d_e`` makes the TMT loop unstable on soft surfaces (with the paper's
+    gains at 1 kHz, below about 11 N/m at d_e = 200 N s/m and 380 N/m at
+    2000 N s/m; this closed form has no compliance clip, see
+    ``stability.analysis.closed_form_applies``): the band then starts
     above ``k_lo`` and its upper edge is still the limit."""
     return stiffness_band(m, b, k, Ts, m_p, k_lo, k_hi, within, **kw).limit
 
