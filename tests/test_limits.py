@@ -218,9 +218,9 @@ def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_si
                  "--set", "trajectory.cycles=1"])
     err = capsys.readouterr().err
     assert code == 1
-    m = re.search(r"predicted limit ([\d.e+]+) N/m .*from first contact ([\d.e+]+) N/m", err)
+    m = re.search(r"predicted limit ([\d,]+) N/m .*from first contact ([\d,]+) N/m", err)
     assert m, err
-    small, first = float(m.group(1)), float(m.group(2))
+    small, first = (float(g.replace(",", "")) for g in m.groups())
     assert small == pytest.approx(1.438e5, rel=2e-3)
     assert 1.15e5 < first < 1.25e5
 

@@ -332,8 +332,8 @@ def _verdict_exit(sc, segs) -> int:
 
     pred = predicted_limits(sc)
     limit, first = pred["small_signal"], pred["first_contact"]
-    lim = (f"predicted limit {limit:.4g} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
-           + f"from first contact {first:.4g} N/m" if limit is not None else "no linear prediction for this law")
+    lim = (f"predicted limit {limit:,.0f} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
+           + f"from first contact {first:,.0f} N/m" if limit is not None else "no linear prediction for this law")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m, {lim}; {s.reason}",
               file=sys.stderr)
