@@ -275,7 +275,7 @@ def test_limit_cycle_run_exits_1_and_names_the_segment(tmp_path):
     assert r.returncode == 1, r.stderr
     assert "limit_cycle" in r.stdout
     line = r.stderr.strip().splitlines()
-    assert len(line) == 1 and line[0].startswith("limit_cycle: segment 1") and f"{limit:.4g}" in line[0]
+    assert len(line) == 1 and line[0].startswith("limit_cycle: segment 1") and f"{limit:,.0f} N/m" in line[0]
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())      # outputs still written
     assert summary["segments"][0]["verdict"] == "limit_cycle"
 
