@@ -275,3 +275,34 @@ def test_the_bias_test_keeps_its_false_alarm_rate_on_a_soft_surface():
             "controller.law={kind='known', assumed_stiffness=300}"]
     off = sum(segment_metrics(_run(*base, f"sensor.seed={s}"))[0].verdict == "off_target" for s in range(200))
     assert off <= 3, off
+
+
+PENDULUM = """<robot name="pendulum">
+  <link name="base"/>
+  <link name="arm"><inertial><origin xyz="0 0 -0.5"/><mass value="2"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="tool"/>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="2"/></joint>
+  <joint name="flange" type="fixed"><parent link="arm"/><child link="tool"/><origin xyz="0 0 -1"/></joint>
+</robot>"""
+
+
+def test_an_arm_with_fewer_than_6_joints_is_refused_in_one_line_naming_its_joints(tmp_path, capsys):
+    """The 6-D task needs 6 joints; a 1-joint URDF gets one line naming robot.model and its joint
+    count (it said 'this runs the PUMA only so far'); a UR5 given to the PUMA's Simulator class is
+    pointed to PoseSimulator."""
+    from tmtcontrol import Simulator
+    from tmtcontrol.cli import main
+
+    urdf = tmp_path / "pendulum.urdf"
+    urdf.write_text(PENDULUM)
+    assert main(["simulate", "ur5", "--set", f'robot.model="{urdf}"', "--no-plots", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: robot.model: '{urdf}' has 1 joint: the 6-D task needs 6 or more (the position-only "
+                   "task is the 3-joint PUMA 560's; docs/robots.md)"], err
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(ScenarioError, match=r"^robot\.model: 'ur5' has 6 joints: Simulator is the 3-joint PUMA "
+                                            r"560's position-only loop; .* PoseSimulator"):
+        Simulator(load_scenario("ur5"))

@@ -265,8 +265,14 @@ class Simulator:
         self.scenario = scenario or paper_scenario()
         sc = self.scenario
         if sc.robot.model.lower() != "puma560":      # this loop is built on the PUMA's own model class
-            raise ScenarioError(f"robot.model: this runs the 3-joint PUMA 560 only so far, got {sc.robot.model!r} "
-                                "(simulate, compare and sweep run arms with 6 or more joints; docs/robots.md)")
+            from .posesim import robot_of
+
+            n = robot_of(sc).n                        # a model that cannot be loaded: its own one line
+            raise ScenarioError(
+                f"robot.model: {sc.robot.model!r} has {n} joint{'s' if n != 1 else ''}: "
+                + ("Simulator is the 3-joint PUMA 560's position-only loop; an arm with 6 or more joints runs "
+                   "PoseSimulator (simulator_for picks the loop)" if n >= 6 else
+                   "the 6-D task needs 6 or more (the position-only task is the 3-joint PUMA 560's; docs/robots.md)"))
         t0 = time.perf_counter()
         self.plant = Puma560(armature=sc.robot.armature,
                              friction="smooth" if sc.robot.friction else False)
