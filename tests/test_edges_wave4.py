@@ -306,3 +306,29 @@ def test_an_arm_with_fewer_than_6_joints_is_refused_in_one_line_naming_its_joint
     with pytest.raises(ScenarioError, match=r"^robot\.model: 'ur5' has 6 joints: Simulator is the 3-joint PUMA "
                                             r"560's position-only loop; .* PoseSimulator"):
         Simulator(load_scenario("ur5"))
+
+
+def test_tilt_deg_that_disagrees_with_the_normal_is_refused_and_not_printed():
+    """Review F1: a 6-D scenario's plane is environment.normal; a tilt_deg that says another
+    plane was silently ignored (a sweep over it claimed robustness over planes never simulated).
+    Refused, naming tilt_deg; the same plane (45 deg) is accepted; the printed scenario has no
+    tilt_deg beside a normal, and reads back."""
+    from tmtcontrol.simulation.scenario import dump_scenario, load_scenario as load
+
+    ur5 = load_scenario("ur5")
+    with pytest.raises(ScenarioError, match=r"^environment\.tilt_deg: 30 deg is not the plane of normal"):
+        apply_overrides(ur5, ["environment.tilt_deg=30"])
+    assert apply_overrides(ur5, ["environment.tilt_deg=45"]).environment.normal == ur5.environment.normal
+    text = dump_scenario(apply_overrides(ur5, ["environment.normal=[0, 0.6, -0.8]"]))
+    assert "tilt_deg" not in text and "normal = [0.0, 0.6, -0.8]" in text
+    assert "tilt_deg = 45.0" in dump_scenario(load_scenario("paper"))     # the PUMA's shorthand stays
+
+
+def test_sweeping_tilt_deg_on_a_6d_arm_is_refused_before_any_case(tmp_path, capsys):
+    from tmtcontrol.cli import main
+
+    (tmp_path / "sw.toml").write_text('scenario = "ur5"\n[grid]\n"environment.tilt_deg" = [10.0, 60.0]\n')
+    assert main(["sweep", str(tmp_path / "sw.toml"), "--out", str(tmp_path / "o"), "--no-plots"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: grid.environment.tilt_deg[0] = 10.0: environment.tilt_deg"), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sw.toml"]

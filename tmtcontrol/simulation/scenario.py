@@ -248,6 +248,11 @@ class EnvironmentSettings(_Section):
             norm = math.sqrt(sum(x * x for x in self.normal))
             if abs(norm - 1.0) > 1e-6:
                 raise ValueError(f"normal: must be a unit vector (|n| = 1 within 1e-6), got |n| = {norm:.6g}")
+            if "tilt_deg" in self.model_fields_set:   # the shorthand given too: it must be the same plane
+                t = math.radians(self.tilt_deg)
+                if max(abs(a - b) for a, b in zip((math.sin(t), 0.0, -math.cos(t)), self.normal)) > 1e-6:
+                    raise ValueError(f"tilt_deg: {self.tilt_deg:g} deg is not the plane of normal "
+                                     f"{list(self.normal)}, which sets the plane; change normal, or drop tilt_deg")
         return self
 
 
@@ -756,7 +761,10 @@ def scenario_to_dict(scenario: Scenario) -> dict:
         if isinstance(v, (tuple, list)):
             return [conv(x) for x in v]
         return v
-    return conv(scenario.model_dump())
+    d = conv(scenario.model_dump())
+    if d.get("environment", {}).get("normal") is not None:
+        d["environment"].pop("tilt_deg", None)       # the normal sets the plane; the shorthand is not used
+    return d
 
 
 @dataclass(frozen=True)
@@ -776,6 +784,8 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.trajectory.approach_gap > 0
     if key == "sensor.seed":
         return sc.sensor.noise_std > 0
+    if key == "environment.tilt_deg":
+        return sc.environment.normal is None
     if key in ("simulation.substeps", "simulation.contact_refine"):
         return sc.simulation.integrator == "fixed"
     if key == "simulation.tol":
