@@ -332,3 +332,20 @@ def test_sweeping_tilt_deg_on_a_6d_arm_is_refused_before_any_case(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: grid.environment.tilt_deg[0] = 10.0: environment.tilt_deg"), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sw.toml"]
+
+
+@pytest.mark.heavy
+def test_simulate_with_a_controller_refuses_to_write_over_the_controller_folder(tmp_path, capsys):
+    """Review F2: `simulate --controller e1 --out e1` replaced the exported C (tmtcontrol had
+    written the folder, so it counted as replaceable) with the simulation's outputs."""
+    from tmtcontrol.cli import main
+
+    assert main(["export", "paper", "--inner-loop", "--out", str(tmp_path / "e1")]) == 0
+    before = sorted(p.name for p in (tmp_path / "e1").iterdir())
+    capsys.readouterr()
+    for out in (tmp_path / "e1", tmp_path):
+        assert main(["simulate", "--set", "trajectory.cycles=0.1", "--controller", str(tmp_path / "e1"),
+                     "--no-plots", "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"error: --out: {out} holds the --controller folder"), err
+    assert sorted(p.name for p in (tmp_path / "e1").iterdir()) == before

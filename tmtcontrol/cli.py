@@ -243,6 +243,12 @@ def _simulate_with(args, workers) -> int:
         from .export.sil import CompiledController
 
         controller = CompiledController(args.controller, flag="--controller", scenario=sc)
+        import os
+
+        here, ctl = os.path.realpath(args.out), os.path.realpath(args.controller)
+        if ctl == here or ctl.startswith(here + os.sep):
+            raise UsageError(f"--out: {args.out} holds the --controller folder {args.controller}; the run would "
+                             "replace the exported controller: choose another folder (nothing was written)")
     with OutputFolder(args.out, "--out") as out:
         if controller is None:
             res = simulator_for(sc).run(max_steps=args.max_steps)
