@@ -311,6 +311,13 @@ def test_replay_of_the_logged_measurements_gives_the_logged_commands(tmp_path, p
     write_measurements(paper_result, tmp_path / "measurements.csv")
     r = subprocess.run(["./replay", "measurements.csv", "commands.csv"], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+    # an existing file, the recorded log itself included, is never overwritten: one line, exit 2 (review F3)
+    logged, done = ((tmp_path / f).read_bytes() for f in ("measurements.csv", "commands.csv"))
+    for target in ("commands.csv", "measurements.csv"):
+        again = subprocess.run(["./replay", "measurements.csv", target], cwd=tmp_path, capture_output=True, text=True)
+        assert again.returncode == 2 and again.stderr == f"replay: {target} exists; replay writes a new file only " \
+            "(name another one)\n", again.stderr
+    assert (tmp_path / "measurements.csv").read_bytes() == logged and (tmp_path / "commands.csv").read_bytes() == done
     cmd = read_commands(tmp_path / "commands.csv")
     np.testing.assert_array_equal(cmd["t"], paper_result.time)
     res = paper_result

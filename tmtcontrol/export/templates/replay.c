@@ -6,13 +6,16 @@
  * MEASUREMENTS.csv: a header line, then one row per period with the columns
  *   t,@MEAS_COLUMNS@
  * (t in s, then tmt_measurement's fields in order; units and frames in README.md).
- * COMMANDS.csv gets t and tmt_command's fields:
+ * COMMANDS.csv, a new file (an existing one is never overwritten: exit 2), gets
+ * t and tmt_command's fields:
  *   t,@CMD_COLUMNS@
  * The benchmark cycles through the rows of MEASUREMENTS.csv (or repeats the
  * initial state's zero measurement) and prints the median, 99.9th percentile
  * and maximum of the per-call time (CLOCK_MONOTONIC around each call).
  */
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -213,9 +216,16 @@ int main(int argc, char **argv)
     if (n < 0) {
         return 2;
     }
-    out = fopen(argv[2], "w");
+    {   /* a new file only: a recorded log, or any file of the user's, is never overwritten */
+        int fd = open(argv[2], O_WRONLY | O_CREAT | O_EXCL, 0644);
+        if (fd < 0 && errno == EEXIST) {
+            fprintf(stderr, "replay: %s exists; replay writes a new file only (name another one)\n", argv[2]);
+        } else if (fd < 0) {
+            fprintf(stderr, "replay: cannot write %s\n", argv[2]);
+        }
+        out = fd < 0 ? NULL : fdopen(fd, "w");
+    }
     if (out == NULL) {
-        fprintf(stderr, "replay: cannot write %s\n", argv[2]);
         free(rows);
         free(times);
         return 2;
