@@ -1,9 +1,13 @@
 """Edge cases a user meets when deciding whether a run can be trusted (wave 4):
-a guarded approach whose contact threshold, raised by the sensor noise, would
-only trigger beyond the desired force."""
+a guarded approach that would trigger only beyond f_d; verdicts under sensor
+noise (judged with the noise-free twin) and beyond the predicted stiffness
+limit; the two reviews' findings (a ramp ending above the limit, a plane given
+twice, an output over the tested controller, a reachable pose refused, a
+seed blamed on the path); one-line warnings and errors naming the right key."""
 import math
 import re
 
+import numpy as np
 import pytest
 
 from tmtcontrol import apply_overrides, load_scenario
@@ -349,3 +353,32 @@ def test_simulate_with_a_controller_refuses_to_write_over_the_controller_folder(
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"error: --out: {out} holds the --controller folder"), err
     assert sorted(p.name for p in (tmp_path / "e1").iterdir()) == before
+
+
+@pytest.mark.parametrize("spin", [150.0, -179.0])
+def test_a_reachable_tool_spin_is_found_even_far_from_the_seed(spin):
+    """Review F4: spin 150 deg was refused as 'unreachable' because IPOPT started from robot.q0
+    only; the pose exists (turn the UR5's wrist_3 of the spin-0 pose by the spin, within its
+    +-2 pi limits). The start pose found is the commanded one, checked by forward kinematics."""
+    from tmtcontrol.simulation.geometry import surface_frame, tool_orientation
+    from tmtcontrol.simulation.posesim import pose_path, robot_of
+
+    sc = apply_overrides(load_scenario("ur5"), [f"trajectory.tool_spin_deg={spin}"])
+    robot = robot_of(sc)
+    path = pose_path(robot, sc)
+    T = np.array(robot.functions.fk(path.q[:, 0]))
+    R_d = tool_orientation(surface_frame(sc.environment), spin)
+    assert np.abs(T[:3, :3] - R_d).max() < 1e-8                       # the commanded orientation
+    radius = sc.trajectory.radius                                      # the circle's first point (task axis 2)
+    first = np.asarray(sc.trajectory.center) + surface_frame(sc.environment) @ np.r_[0.0, radius, 0.0]
+    assert np.abs(T[:3, 3] - first).max() < 1e-8
+
+
+def test_a_start_seed_outside_the_joint_limits_names_robot_q0():
+    """Review F5: the seed itself was out of range and the message blamed the path."""
+    from tmtcontrol.simulation.posesim import pose_path, robot_of
+
+    sc = apply_overrides(load_scenario("ur5"), ["robot.q0=[0.0,-1.9,1.9,-1.57,-1.57,10.0]"])
+    with pytest.raises(ScenarioError, match=r"^robot\.q0\[5\]: 10 is outside wrist_3_joint's limits "
+                                            r"\[-6\.283, 6\.283\]$"):
+        pose_path(robot_of(sc), sc)

@@ -98,6 +98,9 @@ def pose_path(robot, sc: Scenario) -> PosePath:
     R, R_d, c = _frames(sc)
     if r.q0 is not None and len(r.q0) != robot.n:
         raise ScenarioError(f"robot.q0: expected {robot.n} values (one per joint of {robot.name}), got {len(r.q0)}")
+    for i, (v, lo, hi) in enumerate(zip(r.q0 or (), robot.q_min, robot.q_max)):
+        if not lo <= v <= hi:          # the seed itself: not the path's fault
+            raise ScenarioError(f"robot.q0[{i}]: {v:g} is outside {robot.joint_names[i]}'s limits [{lo:.4g}, {hi:.4g}]")
     seed = np.asarray(r.q0, float) if r.q0 is not None else np.where(
         np.isfinite(robot.q_min) & np.isfinite(robot.q_max), (robot.q_min + robot.q_max) / 2, 0.0)
     key = (robot.key, tuple(c), tr.radius, tr.period, R.tobytes(), R_d.tobytes(), seed.tobytes())

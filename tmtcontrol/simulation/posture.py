@@ -25,6 +25,7 @@ angular rows in rad/rad) below :data:`MIN_SINGULAR_VALUE`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -125,6 +126,31 @@ class PosePath:
         return float(self.condition_number.max())
 
 
+SEED_SHIFTS = (math.pi / 2, -math.pi / 2, math.pi)
+"""Joint shifts (rad) of the extra start seeds: IPOPT finds the start pose
+from ``robot.q0``; when it does not, each joint of the seed is turned by each
+of these in turn (kept within its limits), since a reachable pose can lie
+behind a joint limit or a wrist flip from the seed (a tool spin of 150 deg on
+the UR5's default seed)."""
+
+
+def _start_from_nearby_seeds(robot, solver, p, R_d, q_seed):
+    """``(q, ok)``: the start pose from the seeds of :data:`SEED_SHIFTS`,
+    the solution closest to ``q_seed`` among those found (deterministic)."""
+    best, found = None, []
+    for j in range(robot.n):
+        for d in SEED_SHIFTS:
+            seed = np.array(q_seed, dtype=float)
+            seed[j] = np.clip(seed[j] + d, robot.q_min[j], robot.q_max[j])
+            q, ok = solve_pose(robot, solver, p, R_d, seed)
+            if ok:
+                found.append(q)
+    if found:
+        best = min(found, key=lambda q: float(np.sum((q - q_seed) ** 2)))
+        return best, True
+    return np.asarray(q_seed, dtype=float), False
+
+
 def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     """Solve the pose at every path point (``points`` 3 x k, base frame, m;
     ``t`` their path times, s) from ``q_seed`` then from the previous pose;
@@ -137,6 +163,8 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     q_prev = np.asarray(q_seed, dtype=float)
     for k in range(points.shape[1]):
         q, ok = solve_pose(robot, track if k else start, points[:, k], R_d, q_prev)
+        if not ok and k == 0:
+            q, ok = _start_from_nearby_seeds(robot, start, points[:, 0], R_d, q_prev)
         if not ok:
             free = free or pose_solver(robot, limits=False)
             q_free, ok_free = solve_pose(robot, free, points[:, k], R_d, q_prev, limits=False)
