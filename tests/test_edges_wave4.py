@@ -382,3 +382,25 @@ def test_a_start_seed_outside_the_joint_limits_names_robot_q0():
     with pytest.raises(ScenarioError, match=r"^robot\.q0\[5\]: 10 is outside wrist_3_joint's limits "
                                             r"\[-6\.283, 6\.283\]$"):
         pose_path(robot_of(sc), sc)
+
+
+def test_the_noise_free_twin_runs_as_long_as_the_run_and_its_divergence_is_a_verdict(monkeypatch):
+    """The twin is bounded by the run's own length, not the default --max-steps (a run allowed
+    more steps than the default got a ScenarioError from its twin); a twin that diverges makes
+    every segment diverged, with the reason."""
+    import tmtcontrol.simulation.metrics as metrics
+    import tmtcontrol.simulation.simulator as simulator
+    from tmtcontrol import Simulator
+
+    sc = _paper("sensor.noise_std=0.1", "trajectory.cycles=1")
+    res = Simulator(sc).run(max_steps=5000)
+    monkeypatch.setattr(simulator, "MAX_STEPS", 2000)          # the default limit now below the run's 4000
+    metrics._TWINS.clear()
+    assert [s.verdict for s in metrics.segment_metrics(res)] == ["converged"]
+
+    def diverges(result):
+        raise simulator.SimulationError("the state is not finite at t = 1 s")
+    monkeypatch.setattr(metrics, "noise_free_twin", diverges)
+    seg, = metrics.segment_metrics(res)
+    assert seg.verdict == "diverged" and seg.reason == ("without the sensor noise the run diverges: the state is "
+                                                       "not finite at t = 1 s")

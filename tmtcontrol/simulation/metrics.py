@@ -392,7 +392,8 @@ def noise_free_twin(result: SimulationResult) -> SimulationResult:
     if key not in _TWINS:
         if len(_TWINS) >= 4:
             _TWINS.pop(next(iter(_TWINS)))
-        _TWINS[key] = simulator_for(sc0).run()
+        # as long as the run itself (its own --max-steps was checked before it ran)
+        _TWINS[key] = simulator_for(sc0).run(max_steps=len(result.time) + 1)
     return _TWINS[key]
 
 
@@ -430,7 +431,14 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     sc = result.scenario
     f_d = sc.controller.f_d
     periods = judging_periods(result)
-    twin = noise_free_twin(result) if sc.sensor.noise_std > 0 else None
+    twin, twin_error = None, None
+    if sc.sensor.noise_std > 0:
+        from .simulator import SimulationError
+
+        try:
+            twin = noise_free_twin(result)
+        except SimulationError as exc:       # the loop diverges without the noise: no segment is stable
+            twin_error = str(exc)
     limit = (getattr(result, "info", None) or {}).get("stiffness_limit")
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
@@ -446,7 +454,11 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         ss_err = float(np.abs(err[ss]).max())
         touching = np.flatnonzero(f > 0.0)
         lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
-        verdict, reason, tol = _judge(result, twin, i0, i1, periods)
+        if twin_error is None:
+            verdict, reason, tol = _judge(result, twin, i0, i1, periods)
+        else:
+            verdict, reason, tol = ("diverged", f"without the sensor noise the run diverges: {twin_error}",
+                                    sc.controller.force_tolerance)
         k_max = float(np.max(result.stiffness[i0:i1]))
         if limit is not None and np.isfinite(limit) and k_max > limit and _RANK[verdict] < _RANK["limit_cycle"]:
             verdict, reason = "diverged", (f"k_e reaches {k_max:,.0f} N/m, above the loop's predicted limit "
