@@ -238,6 +238,10 @@ def test_a_signal_inside_a_finalizer_is_raised_after_it_not_inside_it(mode):
 IMPORT_SCRIPT = """
 import importlib.abc, signal, sys
 
+# a terminal's Python: Ctrl-C raises KeyboardInterrupt (a test runner's worker may hand its child an
+# ignored SIGINT, which Python keeps; then the signal below would do nothing and the test prove nothing)
+signal.signal(signal.SIGINT, signal.default_int_handler)
+
 class CtrlCDuringImport(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path, target=None):
         if name == "tmtcontrol.files":          # main()'s first import, before its handlers exist
