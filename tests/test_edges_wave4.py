@@ -404,3 +404,15 @@ def test_the_noise_free_twin_runs_as_long_as_the_run_and_its_divergence_is_a_ver
     seg, = metrics.segment_metrics(res)
     assert seg.verdict == "diverged" and seg.reason == ("without the sensor noise the run diverges: the state is "
                                                        "not finite at t = 1 s")
+
+
+def test_a_scenario_with_a_normal_round_trips_through_its_dump_without_tilt_deg():
+    """Regression (CI, the Panda's periodic-limit check): Scenario.replace re-validates a section's
+    model_dump(); the dumped default tilt_deg = 45 then contradicted the Panda's 30 deg normal.
+    A section with a normal dumps no tilt_deg, so every round trip works; the PUMA keeps it."""
+    panda = load_scenario("panda")
+    assert "tilt_deg" not in panda.environment.model_dump()
+    again = panda.replace(trajectory={**panda.trajectory.model_dump(), "cycles": 0.5})
+    assert again.environment.normal == panda.environment.normal and again.trajectory.cycles == 0.5
+    assert apply_overrides(panda, ["trajectory.cycles=0.5"]).environment == panda.environment
+    assert load_scenario("paper").environment.model_dump()["tilt_deg"] == 45.0

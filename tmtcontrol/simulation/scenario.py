@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictInt, ValidationError,
-                      model_validator)
+                      model_serializer, model_validator)
 from pydantic.fields import FieldInfo
 
 from ..control.laws import laws, on_register
@@ -241,6 +241,15 @@ class EnvironmentSettings(_Section):
     damping: float = num(0.0, "N s/m", "contact damping", ge=0)
     stiffness: StiffnessProfile = Field(default_factory=PiecewiseConstantStiffness,
                                         description="stiffness profile k_e(t), a table with its kind")
+
+    @model_serializer(mode="wrap")
+    def _without_unused_tilt(self, handler):
+        # with a normal, the plane is the normal's: the shorthand is left out of every dump (TOML,
+        # summary.json, a replaced copy), so it never comes back as an explicit, contradicting value
+        d = handler(self)
+        if isinstance(d, dict) and d.get("normal") is not None:
+            d.pop("tilt_deg", None)
+        return d
 
     @model_validator(mode="after")
     def _unit_normal(self):
@@ -761,10 +770,7 @@ def scenario_to_dict(scenario: Scenario) -> dict:
         if isinstance(v, (tuple, list)):
             return [conv(x) for x in v]
         return v
-    d = conv(scenario.model_dump())
-    if d.get("environment", {}).get("normal") is not None:
-        d["environment"].pop("tilt_deg", None)       # the normal sets the plane; the shorthand is not used
-    return d
+    return conv(scenario.model_dump())     # (a normal's scenario has no tilt_deg: EnvironmentSettings' dump)
 
 
 @dataclass(frozen=True)
