@@ -330,10 +330,16 @@ def build_plant(plant: Puma560, integrator: str = "fixed", substeps: int = 1, to
     ["zf"]``, joints ``z = [q, dq]`` (rad, rad/s) and ``pz = [tau (N m), k_e
     (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``, with the same
     integrator and contact refinement."""
-    coarse, choose, plant_flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
-    z, pz = ca.MX.sym("z", 6), ca.MX.sym("pz", 18)
-    if plant_flow is not None:
-        zf = plant_flow(x0=z, p=pz)["xf"]
+    return _plant_function(*_plant_step(plant, integrator, substeps, tol, contact_refine), 6, 18)
+
+
+def _plant_function(coarse, choose, flow, nz: int, npz: int) -> ca.Function:
+    """``["z","pz"] -> ["zf"]`` from a plant step's parts (:func:`_plant_step`):
+    the adaptive ``flow``, else the ``coarse`` RK4 step refined by ``choose``
+    at a contact switch. Shared by the PUMA's and the 6-D loop's plants."""
+    z, pz = ca.MX.sym("z", nz), ca.MX.sym("pz", npz)
+    if flow is not None:
+        zf = flow(x0=z, p=pz)["xf"]
     else:
         zc, switched = coarse(z, pz)
         zf = zc if choose is None else choose(switched, z, zc, pz)

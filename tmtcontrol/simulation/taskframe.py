@@ -61,7 +61,7 @@ import numpy as np
 
 from ..control.impedance import inner_loop
 from ..control.laws import Law
-from .closedloop import INPUT, Layout, _control, _rk4, param_layout
+from .closedloop import INPUT, Layout, _control, _plant_function, _rk4, param_layout
 from .environment import contact_force
 from .geometry import rotation_vector
 
@@ -274,14 +274,7 @@ def build_pose_plant(plant, integrator: str = "fixed", substeps: int = 1, tol: f
     N m), k_e (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``, with the
     same integrator and contact refinement."""
     n = plant.n
-    coarse, choose, flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
-    z, pz = ca.MX.sym("z", 2 * n), ca.MX.sym("pz", n + 15)
-    if flow is not None:
-        zf = flow(x0=z, p=pz)["xf"]
-    else:
-        zc, switched = coarse(z, pz)
-        zf = zc if choose is None else choose(switched, z, zc, pz)
-    return ca.Function("plant", [z, pz], [zf], ["z", "pz"], ["zf"])
+    return _plant_function(*_plant_step(plant, integrator, substeps, tol, contact_refine), 2 * n, n + 15)
 
 
 def pose_controller_state_layout(n: int, law: Law, delay: int = 0, torque: bool = True) -> Layout:
