@@ -79,20 +79,34 @@ EQUIVALENTS = ROOT / "benchmarks" / "equivalent_mutants.toml"
 
 # module (or package folder) -> the test files that exercise it, run first for each of its mutants
 TESTS: dict[str, tuple[str, ...]] = {
-    "tmtcontrol/files.py": ("tests/test_files_safety.py", "tests/test_outputs.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/files.py": ("tests/test_files_safety.py", "tests/test_outputs.py", "tests/test_mutation_kills.py",
+                            "tests/test_review_inputs.py", "tests/test_processes.py", "tests/test_cli.py"),
     "tmtcontrol/simulation/metrics.py": ("tests/test_verdicts_wave3.py", "tests/test_verdicts.py",
-                                         "tests/test_mutation_kills.py"),
+                                         "tests/test_mutation_kills.py", "tests/test_review_verdicts.py",
+                                         "tests/test_noise_bias.py", "tests/test_edges_wave4.py",
+                                         "tests/test_simulate.py"),
     "tmtcontrol/simulation/scenario.py": ("tests/test_scenario.py", "tests/test_docs.py", "tests/test_scenario_fuzz.py",
-                                          "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),
+                                          "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py",
+                                          "tests/test_review_inputs.py", "tests/test_bounds_wave3.py",
+                                          "tests/test_edges_wave4.py"),
     "tmtcontrol/control/laws": ("tests/test_laws.py", "tests/test_mutations.py", "tests/test_derivations.py",
                                 "tests/test_mutation_kills.py"),
-    "tmtcontrol/stability/analysis.py": ("tests/test_stability.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/stability/analysis.py": ("tests/test_stability.py", "tests/test_mutation_kills.py",
+                                         "tests/test_review_verdicts.py", "tests/test_limits_wiring.py",
+                                         "tests/test_stiffness_band.py", "tests/test_limits.py",
+                                         "tests/test_stability_6d.py"),
     "tmtcontrol/stability/sampled.py": ("tests/test_mutations.py", "tests/test_stability.py", "tests/test_laws.py",
-                                        "tests/test_mutation_kills.py"),
-    "tmtcontrol/stability/lawloop.py": ("tests/test_limits.py", "tests/test_laws.py", "tests/test_mutation_kills.py"),
+                                        "tests/test_mutation_kills.py", "tests/test_review_verdicts.py",
+                                        "tests/test_stiffness_band.py", "tests/test_limits.py"),
+    "tmtcontrol/stability/lawloop.py": ("tests/test_limits.py", "tests/test_laws.py", "tests/test_mutation_kills.py",
+                                        "tests/test_review_verdicts.py", "tests/test_stiffness_band.py",
+                                        "tests/test_stability.py"),
     "tmtcontrol/sweep/spec.py": ("tests/test_sweep.py", "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py"),
-    "tmtcontrol/model/urdf.py": ("tests/test_urdf.py", "tests/test_mutation_kills.py"),
-    "tmtcontrol/export": ("tests/test_export.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/model/urdf.py": ("tests/test_urdf.py", "tests/test_mutation_kills.py", "tests/test_robot.py",
+                                 "tests/test_arm_checks.py", "tests/test_export_6d.py", "tests/test_taskframe.py",
+                                 "tests/test_edges_wave4.py"),
+    "tmtcontrol/export": ("tests/test_export.py", "tests/test_mutation_kills.py", "tests/test_export_6d.py",
+                           "tests/test_review_export.py", "tests/test_pose_delay.py", "tests/test_edges_wave4.py"),
 }
 
 
@@ -202,12 +216,15 @@ def _pytest(root, args, env, timeout) -> tuple[str, float, str]:
     """Run pytest in the clone: ('pass'|'fail'|'timeout', seconds, tail of the output)."""
     t0 = time.perf_counter()
     try:
-        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *args],
+        r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-rfE", "-p", "no:cacheprovider", *args],
                            cwd=root, env=env, capture_output=True, text=True, timeout=timeout,
                            start_new_session=True)
     except subprocess.TimeoutExpired:
         return "timeout", time.perf_counter() - t0, ""
-    tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-3:])
+    lines = (r.stdout + r.stderr).strip().splitlines()
+    # the first failing test (pytest -rf's summary line) names what killed the mutant, then the counts line
+    first = next((ln for ln in lines if ln.startswith(("FAILED ", "ERROR "))), "")
+    tail = "\n".join(([first] if first else []) + lines[-1:])
     return ("pass" if r.returncode == 0 else "fail"), time.perf_counter() - t0, tail
 
 
@@ -352,7 +369,7 @@ def main(argv=None) -> int:
                                 rec.update(full_suite=status, full_seconds=round(dt, 1))
                             rec["outcome"] = "survived" if status == "pass" else "killed"
                             if status == "fail":
-                                rec["killed_by"] = tail.splitlines()[-1] if tail else ""
+                                rec["killed_by"] = " / ".join(tail.splitlines())
                 counts[rec["outcome"]] += 1
                 results.append(rec)
                 first = rec.get("diff", "").splitlines()[3:5]
