@@ -228,6 +228,101 @@ def _pytest(root, args, env, timeout) -> tuple[str, float, str]:
     return ("pass" if r.returncode == 0 else "fail"), time.perf_counter() - t0, tail
 
 
+def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
+    """Apply mutant ``m`` in the clone at ``root``, run its module's ``tests`` (then the whole suite if
+    ``full`` and they pass) and return its record: outcome killed, survived, equivalent or incompetent."""
+    rec = dict(asdict(m), id=m.id)
+    eq = equivalents.get(m.id)
+    if eq and eq["line"] != m.line:
+        print(f"  stale equivalent entry {m.id}: listed at line {eq['line']}, now {m.line}", flush=True)
+        eq = None
+    if eq:
+        rec.update(outcome="equivalent", reason=eq["reason"])
+        return rec
+    import cosmic_ray.plugins
+    from cosmic_ray.mutating import use_mutation
+
+    op = cosmic_ray.plugins.get_operator(m.operator)()
+    random.seed(m.id)   # VariableReplacer/VariableInserter draw a number/operator: reproducible
+    with use_mutation(root / m.file, op, m.occurrence) as (old, new):
+        if new is None:
+            rec.update(outcome="incompetent", stage="no mutation applied")
+            return rec
+        rec["diff"] = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+        status, dt, tail = _pytest(root, ["-n", "0", *tests], env, timeout)
+        rec.update(module_tests=status, module_seconds=round(dt, 1))
+        if status == "pass" and full:
+            status, dt, tail = _pytest(root, ["-n", "2"], env, 3 * timeout)
+            rec.update(full_suite=status, full_seconds=round(dt, 1))
+    rec["outcome"] = "survived" if status == "pass" else "killed"
+    if status == "fail":
+        rec["killed_by"] = " / ".join(tail.splitlines())
+    return rec
+
+
+def _print_outcome(rec: dict) -> None:
+    first = rec.get("diff", "").splitlines()[3:5]
+    print(f"  {rec['outcome']:10s} {rec['id']} (line {rec['line']}) {' | '.join(s.strip() for s in first)}",
+          flush=True)
+
+
+def _module_row(row: dict, results: list[dict]) -> dict:
+    """``row`` with its counts, score and interval recomputed from the module's mutant records."""
+    mine = [r for r in results if r["module"] == row["module"]]
+    counts = {o: sum(r["outcome"] == o for r in mine) for o in ("killed", "survived", "equivalent", "incompetent")}
+    k, s = counts["killed"], counts["survived"]
+    lo, hi = wilson(k, k + s)
+    return dict(row, **counts, score=k / (k + s) if k + s else None, ci95=[lo, hi] if k + s else None)
+
+
+def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, timeout, full) -> None:
+    """Rerun, on the clone's commit, every survivor recorded in ``results`` whose mutant is still the
+    same code (same diff), and update its record and its module's row in place.  Adding tests can
+    only turn a survivor into a kill, so the sample stays the random sample it was drawn as."""
+    by_id = {m.id: m for ms in muts.values() for m in ms}
+    for i, row in enumerate(rows):
+        mod = row["module"]
+        survivors = [r for r in results if r["module"] == mod and r["outcome"] == "survived"]
+        if not survivors:
+            continue
+        tests = [t for t in TESTS[mod] if (root / t).exists()]
+        failing = _failing(root, tests, env, timeout * 2)
+        if failing is None:
+            print(f"\n{mod}: baseline of {' '.join(tests)} does not run, survivors not rechecked", flush=True)
+            continue
+        deselected[mod] = sorted(set(deselected.get(mod, [])) | set(failing))
+        tests += [f"--deselect={t}" for t in failing]
+        print(f"\n{mod}: rechecking {len(survivors)} survivors on {commit}", flush=True)
+        for rec in survivors:
+            m = by_id.get(rec["id"])
+            if m is None or diff_of(root, m) != rec.get("diff"):
+                print(f"  stale      {rec['id']}: no longer the same code, kept as survived", flush=True)
+                continue
+            new = dict(_judge(root, m, equivalents, tests, env, timeout, full), rechecked_on=commit)
+            rec.clear()
+            rec.update(new)
+            _print_outcome(rec)
+        rows[i] = dict(_module_row(row, results), rechecked_on=commit)
+
+
+def merge_results(docs: list[dict]) -> dict:
+    """One results document from several runs of one sample (each measuring other modules)."""
+    keys = ("sample", "seed", "full_suite", "timeout")
+    for d in docs[1:]:
+        for k in keys:
+            if d.get(k) != docs[0].get(k):
+                raise ValueError(f"the files differ in {k} ({docs[0].get(k)} and {d.get(k)})")
+    modules = [r["module"] for d in docs for r in d["modules"]]
+    twice = sorted({m for m in modules if modules.count(m) > 1})
+    if twice:
+        raise ValueError(f"{twice[0]} is measured in more than one file")
+    order = list(TESTS)
+    return dict({k: docs[0].get(k) for k in ("tool", *keys)},
+                deselected={m: t for d in docs for m, t in d.get("deselected", {}).items()},
+                modules=sorted((r for d in docs for r in d["modules"]), key=lambda r: order.index(r["module"])),
+                mutants=[r for d in docs for r in d["mutants"]])
+
+
 def _failing(root, tests, env, timeout) -> list[str] | None:
     """The tests of ``tests`` that fail unmutated (deselected for the module's mutants, and
     reported), or None if the files do not run at all (collection error, timeout)."""
@@ -262,10 +357,30 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="PATH", help="write the table and every mutant's outcome as JSON")
     ap.add_argument("--resume", action="store_true",
                     help="keep the modules already measured in the --json file and run the others")
+    ap.add_argument("--recheck", action="store_true",
+                    help="rerun the survivors recorded in the --json file on this checkout's HEAD (after new tests "
+                         "or equivalent entries) and update their outcomes and the table")
+    ap.add_argument("--merge", nargs="+", metavar="JSON",
+                    help="write the modules of these results files (one sample, seed and timeout) into --json and stop")
     ap.add_argument("--markdown", metavar="JSON", help="print the Markdown table of a results JSON and stop")
     a = ap.parse_args(argv)
     if a.markdown:
         print(markdown_table(json.loads(pathlib.Path(a.markdown).read_text())), end="")
+        return 0
+    if (a.recheck or a.merge) and not a.json:
+        print(f"--{'recheck' if a.recheck else 'merge'}: needs --json PATH", file=sys.stderr)
+        return 2
+    if a.recheck and not pathlib.Path(a.json).exists():
+        print(f"--recheck: {a.json} does not exist", file=sys.stderr)
+        return 2
+    if a.merge:
+        try:
+            doc = merge_results([json.loads(pathlib.Path(f).read_text()) for f in a.merge])
+        except ValueError as e:
+            print(f"--merge: {e}", file=sys.stderr)
+            return 2
+        pathlib.Path(a.json).write_text(json.dumps(doc, indent=1, default=str) + "\n")
+        print(markdown_table(doc), end="")
         return 0
     unknown = [m for m in a.modules if m not in TESTS]
     if unknown:
@@ -309,6 +424,14 @@ def main(argv=None) -> int:
             deselected = {m: t for m, t in old.get("deselected", {}).items() if m in kept}
             print(f"resumed from {a.json}: {', '.join(sorted(kept))}", flush=True)
 
+        if a.recheck:
+            old = json.loads(pathlib.Path(a.json).read_text())
+            a.sample, a.seed, a.no_full = old["sample"], old["seed"], not old["full_suite"]
+            rows, results, deselected = old["modules"], old["mutants"], old.get("deselected", {})
+            a.modules = []       # no new module is measured
+            _recheck(root, commit, rows, results, deselected, enumerate_mutants(root, [r["module"] for r in rows]),
+                     equivalents, env, a.timeout, not a.no_full)
+
         def save():      # after every module, so an interrupted run keeps what it measured
             if a.json:
                 doc = dict(tool="cosmic-ray 8.7", sample=a.sample, seed=a.seed, full_suite=not a.no_full,
@@ -343,44 +466,18 @@ def main(argv=None) -> int:
             deselected[mod] = failing
             counts = dict(killed=0, survived=0, equivalent=0, incompetent=0)
             for m in chosen:
-                rec = dict(asdict(m), id=m.id)
-                eq = equivalents.get(m.id)
-                if eq and eq["line"] != m.line:
-                    print(f"  stale equivalent entry {m.id}: listed at line {eq['line']}, now {m.line}", flush=True)
-                    eq = None
-                if eq:
-                    rec.update(outcome="equivalent", reason=eq["reason"])
-                else:
-                    import cosmic_ray.plugins
-                    from cosmic_ray.mutating import use_mutation
-
-                    op = cosmic_ray.plugins.get_operator(m.operator)()
-                    random.seed(m.id)   # VariableReplacer/VariableInserter draw a number/operator: reproducible
-                    with use_mutation(root / m.file, op, m.occurrence) as (old, new):
-                        if new is None:
-                            rec.update(outcome="incompetent", stage="no mutation applied")
-                        else:
-                            rec["diff"] = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True),
-                                                                       m.file, m.file, n=0))
-                            status, dt, tail = _pytest(root, ["-n", "0", *tests], env, a.timeout)
-                            rec.update(module_tests=status, module_seconds=round(dt, 1))
-                            if status == "pass" and not a.no_full:
-                                status, dt, tail = _pytest(root, ["-n", "2"], env, 3 * a.timeout)
-                                rec.update(full_suite=status, full_seconds=round(dt, 1))
-                            rec["outcome"] = "survived" if status == "pass" else "killed"
-                            if status == "fail":
-                                rec["killed_by"] = " / ".join(tail.splitlines())
+                rec = _judge(root, m, equivalents, tests, env, a.timeout, not a.no_full)
                 counts[rec["outcome"]] += 1
                 results.append(rec)
-                first = rec.get("diff", "").splitlines()[3:5]
-                print(f"  {rec['outcome']:10s} {m.id} (line {m.line}) {' | '.join(s.strip() for s in first)}",
-                      flush=True)
+                _print_outcome(rec)
             k, s = counts["killed"], counts["survived"]
             lo, hi = wilson(k, k + s)
             rows.append(dict(module=mod, commit=commit, sample=a.sample, seed=a.seed, full_suite=not a.no_full,
                              mutants=len(population), run=len(chosen), **counts,
                              minutes=round((time.perf_counter() - t_mod) / 60, 1),
                              score=k / (k + s) if k + s else None, ci95=[lo, hi] if k + s else None))
+            save()
+        if a.recheck:
             save()
         elapsed = time.perf_counter() - started
     finally:

@@ -65,3 +65,34 @@ def test_wilson_interval_matches_scipy(tool, k, n):
 def test_docs_table_is_the_committed_run(tool, results):
     doc = json.loads((ROOT / "benchmarks" / results).read_text())
     assert tool.markdown_table(doc) in (ROOT / "docs" / "testing.md").read_text()
+
+
+def _doc(modules, sample=22, seed=3, **outcomes):
+    rows = [dict(module=m, mutants=100, run=len(outcomes.get(m, ()))) for m in modules]
+    mutants = [dict(module=m, id=f"{m}:op:{i}", outcome=o) for m in modules for i, o in enumerate(outcomes.get(m, ()))]
+    return dict(tool="cosmic-ray 8.7", sample=sample, seed=seed, full_suite=True, timeout=600.0,
+                deselected={}, modules=rows, mutants=mutants)
+
+
+def test_module_row_counts_its_own_mutants_and_gives_the_wilson_interval(tool):
+    doc = _doc(["tmtcontrol/files.py", "tmtcontrol/export"],
+               **{"tmtcontrol/files.py": ["killed"] * 21 + ["survived", "equivalent"],
+                  "tmtcontrol/export": ["survived"] * 3})
+    row = tool._module_row(doc["modules"][0], doc["mutants"])
+    assert (row["killed"], row["survived"], row["equivalent"], row["incompetent"]) == (21, 1, 1, 0)
+    assert row["score"] == pytest.approx(21 / 22)      # equivalents are out of the score
+    assert row["ci95"] == list(tool.wilson(21, 22))
+    # 22 of 22 is the smallest all-killed sample whose 95 % lower bound reaches the 85 %
+    assert tool.wilson(22, 22)[0] >= 0.85 > tool.wilson(21, 21)[0]
+
+
+def test_merge_keeps_each_run_and_refuses_mixed_samples_or_a_module_twice(tool):
+    a = _doc(["tmtcontrol/export"], **{"tmtcontrol/export": ["killed"]})
+    b = _doc(["tmtcontrol/files.py"], **{"tmtcontrol/files.py": ["killed", "survived"]})
+    merged = tool.merge_results([a, b])
+    assert [r["module"] for r in merged["modules"]] == ["tmtcontrol/files.py", "tmtcontrol/export"]  # TESTS order
+    assert len(merged["mutants"]) == 3 and merged["seed"] == 3
+    with pytest.raises(ValueError, match="seed"):
+        tool.merge_results([a, _doc(["tmtcontrol/files.py"], seed=4)])
+    with pytest.raises(ValueError, match="tmtcontrol/export is measured in more than one file"):
+        tool.merge_results([a, a])
