@@ -275,7 +275,15 @@ def _module_row(row: dict, results: list[dict]) -> dict:
     return dict(row, **counts, score=k / (k + s) if k + s else None, ci95=[lo, hi] if k + s else None)
 
 
-def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, timeout, full) -> None:
+def draw(population: list[Mutant], seed: int, module: str, k: int) -> list[Mutant]:
+    """The first ``k`` mutants of the module's seeded random order (one generator per module, so a
+    module's sample does not depend on which others are measured).  ``draw(.., k)`` is the first k
+    of ``draw(.., k + j)`` (random.sample picks one element after the other), which is what lets
+    ``--recheck`` top a sample up past its equivalent mutants without changing the mutants drawn."""
+    return random.Random(f"{seed}:{module}").sample(population, min(k, len(population)))
+
+
+def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, timeout, full, sample, seed) -> None:
     """Rerun, on the clone's commit, every survivor recorded in ``results`` whose mutant is still the
     same code (same diff), and update its record and its module's row in place.  Adding tests can
     only turn a survivor into a kill, so the sample stays the random sample it was drawn as."""
@@ -283,7 +291,19 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
     for i, row in enumerate(rows):
         mod = row["module"]
         survivors = [r for r in results if r["module"] == mod and r["outcome"] == "survived"]
-        if not survivors:
+        mine = [r for r in results if r["module"] == mod]
+        judged = sum(r["outcome"] in ("killed", "survived") for r in mine)
+        # a sample whose equivalent (or unappliable) mutants leave fewer than --sample judged ones is topped
+        # up with the next mutants of the same seeded order, so the score rests on --sample judged mutants
+        extra = []
+        if 0 < sample < len(muts[mod]) and judged < sample:
+            order = draw(muts[mod], seed, mod, len(mine) + 3 * (sample - judged) + 10)
+            if {m.id for m in order[:row["run"]]} != {r["id"] for r in mine[:row["run"]]}:
+                print(f"\n{mod}: the module changed since the run (its sample is not the same), not topped up",
+                      flush=True)
+            else:
+                extra = [m for m in order if m.id not in {r["id"] for r in mine}]
+        if not survivors and not extra:
             continue
         tests = [t for t in TESTS[mod] if (root / t).exists()]
         failing = _failing(root, tests, env, timeout * 2)
@@ -292,7 +312,8 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
             continue
         deselected[mod] = sorted(set(deselected.get(mod, [])) | set(failing))
         tests += [f"--deselect={t}" for t in failing]
-        print(f"\n{mod}: rechecking {len(survivors)} survivors on {commit}", flush=True)
+        print(f"\n{mod}: rechecking {len(survivors)} survivors on {commit}"
+              + (f", topping up {sample - judged} judged mutants" if extra else ""), flush=True)
         for rec in survivors:
             m = by_id.get(rec["id"])
             if m is None or diff_of(root, m) != rec.get("diff"):
@@ -302,6 +323,14 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
             rec.clear()
             rec.update(new)
             _print_outcome(rec)
+        for m in extra:
+            if judged >= sample:
+                break
+            rec = dict(_judge(root, m, equivalents, tests, env, timeout, full), topped_up_on=commit)
+            results.append(rec)
+            judged += rec["outcome"] in ("killed", "survived")
+            _print_outcome(rec)
+            row = dict(row, run=row["run"] + 1)
         rows[i] = dict(_module_row(row, results), rechecked_on=commit)
 
 
@@ -430,7 +459,7 @@ def main(argv=None) -> int:
             rows, results, deselected = old["modules"], old["mutants"], old.get("deselected", {})
             a.modules = []       # no new module is measured
             _recheck(root, commit, rows, results, deselected, enumerate_mutants(root, [r["module"] for r in rows]),
-                     equivalents, env, a.timeout, not a.no_full)
+                     equivalents, env, a.timeout, not a.no_full, a.sample, a.seed)
 
         def save():      # after every module, so an interrupted run keeps what it measured
             if a.json:
@@ -444,8 +473,8 @@ def main(argv=None) -> int:
                 continue
             population = muts[mod]
             chosen = population
-            if 0 < a.sample < len(population):   # one generator per module: its sample does not depend on --modules
-                chosen = sorted(random.Random(f"{a.seed}:{mod}").sample(population, a.sample),
+            if 0 < a.sample < len(population):
+                chosen = sorted(draw(population, a.seed, mod, a.sample),
                                 key=lambda m: (m.file, m.line, m.operator, m.occurrence))
             if a.only:
                 chosen = [m for m in population if m.id in a.only]

@@ -96,3 +96,14 @@ def test_merge_keeps_each_run_and_refuses_mixed_samples_or_a_module_twice(tool):
         tool.merge_results([a, _doc(["tmtcontrol/files.py"], seed=4)])
     with pytest.raises(ValueError, match="tmtcontrol/export is measured in more than one file"):
         tool.merge_results([a, a])
+
+
+def test_a_larger_draw_starts_with_the_smaller_one_so_a_top_up_keeps_the_sample(tool):
+    # --recheck tops a sample up past its equivalent mutants by drawing further along the same seeded
+    # order; that is sound only if the first k of a draw of k + j are the draw of k, for every module size
+    # (random.sample switches algorithm with the sizes: pool below ~300 mutants, a set above)
+    for size in (30, 700, 2280):
+        population = [tool.Mutant("m", "f.py", "core/AddNot", i, i) for i in range(size)]
+        for k in (6, 20, 22):
+            assert tool.draw(population, 3, "m", k + 17)[:k] == tool.draw(population, 3, "m", k), (size, k)
+    assert tool.draw(population[:5], 3, "m", 22) != [] and len(tool.draw(population[:5], 3, "m", 22)) == 5
