@@ -181,3 +181,46 @@ def test_the_closed_form_sampled_model_is_used_only_without_delay_or_x_e_error()
     assert not closed_form_applies("tmt", 1, 0.0)
     assert not closed_form_applies("tmt", 0, 1e-3)
     assert not closed_form_applies("integral", 0, 0.0)
+
+
+# -- stability/sampled.py: stable_band (third run, seed 3) ------------------------------------------
+
+def _edge_from_below(stable, unstable_k, stable_k, rtol=1e-6):
+    """The lower edge of a band written out: bisection in log k_e between an unstable stiffness
+    and a stable one above it, to rtol; the last stable stiffness found."""
+    lo, hi = float(unstable_k), float(stable_k)
+    while hi / lo > 1 + rtol:
+        mid = np.sqrt(lo * hi)
+        lo, hi = (lo, mid) if stable(mid) else (mid, hi)
+    return hi
+
+
+def test_the_band_below_a_scenario_in_a_gap_keeps_its_own_lower_edge():
+    """sampled.py:core/ReplaceBinaryOperator_Sub_Add:12 (lower_edge(j + 1, ...) for the band
+    below the scenario): a loop stable on [20, 100] and [1e3, 1e5] N/m, the scenario at 300 N/m in
+    the gap; the band reported below it is [20, 100], not [100, 100] (the mutant searches the
+    lower edge upward from the band's top and finds its upper edge)."""
+    from tmtcontrol.stability.sampled import stable_band
+
+    two = lambda ke: 20.0 <= ke <= 100.0 or 1e3 <= ke <= 1e5
+    gap = stable_band(two, within=300.0)
+    assert gap.lower == pytest.approx(20.0, rel=2e-6) and gap.upper == pytest.approx(100.0, rel=2e-6)
+    assert gap.unstable_below
+
+
+def test_the_band_above_a_scenario_below_every_band_is_bisected_from_its_grid_step():
+    """sampled.py:core/ReplaceBinaryOperator_Sub_Mod:13 (the bracket grid[j % 1], the scan's
+    start, for grid[j - 1]): a loop stable on [25, 100] N/m, the scenario at 12 N/m below it; the
+    band's lower edge is bisected between the grid points around 25 N/m (21.54 and 31.62 on the
+    49-point grid from 10 N/m), exactly as the written-out bisection gives it, not from 10 N/m
+    (the same edge to rtol but another float, 25.0000178 against 25.0000086, after more
+    stability evaluations)."""
+    from tmtcontrol.stability.sampled import stable_band
+
+    band = lambda ke: 25.0 <= ke <= 100.0
+    grid = np.geomspace(10.0, 1e9, 49)
+    assert grid[2] < 25.0 < grid[3]
+    below = stable_band(band, within=12.0)
+    assert below.limit == 0.0 and below.upper == pytest.approx(100.0, rel=2e-6)
+    assert below.lower == _edge_from_below(band, grid[2], grid[3])
+    assert below.lower != _edge_from_below(band, grid[0], grid[3])      # the two brackets are told apart
