@@ -239,6 +239,12 @@ BAD = {
                                'link="arm"/><child link="cam"/></joint></robot>'), "2 leaf links: tool, cam); give the tip link"),
     "closed_loop": (GOOD.replace("</robot>", '<joint name="loop" type="fixed"><parent link="tool"/>'
                                              '<child link="arm"/></joint></robot>'), "closed loop"),
+    # a closed loop apart from the tree: every link has one parent, one root, but c1 and c2 are never reached
+    # from it (kills urdf.py:core/ReplaceBinaryOperator_Sub_Div:1, `set(children) / seen`, a TypeError)
+    "loop_apart": (GOOD.replace("</robot>", LINK.format(n="c1") + LINK.format(n="c2")
+                                + '<joint name="c12" type="fixed"><parent link="c1"/><child link="c2"/></joint>'
+                                + '<joint name="c21" type="fixed"><parent link="c2"/><child link="c1"/></joint>'
+                                + "</robot>"), "links c1, c2 are not connected to the root (a closed loop)"),
     "floating": (GOOD.replace('type="revolute"', 'type="floating"'), "floating base"),
     "continuous_no_limit": (GOOD.replace('type="revolute"', 'type="continuous"').replace(
         '<limit lower="-3" upper="3" effort="10" velocity="2"/>', ""), "continuous joint without <limit"),
