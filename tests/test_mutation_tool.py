@@ -107,3 +107,13 @@ def test_a_larger_draw_starts_with_the_smaller_one_so_a_top_up_keeps_the_sample(
         for k in (6, 20, 22):
             assert tool.draw(population, 3, "m", k + 17)[:k] == tool.draw(population, 3, "m", k), (size, k)
     assert tool.draw(population[:5], 3, "m", 22) != [] and len(tool.draw(population[:5], 3, "m", 22)) == 5
+
+
+def test_the_test_that_killed_a_mutant_is_read_from_pytests_summary(tool):
+    # a whole-suite kill is confirmed by running this test alone with the mutant; parametrised ids keep
+    # their brackets, the message after " - " is not part of the id
+    tail = ("FAILED tests/test_outputs.py::test_interrupt_exits_cleanly_and_leaves_nothing[15-143] - assert 1 == 143"
+            "\n1 failed, 616 passed in 218.16s (0:03:38)")
+    assert tool._failed_test(tail) == "tests/test_outputs.py::test_interrupt_exits_cleanly_and_leaves_nothing[15-143]"
+    assert tool._failed_test("ERROR tests/test_export.py::test_x - TypeError\n1 error") == "tests/test_export.py::test_x"
+    assert tool._failed_test("1 failed in 2.0s") is None
