@@ -224,3 +224,19 @@ def test_the_band_above_a_scenario_below_every_band_is_bisected_from_its_grid_st
     assert below.limit == 0.0 and below.upper == pytest.approx(100.0, rel=2e-6)
     assert below.lower == _edge_from_below(band, grid[2], grid[3])
     assert below.lower != _edge_from_below(band, grid[0], grid[3])      # the two brackets are told apart
+
+
+# -- sweep/spec.py (third run, seed 3) -------------------------------------------------------------
+
+@pytest.mark.parametrize("sec,when", [(119.4, "about 119 s"), (120.0, "about 2 min"), (7199.0, "about 120 min"),
+                                      (7200.0, "about 2.0 h")])
+def test_the_plan_line_changes_unit_at_two_minutes_and_two_hours(monkeypatch, sec, when):
+    """spec.py:core/NumberReplacer:30 (`sec < 121`): an estimate of exactly 120 s is printed as
+    2 min, as every estimate from 2 minutes on (and from 2 hours on in hours)."""
+    import tomllib
+
+    from tmtcontrol.sweep import EXAMPLE, sweep_from_dict
+
+    sweep = sweep_from_dict(tomllib.loads(EXAMPLE))
+    monkeypatch.setattr(type(sweep), "estimate_seconds", lambda self, cases=None, workers=1: sec)
+    assert f"; {when} on 1 worker (estimate)" in sweep.plan()
