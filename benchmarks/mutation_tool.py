@@ -460,7 +460,7 @@ def main(argv=None) -> int:
     try:
         commit = _clone(root)
         env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1",
-                   TMTCONTROL_CACHE=str(scratch / "cache"))
+                   TMTCONTROL_CACHE=str(scratch / "cache"), COLUMNS="400")   # pytest's summary keeps the message
         where = subprocess.run([sys.executable, "-c", "import tmtcontrol; print(tmtcontrol.__file__)"],
                                cwd=scratch, env=env, capture_output=True, text=True).stdout.strip()
         if not where.startswith(str(root)):
