@@ -240,3 +240,34 @@ def test_the_plan_line_changes_unit_at_two_minutes_and_two_hours(monkeypatch, se
     sweep = sweep_from_dict(tomllib.loads(EXAMPLE))
     monkeypatch.setattr(type(sweep), "estimate_seconds", lambda self, cases=None, workers=1: sec)
     assert f"; {when} on 1 worker (estimate)" in sweep.plan()
+
+
+# -- stability/lawloop.py (third run, seed 3) --------------------------------------------------------
+
+def _paper_law_loop(delay):
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.stability.lawloop import law_loop
+
+    return law_loop(get_law("tmt"), m=1.0, b=40.0, k=100.0, k_e=5000.0, Ts=1e-3, m_p=3.5, delay=delay)
+
+
+def test_a_delayed_law_loop_names_each_state_once_oldest_sample_first():
+    """lawloop.py:core/NumberReplacer:47 (range(delay, -1, -1)): with a 2-sample delay the state is
+    (x, x', f_filt, the law's states, U and f held 2 and 1 samples ago); the mutant adds a pair
+    "U[-0]", "f[-0]" that is not in the state, so the names no longer match its entries."""
+    loop = _paper_law_loop(2)
+    law_states = loop.states[3:-4]
+    assert loop.states == ("x", "dx", "f_filt", *law_states, "U[-2]", "f[-2]", "U[-1]", "f[-1]")
+    assert len(loop.states) == loop.z_eq.size == loop.A.shape[0]
+    assert _paper_law_loop(0).states == ("x", "dx", "f_filt", *law_states)
+
+
+def test_a_law_loop_is_a_frozen_result():
+    """lawloop.py:core/ReplaceTrueWithFalse:0 (@dataclass(frozen=False)): the loop, its
+    equilibrium and its stability verdict are one computed result; assigning to it raises instead
+    of leaving a spectral radius that belongs to another stiffness."""
+    import dataclasses
+
+    loop = _paper_law_loop(0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        loop.k_e = 1e6
