@@ -244,7 +244,7 @@ def test_the_plan_line_changes_unit_at_two_minutes_and_two_hours(monkeypatch, se
 
 # -- stability/lawloop.py (third run, seed 3) --------------------------------------------------------
 
-def _paper_law_loop(delay):
+def _tmt_law_loop(delay):
     from tmtcontrol.control.laws import get_law
     from tmtcontrol.stability.lawloop import law_loop
 
@@ -255,11 +255,11 @@ def test_a_delayed_law_loop_names_each_state_once_oldest_sample_first():
     """lawloop.py:core/NumberReplacer:47 (range(delay, -1, -1)): with a 2-sample delay the state is
     (x, x', f_filt, the law's states, U and f held 2 and 1 samples ago); the mutant adds a pair
     "U[-0]", "f[-0]" that is not in the state, so the names no longer match its entries."""
-    loop = _paper_law_loop(2)
+    loop = _tmt_law_loop(2)
     law_states = loop.states[3:-4]
     assert loop.states == ("x", "dx", "f_filt", *law_states, "U[-2]", "f[-2]", "U[-1]", "f[-1]")
     assert len(loop.states) == loop.z_eq.size == loop.A.shape[0]
-    assert _paper_law_loop(0).states == ("x", "dx", "f_filt", *law_states)
+    assert _tmt_law_loop(0).states == ("x", "dx", "f_filt", *law_states)
 
 
 def test_a_law_loop_is_a_frozen_result():
@@ -268,6 +268,6 @@ def test_a_law_loop_is_a_frozen_result():
     of leaving a spectral radius that belongs to another stiffness."""
     import dataclasses
 
-    loop = _paper_law_loop(0)
+    loop = _tmt_law_loop(0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         loop.k_e = 1e6
