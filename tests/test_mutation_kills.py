@@ -271,3 +271,24 @@ def test_a_law_loop_is_a_frozen_result():
     loop = _tmt_law_loop(0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         loop.k_e = 1e6
+
+
+# -- model/urdf.py (third run, seed 3) --------------------------------------------------------------
+
+def test_a_urdf_of_exactly_the_size_limit_is_read_whole(tmp_path, monkeypatch):
+    """urdf.py:core/ReplaceBinaryOperator_Add_Sub:0 (fh.read(MAX_BYTES - 1)): a file of exactly
+    MAX_BYTES bytes is allowed and must be read to its last byte (the mutant cuts the closing '>'
+    of </robot>, a parse error on a valid file); one byte more is refused before reading."""
+    import tmtcontrol.model.urdf as urdf
+
+    text = ('<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/><inertia ixx="1" iyy="1" '
+            'izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link><joint name="j" type="revolute"><parent link="a"/>'
+            '<child link="b"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+            '</robot>')
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    monkeypatch.setattr(urdf, "MAX_BYTES", len(text.encode()))
+    assert urdf.read_urdf(path) == text
+    path.write_text(text + " ")
+    with pytest.raises(urdf.URDFError, match=f"larger than the {len(text)} bytes"):
+        urdf.read_urdf(path)
