@@ -292,3 +292,43 @@ def test_a_urdf_of_exactly_the_size_limit_is_read_whole(tmp_path, monkeypatch):
     path.write_text(text + " ")
     with pytest.raises(urdf.URDFError, match=f"larger than the {len(text)} bytes"):
         urdf.read_urdf(path)
+
+
+def test_a_settling_run_that_ends_non_finite_falls_back_to_the_static_guess(monkeypatch):
+    """lawloop.py:core/NumberReplacer:82 (np.isfinite(Z[-2])): the settling iteration is trusted as
+    Newton's start only if its last iterate is finite; one whose last iterate overflows in a law
+    state (the one before still finite, x and x' small) must not seed Newton with NaN: the loop then
+    starts from the static guess (x = f_d / k_e, f = f_d) and finds the same equilibrium."""
+    import tmtcontrol.stability.lawloop as lawloop
+
+    good = _tmt_law_loop(0)
+    real = lawloop._iterate
+
+    def overflowing_last_step(step, z0, n):
+        Z, F = real(step, z0, n)
+        Z = Z.copy()
+        Z[-1, 3:] = np.nan          # the law's states
+        return Z, F
+
+    monkeypatch.setattr(lawloop, "_iterate", overflowing_last_step)
+    loop = _tmt_law_loop(0)
+    assert np.all(np.isfinite(loop.z_eq)) and loop.residual < 1e-9
+    assert loop.f_eq == pytest.approx(good.f_eq, rel=1e-9)
+    assert loop.spectral_radius == pytest.approx(good.spectral_radius, rel=1e-9)
+
+
+# -- sweep/spec.py's truncated normal ------------------------------------------------------------
+
+def test_a_truncation_holding_exactly_the_smallest_mass_is_accepted(monkeypatch):
+    """spec.py:core/ReplaceComparisonOperator_Lt_LtE:5 (`_normal_mass(out) <= 1e-9`): a normal axis
+    is refused when its bounds hold less than 1e-9 of the distribution's probability; exactly 1e-9
+    is accepted (the mass is set exactly through the module's own function: no float input of
+    ndtr lands on 1e-9 itself)."""
+    import tmtcontrol.sweep.spec as spec
+
+    axis = {"normal": [1.0, 0.1], "bounds": [0.5, 1.5]}
+    monkeypatch.setattr(spec, "_normal_mass", lambda out: 1e-9)
+    assert spec._check_random("environment.stiffness.k_e", axis)["normal"] == [1.0, 0.1]
+    monkeypatch.setattr(spec, "_normal_mass", lambda out: np.nextafter(1e-9, 0.0))
+    with pytest.raises(spec.SweepError, match="too far in the tail"):
+        spec._check_random("environment.stiffness.k_e", axis)
