@@ -332,3 +332,23 @@ def test_a_truncation_holding_exactly_the_smallest_mass_is_accepted(monkeypatch)
     monkeypatch.setattr(spec, "_normal_mass", lambda out: np.nextafter(1e-9, 0.0))
     with pytest.raises(spec.SweepError, match="too far in the tail"):
         spec._check_random("environment.stiffness.k_e", axis)
+
+
+def test_two_axes_of_one_section_with_a_cross_field_check_are_validated_together():
+    """spec.py:core/AddNot:50 (`not isinstance(ann, type)`: no section's own model validator makes
+    a scope): on the UR5 (its plane given by a normal), a grid over tilt_deg = 45 and the normal of
+    the 45 deg and 30 deg planes; each value alone is valid against the scenario, the pair (45 deg,
+    30 deg normal) is not (the environment section's _unit_normal check), so the sweep is refused
+    naming that case instead of failing it at run time."""
+    import math
+
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    s, t = math.sqrt(0.5), math.radians(30.0)
+    grid = {"environment.tilt_deg": [45.0], "environment.normal": [[s, 0.0, -s], [math.sin(t), 0.0, -math.cos(t)]]}
+    for key, values in grid.items():        # each value alone is accepted
+        for v in values:
+            assert len(sweep_from_dict({"scenario": "ur5", "grid": {key: [v]}}).cases) == 1
+    with pytest.raises(SweepError, match=r"^case 1 \(environment\.tilt_deg = 45\.0, environment\.normal = .*"
+                                         r"45 deg is not the plane of normal"):
+        sweep_from_dict({"scenario": "ur5", "grid": grid})
