@@ -340,7 +340,12 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
         for rec in survivors:
             m = by_id.get(rec["id"])
             if m is None or diff_of(root, m) != rec.get("diff"):
-                print(f"  stale      {rec['id']}: no longer the same code, kept as survived", flush=True)
+                print(f"  stale      {rec['id']}: no longer the same code, kept as {rec['outcome']}", flush=True)
+                continue
+            test = _failed_test(rec.get("killed_by", "").replace(" / ", "\n"))
+            if rec["outcome"] == "killed" and test and _fails_alone(root, m, test, env, timeout):
+                rec.update(confirmed=True, confirmed_on=commit)        # the whole suite's kill stands
+                _print_outcome(rec)
                 continue
             new = dict(_judge(root, m, equivalents, tests, env, timeout, full), rechecked_on=commit)
             rec.clear()
@@ -355,6 +360,16 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
             _print_outcome(rec)
             row = dict(row, run=row["run"] + 1)
         rows[i] = dict(_module_row(row, results), rechecked_on=commit)
+
+
+def _fails_alone(root, m: Mutant, test: str, env, timeout) -> bool:
+    """Whether ``test`` fails (or errors, or times out) run alone with mutant ``m`` applied."""
+    import cosmic_ray.plugins
+    from cosmic_ray.mutating import use_mutation
+
+    random.seed(m.id)
+    with use_mutation(root / m.file, cosmic_ray.plugins.get_operator(m.operator)(), m.occurrence) as (_, new):
+        return new is not None and _pytest(root, ["-n", "0", test], env, timeout)[0] != "pass"
 
 
 def merge_results(docs: list[dict]) -> dict:
