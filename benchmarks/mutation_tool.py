@@ -203,6 +203,12 @@ def diff_of(root: pathlib.Path, m: Mutant) -> str:
     return "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
 
 
+def _ci(ci95) -> str:
+    """The interval in whole percent, rounded outward (84.5 % is shown as 84, not 85: the goal is a bound)."""
+    lo, hi = ci95
+    return f"{math.floor(100 * lo + 1e-9)}-{math.ceil(100 * hi - 1e-9)} %"
+
+
 def markdown_table(doc: dict) -> str:
     """The per-module table of a results JSON (as --json writes it), in Markdown for docs/testing.md."""
     lines = ["| module | mutants | run | killed | survived | equivalent | score | 95 % CI |",
@@ -211,9 +217,8 @@ def markdown_table(doc: dict) -> str:
         if r.get("score") is None:
             lines.append(f"| `{r['module']}` | {r['mutants']} | {r['run']} | | | | not measured | |")
             continue
-        lo, hi = r["ci95"]
         lines.append(f"| `{r['module']}` | {r['mutants']} | {r['run']} | {r['killed']} | {r['survived']} | "
-                     f"{r['equivalent']} | {100 * r['score']:.0f} % | {100 * lo:.0f}-{100 * hi:.0f} % |")
+                     f"{r['equivalent']} | {100 * r['score']:.0f} % | {_ci(r['ci95'])} |")
     return "\n".join(lines) + "\n"
 
 
@@ -315,18 +320,20 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
         survivors = [r for r in results if r["module"] == mod and (r["outcome"] == "survived" or (
             r.get("full_suite") == "fail" and not r.get("confirmed")))]
         mine = [r for r in results if r["module"] == mod]
-        judged = sum(r["outcome"] in ("killed", "survived") for r in mine)
         # a sample whose equivalent (or unappliable) mutants leave fewer than --sample judged ones is topped
         # up with the next mutants of the same seeded order, so the score rests on --sample judged mutants
+        # (a survivor judged again may turn equivalent: the top-up is decided after the survivors)
         extra = []
-        if 0 < sample < len(muts[mod]) and judged < sample:
-            order = draw(muts[mod], seed, mod, len(mine) + 3 * (sample - judged) + 10)
+        if 0 < sample < len(muts[mod]):
+            order = draw(muts[mod], seed, mod, len(mine) + 3 * sample + 10)
             if {m.id for m in order[:row["run"]]} != {r["id"] for r in mine[:row["run"]]}:
                 print(f"\n{mod}: the module changed since the run (its sample is not the same), not topped up",
                       flush=True)
             else:
                 extra = [m for m in order if m.id not in {r["id"] for r in mine}]
-        if not survivors and not extra:
+        short = sample - sum(r["outcome"] in ("killed", "survived") for r in mine)
+        may_short = short + sum(r["outcome"] == "survived" and r["id"] in equivalents for r in survivors)
+        if not survivors and may_short <= 0:
             continue
         tests = [t for t in TESTS[mod] if (root / t).exists()]
         failing = _failing(root, tests, env, timeout * 2)
@@ -335,8 +342,7 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
             continue
         deselected[mod] = sorted(set(deselected.get(mod, [])) | set(failing))
         tests += [f"--deselect={t}" for t in failing]
-        print(f"\n{mod}: rechecking {len(survivors)} survivors or unconfirmed kills on {commit}"
-              + (f", topping up {sample - judged} judged mutants" if extra else ""), flush=True)
+        print(f"\n{mod}: rechecking {len(survivors)} survivors or unconfirmed kills on {commit}", flush=True)
         for rec in survivors:
             m = by_id.get(rec["id"])
             if m is None or diff_of(root, m) != rec.get("diff"):
@@ -351,6 +357,7 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
             rec.clear()
             rec.update(new)
             _print_outcome(rec)
+        judged = sum(r["outcome"] in ("killed", "survived") for r in results if r["module"] == mod)
         for m in extra:
             if judged >= sample:
                 break
@@ -559,7 +566,7 @@ def main(argv=None) -> int:
         if "score" not in r:
             print(f"{r['module']:36s} {r['mutants']:7d}  baseline fails")
             continue
-        ci = "" if r["score"] is None else f"{100 * r['ci95'][0]:.0f}-{100 * r['ci95'][1]:.0f} %"
+        ci = "" if r["score"] is None else _ci(r["ci95"])
         sc = "-" if r["score"] is None else f"{100 * r['score']:.0f} %"
         print(f"{r['module']:36s} {r['mutants']:7d} {r['run']:4d} {r['killed']:6d} {r['survived']:5d} "
               f"{r['equivalent']:6d} {sc:>6s}  {ci}")

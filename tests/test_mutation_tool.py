@@ -117,3 +117,9 @@ def test_the_test_that_killed_a_mutant_is_read_from_pytests_summary(tool):
     assert tool._failed_test(tail) == "tests/test_outputs.py::test_interrupt_exits_cleanly_and_leaves_nothing[15-143]"
     assert tool._failed_test("ERROR tests/test_export.py::test_x - TypeError\n1 error") == "tests/test_export.py::test_x"
     assert tool._failed_test("1 failed in 2.0s") is None
+
+
+def test_the_interval_is_shown_rounded_outward(tool):
+    # 21 of 21 bound the score at 84.5 %: shown as 84 (the goal is a lower bound of 85 %), not 85
+    assert tool._ci(tool.wilson(21, 21)) == "84-100 %"
+    assert tool._ci(tool.wilson(22, 22)) == "85-100 %" and tool._ci((0.25, 0.75)) == "25-75 %"
