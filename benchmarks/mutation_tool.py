@@ -501,7 +501,8 @@ def main(argv=None) -> int:
 
         if a.recheck:
             old = json.loads(pathlib.Path(a.json).read_text())
-            a.sample, a.seed, a.no_full = old["sample"], old["seed"], not old["full_suite"]
+            # --sample larger than the file's tops every module up to it (more of the same seeded order)
+            a.sample, a.seed, a.no_full = max(a.sample, old["sample"]), old["seed"], not old["full_suite"]
             rows, results, deselected = old["modules"], old["mutants"], old.get("deselected", {})
             a.modules = []       # no new module is measured
             _recheck(root, commit, rows, results, deselected, enumerate_mutants(root, [r["module"] for r in rows]),
