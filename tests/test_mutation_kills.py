@@ -352,3 +352,19 @@ def test_two_axes_of_one_section_with_a_cross_field_check_are_validated_together
     with pytest.raises(SweepError, match=r"^case 1 \(environment\.tilt_deg = 45\.0, environment\.normal = .*"
                                          r"45 deg is not the plane of normal"):
         sweep_from_dict({"scenario": "ur5", "grid": grid})
+
+
+# -- files.py (third run, seed 3) ---------------------------------------------------------------------
+
+def test_proc_stat_reads_the_state_letter_and_the_start_time_of_a_process():
+    """files.py:core/NumberReplacer:17 (fields[-1] for fields[0]): /proc/PID/stat after the command's
+    ')' starts with the state letter (R, S, D, Z, T, ...) and holds the start time in clock ticks as
+    its 20th field; for this (running) process the state is R and the start time is an integer no
+    later than now (ticks since boot); a process that does not exist gives None."""
+    import tmtcontrol.files as files
+
+    state, start = files._proc_stat(os.getpid())
+    assert state == "R" and start.isdigit()
+    uptime = float(open("/proc/uptime").read().split()[0])
+    assert int(start) <= uptime * os.sysconf("SC_CLK_TCK") + 1
+    assert files._proc_stat(2 ** 22 + 12345) is None                 # no such process
