@@ -368,3 +368,15 @@ def test_proc_stat_reads_the_state_letter_and_the_start_time_of_a_process():
     uptime = float(open("/proc/uptime").read().split()[0])
     assert int(start) <= uptime * os.sysconf("SC_CLK_TCK") + 1
     assert files._proc_stat(2 ** 22 + 12345) is None                 # no such process
+
+
+def test_a_switch_to_the_same_stiffness_predicts_a_constant_force_for_any_inner_loop_gains():
+    """sampled.py:core/NumberReplacer:214 (the impedance filter starts with x_a' = 1 m/s): the
+    prediction starts from the old equilibrium, at rest; a "switch" to the same stiffness must then
+    stay at f_d exactly. With eq. (9)'s gains (kd = b/m, kp = k/m) the filter's state cancels out of
+    U and a wrong start cannot show; with kd = 60 s^-1 != b/m = 40 s^-1 it would move the force."""
+    from tmtcontrol.stability.sampled import switch_response
+
+    for kd in (None, 60.0):
+        r = switch_response(1.0, 40.0, 100.0, 5000.0, 5000.0, 1e-3, 3.5, kd=kd)
+        assert np.max(np.abs(r["force"] - 10.0)) < 1e-9, kd
