@@ -380,3 +380,20 @@ def test_a_switch_to_the_same_stiffness_predicts_a_constant_force_for_any_inner_
     for kd in (None, 60.0):
         r = switch_response(1.0, 40.0, 100.0, 5000.0, 5000.0, 1e-3, 3.5, kd=kd)
         assert np.max(np.abs(r["force"] - 10.0)) < 1e-9, kd
+
+
+def test_a_stiffness_sequence_with_a_computation_delay_starts_from_contact_at_rest():
+    """lawloop.py:core/ReplaceBinaryOperator_Add_Mul:13 (z[3:3 * len(states)] for the law's
+    states): with a one-sample delay the state also holds the delayed (U, f) pair after the law's
+    states, so the mutant's slice is longer than the law's initial state (an error); without delay
+    it is clipped to the same slice. The sequence starts in contact at rest (force 0 N) and settles
+    to f_d = 10 N on each surface (within 5 mN after 1 s; the 4x stiffer surface starts at 40 N)."""
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.stability.lawloop import stiffness_sequence
+
+    out = stiffness_sequence(get_law("tmt"), None, [5000.0, 20000.0], 1.0, m=1.0, b=40.0, k=100.0, Ts=1e-3,
+                             m_p=3.5, delay=1)
+    (first, f1), (second, f2) = out
+    assert first.z_eq.size == 3 + 2 + 2 and f1[0] == 0.0
+    assert f2[0] == pytest.approx(40.0, rel=1e-6)          # x = f_d / 5000 pressed into a 20,000 N/m surface
+    assert abs(f1[-1] - 10.0) < 5e-3 and abs(f2[-1] - 10.0) < 5e-3
