@@ -397,3 +397,24 @@ def test_a_stiffness_sequence_with_a_computation_delay_starts_from_contact_at_re
     assert first.z_eq.size == 3 + 2 + 2 and f1[0] == 0.0
     assert f2[0] == pytest.approx(40.0, rel=1e-6)          # x = f_d / 5000 pressed into a 20,000 N/m surface
     assert abs(f1[-1] - 10.0) < 5e-3 and abs(f2[-1] - 10.0) < 5e-3
+
+
+@pytest.mark.parametrize("mean,std,lo,hi", [(0.0, 1.0, -1.0, 1.0), (1.0, 0.1, 1.2, 1.5), (1.0, 0.1, -100.0, 0.5)])
+def test_the_mass_of_a_truncated_normal_is_the_closed_form(mean, std, lo, hi):
+    """spec.py:core/ReplaceBinaryOperator_Sub_FloorDiv:5 (ndtr(b) // ndtr(a) on the branch with the
+    lower bound at or below the mean): the probability of [lo, hi] under normal(mean, std) is
+    (erf(b / sqrt 2) - erf(a / sqrt 2)) / 2 with a, b the standardised bounds, on both branches (the
+    lower bound above the mean, computed from the upper tail); a lower bound 1,010 sigma out (ndtr 0)
+    gives the tail mass 2.9e-7, accepted, not a division by zero. Tolerance 1e-12 relative:
+    ndtr and erf agree to rounding away from the far tail."""
+    import math
+
+    import tmtcontrol.sweep.spec as spec
+
+    a, b = (lo - mean) / std, (hi - mean) / std
+    expected = (math.erf(b / math.sqrt(2)) - math.erf(a / math.sqrt(2))) / 2
+    if a > 0:                                   # both bounds in the upper tail: the complementary form is exact
+        expected = (math.erfc(a / math.sqrt(2)) - math.erfc(b / math.sqrt(2))) / 2
+    got = spec._normal_mass({"normal": [mean, std], "bounds": [lo, hi]})
+    assert got == pytest.approx(expected, rel=1e-12)
+    assert spec._check_random("environment.stiffness.k_e", {"normal": [mean, std], "bounds": [lo, hi]})
