@@ -431,3 +431,4 @@ def test_a_case_limit_that_is_not_a_positive_integer_is_refused_as_such(bad):
 
     with pytest.raises(SweepError, match=r"^--max-cases: must be an integer >= 1, got "):
         sweep_from_dict(tomllib.loads(EXAMPLE), max_cases=bad)
+
