@@ -61,7 +61,8 @@ def test_wilson_interval_matches_scipy(tool, k, n):
     assert lo == pytest.approx(ci.low, abs=1e-4) and hi == pytest.approx(ci.high, abs=1e-4)
 
 
-@pytest.mark.parametrize("results", ["mutation_tool_results.json", "mutation_tool_results_seed2.json"])
+@pytest.mark.parametrize("results", ["mutation_tool_results.json", "mutation_tool_results_seed2.json",
+                                     "mutation_tool_results_seed3.json"])
 def test_docs_table_is_the_committed_run(tool, results):
     doc = json.loads((ROOT / "benchmarks" / results).read_text())
     assert tool.markdown_table(doc) in (ROOT / "docs" / "testing.md").read_text()
