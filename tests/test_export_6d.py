@@ -136,22 +136,34 @@ def test_deploy_doc_lists_the_6d_code_sizes_and_tables():
             assert f"| {name} {label} | {fn.n_instructions()} | {fn.sz_w()} |" in doc, (arm, label)
 
 
+SIGNALS = ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "reference_task", "position",
+           "damping", "desired_force")
+
+
+def _sil_and_built_in(sc, folder, compile=True):
+    """The run of ``sc`` with the C controller exported to ``folder`` in place of the built-in one
+    (`simulate --controller`), and the built-in 6-D run."""
+    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
+    from tmtcontrol.simulation.posesim import PoseSimulator
+
+    return (simulate_with_controller(sc, CompiledController(folder, scenario=sc)),
+            PoseSimulator(sc, compile=compile).run())
+
+
+def _assert_same_signals(sil, ref, names=SIGNALS):
+    for name in names:
+        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+
+
 def test_short_6d_software_in_the_loop_run_equals_the_built_in_one(exported_ur5):
     """The default suite's one compiled 6-D check (the heavy tests run the whole 16 s on both arms):
     160 periods of the UR5 with the exported C controller in place of the built-in one equal the
     built-in run; the exported state starts from the simulation's initial controller state and the
     log row holds every signal (kills mutation_tool's seed-3 sil.py survivors, whose faults only a
     6-D run reaches)."""
-    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
-    from tmtcontrol.simulation.posesim import PoseSimulator
-
-    sc = apply_overrides(load_scenario("ur5"), SHORT)
-    sil = simulate_with_controller(sc, CompiledController(exported_ur5, scenario=sc))
-    ref = PoseSimulator(sc).run()
+    sil, ref = _sil_and_built_in(apply_overrides(load_scenario("ur5"), SHORT), exported_ur5)
     assert sil.info["code"] == "exported C (SIL)" and sil.time.size == ref.time.size == 160
-    for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "reference_task", "position",
-                 "damping", "desired_force"):
-        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+    _assert_same_signals(sil, ref)
 
 
 # -- heavy: compiled C against the built-in 6-D loop ---------------------------------------------------
@@ -179,17 +191,11 @@ def test_6d_export_compiles_warning_free_with_gcc_and_clang(tmp_path, arm, inner
 def test_6d_software_in_the_loop_equals_the_built_in_run(tmp_path, arm, sets):
     """The whole 16 s scenario with the exported C controller in place of the
     built-in one (`simulate --controller`) equals the built-in 6-D run."""
-    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
-    from tmtcontrol.simulation.posesim import PoseSimulator
-
     sc = apply_overrides(load_scenario(arm), sets)
     export_controller(sc, tmp_path, True)
-    sil = simulate_with_controller(sc, CompiledController(tmp_path, scenario=sc))
-    ref = PoseSimulator(sc).run()
+    sil, ref = _sil_and_built_in(sc, tmp_path)
     assert sil.info["code"] == "exported C (SIL)" and sil.time.size == ref.time.size == 16000
-    for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "reference_task", "position",
-                 "damping", "desired_force"):
-        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+    _assert_same_signals(sil, ref)
     # the orientation error is ~1e-6 rad: compared absolutely, far below the 1 mrad bound
     assert np.abs(sil.orientation_error - ref.orientation_error).max() < 1e-12
 
@@ -367,16 +373,12 @@ def test_6d_software_in_the_loop_equals_the_built_in_run_for_other_structures(tm
     """Other laws, the guarded approach, the damping schedule, sensor noise and
     filter, a wrong controller model and a delay queue on the UR5 (2 s each,
     2,000 periods): the same expressions in C as in the built-in 6-D step."""
-    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
-    from tmtcontrol.simulation.posesim import PoseSimulator
-
     sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.5", *sets])
     export_controller(sc, tmp_path, True)
-    sil = simulate_with_controller(sc, CompiledController(tmp_path, scenario=sc))
-    ref = PoseSimulator(sc, compile=False).run()
+    sil, ref = _sil_and_built_in(sc, tmp_path, compile=False)
     assert ref.contact_force.max() > 1.0                  # the runs are in contact
-    for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "damping", "desired_force"):
-        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+    _assert_same_signals(sil, ref, ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "damping",
+                                    "desired_force"))
     assert np.abs(sil.orientation_error - ref.orientation_error).max() < 1e-12
 
 
