@@ -238,6 +238,16 @@ def _pytest(root, args, env, timeout) -> tuple[str, float, str]:
     return ("pass" if r.returncode == 0 else "fail"), time.perf_counter() - t0, tail
 
 
+def _mutated(root, m: Mutant):
+    """Cosmic Ray's context that applies mutant ``m`` to its file in the clone at ``root`` and restores
+    the file afterwards; yields ``(old source, new source or None)``."""
+    import cosmic_ray.plugins
+    from cosmic_ray.mutating import use_mutation
+
+    random.seed(m.id)   # VariableReplacer/VariableInserter draw a number/operator: reproducible
+    return use_mutation(root / m.file, cosmic_ray.plugins.get_operator(m.operator)(), m.occurrence)
+
+
 def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
     """Apply mutant ``m`` in the clone at ``root``, run its module's ``tests`` (then the whole suite if
     ``full`` and they pass) and return its record: outcome killed, survived, equivalent or incompetent."""
@@ -249,12 +259,7 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
     if eq:
         rec.update(outcome="equivalent", reason=eq["reason"])
         return rec
-    import cosmic_ray.plugins
-    from cosmic_ray.mutating import use_mutation
-
-    op = cosmic_ray.plugins.get_operator(m.operator)()
-    random.seed(m.id)   # VariableReplacer/VariableInserter draw a number/operator: reproducible
-    with use_mutation(root / m.file, op, m.occurrence) as (old, new):
+    with _mutated(root, m) as (old, new):
         if new is None:
             rec.update(outcome="incompetent", stage="no mutation applied")
             return rec
@@ -371,11 +376,7 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
 
 def _fails_alone(root, m: Mutant, test: str, env, timeout) -> bool:
     """Whether ``test`` fails (or errors, or times out) run alone with mutant ``m`` applied."""
-    import cosmic_ray.plugins
-    from cosmic_ray.mutating import use_mutation
-
-    random.seed(m.id)
-    with use_mutation(root / m.file, cosmic_ray.plugins.get_operator(m.operator)(), m.occurrence) as (_, new):
+    with _mutated(root, m) as (_, new):
         return new is not None and _pytest(root, ["-n", "0", test], env, timeout)[0] != "pass"
 
 
