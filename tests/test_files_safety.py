@@ -802,6 +802,67 @@ def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp
     assert litter(tmp_path) == []
 
 
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch, sig):
+    """The signal lands inside ``mkdtemp``, after the folder exists and before
+    its name is returned (the window a CI run hit: SIGTERM sent as soon as the
+    staging folder appeared left it behind). It is acted on once the folder is
+    recorded, so the constructor's clean-up removes it."""
+    import signal
+    import tempfile
+
+    import tmtcontrol.files as files
+
+    real = tempfile.mkdtemp
+
+    def mkdtemp(*args, **kw):
+        path = real(*args, **kw)
+        os.kill(os.getpid(), getattr(signal, sig))            # delivered before mkdtemp returns
+        return path
+
+    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    files.install_signal_handlers()
+    try:
+        monkeypatch.setattr(files.tempfile, "mkdtemp", mkdtemp)
+        with pytest.raises(files.Interrupted) as info:
+            OutputFolder(tmp_path / "new" / "o")
+    finally:
+        signal.signal(signal.SIGINT, previous[0])
+        signal.signal(signal.SIGTERM, previous[1])
+        files._pending.clear()
+    assert info.value.signum == getattr(signal, sig)
+    assert list(tmp_path.iterdir()) == [] and files._unsaved == set()
+
+
+def test_a_signal_between_the_constructor_and_with_is_cleaned_by_the_cli(tmp_path, monkeypatch, capsys):
+    """An interruption after ``OutputFolder(...)`` returned and before its
+    ``with`` block began (its own clean-up cannot run): the command line's
+    net removes the staging folder, and exits 130 with one line."""
+    import tmtcontrol.files as files
+
+    def enter(self):
+        raise files.Interrupted()
+
+    monkeypatch.setattr(files.OutputFolder, "__enter__", enter)
+    code = main(["simulate", *SHORT, "--out", str(tmp_path / "o")])
+    assert code == 130 and "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [] and files._unsaved == set()
+
+
+def test_the_cli_net_leaves_staging_folders_made_before_it_alone(tmp_path):
+    """A staging folder a caller made before the command ran is not the
+    command's to remove."""
+    from tmtcontrol.files import staging_removed_on_exit
+
+    mine = OutputFolder(tmp_path / "mine")
+    try:
+        with staging_removed_on_exit():
+            inner = OutputFolder(tmp_path / "inner")
+        assert mine.path.is_dir() and not inner.path.exists()
+    finally:
+        mine.discard()
+
+
 def test_compile_litter_in_the_temporary_folder_is_removed_after_a_day(private_tmp):
     """Build folders of a killed compile (tmtcontrol-cg-*) and the per-run
     library folders of older versions (tmtcontrol-lib-*) older than a day

@@ -658,7 +658,8 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import threading
 
-    from .files import NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers
+    from .files import (NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers,
+                        staging_removed_on_exit)
     from .processes import defer_in_finalizers
 
     import warnings
@@ -676,7 +677,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             parser.print_help()
             return 0
-        return args.func(args)
+        with staging_removed_on_exit():
+            return args.func(args)
     except ValueError as exc:   # UsageError, ScenarioError, AnalysisError, DesignError, OutputError
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -44,6 +44,8 @@ import socket
 import sys
 import tempfile
 
+from .processes import signals_held
+
 try:                                  # POSIX; elsewhere commits are not serialised
     import fcntl
 except ImportError:                   # pragma: no cover
@@ -137,6 +139,35 @@ def _signals_deferred():
     finally:
         _deferring.pop()
     check_interrupt()
+
+
+_unsaved: set[pathlib.Path] = set()
+"""The staging folders this process made and has neither committed nor removed."""
+
+
+@contextlib.contextmanager
+def staging_removed_on_exit():
+    """Remove, when the block ends (however it ends), every staging folder
+    made inside it and not committed: the net under :class:`OutputFolder`'s
+    own clean-up for a signal that lands between the constructor's return and
+    ``with`` (the CLI runs each command inside it). Folders made before the
+    block are left alone."""
+    before = set(_unsaved)
+    try:
+        yield
+    finally:
+        for path in sorted(_unsaved - before):
+            _remove_staging(path)
+
+
+def _remove_staging(path: pathlib.Path) -> None:
+    """Remove a staging folder and its owner record; forget it."""
+    shutil.rmtree(path, ignore_errors=True)
+    try:
+        _owner_file(path).unlink(missing_ok=True)
+    except OSError:
+        pass
+    _unsaved.discard(path)
 
 
 # -- what is in a folder ----------------------------------------------------------
@@ -431,9 +462,14 @@ class OutputFolder:
                             raise OutputError(f"{flag}: {reason}; choose another folder or move it "
                                               "(nothing was written)")
                         _clean_stale(parent, self.out.name)
-                        self.path = pathlib.Path(tempfile.mkdtemp(prefix=_staging_prefix(self.out.name),
-                                                                  dir=parent))
-                        _write_owner(self.path)
+                        with signals_held():    # a signal now is raised once the folder is known and recorded
+                            self.path = pathlib.Path(tempfile.mkdtemp(prefix=_staging_prefix(self.out.name),
+                                                                      dir=parent))
+                            _unsaved.add(self.path)
+                            umask = os.umask(0)
+                            os.umask(umask)
+                            os.chmod(self.path, 0o777 & ~umask)   # mkdtemp makes 0700; the result is ordinary
+                            _write_owner(self.path)
                     break
                 except FileNotFoundError:
                     if self.path is not None or os.path.isdir(parent):
@@ -449,9 +485,6 @@ class OutputFolder:
         except BaseException:
             self.discard()
             raise
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(self.path, 0o777 & ~umask)   # mkdtemp makes 0700; the result is an ordinary folder
 
     def __enter__(self) -> "OutputFolder":
         return self
@@ -477,11 +510,7 @@ class OutputFolder:
         """Remove the staging folder and the parent folders this run created
         (if they are empty); the target is untouched."""
         if self.path is not None:
-            shutil.rmtree(self.path, ignore_errors=True)
-            try:
-                _owner_file(self.path).unlink(missing_ok=True)
-            except OSError:
-                pass
+            _remove_staging(self.path)
         for p in self._made:
             try:
                 p.rmdir()
@@ -523,6 +552,7 @@ class OutputFolder:
                             raise OutputNotSaved(f"{self.flag}: cannot write {self.shown} ({exc.strerror}); the "
                                                  "results were not saved") from None
                         self.committed = True
+                        _unsaved.discard(self.path)
                 finally:
                     if self.committed:        # also when a deferred signal is raised just now
                         _owner_file(self.path).unlink(missing_ok=True)
