@@ -420,11 +420,12 @@ def test_the_mass_of_a_truncated_normal_is_the_closed_form(mean, std, lo, hi):
     assert spec._check_random("environment.stiffness.k_e", {"normal": [mean, std], "bounds": [lo, hi]})
 
 
-@pytest.mark.parametrize("bad", [0, -5, 2.5])
+@pytest.mark.parametrize("bad", [0, -5, 2.5, True])
 def test_a_case_limit_that_is_not_a_positive_integer_is_refused_as_such(bad):
     """spec.py:core/ReplaceComparisonOperator_IsNot_Is:0 (`max_cases is None and ...`): a limit
     of 0 or -5 cases, or 2.5, is refused naming --max-cases and what it must be, not compared
-    with the sweep's size (0 would read "more than the limit of 0", 2.5 would pass a 2-case sweep)."""
+    with the sweep's size (0 would read "more than the limit of 0", 2.5 would pass a 2-case sweep;
+    True, a bool and so an int to Python, would be a limit of 1)."""
     import tomllib
 
     from tmtcontrol.sweep import EXAMPLE, SweepError, sweep_from_dict

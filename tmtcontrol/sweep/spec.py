@@ -542,7 +542,7 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
         raise SweepError(f"{sorted(overlap)[0]}: both a grid and a random axis")
     if not grid_in and not random:
         raise SweepError("grid, random: a sweep needs at least one axis")
-    if max_cases is not None and not (isinstance(max_cases, int) and max_cases >= 1):
+    if max_cases is not None and (isinstance(max_cases, bool) or not (isinstance(max_cases, int) and max_cases >= 1)):
         raise SweepError(f"--max-cases: must be an integer >= 1, got {max_cases!r}")
     total = math.prod(lengths.values()) * samples
     if max_cases is not None and total > max_cases:
