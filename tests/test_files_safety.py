@@ -802,36 +802,61 @@ def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp
     assert litter(tmp_path) == []
 
 
+@pytest.mark.parametrize("delivery", ["process", "another thread"])
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
-def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch, sig):
+def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch, sig, delivery):
     """The signal lands inside ``mkdtemp``, after the folder exists and before
     its name is returned (the window a CI run hit: SIGTERM sent as soon as the
     staging folder appeared left it behind). It is acted on once the folder is
-    recorded, so the constructor's clean-up removes it."""
+    recorded, so the constructor's clean-up removes it. "another thread": the
+    kernel handed the signal to a thread that does not block it (a BLAS or
+    watchdog thread), and the main thread runs the Python handler at its next
+    instruction (``_thread.interrupt_main`` does exactly that); blocking the
+    signal in the main thread alone does not hold it then."""
+    import _thread
     import signal
     import tempfile
 
     import tmtcontrol.files as files
 
     real = tempfile.mkdtemp
+    signum = getattr(signal, sig)
 
     def mkdtemp(*args, **kw):
         path = real(*args, **kw)
-        os.kill(os.getpid(), getattr(signal, sig))            # delivered before mkdtemp returns
-        return path
+        if delivery == "process":
+            os.kill(os.getpid(), signum)
+        else:
+            _thread.interrupt_main(signum)
+        return path                                       # the handler runs before this line
 
-    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
-    files.install_signal_handlers()
+    previous = files.install_signal_handlers()
     try:
         monkeypatch.setattr(files.tempfile, "mkdtemp", mkdtemp)
         with pytest.raises(files.Interrupted) as info:
             OutputFolder(tmp_path / "new" / "o")
     finally:
-        signal.signal(signal.SIGINT, previous[0])
-        signal.signal(signal.SIGTERM, previous[1])
-        files._pending.clear()
-    assert info.value.signum == getattr(signal, sig)
+        files.restore_signal_handlers(previous)
+    assert info.value.signum == signum
     assert list(tmp_path.iterdir()) == [] and files._unsaved == set()
+
+
+def test_a_signal_a_finished_command_remembered_does_not_stop_a_later_output(tmp_path):
+    """A signal recorded under the CLI's handlers (one CasADi swallowed) was
+    acted on by that command; once the handlers are restored it no longer
+    stops an output folder made in the same process (a notebook calling
+    ``main`` and then the Python API)."""
+    import signal
+
+    import tmtcontrol.files as files
+
+    previous = files.install_signal_handlers()
+    files._pending.append(signal.SIGINT)
+    files.restore_signal_handlers(previous)
+    assert signal.getsignal(signal.SIGINT) is previous[0] and signal.getsignal(signal.SIGTERM) is previous[1]
+    folder = OutputFolder(tmp_path / "o")
+    (folder.path / "a.txt").write_text("x")
+    assert folder.commit() == tmp_path / "o" and (tmp_path / "o" / "a.txt").read_text() == "x"
 
 
 def test_a_signal_between_the_constructor_and_with_is_cleaned_by_the_cli(tmp_path, monkeypatch, capsys):

@@ -655,11 +655,10 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def main(argv: list[str] | None = None) -> int:
-    import signal
     import threading
 
     from .files import (NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers,
-                        staging_removed_on_exit)
+                        restore_signal_handlers, staging_removed_on_exit)
     from .processes import defer_in_finalizers
 
     import warnings
@@ -668,8 +667,7 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _one_line_warning          # a warning is one line on stderr, like an error
     previous = None
     if threading.current_thread() is threading.main_thread():
-        previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
-        install_signal_handlers()
+        previous = install_signal_handlers()
         defer_in_finalizers()          # never raised inside a weakref callback or __del__
     parser = build_parser()
     try:
@@ -698,8 +696,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         warnings.showwarning = shown
         if previous is not None:
-            signal.signal(signal.SIGINT, previous[0])
-            signal.signal(signal.SIGTERM, previous[1])
+            restore_signal_handlers(previous)
 
 
 def run() -> None:

@@ -53,8 +53,8 @@ except ImportError:                   # pragma: no cover
 
 
 __all__ = ["MANIFEST", "MANIFEST_FORMAT", "NOT_SAVED_EXIT", "OutputError", "OutputNotSaved", "OutputFolder",
-           "Interrupted", "VerdictFailed", "install_signal_handlers", "check_interrupt", "versions", "jsonable",
-           "write_json", "disk_full"]
+           "Interrupted", "VerdictFailed", "install_signal_handlers", "restore_signal_handlers", "check_interrupt",
+           "versions", "jsonable", "write_json", "disk_full"]
 
 MANIFEST = ".tmtcontrol-output.json"
 """The file that marks a folder as written by tmtcontrol, listing its files."""
@@ -113,13 +113,26 @@ def _handler(signum, frame):
         raise Interrupted(signum)
 
 
-def install_signal_handlers() -> None:
+def install_signal_handlers() -> tuple:
     """SIGINT and SIGTERM raise :class:`Interrupted` and are remembered, so a
     library that swallows the exception (CasADi stops IPOPT on Ctrl-C and
-    reports a solver failure) can be followed by :func:`check_interrupt`."""
+    reports a solver failure) can be followed by :func:`check_interrupt`.
+    Main thread only; returns the previous handlers for
+    :func:`restore_signal_handlers`."""
+    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
     _pending.clear()
     signal.signal(signal.SIGINT, _handler)
     signal.signal(signal.SIGTERM, _handler)
+    return previous
+
+
+def restore_signal_handlers(previous: tuple) -> None:
+    """Put back the handlers :func:`install_signal_handlers` replaced and
+    forget the signals it remembered (they were acted on), so a later
+    :class:`OutputFolder` in the same process is not stopped by them."""
+    signal.signal(signal.SIGINT, previous[0])
+    signal.signal(signal.SIGTERM, previous[1])
+    _pending.clear()
 
 
 def check_interrupt() -> None:
@@ -130,12 +143,18 @@ def check_interrupt() -> None:
 
 @contextlib.contextmanager
 def _signals_deferred():
-    """The two renames of a commit run whole: a signal arriving meanwhile is
-    remembered and raised just after (the previous output is never left
-    moved aside with the new one discarded)."""
+    """A block that runs whole: a signal arriving meanwhile is remembered and
+    raised just after it (a staging folder is never made without its name
+    being recorded; a commit never leaves the previous output moved aside
+    with the new one discarded). Under :func:`install_signal_handlers` this
+    holds whichever thread the kernel hands the signal to (a BLAS thread, a
+    watchdog); with other handlers (a library caller's KeyboardInterrupt)
+    the signals are blocked in this thread (:func:`~tmtcontrol.processes.signals_held`),
+    which holds them in a program without other threads."""
     _deferring.append(1)
     try:
-        yield
+        with signals_held():
+            yield
     finally:
         _deferring.pop()
     check_interrupt()
@@ -462,7 +481,7 @@ class OutputFolder:
                             raise OutputError(f"{flag}: {reason}; choose another folder or move it "
                                               "(nothing was written)")
                         _clean_stale(parent, self.out.name)
-                        with signals_held():    # a signal now is raised once the folder is known and recorded
+                        with _signals_deferred():    # raised once the folder is known and recorded
                             self.path = pathlib.Path(tempfile.mkdtemp(prefix=_staging_prefix(self.out.name),
                                                                       dir=parent))
                             _unsaved.add(self.path)
