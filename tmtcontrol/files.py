@@ -44,8 +44,6 @@ import socket
 import sys
 import tempfile
 
-from .processes import signals_held
-
 try:                                  # POSIX; elsewhere commits are not serialised
     import fcntl
 except ImportError:                   # pragma: no cover
@@ -146,15 +144,18 @@ def _signals_deferred():
     """A block that runs whole: a signal arriving meanwhile is remembered and
     raised just after it (a staging folder is never made without its name
     being recorded; a commit never leaves the previous output moved aside
-    with the new one discarded). Under :func:`install_signal_handlers` this
-    holds whichever thread the kernel hands the signal to (a BLAS thread, a
-    watchdog); with other handlers (a library caller's KeyboardInterrupt)
-    the signals are blocked in this thread (:func:`~tmtcontrol.processes.signals_held`),
-    which holds them in a program without other threads."""
+    with the new one discarded). This is done by the handlers of
+    :func:`install_signal_handlers` (the command line's), so it holds
+    whichever thread the kernel hands the signal to (a BLAS thread, a
+    watchdog). Blocking the signals in this thread instead would not: the
+    kernel would hand them to another thread, to be acted on whenever that
+    thread next runs, possibly after the block. Under other handlers (a
+    library caller's KeyboardInterrupt) a signal is raised where it lands;
+    the command line's net (:func:`staging_removed_on_exit`) is not there
+    either."""
     _deferring.append(1)
     try:
-        with signals_held():
-            yield
+        yield
     finally:
         _deferring.pop()
     check_interrupt()
