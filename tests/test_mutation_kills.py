@@ -433,3 +433,44 @@ def test_a_case_limit_that_is_not_a_positive_integer_is_refused_as_such(bad):
     with pytest.raises(SweepError, match=r"^--max-cases: must be an integer >= 1, got "):
         sweep_from_dict(tomllib.loads(EXAMPLE), max_cases=bad)
 
+
+
+# -- stability/analysis.py (third run, seed 3) ------------------------------------------------------
+
+@pytest.mark.parametrize("limit,attached", [(0.5, True), (2e4, True), (0.0, False), (-3.0, False),
+                                            (float("inf"), False), (float("nan"), False), (None, False)])
+def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, limit, attached):
+    """analysis.py:core/NumberReplacer:28 (`limit <= 1`) and ReplaceComparisonOperator_LtE_NotEq:1
+    (`limit != 0`): with_stiffness_limit attaches every positive finite limit, however small
+    (0.5 N/m), and only those ("no positive limit found" leaves the run unchanged)."""
+    import dataclasses
+
+    from tmtcontrol.stability import analysis
+
+    monkeypatch.setattr(analysis, "scenario_stiffness_limit", lambda scenario: limit)
+    run = dataclasses.make_dataclass("Run", ["scenario", "info"], frozen=True)(None, {"kept": 1})
+    out = analysis.with_stiffness_limit(run)
+    assert out.info == ({"kept": 1, "stiffness_limit": limit} if attached else {"kept": 1})
+
+
+def test_the_x_e_error_force_is_reported_only_for_an_error_and_a_law_that_states_one():
+    """analysis.py:core/ReplaceAndWithOr:4 (`x_e_error != 0.0 or lw.steady_force is not None`):
+    without an x_e error no x_e keys are reported, and a law that states no steady-force formula
+    (TMT with it removed, as a user's law may be) is analysed without them; the known-stiffness
+    law with an error reports eq. (12)'s f_d + k_eff delta when its assumed stiffness is the
+    surface's (here 5e3 N/m, its default)."""
+    import dataclasses
+
+    from tmtcontrol.control.laws import TMT, register_law
+    from tmtcontrol.stability.analysis import analyze
+
+    base = dict(m=1.0, b=60.0, k=100.0, f_d=10.0, k_e=5e3)
+    assert "steady_state_force_x_e_error" not in analyze(**base, law="known")
+    assert "x_e_error" not in analyze(**base, law="known")
+    register_law(dataclasses.replace(TMT, steady_force=None), replace=True)
+    try:
+        assert "steady_state_force_x_e_error" not in analyze(**base, law="tmt", x_e_error=1e-3)
+    finally:
+        register_law(TMT, replace=True)
+    got = analyze(**base, law="known", x_e_error=1e-3)["steady_state_force_x_e_error"]
+    assert got == pytest.approx(10.0 + 100.0 * 5e3 / (100.0 + 5e3) * 1e-3, rel=1e-12)
