@@ -474,3 +474,81 @@ def test_the_x_e_error_force_is_reported_only_for_an_error_and_a_law_that_states
         register_law(TMT, replace=True)
     got = analyze(**base, law="known", x_e_error=1e-3)["steady_state_force_x_e_error"]
     assert got == pytest.approx(10.0 + 100.0 * 5e3 / (100.0 + 5e3) * 1e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("band_top,rho,stable", [(1.5e4, 0.5, False), (1e6, 1.2, False), (1e6, 0.5, True)])
+def test_the_sampled_verdict_needs_every_grid_point_stable_and_the_range_inside_the_band(monkeypatch, band_top,
+                                                                                         rho, stable):
+    """analysis.py:core/ReplaceAndWithOr:5 (`rho < 1.0 or hi < limit`): a range 2e3..2e4 N/m whose
+    grid points all have spectral radius 0.5 while the stable band ends at 1.5e4 N/m (an unstable
+    gap between grid points) is not stable, nor is one inside the band with a grid point at
+    radius 1.2; only both together are. The two sampled-model functions are stubbed: what is
+    tested is how the verdict combines them."""
+    from tmtcontrol.stability import analysis
+    from tmtcontrol.stability.sampled import stable_band
+
+    monkeypatch.setattr(analysis, "stiffness_band",
+                        lambda *a, within, **kw: stable_band(lambda ke: ke <= band_top, within=within))
+    monkeypatch.setattr(analysis, "spectral_radius", lambda *a, **kw: rho)
+    out = analysis.analyze(m=1.0, b=60.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, m_p=3.3)
+    assert out["spectral_radius"] == rho
+    assert out["max_stable_stiffness"] == pytest.approx(band_top, rel=1e-5)
+    assert out["sampled_stable"] is stable
+
+
+@pytest.fixture
+def frozen_limits(monkeypatch):
+    """analyze_scenario(paper, limits=True) with the frozen-point limits stubbed as given and the
+    periodic and first-contact searches recorded (each returns what the test sets)."""
+    from tmtcontrol.stability import first_contact, periodic, wholeloop
+
+    calls = {}
+
+    def set_limits(frozen, per_point, periodic_at=None, first_at=None):
+        monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **kw: (frozen, per_point))
+        monkeypatch.setattr(periodic, "periodic_limit",
+                            lambda scenario, bracket=None: calls.setdefault("bracket", bracket) and periodic_at)
+        monkeypatch.setattr(first_contact, "first_contact_limit",
+                            lambda scenario, bound: calls.setdefault("bound", bound) and first_at)
+        return calls
+
+    return set_limits
+
+
+def test_the_periodic_search_starts_from_the_frozen_limits_widened_two_percent(frozen_limits):
+    """analysis.py:core/ReplaceBinaryOperator_Mul_FloorDiv:0 (`hi // 1.02`): the periodic limit is
+    bracketed by the frozen loop's smallest and largest limits along the path, each 2 % outward
+    (periodic_limit's own default bracket): (1e4 / 1.02, 1.3e4 * 1.02), not an upper end inside
+    the frozen range (1.3e4 // 1.02 = 12745). The first-contact search is bounded by the periodic
+    limit, and the smaller of the two decides."""
+    from tmtcontrol.stability.analysis import analyze_scenario
+
+    calls = frozen_limits(1e4, [(0.0, 1e4), (2.0, 1.3e4)], periodic_at=1.2e4, first_at=1.5e4)
+    out = analyze_scenario(paper_scenario(), limits=True)
+    assert calls == {"bracket": (1e4 / 1.02, 1.3e4 * 1.02), "bound": 1.2e4}
+    assert (out["limit"], out["limit_from"]) == (1.2e4, "periodic orbit")
+    assert out["sampled_stable"] is False                     # the paper's 2e4 N/m is above it
+
+
+def test_a_loop_unstable_at_the_smallest_stiffness_has_limit_zero_and_no_path_search(frozen_limits):
+    """analysis.py:core/ReplaceComparisonOperator_Gt_GtE:3 (`limit >= 0`): a whole loop unstable at
+    the scenario's smallest stiffness (frozen limit 0) has limit 0 "unstable at the smallest
+    stiffness", and no periodic or first-contact search is started from a zero bracket."""
+    from tmtcontrol.stability.analysis import analyze_scenario
+
+    calls = frozen_limits(0.0, [(0.0, 0.0), (2.0, 0.0)], periodic_at=1.2e4, first_at=1.5e4)
+    out = analyze_scenario(paper_scenario(), limits=True)
+    assert calls == {}
+    assert (out["limit"], out["limit_from"], out["sampled_stable"]) == (0.0, "unstable at the smallest stiffness",
+                                                                        False)
+
+
+def test_the_analysis_table_heads_a_range_and_a_single_stiffness_as_such():
+    """analysis.py:core/AddNot:46 (`if not "k_e_min" in d`): the printed table's first row is the
+    stiffness range for a range and the single stiffness for one (N/m)."""
+    from tmtcontrol.stability.analysis import analyze, format_analysis
+
+    one = format_analysis(analyze(m=1.0, b=60.0, k=100.0, k_e=5e3)).splitlines()[0]
+    both = format_analysis(analyze(m=1.0, b=60.0, k=100.0, k_e_min=2e3, k_e_max=2e4)).splitlines()[0]
+    assert one == "stiffness            5000 N/m"
+    assert both == "stiffness range      2000 .. 20000 N/m (scalars below at k_e_max)"
