@@ -43,7 +43,11 @@ How a mutant is judged:
    Ctrl-C tests) has been seen to fail under that load with the mutated line
    never run; such a mutant is a survivor, with the failure recorded.
 
-Mutants listed in benchmarks/equivalent_mutants.toml (argued, one line each,
+A mutant that changes nothing but the annotations of undecorated functions in
+a module with ``from __future__ import annotations`` (``int | None`` made
+``int >> None``) is equivalent by rule (:func:`only_annotations`): those
+annotations stay unevaluated strings.  Mutants listed in
+benchmarks/equivalent_mutants.toml (argued, one line each,
 that no input can tell them apart from the original) are counted as
 equivalent and not run; an entry whose line no longer matches the mutant is
 reported as stale and ignored.  The score of a module is
@@ -264,6 +268,9 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
             rec.update(outcome="incompetent", stage="no mutation applied")
             return rec
         rec["diff"] = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+        if only_annotations(old, new):
+            rec.update(outcome="equivalent", reason=ANNOTATION_REASON)
+            return rec
         status, dt, tail = _pytest(root, ["-n", "0", *tests], env, timeout)
         rec.update(module_tests=status, module_seconds=round(dt, 1))
         if status == "pass" and full:
@@ -282,6 +289,41 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
     if status == "fail":
         rec["killed_by"] = " / ".join(tail.splitlines())
     return rec
+
+
+ANNOTATION_REASON = ("only the annotations of undecorated functions change, in a module with `from __future__ "
+                     "import annotations`: they stay unevaluated strings (nothing calls get_type_hints on them)")
+
+
+def only_annotations(old: str, new: str) -> bool:
+    """True if sources ``old`` and ``new`` differ only in the parameter or return annotations of
+    functions without decorators, in a module that starts with ``from __future__ import
+    annotations`` (PEP 563: the annotations are kept as strings, never evaluated unless something
+    asks, and only a decorator such as pydantic's ``validate_call`` would). Annotations of
+    decorated functions and of class or module variables (which dataclasses and pydantic read)
+    count as code."""
+    import ast
+
+    def stripped(src: str) -> str | None:
+        try:
+            tree = ast.parse(src)
+        except SyntaxError:
+            return None
+        future = any(isinstance(n, ast.ImportFrom) and n.module == "__future__"
+                     and any(a.name == "annotations" for a in n.names) for n in tree.body)
+        if not future:
+            return None
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not node.decorator_list:
+                node.returns = None
+                a = node.args
+                for arg in (*a.posonlyargs, *a.args, *a.kwonlyargs, a.vararg, a.kwarg):
+                    if arg is not None:
+                        arg.annotation = None
+        return ast.dump(tree)
+
+    before = stripped(old)
+    return before is not None and old != new and before == stripped(new)
 
 
 def _failed_test(tail: str) -> str | None:

@@ -124,3 +124,28 @@ def test_the_interval_is_shown_rounded_outward(tool):
     # 21 of 21 bound the score at 84.5 %: shown as 84 (the goal is a lower bound of 85 %), not 85
     assert tool._ci(tool.wilson(21, 21)) == "84-100 %"
     assert tool._ci(tool.wilson(22, 22)) == "85-100 %" and tool._ci((0.25, 0.75)) == "25-75 %"
+
+
+FUTURE = "from __future__ import annotations\n"
+PLAIN = "def f(x: int | None = None, *a: str, k: float | None = 1.0, **kw: int) -> str | None:\n    return x | 1\n"
+
+
+@pytest.mark.parametrize("old,new,equivalent", [
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("x: int | None", "x: int >> None"), True),
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("-> str | None", "-> str & None"), True),
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("*a: str", "*a: str[0]"), True),
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("k: float | None", "k: float ^ None"), True),
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("**kw: int", "**kw: -int"), True),
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("= 1.0", "= 2.0"), False),                  # a default is code
+    (FUTURE + PLAIN, FUTURE + PLAIN.replace("x | 1", "x ^ 1"), False),                  # the body
+    (PLAIN, PLAIN.replace("x: int | None", "x: int >> None"), False),                   # evaluated at def time
+    (FUTURE + "@deco\n" + PLAIN, FUTURE + "@deco\n" + PLAIN.replace("-> str | None", "-> str & None"), False),
+    (FUTURE + "class C:\n    x: int | None = None\n", FUTURE + "class C:\n    x: int >> None = None\n", False),
+    (FUTURE + PLAIN, FUTURE + PLAIN, False),                                            # no change at all
+])
+def test_an_annotation_only_mutant_is_equivalent_by_rule_and_nothing_else_is(tool, old, new, equivalent):
+    """The rule that spares the equivalent list its annotation entries: only parameter and return
+    annotations of undecorated functions under PEP 563 (a decorator such as pydantic's
+    validate_call, or a dataclass or pydantic field, would evaluate them; without the
+    __future__ import they are evaluated when the def runs)."""
+    assert tool.only_annotations(old, new) is equivalent
