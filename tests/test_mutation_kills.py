@@ -552,3 +552,34 @@ def test_the_analysis_table_heads_a_range_and_a_single_stiffness_as_such():
     both = format_analysis(analyze(m=1.0, b=60.0, k=100.0, k_e_min=2e3, k_e_max=2e4)).splitlines()[0]
     assert one == "stiffness            5000 N/m"
     assert both == "stiffness range      2000 .. 20000 N/m (scalars below at k_e_max)"
+
+
+def test_the_analysis_table_gives_the_x_e_error_in_millimetres():
+    """analysis.py:core/NumberReplacer:92 (`* 1001.0`, the sampled row's metres to millimetres): a
+    surface 2 mm off (x_e error -0.002 m) reads "-2 mm" in both rows that quote it."""
+    from tmtcontrol.stability.analysis import analyze, format_analysis
+
+    rows = format_analysis(analyze(m=1.0, b=60.0, k=100.0, k_e=5e3, Ts=1e-3, m_p=3.3, x_e_error=-2e-3,
+                                   law="known")).splitlines()
+    assert any(r.startswith("with x_e error       -2 mm: steady-state force ") for r in rows), rows
+    assert "sampled at Ts        0.001 s, m_p = 3.3 kg, delay 0 sample(s), x_e error -2 mm" in rows
+
+
+# -- simulation/scenario.py (fourth run, seed 3) ----------------------------------------------------
+
+@pytest.mark.parametrize("off,accepted", [(1e-6, True), (1.5e-6, False)])
+def test_a_normal_and_a_tilt_agreeing_within_exactly_1e_6_are_one_plane(off, accepted):
+    """scenario.py:core/ReplaceComparisonOperator_Gt_GtE:3 (`>= 1e-6`): normal (1e-6, 0, -1) with
+    tilt_deg = 0 (the plane's normal (0, 0, -1)) differs by exactly 1e-6 in one component, the
+    tolerance, inclusive like the unit-length check's: accepted; 1.5e-6 off is refused naming
+    tilt_deg (the environment section as a 6-D arm's scenario holds it)."""
+    from pydantic import ValidationError
+
+    from tmtcontrol.simulation.scenario import EnvironmentSettings
+
+    given = dict(normal=(off, 0.0, -1.0), tilt_deg=0.0)
+    if accepted:
+        assert EnvironmentSettings(**given).normal == (off, 0.0, -1.0)
+    else:
+        with pytest.raises(ValidationError, match="tilt_deg: 0 deg is not the plane of normal"):
+            EnvironmentSettings(**given)
