@@ -583,3 +583,19 @@ def test_a_normal_and_a_tilt_agreeing_within_exactly_1e_6_are_one_plane(off, acc
     else:
         with pytest.raises(ValidationError, match="tilt_deg: 0 deg is not the plane of normal"):
             EnvironmentSettings(**given)
+
+
+def test_an_input_file_is_read_in_mebibyte_chunks(tmp_path, monkeypatch):
+    """scenario.py:core/NumberReplacer:447 (`1**20`, one byte per read, for `2**20`): a 2.5 MiB
+    table is read whole in three reads of at most 1 MiB and one that meets the end (never one
+    16 MiB buffer, never millions of system calls)."""
+    from tmtcontrol.simulation import scenario
+
+    path = tmp_path / "big.csv"
+    text = ("0.0,1000.0\n" * (5 * 2**19 // 11 + 1))[:5 * 2**19]      # 2.5 MiB of text
+    path.write_text(text)
+    asked = []
+    real = os.read
+    monkeypatch.setattr(os, "read", lambda fd, n: asked.append(n) or real(fd, n))
+    assert len(text) == 5 * 2**19 and scenario.read_text_file(path) == text
+    assert asked == [2**20] * 4          # 1 + 1 + 0.5 MiB, then the end of the file
