@@ -53,6 +53,48 @@ def test_overshoot_of_a_segment_starting_above_f_d_is_its_dip_under_f_d():
     assert seg.overshoot_pct == pytest.approx(10.0, abs=1e-9)
 
 
+
+# -- simulation/metrics.py (fourth run, seed 3) -----------------------------------------------------
+
+def test_the_common_period_of_path_and_stiffness_is_tried_first():
+    """metrics.py:core/NumberReplacer:73 (`per.insert(-1, lcm)`): a sinusoidal stiffness of
+    0.3 s on a 0.2 s circle at 1 kHz: the verdict tries their common period 0.6 s first, then
+    the stiffness' and the path's (600, 300, 200 samples), not (300, 600, 200)."""
+    sc = SimpleNamespace(environment=SimpleNamespace(stiffness=SimpleNamespace(kind="sinusoidal", period=0.3)),
+                         trajectory=SimpleNamespace(radius=0.1, period=0.2))
+    from tmtcontrol.simulation.metrics import judging_periods
+
+    assert judging_periods(SimpleNamespace(scenario=sc, Ts=1e-3)) == (600, 300, 200)
+
+
+def test_the_correlation_time_of_an_ar1_process_is_its_closed_form():
+    """metrics.py:core/ReplaceBinaryOperator_Mul_Pow:2 (`f ** conj(f)` in the autocorrelation):
+    an AR(1) process x_k = phi x_(k-1) + w_k has integrated autocorrelation time
+    (1 + phi) / (1 - phi) = 3 at phi = 0.5; 200,000 samples (seed 1) give it within 6 % (three
+    standard errors of Sokal's windowed estimate, sqrt(2 (2M + 1) / n) tau with M ~ 15), and white
+    noise gives 1."""
+    from scipy.signal import lfilter
+
+    from tmtcontrol.simulation.metrics import correlation_time
+
+    w = np.random.default_rng(1).standard_normal(200_000)
+    assert correlation_time(lfilter([1.0], [1.0, -0.5], w)) == pytest.approx(3.0, rel=0.06)
+    assert correlation_time(w) == pytest.approx(1.0, abs=0.05)
+
+
+def test_a_periodic_response_that_repeats_within_a_fifth_of_its_swing_is_forced_not_a_limit_cycle():
+    """metrics.py:core/ReplaceBinaryOperator_Mul_Div:13 (`FORCED / a_B`): a 4.1 N peak-to-peak
+    response at the forcing period (100 samples) plus a slower 0.25 N one, so two consecutive
+    windows differ by 0.16 N, within 0.2 x 4.1 N: the forced response (off target, stable), not
+    a limit cycle (0.2 / 4.1 = 0.05 N would call it one)."""
+    from tmtcontrol.simulation.metrics import judge_segment
+
+    k = np.arange(4000)
+    e = 2.0 * np.sin(2 * np.pi * k / 100) + 0.125 * np.sin(2 * np.pi * k / 310)
+    verdict, why = judge_segment(10.0 + e, 10.0, 0.5, 0.3, periods=(100,), Ts=1e-3)
+    assert verdict == "off_target" and "periodic forced response" in why
+
+
 # -- files.py ----------------------------------------------------------------------------------
 
 def test_full_disk_elsewhere_names_the_current_folder_for_a_bare_file_name(tmp_path):
