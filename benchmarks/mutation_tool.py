@@ -350,9 +350,23 @@ def _module_row(row: dict, results: list[dict]) -> dict:
 def draw(population: list[Mutant], seed: int, module: str, k: int) -> list[Mutant]:
     """The first ``k`` mutants of the module's seeded random order (one generator per module, so a
     module's sample does not depend on which others are measured).  ``draw(.., k)`` is the first k
-    of ``draw(.., k + j)`` (random.sample picks one element after the other), which is what lets
-    ``--recheck`` top a sample up past its equivalent mutants without changing the mutants drawn."""
-    return random.Random(f"{seed}:{module}").sample(population, min(k, len(population)))
+    of ``draw(.., k + j)`` for every k and j, which is what lets ``--recheck`` top a sample up past
+    its equivalent mutants without changing the mutants drawn.
+
+    The mutants are picked one index at a time (``randrange(n)`` until one not drawn yet), the
+    method ``random.sample`` itself uses for a sample small against the population, so a sample of
+    22 from any module of more than 277 mutants (every module here) is the one ``random.sample``
+    drew for the earlier runs.  ``random.sample`` is not used: it switches to a partial shuffle,
+    another order, once k is large against n (a top-up of 22 + 76 from 683 mutants did), which
+    broke the prefix property."""
+    rng = random.Random(f"{seed}:{module}")
+    n, picked, seen = len(population), [], set()
+    while len(picked) < min(k, n):
+        j = rng.randrange(n)
+        if j not in seen:
+            seen.add(j)
+            picked.append(population[j])
+    return picked
 
 
 def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, timeout, full, sample, seed) -> None:

@@ -101,13 +101,30 @@ def test_merge_keeps_each_run_and_refuses_mixed_samples_or_a_module_twice(tool):
 
 def test_a_larger_draw_starts_with_the_smaller_one_so_a_top_up_keeps_the_sample(tool):
     # --recheck tops a sample up past its equivalent mutants by drawing further along the same seeded
-    # order; that is sound only if the first k of a draw of k + j are the draw of k, for every module size
-    # (random.sample switches algorithm with the sizes: pool below ~300 mutants, a set above)
-    for size in (30, 700, 2280):
+    # order (up to 3 * sample + 10 further); that is sound only if the first k of a draw of k + j are the
+    # draw of k, for every module size and every j (random.sample switches algorithm with k against n:
+    # the draw of 22 + 76 from 683 mutants was another order, which --recheck caught in the fourth run)
+    for size in (30, 683, 2280):
         population = [tool.Mutant("m", "f.py", "core/AddNot", i, i) for i in range(size)]
         for k in (6, 20, 22):
-            assert tool.draw(population, 3, "m", k + 17)[:k] == tool.draw(population, 3, "m", k), (size, k)
-    assert tool.draw(population[:5], 3, "m", 22) != [] and len(tool.draw(population[:5], 3, "m", 22)) == 5
+            for j in (17, 3 * 22 + 10, size):
+                assert tool.draw(population, 3, "m", k + j)[:k] == tool.draw(population, 3, "m", k), (size, k, j)
+
+
+def test_a_sample_of_22_is_the_one_random_sample_drew_for_the_earlier_runs(tool):
+    # the recorded runs drew with random.sample; on modules of more than 277 mutants (all of them) a
+    # sample of 22 is drawn index by index, as draw does, so their samples are still drawn the same
+    import random
+
+    for size in (683, 717, 2280):
+        population = [tool.Mutant("m", "f.py", "core/AddNot", i, i) for i in range(size)]
+        for seed in (1, 2, 3):
+            assert tool.draw(population, seed, "m", 22) == random.Random(f"{seed}:m").sample(population, 22)
+
+
+def test_a_draw_larger_than_the_module_is_the_whole_module(tool):
+    population = [tool.Mutant("m", "f.py", "core/AddNot", i, i) for i in range(5)]
+    assert sorted(tool.draw(population, 3, "m", 22), key=lambda m: m.occurrence) == population
 
 
 def test_the_test_that_killed_a_mutant_is_read_from_pytests_summary(tool):
