@@ -95,6 +95,32 @@ def test_a_periodic_response_that_repeats_within_a_fifth_of_its_swing_is_forced_
     assert verdict == "off_target" and "periodic forced response" in why
 
 
+
+# -- control/laws (fourth run, seed 3) --------------------------------------------------------------
+
+@pytest.mark.parametrize("change", ["missing", "extra", "renamed"])
+def test_a_law_whose_next_state_is_not_its_declared_state_is_refused_by_name(change):
+    """laws/base.py:core/ReplaceComparisonOperator_NotEq_Gt:1 (`set(nxt) > set(states)`): a law
+    declaring states (x_a, dx_a) whose update returns s_next without dx_a, with one more entry,
+    or with dx_a renamed, is refused when its Function is built, naming the law and the states
+    (the mutant let the missing and renamed ones through to a KeyError)."""
+    from tmtcontrol.control.laws import TMT
+
+    def update(y, p, s):
+        out = TMT.update(y, p, s)
+        nxt = dict(out["s_next"])
+        if change == "missing":
+            del nxt["dx_a"]
+        elif change == "extra":
+            nxt["z"] = nxt["x_a"]
+        else:
+            nxt["v_a"] = nxt.pop("dx_a")
+        return {**out, "s_next": nxt}
+
+    with pytest.raises(ValueError, match=r"^law 'tmt': s_next must give exactly the states \('x_a', 'dx_a'\)$"):
+        TMT.replace(update=update).function()
+
+
 # -- files.py ----------------------------------------------------------------------------------
 
 def test_full_disk_elsewhere_names_the_current_folder_for_a_bare_file_name(tmp_path):
