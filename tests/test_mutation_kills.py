@@ -56,6 +56,17 @@ def test_overshoot_of_a_segment_starting_above_f_d_is_its_dip_under_f_d():
 
 # -- simulation/metrics.py (fourth run, seed 3) -----------------------------------------------------
 
+@pytest.mark.parametrize("force,overshoot", [(12.0, 0.0), (8.0, 0.0)])
+def test_a_segment_of_one_sample_is_measured_not_a_crash(force, overshoot):
+    """metrics.py:core/ReplaceComparisonOperator_Gt_GtE:15 (`f.size >= 1`): a segment of a single
+    sample (a stiffness change at a run's last sample) has no sample after its first, so its
+    overshoot is taken over that sample (0 %), not over an empty array (a ValueError); it is
+    judged by the tolerance alone, off target at 2 N from f_d = 10 N."""
+    (seg,) = segment_metrics(_one_segment(np.array([force])))
+    assert seg.overshoot_pct == overshoot
+    assert seg.verdict == "off_target" and seg.steady_state_error == pytest.approx(2.0, abs=1e-12)
+
+
 def test_the_common_period_of_path_and_stiffness_is_tried_first():
     """metrics.py:core/NumberReplacer:73 (`per.insert(-1, lcm)`): a sinusoidal stiffness of
     0.3 s on a 0.2 s circle at 1 kHz: the verdict tries their common period 0.6 s first, then
