@@ -67,6 +67,20 @@ def test_a_segment_of_one_sample_is_measured_not_a_crash(force, overshoot):
     assert seg.verdict == "off_target" and seg.steady_state_error == pytest.approx(2.0, abs=1e-12)
 
 
+def test_knots_at_the_start_and_past_the_end_of_a_run_make_no_segment():
+    """metrics.py:core/ReplaceBinaryOperator_BitAnd_BitOr:0 (`(idx > 0) | (idx < n)`): a 2 s run at
+    1 kHz whose piecewise-linear stiffness has knots at 0, 1 and 5 s (the last one after the run)
+    has two segments, [0, 1000) and [1000, 2000); the knot after the run neither opens a segment
+    nor stretches the last one past the run's 2000 samples."""
+    from tmtcontrol.simulation.metrics import segments
+    from tmtcontrol.simulation.scenario import PiecewiseLinearStiffness
+
+    profile = PiecewiseLinearStiffness(times=(0.0, 1.0, 5.0), values=(2e3, 1e4, 1e4))
+    run = SimpleNamespace(scenario=SimpleNamespace(environment=SimpleNamespace(stiffness=profile)), Ts=1e-3,
+                          stiffness=np.interp(1e-3 * np.arange(2000), profile.times, profile.values))
+    assert segments(run) == [(0, 1000), (1000, 2000)]
+
+
 def test_the_common_period_of_path_and_stiffness_is_tried_first():
     """metrics.py:core/NumberReplacer:73 (`per.insert(-1, lcm)`): a sinusoidal stiffness of
     0.3 s on a 0.2 s circle at 1 kHz: the verdict tries their common period 0.6 s first, then
