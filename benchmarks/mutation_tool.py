@@ -479,8 +479,9 @@ def main(argv=None) -> int:
                     help="keys of TESTS to measure (default: all)")
     ap.add_argument("--sample", type=int, default=0, help="mutants per module, drawn at random (0: all)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the sample")
-    ap.add_argument("--timeout", type=float, default=240.0,
-                    help="seconds a mutant's module tests may take (a timeout kills it); the whole suite gets 3x")
+    ap.add_argument("--timeout", type=float, default=None,
+                    help="seconds a mutant's module tests may take (a timeout kills it); the whole suite gets 3x "
+                         "(default 240; with --recheck, the results file's)")
     ap.add_argument("--only", nargs="+", metavar="ID", help="run these mutants (FILE:OPERATOR:OCCURRENCE) only")
     ap.add_argument("--no-full", action="store_true", help="do not rerun survivors against the whole suite")
     ap.add_argument("--count", action="store_true", help="print the number of mutants per module and stop")
@@ -496,6 +497,8 @@ def main(argv=None) -> int:
                     help="write the modules of these results files (one sample, seed and timeout) into --json and stop")
     ap.add_argument("--markdown", metavar="JSON", help="print the Markdown table of a results JSON and stop")
     a = ap.parse_args(argv)
+    if a.timeout is None and not a.recheck:
+        a.timeout = 240.0
     if a.markdown:
         print(markdown_table(json.loads(pathlib.Path(a.markdown).read_text())), end="")
         return 0
@@ -560,6 +563,8 @@ def main(argv=None) -> int:
             old = json.loads(pathlib.Path(a.json).read_text())
             # --sample larger than the file's tops every module up to it (more of the same seeded order)
             a.sample, a.seed, a.no_full = max(a.sample, old["sample"]), old["seed"], not old["full_suite"]
+            if a.timeout is None:        # judged again as the run judged them (the file records one timeout)
+                a.timeout = old["timeout"]
             rows, results, deselected = old["modules"], old["mutants"], old.get("deselected", {})
             a.modules = []       # no new module is measured
             _recheck(root, commit, rows, results, deselected, enumerate_mutants(root, [r["module"] for r in rows]),
