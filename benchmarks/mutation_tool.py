@@ -369,6 +369,15 @@ def draw(population: list[Mutant], seed: int, module: str, k: int) -> list[Mutan
     return picked
 
 
+def recheck_settings(old: dict, sample: int, timeout: float | None) -> tuple[int, int, bool, float]:
+    """``(sample, seed, no_full, timeout)`` for ``--recheck`` of the results ``old``: its seed and
+    whole-suite stage; a ``--sample`` larger than the file's tops every module up to it (more of the
+    same seeded order); its timeout unless ``--timeout`` is given, so the mutants are judged again
+    as the run judged them (the file records one timeout)."""
+    return (max(sample, old["sample"]), old["seed"], not old["full_suite"],
+            old["timeout"] if timeout is None else timeout)
+
+
 def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, timeout, full, sample, seed) -> None:
     """Rerun, on the clone's commit, every survivor recorded in ``results`` whose mutant is still the
     same code (same diff), and update its record and its module's row in place.  Adding tests can
@@ -561,10 +570,7 @@ def main(argv=None) -> int:
 
         if a.recheck:
             old = json.loads(pathlib.Path(a.json).read_text())
-            # --sample larger than the file's tops every module up to it (more of the same seeded order)
-            a.sample, a.seed, a.no_full = max(a.sample, old["sample"]), old["seed"], not old["full_suite"]
-            if a.timeout is None:        # judged again as the run judged them (the file records one timeout)
-                a.timeout = old["timeout"]
+            a.sample, a.seed, a.no_full, a.timeout = recheck_settings(old, a.sample, a.timeout)
             rows, results, deselected = old["modules"], old["mutants"], old.get("deselected", {})
             a.modules = []       # no new module is measured
             _recheck(root, commit, rows, results, deselected, enumerate_mutants(root, [r["module"] for r in rows]),

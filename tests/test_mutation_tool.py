@@ -166,3 +166,12 @@ def test_an_annotation_only_mutant_is_equivalent_by_rule_and_nothing_else_is(too
     validate_call, or a dataclass or pydantic field, would evaluate them; without the
     __future__ import they are evaluated when the def runs)."""
     assert tool.only_annotations(old, new) is equivalent
+
+
+def test_a_recheck_judges_as_the_run_did_unless_told_otherwise(tool):
+    # the fourth run's rechecks ran with the 240 s default while the file said 600 s: --recheck now
+    # keeps the file's timeout, seed and whole-suite stage; --sample only ever grows the sample
+    old = dict(sample=22, seed=3, full_suite=True, timeout=600.0)
+    assert tool.recheck_settings(old, 0, None) == (22, 3, False, 600.0)
+    assert tool.recheck_settings(old, 30, 900.0) == (30, 3, False, 900.0)
+    assert tool.recheck_settings(dict(old, full_suite=False), 10, None) == (22, 3, True, 600.0)
