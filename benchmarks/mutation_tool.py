@@ -199,12 +199,15 @@ def mutated_source(root: pathlib.Path, m: Mutant) -> tuple[str, str | None]:
     return code, mutate_code(code, cosmic_ray.plugins.get_operator(m.operator)(), m.occurrence)
 
 
+def _unified(m: Mutant, old: str, new: str) -> str:
+    """The mutant's change to its file as a unified diff without context."""
+    return "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+
+
 def diff_of(root: pathlib.Path, m: Mutant) -> str:
     random.seed(m.id)
     old, new = mutated_source(root, m)
-    if new is None:
-        return ""
-    return "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+    return "" if new is None else _unified(m, old, new)
 
 
 def _ci(ci95) -> str:
@@ -267,7 +270,7 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
         if new is None:
             rec.update(outcome="incompetent", stage="no mutation applied")
             return rec
-        rec["diff"] = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
+        rec["diff"] = _unified(m, old, new)
         if only_annotations(old, new):
             rec.update(outcome="equivalent", reason=ANNOTATION_REASON)
             return rec

@@ -786,8 +786,7 @@ def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp
         if len(calls) == 1:                                   # the previous output is aside now
             os.kill(os.getpid(), signal.SIGINT)
 
-    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
-    files.install_signal_handlers()
+    previous = files.install_signal_handlers()
     try:
         monkeypatch.setattr(files.os, "replace", replace)
         with pytest.raises(files.Interrupted):
@@ -795,9 +794,7 @@ def test_a_signal_during_the_commits_renames_never_loses_the_previous_output(tmp
                 (folder.path / "new.txt").write_text("complete")
                 folder.commit()
     finally:
-        signal.signal(signal.SIGINT, previous[0])
-        signal.signal(signal.SIGTERM, previous[1])
-        files._pending.clear()
+        files.restore_signal_handlers(previous)
     assert len(calls) == 2 and (out / "new.txt").read_text() == "complete"
     assert litter(tmp_path) == []
 
