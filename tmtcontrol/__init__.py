@@ -5,6 +5,7 @@ stiffness.
 Data path (one way; nothing imports a later stage)::
 
     model/        robot dynamics, eq. (1)
+      -> surface/     contact surfaces (plane, ...): distance, normal, frame, contact law
       -> control/     impedance filter and inner loop (eqs. 2-6); laws/ (eqs. 11-18 and baselines)
       -> simulation/  scenario, environment, closed loop, compiled rollout, metrics, outputs
       -> stability/   continuous (eqs. 19-25), sampled data, design
@@ -19,11 +20,11 @@ from typing import TYPE_CHECKING
 
 _EXPORTS = {
     "tmtcontrol.model": ("Puma560", "PUMA560_LINKS", "LinkParameters"),
-    "tmtcontrol.model.robot": ("load_robot", "Robot", "URDFError"),
     "tmtcontrol.simulation.scenario": ("Scenario", "ScenarioError", "paper_scenario", "load_scenario",
                                        "dump_scenario", "apply_overrides"),
-    "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError"),
-    "tmtcontrol.simulation.posesim": ("PoseSimulator", "PoseSimulationResult", "simulator_for"),
+    "tmtcontrol.simulation.simulator": ("Simulator", "SimulationResult", "SimulationError", "simulator_for"),
+    "tmtcontrol.model.robot": ("load_robot", "Robot", "URDFError", "Task"),
+    "tmtcontrol.surface": ("Surface", "Plane"),
     "tmtcontrol.simulation.metrics": ("SegmentMetrics", "segment_metrics"),
     "tmtcontrol.simulation.compare": ("compare_laws", "Comparison", "LawRun"),
     "tmtcontrol.export.generate": ("export_controller", "ExportError"),
@@ -40,7 +41,7 @@ __all__ = [
     "paper_scenario", "load_scenario", "dump_scenario", "apply_overrides", "Simulator",
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
     "LawRun", "load_robot", "Robot", "URDFError", "export_controller", "ExportError", "CompiledController",
-    "simulate_with_controller", "PoseSimulator", "PoseSimulationResult", "simulator_for",
+    "simulate_with_controller", "simulator_for", "Task", "Surface", "Plane",
 ]
 
 
@@ -61,10 +62,10 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .export.generate import ExportError, export_controller
     from .export.sil import CompiledController, simulate_with_controller
     from .model import PUMA560_LINKS, LinkParameters, Puma560
-    from .model.robot import Robot, URDFError, load_robot
+    from .model.robot import Robot, Task, URDFError, load_robot
     from .simulation.compare import Comparison, LawRun, compare_laws
     from .simulation.metrics import SegmentMetrics, segment_metrics
     from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,
                                       paper_scenario)
-    from .simulation.posesim import PoseSimulationResult, PoseSimulator, simulator_for
-    from .simulation.simulator import SimulationError, SimulationResult, Simulator
+    from .simulation.simulator import SimulationError, SimulationResult, Simulator, simulator_for
+    from .surface import Plane, Surface

@@ -232,7 +232,7 @@ def _simulate_with(args, workers) -> int:
     from .files import OutputFolder
     from .simulation.metrics import first_contact, format_table, segment_metrics
     from .simulation.output import save_simulation
-    from .simulation.posesim import simulator_for
+    from .simulation.simulator import simulator_for
     from .simulation.simulator import check_run_size
     from .stability.analysis import with_stiffness_limit
 
@@ -494,7 +494,7 @@ def _check(args) -> int:
 
     sc = None
     if args.scenario is not None:
-        from .simulation.posesim import robot_of
+        from .simulation.simulator import robot_of
         from .simulation.scenario import load_scenario
 
         sc = load_scenario(args.scenario)

@@ -9,7 +9,7 @@ reference of ``control/laws/tmt.py`` (eq. 16), the rotation-vector error of
 ``simulation/geometry.py`` and the inner loop's torque: for an arm with 6 or
 more joints :func:`.taskframe.operational_space_torque` (eq. 5 with the
 dynamically consistent null-space projector), for the 3-joint PUMA
-:func:`.impedance.joint_torque` (its position-only task), the torque of the
+:func:`.closedloop.operational_space_torque` (position task), the torque of the
 simulator's :mod:`.taskframe` and :mod:`.closedloop` — never formulas
 retyped here, and evaluate each claim at seeded random joint states within
 the joint limits (well conditioned: the smallest singular value of the task
@@ -87,24 +87,22 @@ class ArmImplementation:
 
     @property
     def task_dim(self) -> int:
-        """6 (position and orientation) for an arm with >= 6 joints, else 3 (the PUMA's position-only task)."""
-        return 6 if self.plant.n >= 6 else 3
+        """The robot's task axes (:attr:`tmtcontrol.model.Robot.task`): 3 or 6."""
+        return self.plant.task.dim
 
     def inner_torque(self, M, n_bias, J, Jdot_dq, U, F_e, tau_0=None):
         """The inner loop's torque as the simulator computes it for this task dimension."""
         if self.torque is not None:
             return self.torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0)
-        if self.task_dim == 6:
-            from ..simulation.taskframe import operational_space_torque
+        from ..simulation.closedloop import operational_space_torque
 
-            return operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0)
-        return impedance.joint_torque(M, n_bias, J, Jdot_dq, U, F_e)
+        return operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0)
 
 
 def arm_implementation(scenario) -> ArmImplementation:
     """The scenario's arm as the simulator loads it (``robot.model``, tip,
     friction, armature), as both plant and model: the ideal inner loop."""
-    from ..simulation.posesim import robot_of
+    from ..simulation.simulator import robot_of
 
     plant = robot_of(scenario)
     return ArmImplementation(plant=plant, model=plant)
@@ -164,8 +162,8 @@ def check_task_acceleration(impl: ArmImplementation, rng) -> CheckResult:
         n = rng.normal(size=3)
         acc_v = np.asarray(f(qv, dqv, Uv, n / np.linalg.norm(n) * rng.uniform(0, 50))).ravel()
         res = max(res, float(np.max(np.abs(acc_v - Uv)) / max(1.0, np.max(np.abs(Uv)))))
-    what = ("operational-space torque (taskframe.operational_space_torque), 6-D task" if d == 6 else
-            "joint_torque of eq. (5) (the PUMA's closedloop), position task")
+    what = ("operational-space torque (closedloop.operational_space_torque), 6-D task" if d == 6 else
+            "operational-space torque (closedloop.operational_space_torque), position task")
     return _result(f"ideal inner loop realises U ({impl.plant.name})", "(5)-(6)",
                    "model = plant: J q'' + dJ q' = U for any U and contact force (fed forward)",
                    f"CasADi: {impl.plant.name} plant (eq. 1) under the {what}; {STATES} random states in the "

@@ -59,9 +59,15 @@ def _default_robot():
 
 
 def _default_model():
-    from ..simulation.closedloop import controller_model
+    """The PUMA with every mass and inertia 20 % too large and friction
+    compensated: a controller model that differs from the plant."""
+    import dataclasses
 
-    return controller_model(1.2, True)
+    from ..model import PUMA560_LINKS, Puma560
+
+    links = tuple(dataclasses.replace(l, m=l.m * 1.2, I=tuple(i * 1.2 for i in l.I), Jm=l.Jm * 1.2)
+                  for l in PUMA560_LINKS)
+    return Puma560(armature=True, friction="smooth", links=links)
 
 
 @dataclass(frozen=True)

@@ -10,18 +10,16 @@ thin hand-written wrapper from ``templates/``: ``tmt_controller.h/.c``
 state struct, sized from the generated function's work sizes), a
 ``Makefile``, ``example_loop.c``, ``replay.c`` and a ``README.md``.
 
-An arm with 6 or more joints (``robot.model`` a URDF arm: UR5, Panda) exports
-the 6-D task-frame controller instead,
-:func:`~tmtcontrol.simulation.taskframe.build_pose_controller` (the
-expressions of the 6-D simulation's step): n joint positions and velocities
-in, n joint torques (and position commands) out.
+Every arm exports the same controller for its task (the tool point on a
+3- to 5-joint arm; point and orientation on 6 or more, with the null-space
+posture on a redundant one): n joint positions and velocities in, n joint
+torques (and position commands) out.
 
 The interface tables (:func:`measurement_fields`, :func:`command_fields`,
-:func:`diagnostic_fields`, :func:`param_fields`, sized by the arm's n joints;
-:data:`MEASUREMENT_FIELDS`, :data:`COMMAND_FIELDS`, :data:`DIAGNOSTIC_FIELDS`
-are the PUMA's) give every signal's unit and frame; the C structs, the CSV
-columns of ``replay`` and the ctypes mirror in :mod:`tmtcontrol.export.sil`
-are all written from them.
+:func:`diagnostic_fields`, :func:`param_fields`, sized by the robot's task)
+give every signal's unit and frame; the C structs, the CSV columns of
+``replay`` and the ctypes mirror in :mod:`tmtcontrol.export.sil` are all
+written from them.
 """
 
 from __future__ import annotations
@@ -35,13 +33,10 @@ import casadi as ca
 import numpy as np
 
 from ..control.laws import Law, get_law
-from ..simulation.closedloop import (DIAGNOSTICS, MEASUREMENT, Layout, build_controller, command_layout,
-                                     controller_model, controller_param_layout, controller_state_layout, param_layout,
-                                     state_layout)
-from ..simulation.taskframe import (POSE_DIAGNOSTICS, build_pose_controller, pose_command_layout,
-                                    pose_controller_param_layout, pose_controller_state_layout,
-                                    pose_ik_steps, pose_measurement_layout, pose_param_layout,
-                                    pose_state_layout)
+from ..model.robot import task_of
+from ..simulation.closedloop import (Layout, build_controller, command_layout, controller_param_layout,
+                                     controller_state_layout, diagnostics_layout, ik_steps, measurement_layout,
+                                     param_layout, state_layout)
 from ..simulation.scenario import Scenario
 
 __all__ = ["ExportError", "Field", "MEASUREMENT_FIELDS", "COMMAND_FIELDS", "DIAGNOSTIC_FIELDS", "param_fields",
@@ -86,41 +81,74 @@ class Field:
 _XYZ = ("_x", "_y", "_z")
 _T23 = ("2", "3")
 
-MEASUREMENT_FIELDS = (
-    Field("q", 3, "rad", "joint", "joint positions (encoders), the model's DH convention"),
-    Field("dq", 3, "rad/s", "joint", "joint velocities"),
-    Field("force", 3, "N", "base", "contact force on the tool: the bias-compensated force-sensor reading "
-          "rotated into the base frame; the normal force pushing on the surface is -R[:,0].force", suffixes=_XYZ),
-    Field("pos_t", 2, "m", "task axes 2, 3", "tangential reference position (the path along the surface)",
-          suffixes=_T23),
-    Field("vel_t", 2, "m/s", "task axes 2, 3", "tangential reference velocity", suffixes=_T23),
-    Field("acc_t", 2, "m/s^2", "task axes 2, 3", "tangential reference acceleration", suffixes=_T23),
-)
-"""Inputs of ``tmt_step`` each period (:data:`~tmtcontrol.simulation.closedloop.MEASUREMENT`)."""
+def _joints(n: int) -> tuple[str, ...]:
+    return tuple(str(i) for i in range(1, n + 1))
 
-COMMAND_FIELDS = (
-    Field("x_c", 3, "m", "task", "commanded position X_c = X_r - X_a, eq. (4)"),
-    Field("dx_c", 3, "m/s", "task", "commanded velocity, eq. (4)"),
-    Field("ddx_c", 3, "m/s^2", "task", "commanded acceleration, eq. (4)"),
-    Field("p_c", 3, "m", "base", "commanded wrist-centre position R X_c + c", suffixes=_XYZ),
-    Field("q_c", 3, "rad", "joint", "joint position command: fk(q_c) = p_c (4 Newton steps from q)"),
-    Field("dq_c", 3, "rad/s", "joint", "joint velocity command J(q_c)^-1 R dX_c"),
-    Field("tau", 3, "N m", "joint", "joint torques of eqs. (5)-(6), J^T F (only with --inner-loop)"),
-)
-"""Outputs of ``tmt_step`` (:func:`~tmtcontrol.simulation.closedloop.command_layout`)."""
 
-DIAGNOSTIC_FIELDS = (
-    Field("x", 3, "m", "task", "measured task position X = R^T (p - c)"),
-    Field("dx", 3, "m/s", "task", "measured task velocity"),
-    Field("x_r", 3, "m", "task", "reference X_r of the law (eqs. 11-18)"),
-    Field("p", 3, "m", "base", "measured wrist-centre position fk(q)", suffixes=_XYZ),
-    Field("f_m", 1, "N", "task normal", "filtered normal force"),
-    Field("b_n", 1, "N s/m", "task normal", "normal impedance damping in use"),
-    Field("f_d", 1, "N", "task normal", "desired force in use (ramped after a guarded approach)"),
-    Field("x_e_hat", 1, "m", "task normal", "surface-location estimate"),
-)
-"""Also written into the command struct: what the controller computed on the way
-(:data:`~tmtcontrol.simulation.closedloop.DIAGNOSTICS`)."""
+def _as_task(task):
+    """A :class:`~tmtcontrol.model.Task`, or one from a joint count."""
+    return task_of(task) if isinstance(task, int) else task
+
+
+def measurement_fields(task=3) -> tuple[Field, ...]:
+    """``tmt_measurement`` for the robot's ``task`` (or its joint count):
+    n joint positions and velocities, the contact force and the tangential
+    reference (:func:`~tmtcontrol.simulation.closedloop.measurement_layout`)."""
+    n = _as_task(task).n
+    return (Field("q", n, "rad", "joint", "joint positions (encoders), the robot model's joint order and zero",
+                  _joints(n)),
+            Field("dq", n, "rad/s", "joint", "joint velocities", _joints(n)),
+            Field("force", 3, "N", "base", "contact force on the tool: the bias-compensated force-sensor reading "
+                  "rotated into the base frame; the normal force pushing on the surface is -R[:,0].force",
+                  suffixes=_XYZ),
+            Field("pos_t", 2, "m", "task axes 2, 3", "tangential reference position (the path along the surface)",
+                  suffixes=_T23),
+            Field("vel_t", 2, "m/s", "task axes 2, 3", "tangential reference velocity", suffixes=_T23),
+            Field("acc_t", 2, "m/s^2", "task axes 2, 3", "tangential reference acceleration", suffixes=_T23))
+
+
+def command_fields(torque: bool, task=3) -> tuple[Field, ...]:
+    """``tmt_command``'s commands for the robot's ``task`` (``torque``: with
+    the joint torques of eqs. 5-6; :func:`~tmtcontrol.simulation.closedloop.command_layout`)."""
+    task = _as_task(task)
+    n, j = task.n, _joints(task.n)
+    pose = "the tool at p_c" + (" in the commanded orientation R_d" if task.rotational else "")
+    out = (Field("x_c", 3, "m", "task", "commanded position X_c = X_r - X_a, eq. (4)"),
+           Field("dx_c", 3, "m/s", "task", "commanded velocity, eq. (4)"),
+           Field("ddx_c", 3, "m/s^2", "task", "commanded acceleration, eq. (4)"),
+           Field("p_c", 3, "m", "base", "commanded tool-point position R X_c + c", suffixes=_XYZ),
+           Field("q_c", n, "rad", "joint", f"joint position command: {pose} ({ik_steps(task)} Newton steps "
+                 "from q" + ("" if task.square else ", least-norm") + ")", j),
+           Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ R dX_c"
+                 + (" (zero angular velocity)" if task.rotational else ""), j),
+           Field("tau", n, "N m", "joint", "joint torques of eqs. (5)-(6), operational space: J^T F + n"
+                 + (" + N^T tau_0" if task.posture else "") + " (only with --inner-loop)", j))
+    return out if torque else out[:-1]
+
+
+def diagnostic_fields(task=3) -> tuple[Field, ...]:
+    """Also written into the command struct: what the controller computed on
+    the way (:func:`~tmtcontrol.simulation.closedloop.diagnostics_layout`)."""
+    task = _as_task(task)
+    out = (Field("x", 3, "m", "task", "measured task position X = R^T (p - c)"),
+           Field("dx", 3, "m/s", "task", "measured task velocity"),
+           Field("x_r", 3, "m", "task", "reference X_r of the law (eqs. 11-18)"),
+           Field("p", 3, "m", "base", "measured tool-point position fk(q) (the robot's tip frame)", suffixes=_XYZ),
+           Field("f_m", 1, "N", "task normal", "filtered normal force"),
+           Field("b_n", 1, "N s/m", "task normal", "normal impedance damping in use"),
+           Field("f_d", 1, "N", "task normal", "desired force in use (ramped after a guarded approach)"),
+           Field("x_e_hat", 1, "m", "task normal", "surface-location estimate"))
+    if task.rotational:
+        out += (Field("e_o", 3, "rad", "task", "orientation error log(R_d R^T)^vee on the task axes"),)
+    return out
+
+
+MEASUREMENT_FIELDS = measurement_fields(3)
+"""The 3-joint arm's (the PUMA's) :func:`measurement_fields`."""
+COMMAND_FIELDS = command_fields(True, 3)
+"""The 3-joint arm's :func:`command_fields` with the torques."""
+DIAGNOSTIC_FIELDS = diagnostic_fields(3)
+"""The 3-joint arm's :func:`diagnostic_fields`."""
 
 _PARAM_DOCS = {
     "m": ("kg", "task", "impedance mass M, eq. (2)"),
@@ -147,66 +175,26 @@ _PARAM_DOCS = {
     "v_app": ("m/s", "task normal", "guarded approach speed"),
     "f_contact": ("N", "task normal", "measured force that ends the guarded approach"),
     "ramp_rate": ("1/s", "-", "after the approach, f_d rises at this fraction per second"),
-    # the 6-D task-frame controller's (arms with >= 6 joints)
+    # a 6-D task's, and a redundant arm's
     "R_d": ("1", "base", "commanded tool orientation, column-major (the tool frame's axes in the base frame)"),
     "kd_rot": ("1/s", "task", "rotational inner-loop velocity gain B_rot/M_rot, eq. (9)"),
     "kp_rot": ("1/s^2", "task", "rotational inner-loop position gain K_rot/M_rot, eq. (9)"),
-    "q_post": ("rad", "joint", "null-space posture (redundant arm; unused with 6 joints)"),
+    "q_post": ("rad", "joint", "null-space posture (redundant arm)"),
     "kp_post": ("1/s^2", "joint", "null-space posture stiffness (redundant arm)"),
     "kd_post": ("1/s", "joint", "null-space posture damping (redundant arm)"),
 }
 
 
-def _joints(n: int) -> tuple[str, ...]:
-    return tuple(str(i) for i in range(1, n + 1))
-
-
-def measurement_fields(n: int = 3) -> tuple[Field, ...]:
-    """``tmt_measurement`` for an arm of ``n`` joints: :data:`MEASUREMENT_FIELDS`
-    (the PUMA's 3) or, for a 6-D arm, n joint positions and velocities."""
-    if n < 6:
-        return MEASUREMENT_FIELDS
-    return (Field("q", n, "rad", "joint", "joint positions (encoders), the URDF's joint order and zero", _joints(n)),
-            Field("dq", n, "rad/s", "joint", "joint velocities", _joints(n)), *MEASUREMENT_FIELDS[2:])
-
-
-def command_fields(torque: bool, n: int = 3) -> tuple[Field, ...]:
-    """``tmt_command``'s commands for an arm of ``n`` joints (``torque``: with
-    the joint torques of eqs. 5-6): :data:`COMMAND_FIELDS` (the PUMA's 3) or,
-    for a 6-D arm, the translational command, the tool point and n joint
-    commands and torques."""
-    if n < 6:
-        return COMMAND_FIELDS if torque else COMMAND_FIELDS[:-1]
-    j = _joints(n)
-    out = (*COMMAND_FIELDS[:3],
-           Field("p_c", 3, "m", "base", "commanded tool-point position R X_c + c", suffixes=_XYZ),
-           Field("q_c", n, "rad", "joint", "joint position command: the tool at p_c in the commanded orientation "
-                 f"R_d ({pose_ik_steps(n)} Newton steps on the pose from q" + ("" if n == 6 else ", least-norm")
-                 + ")", j),
-           Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ [R dX_c; 0]", j),
-           Field("tau", n, "N m", "joint", "joint torques of eqs. (5)-(6), operational space: J^T F + n + N^T tau_0 "
-                 "(only with --inner-loop)", j))
-    return out if torque else out[:-1]
-
-
-def diagnostic_fields(n: int = 3) -> tuple[Field, ...]:
-    """The diagnostics in ``tmt_command``: :data:`DIAGNOSTIC_FIELDS` (the
-    PUMA's) or, for a 6-D arm, the tool point and the orientation error."""
-    if n < 6:
-        return DIAGNOSTIC_FIELDS
-    return (*DIAGNOSTIC_FIELDS[:3], Field("p", 3, "m", "base", "measured tool-point position fk(q)", suffixes=_XYZ),
-            *DIAGNOSTIC_FIELDS[4:],
-            Field("e_o", 3, "rad", "task", "orientation error log(R_d R^T)^vee on the task axes"))
-
-
-def param_fields(law: Law, n: int = 3) -> tuple[Field, ...]:
-    """The parameter struct: the controller's parameter layout
-    (:func:`controller_param_layout`, or for a 6-D arm of ``n`` joints
-    :func:`~tmtcontrol.simulation.taskframe.pose_controller_param_layout`),
-    the law's parameters as scalars ``law_<name>`` (units from its schema)."""
-    layout = controller_param_layout(law) if n < 6 else pose_controller_param_layout(n, law)
+def param_fields(law: Law, task=3) -> tuple[Field, ...]:
+    """The parameter struct: the controller's parameter layout for the
+    robot's ``task`` (:func:`controller_param_layout`; fields the task does
+    not have are left out), the law's parameters as scalars ``law_<name>``
+    (units from its schema)."""
+    layout = controller_param_layout(_as_task(task), law)
     out = []
     for name, s in layout.slices.items():
+        if s.stop == s.start:
+            continue
         if name == "law":
             for pname in law.parameter_names:
                 desc = law.parameters.model_fields[pname].description or ""
@@ -222,12 +210,10 @@ def param_fields(law: Law, n: int = 3) -> tuple[Field, ...]:
 
 @dataclasses.dataclass(frozen=True)
 class Interface:
-    """The exported controller's structure for one scenario: the arm's joint
-    count ``n``, whether it is the 6-D task-frame controller (``pose``), the
-    law, delay and inner loop, the controller's model, the layouts of its
-    vectors and the field tables of its structs."""
-    n: int
-    pose: bool
+    """The exported controller's structure for one scenario: the robot's task
+    (``n`` joints), the law, delay and inner loop, the controller's model, the
+    layouts of its vectors and the field tables of its structs."""
+    task: object
     law: Law
     delay: int
     torque: bool
@@ -239,47 +225,41 @@ class Interface:
     diagnostics: Layout
 
     @property
+    def n(self) -> int:
+        return self.task.n
+
+    @property
     def measurement_fields(self):
-        return measurement_fields(self.n)
+        return measurement_fields(self.task)
 
     @property
     def command_fields(self):
-        return command_fields(self.torque, self.n)
+        return command_fields(self.torque, self.task)
 
     @property
     def diagnostic_fields(self):
-        return diagnostic_fields(self.n)
+        return diagnostic_fields(self.task)
 
     @property
     def param_fields(self):
-        return param_fields(self.law, self.n)
+        return param_fields(self.law, self.task)
 
     @property
     def builder(self) -> str:
-        return "taskframe.build_pose_controller" if self.pose else "closedloop.build_controller"
+        return "closedloop.build_controller"
 
 
 def interface(scenario: Scenario, torque: bool) -> Interface:
-    """The :class:`Interface` of ``scenario``'s controller: the PUMA's
-    position-only task (:mod:`~tmtcontrol.simulation.closedloop`) or, for an
-    arm with 6 or more joints, the 6-D task-frame controller
-    (:mod:`~tmtcontrol.simulation.taskframe`)."""
+    """The :class:`Interface` of ``scenario``'s controller, for its robot's task."""
+    from ..simulation.simulator import robot_of
+
     law = get_law(scenario.controller.law.kind)
     delay = scenario.controller.delay_samples
-    if scenario.robot.model.lower() == "puma560":
-        model = controller_model(scenario.robot.model_mass_scale, scenario.robot.compensate_friction)
-        return Interface(3, False, law, delay, torque, model, controller_state_layout(law, delay, torque),
-                         controller_param_layout(law), MEASUREMENT, command_layout(torque), DIAGNOSTICS)
-    from ..simulation.posesim import robot_of
-    from ..simulation.scenario import ScenarioError
-
     model = robot_of(scenario, controller=True)
-    n = model.n
-    if n < 6:
-        raise ScenarioError(f"robot.model: the 6-D loop needs an arm with at least 6 joints, {model.name} has {n}")
-    return Interface(n, True, law, delay, torque, model, pose_controller_state_layout(n, law, delay, torque),
-                     pose_controller_param_layout(n, law), pose_measurement_layout(n), pose_command_layout(n, torque),
-                     POSE_DIAGNOSTICS)
+    task = model.task
+    return Interface(task, law, delay, torque, model, controller_state_layout(task, law, delay, torque),
+                     controller_param_layout(task, law), measurement_layout(task), command_layout(task, torque),
+                     diagnostics_layout(task))
 
 
 def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, Law]:
@@ -288,9 +268,8 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
     generated as C)."""
     iface = interface(scenario, torque)
     law = iface.law
-    build = build_pose_controller if iface.pose else build_controller
     try:
-        fn = build(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION)
+        fn = build_controller(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION)
     except Exception as exc:       # a law whose update cannot be expanded to SX
         raise ExportError(f"controller.law: law {law.name!r} cannot be exported to C: its update does not "
                           f"expand to CasADi SX ({str(exc).splitlines()[0][:160]})") from None
@@ -322,26 +301,23 @@ def _check_layouts(fn, iface: Interface):
     assert sum(f.size for f in iface.param_fields) == iface.param.size
 
 
+def _start(scenario: Scenario):
+    """``(P, s0)``: the simulator's parameter vector and start state (its step is never built)."""
+    from ..simulation.simulator import Simulator
+
+    _, P, s0, _ = Simulator(scenario, compile=False).inputs(scenario)
+    return P, s0
+
+
 def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.ndarray]:
     """The scenario's controller parameter vector and initial controller
     state, taken from the simulator's own packing (so the exported defaults
     are the simulated ones)."""
     iface = interface(scenario, torque)
     law, delay = iface.law, iface.delay
-    if iface.pose:
-        from ..simulation.posesim import PoseSimulator
-
-        sim = PoseSimulator(scenario, compile=False)      # its step is built, never run
-        _, P, s0, _ = sim.inputs(scenario)
-        full_p = pose_param_layout(iface.n, law).split(P)
-        full_s = pose_state_layout(iface.n, law, delay).split(s0)
-    else:
-        from ..simulation.simulator import Simulator, check_path
-
-        sim = Simulator(scenario, compile=False)      # builds nothing until run
-        _, P, s0, _ = sim._inputs(scenario, check_path(sim.plant, scenario))
-        full_p = param_layout(law).split(P)
-        full_s = state_layout(law, delay).split(s0)
+    P, s0 = _start(scenario)
+    full_p = param_layout(iface.task, law).split(P)
+    full_s = state_layout(iface.task, law, delay).split(s0)
     p = iface.param.pack(**full_p)
     cs = iface.state
     s = cs.pack(**{n: full_s[n][:cs[n].stop - cs[n].start] for n in cs.slices})
@@ -463,9 +439,9 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "NY": iface.measurement.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
         "SZ_IW": work["iw"], "SZ_W": work["w"], "GEN": GENERATED_FUNCTION, "TS": _c_num(scenario.controller.Ts),
         "STATE_NAMES": state_names, "LAW_STATES": law_states, "BUILDER": iface.builder,
-        "EXAMPLE_START": "" if not iface.pose else (
+        "EXAMPLE_START": (
             "\n    /* the skeleton's robot stands at the scenario's start posture (q = 0 may be a singular pose) */\n"
-            + "\n".join(f"    meas.q[{i}] = params.q_post[{i}];" for i in range(iface.n))),
+            + "\n".join(f"    meas.q[{i}] = {_c_num(v)};" for i, v in enumerate(_start(scenario)[1][:iface.n]))),
         "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(mf),
         "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(df),
         "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(mf, "meas", "state->y"),
@@ -487,10 +463,9 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},
             "instructions": fn.n_instructions()}
-    if iface.pose:      # the arm (the PUMA's export.json is as before: no robot entry means the PUMA)
-        r = scenario.robot
-        meta["robot"] = {"model": r.model, "tip": r.tip, "joints": iface.n, "armature": r.armature,
-                         "key": iface.model.key}      # the controller model's identity (URDF content, options)
+    r = scenario.robot
+    meta["robot"] = {"model": r.model, "tip": r.tip, "joints": iface.n, "armature": r.armature,
+                     "key": iface.model.key}      # the controller model's identity (URDF content, options)
     (folder / METADATA).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     return {**meta, "files": sorted(p.name for p in folder.iterdir())}
 

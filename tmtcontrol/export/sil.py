@@ -33,11 +33,11 @@ import tempfile
 import casadi as ca
 import numpy as np
 
-from ..simulation.closedloop import INPUT, LOG, MEASUREMENT, build_plant, controller_param_layout, param_layout
-from ..simulation.environment import contact_force, task_frame
+from ..model.robot import task_of
+from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, log_layout, param_layout,
+                                     plant_inputs_layout)
 from ..simulation.rollout import compiler
-from ..simulation.taskframe import (_kinematics, build_pose_plant, pose_controller_param_layout, pose_log_layout,
-                                    pose_param_layout)
+from ..surface import contact_force
 from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
                        param_fields)
 
@@ -83,6 +83,13 @@ def _read_metadata(folder: pathlib.Path, flag: str) -> dict:
     except (OSError, ValueError, AttributeError):
         raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
                           f"(no tmt_controller.c and {METADATA})") from None
+    try:
+        robot = meta["robot"]
+        if not (isinstance(robot, dict) and isinstance(robot.get("joints"), int) and "key" in robot):
+            raise KeyError
+    except (KeyError, TypeError):
+        raise ExportError(f"{flag}: {folder}/{METADATA} has no robot entry (an export of an earlier version); "
+                          "export the scenario again (tmtcontrol export)") from None
     return meta
 
 
@@ -111,20 +118,21 @@ class CompiledController:
         self.meta = _read_metadata(self.folder, flag)
         self.law = get_law(self.meta["law"])
         self.torque = bool(self.meta["inner_loop"])
-        self.robot = self.meta.get("robot")        # None: the PUMA's position-only task
-        self.n = self.robot["joints"] if self.robot else 3
+        self.robot = self.meta["robot"]
+        self.n = self.robot["joints"]
+        self.task = task_of(self.n)
         if scenario is not None:            # refused before compiling
             self.check_matches(scenario)
         self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
-        self.cmd_fields = command_fields(self.torque, self.n)
-        self.diag_fields = diagnostic_fields(self.n)
-        self.Params = _struct("tmt_params", param_fields(self.law, self.n))
-        self.Measurement = _struct("tmt_measurement", measurement_fields(self.n))
+        self.cmd_fields = command_fields(self.torque, self.task)
+        self.diag_fields = diagnostic_fields(self.task)
+        self.Params = _struct("tmt_params", param_fields(self.law, self.task))
+        self.Measurement = _struct("tmt_measurement", measurement_fields(self.task))
         self.Command = _struct("tmt_command", (*self.cmd_fields, *self.diag_fields))
         sz = self.meta["sizes"]
         alloc = lambda n: max(int(n), 1)
         n_out = sum(f.size for f in (*self.cmd_fields, *self.diag_fields))
-        n_y = sum(f.size for f in measurement_fields(self.n))
+        n_y = sum(f.size for f in measurement_fields(self.task))
         self.State = type("tmt_state", (ctypes.Structure,), {"_fields_": [
             ("s", ctypes.c_double * alloc(sz["state"])), ("s_next", ctypes.c_double * alloc(sz["state"])),
             ("y", ctypes.c_double * n_y), ("p", ctypes.c_double * sz["param"]),
@@ -170,11 +178,7 @@ class CompiledController:
 
     def params_from(self, P_full: np.ndarray):
         """The C parameter struct from the simulator's parameter vector."""
-        if self.robot:
-            vec = pose_controller_param_layout(self.n, self.law).pack(
-                **pose_param_layout(self.n, self.law).split(P_full))
-            return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
-        vec = controller_param_layout(self.law).pack(**param_layout(self.law).split(P_full))
+        vec = controller_param_layout(self.task, self.law).pack(**param_layout(self.task, self.law).split(P_full))
         return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
 
 
@@ -185,18 +189,20 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
     identity, the URDF's content and chain, not the path it was read from),
     law, delay, controller model, and the inner loop (the simulated robot is
     torque-driven)."""
-    robot = meta.get("robot")
+    from ..simulation.simulator import robot_of
+
+    robot = meta["robot"]
     r = scenario.robot
-    what = (f"robot.model = {robot['model']!r} (tip {robot['tip']!r}, armature "
-            f"{robot['armature']!r})" if robot else "robot.model = 'puma560'")
+    what = f"robot.model = {robot['model']!r} (tip {robot['tip']!r}, armature {robot['armature']!r})"
+    same_name = str(robot["model"]).lower() == r.model.lower()
 
     def other_arm():
         return ExportError(f"{flag}: {folder} was exported for {what}, the scenario has "
                            f"robot.model = {r.model!r} (tip {r.tip!r}, armature {r.armature!r})"
-                           + (" or another version of it" if robot and r.model.lower() != "puma560" else "")
+                           + (" or another version of it" if same_name else "")
                            + "; export this scenario (tmtcontrol export)")
 
-    if bool(robot) != (r.model.lower() != "puma560"):
+    if robot_of(scenario, controller=True).key != robot["key"]:
         raise other_arm()
     want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
             "model_mass_scale": scenario.robot.model_mass_scale,
@@ -205,11 +211,6 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
         if meta[key] != value:
             raise ExportError(f"{flag}: {folder} was exported with {key} = {meta[key]!r}, "
                               f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
-    if robot:          # the same arm: URDF content, chain and model options (the robot's key)
-        from ..simulation.posesim import robot_of
-
-        if robot_of(scenario, controller=True).key != robot["key"]:
-            raise other_arm()
     if not meta["inner_loop"]:
         raise ExportError(f"{flag}: {folder} was exported without --inner-loop, so it gives no "
                           "joint torques for the simulated (torque-driven) robot; export with --inner-loop")
@@ -217,86 +218,31 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
 
 def simulate_with_controller(scenario, controller: CompiledController, max_steps: int | None = None):
     """Run ``scenario`` with the C ``controller`` in place of the built-in one
-    (software in the loop); returns a :class:`~tmtcontrol.SimulationResult`
-    with ``info["code"] == "exported C (SIL)"``."""
+    (software in the loop): each period the plant of
+    :func:`~tmtcontrol.simulation.closedloop.build_plant` (the simulator's
+    integrator) is advanced with the torque the C code returned; the
+    simulator's inputs and result packing. Returns a
+    :class:`~tmtcontrol.SimulationResult` with ``info["code"] == "exported
+    C (SIL)"``."""
     import time
 
     from ..files import check_interrupt
-    from ..simulation.simulator import Simulator, check_path, check_run_size
+    from ..simulation.simulator import Simulator, check_run_size
 
     check_run_size(scenario, max_steps)
     controller.check_matches(scenario)
-    if controller.robot:
-        return _simulate_pose(scenario, controller)
-    sim = Simulator(scenario, compile=False)          # its inputs and result packing; its step is never built
     t0 = time.perf_counter()
+    sim = Simulator(scenario, compile=False)      # its inputs and result packing; its step is never built
     sc = scenario.simulation
-    plant = build_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine)
-    sensor = _sensor(sim.plant)
-    path = check_path(sim.plant, scenario)
-    U, P, s0, t = sim._inputs(scenario, path)
-    PP = param_layout(controller.law).split(P)
-    R, c, Ts, d_e = PP["R"], PP["c"], PP["Ts"], PP["d_e"]
-    build_time = time.perf_counter() - t0
-    params = controller.params_from(P)
-    state = controller.new_state(params)
-    n_s = controller.meta["sizes"]["state"]
-    ctypes.memmove(state.s, np.ascontiguousarray(s0[6:6 + n_s]).ctypes.data, 8 * n_s)
-    meas, cmd = controller.Measurement(), controller.Command()
-    y = np.frombuffer(meas, dtype=float)
-    out = np.frombuffer(cmd, dtype=float)
-    n_c = sum(f.size for f in controller.cmd_fields)
-    N = U.shape[1]
-    L = np.empty((LOG.size, N))
-    Uin = INPUT.split(U)
-    z = s0[:6].copy()
-    normal = R.reshape(3, 3, order="F")[:, 0]
-    pz = np.concatenate([np.zeros(3), [0.0], d_e, R, c, Ts])
-    t0 = time.perf_counter()
-    for k in range(N):
-        k_e = Uin["k_e"][0, k]
-        f_true = float(sensor(z, k_e, d_e, R, c))
-        y[0:6] = z
-        y[6:9] = -normal * (f_true + Uin["noise"][0, k])
-        y[9:11], y[11:13], y[13:15] = Uin["pos_t"][:, k], Uin["vel_t"][:, k], Uin["acc_t"][:, k]
-        if controller.step(params, state, meas, cmd) != 0:
-            raise RuntimeError(f"tmt_step failed at t = {t[k]:.4f} s")
-        tau = out[n_c - 3:n_c]
-        d = out[n_c:]
-        L[:, k] = np.concatenate([z, tau, d[9:12], d[0:3], d[6:9], out[0:3], [f_true], d[12:16]])
-        pz[0:3], pz[3] = tau, k_e
-        z = np.asarray(plant(z, pz)).ravel()
-        if k % 1000 == 0:
-            check_interrupt()
-    run_time = time.perf_counter() - t0
-    S = np.hstack([L[0:6, 1:], z[:, None]])          # the joints after each period, as the built-in run's
-    sim._check_finite(S, L, t)
-    return sim._result(scenario, t, L, U, path, {"integrator": sc.integrator, "code": "exported C (SIL)",
-                                                 "controller": str(controller.folder),
-                                                 "build_time_s": build_time, "run_time_s": run_time,
-                                                 "steps": t.size})
-
-
-def _simulate_pose(scenario, controller: CompiledController):
-    """:func:`simulate_with_controller` for a 6-D arm: the plant of
-    :func:`~tmtcontrol.simulation.taskframe.build_pose_plant` (the 6-D
-    simulator's integrator), the 6-D simulator's inputs and result packing."""
-    import time
-
-    from ..files import check_interrupt
-    from ..simulation.posesim import PoseSimulator, pose_path
-    from ..simulation.simulator import Simulator
-
-    t0 = time.perf_counter()
-    sim = PoseSimulator(scenario, compile=False)      # its inputs and result packing; its step is never run
-    sc = scenario.simulation
-    n = sim.plant.n
-    plant = build_pose_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine)
-    sensor = _sensor(sim.plant)
-    path = pose_path(sim.plant, scenario)
-    U, P, s0, t = sim._inputs(scenario, path)
-    PP = pose_param_layout(n, controller.law).split(P)
-    R, c, Ts, d_e = PP["R"], PP["c"], PP["Ts"], PP["d_e"]
+    task, surface = sim.task, sim.surface
+    n = task.n
+    plant = build_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine, surface)
+    sensor = _sensor(sim.plant, surface)
+    path = sim.path(scenario)
+    U, P, s0, t = sim.inputs(scenario, path)
+    PP = param_layout(task, controller.law, surface).split(P)
+    PZ = plant_inputs_layout(task, surface)
+    surf = np.concatenate([PP[name] for name, _ in surface.fields])
     build_time = time.perf_counter() - t0
     params = controller.params_from(P)
     state = controller.new_state(params)
@@ -307,25 +253,24 @@ def _simulate_pose(scenario, controller: CompiledController):
     out = np.frombuffer(cmd, dtype=float)
     n_c = sum(f.size for f in controller.cmd_fields)
     N = U.shape[1]
-    L = np.empty((pose_log_layout(n).size, N))
+    L = np.empty((sim.log.size, N))
     Uin = INPUT.split(U)
     z = s0[:2 * n].copy()
-    normal = R.reshape(3, 3, order="F")[:, 0]
-    pz = np.concatenate([np.zeros(n), [0.0], d_e, R, c, Ts])
+    pz = PZ.pack(tau=np.zeros(n), k_e=0.0, d_e=PP["d_e"], Ts=PP["Ts"], **{k: PP[k] for k, _ in surface.fields})
     m = 2 * n                                          # the force's place in the measurement
     t0 = time.perf_counter()
     for k in range(N):
         k_e = Uin["k_e"][0, k]
-        f_true = float(sensor(z, k_e, d_e, R, c))
+        f_true, normal = (np.asarray(v).ravel() for v in sensor(z, k_e, PP["d_e"], surf))
         y[0:m] = z
-        y[m:m + 3] = -normal * (f_true + Uin["noise"][0, k])
+        y[m:m + 3] = -normal * (f_true[0] + Uin["noise"][0, k])
         y[m + 3:m + 5], y[m + 5:m + 7], y[m + 7:m + 9] = Uin["pos_t"][:, k], Uin["vel_t"][:, k], Uin["acc_t"][:, k]
         if controller.step(params, state, meas, cmd) != 0:
             raise RuntimeError(f"tmt_step failed at t = {t[k]:.4f} s")
         tau = out[n_c - n:n_c]
         d = out[n_c:]
-        L[:, k] = np.concatenate([z, tau, d[9:12], d[0:3], d[6:9], out[0:3], [f_true], d[12:16], d[16:19]])
-        pz[0:n], pz[n] = tau, k_e
+        L[:, k] = np.concatenate([z, tau, d[9:12], d[0:3], d[6:9], out[0:3], f_true, d[12:16], d[16:]])
+        pz[PZ["tau"]], pz[PZ["k_e"]] = tau, k_e
         z = np.asarray(plant(z, pz)).ravel()
         if k % 1000 == 0:
             check_interrupt()
@@ -337,20 +282,20 @@ def _simulate_pose(scenario, controller: CompiledController):
                                                  "run_time_s": run_time, "steps": t.size, "robot": sim.plant.name})
 
 
-def _sensor(robot) -> ca.Function:
+def _sensor(robot, surface) -> ca.Function:
     """The simulated force sensor: the true normal contact force (N) at the
-    joints ``z``, as the simulator's step computes it (eq. 1's environment)."""
-    n = getattr(robot, "n", 3)
+    joints ``z``, as the simulator's step computes it (eq. 1's environment),
+    and the surface's inward normal there."""
+    from ..simulation.closedloop import _kinematics
+
+    n = robot.n
     z, k_e, d_e = ca.SX.sym("z", 2 * n), ca.SX.sym("k_e"), ca.SX.sym("d_e")
-    Rv, c = ca.SX.sym("R", 9), ca.SX.sym("c", 3)
-    R = ca.reshape(Rv, 3, 3)
-    q, dq = z[0:n], z[n:]
-    if n >= 6:                                          # a URDF arm: its tool point, as the 6-D step
-        _, _, _, X, dX = _kinematics(robot, q, dq, R, c)
-    else:
-        X = ca.mtimes(R.T, robot.fk(q) - c)
-        dX = ca.mtimes(R.T, ca.mtimes(robot.jacobian(q), dq))
-    return ca.Function("sensor", [z, k_e, d_e, Rv, c], [contact_force(X[0], dX[0], k_e, d_e)])
+    sizes = [size for _, size in surface.fields]
+    sv = ca.SX.sym("surface", sum(sizes))
+    parts = ca.vertsplit(sv, np.cumsum([0, *sizes]).tolist())
+    par = {name: part for (name, _), part in zip(surface.fields, parts)}
+    _, _, _, R, X, dX = _kinematics(robot, surface, z[:n], z[n:], par)
+    return ca.Function("sensor", [z, k_e, d_e, sv], [contact_force(X[0], dX[0], k_e, d_e), R[:, 0]])
 
 
 def measurement_table(result) -> tuple[np.ndarray, list[str]]:
@@ -358,21 +303,16 @@ def measurement_table(result) -> tuple[np.ndarray, list[str]]:
     rows ``replay`` reads: ``[t, q, dq, force (base frame), pos_t, vel_t,
     acc_t]`` and the column names. The force is the simulated sensor's
     (contact force plus the scenario's noise, seeded as in the run)."""
-    from ..simulation.geometry import surface_frame
-    from ..simulation.posesim import PoseSimulator
-    from ..simulation.simulator import Simulator, check_path
+    from ..simulation.geometry import surface_of
+    from ..simulation.simulator import Simulator
 
     sc = result.scenario
     n = result.q.shape[0]
-    if n >= 6:                  # a 6-D arm: its simulator's inputs (the step is built, never run)
-        U, _, _, t = PoseSimulator(sc, compile=False).inputs(sc)
-        normal = surface_frame(sc.environment)[:, 0]
-    else:
-        sim = Simulator(sc, compile=False)
-        U, _, _, t = sim._inputs(sc, check_path(sim.plant, sc))
-        normal = task_frame(sc.environment.tilt_deg)[:, 0]
+    U, _, _, t = Simulator(sc, compile=False).inputs(sc)      # its inputs; the step is never built
+    surface = surface_of(sc)
+    normal = np.column_stack([surface.normal(p) for p in result.position.T])
     Uin = INPUT.split(U)
-    force = -normal[:, None] * (result.contact_force + Uin["noise"][0])[None, :]
+    force = -normal * (result.contact_force + Uin["noise"][0])[None, :]
     rows = np.vstack([t, result.q, result.dq, force, Uin["pos_t"], Uin["vel_t"], Uin["acc_t"]]).T
     names = ["t"] + [c for f in measurement_fields(n) for c in f.columns]
     return rows, names

@@ -44,13 +44,69 @@ import numpy as np
 
 from .urdf import Chain, URDFError, parse_chain, read_urdf
 
-__all__ = ["BUNDLED", "Robot", "RobotFunctions", "URDFError", "load_robot"]
+__all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of"]
 
 BUNDLED = {
     "ur5": ("ur5.urdf", "tool0"),
     "panda": ("panda.urdf", "panda_hand_tcp"),
 }
 """Arms shipped with the package: file in ``model/data/`` and default tip."""
+
+MIN_JOINTS = 3
+"""Fewest actuated joints a closed loop takes: the tool point's three coordinates."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """The task a robot's closed loop controls, declared once from its joints.
+
+    ``dim`` task axes: the tool point's position (3: the surface normal and
+    two tangential axes) for an arm with 3 to 5 joints, position and
+    orientation (6) for 6 or more. An arm with more joints than task axes is
+    redundant: a null-space posture task (``robot.posture_kp``,
+    ``robot.posture_kd``) holds its remaining freedom. Nothing above
+    ``model/`` looks at the joint count; it asks the task.
+
+    Attributes
+    ----------
+    n : int
+        Actuated joints.
+    dim : int
+        Task axes, 3 or 6.
+    """
+
+    n: int
+    dim: int
+
+    @property
+    def rotational(self) -> int:
+        """Rotational task axes: 0 or 3."""
+        return self.dim - 3
+
+    @property
+    def posture(self) -> bool:
+        """Whether the arm is redundant for the task (a null-space posture task runs)."""
+        return self.n > self.dim
+
+    @property
+    def square(self) -> bool:
+        """Whether the task Jacobian is square (as many joints as task axes)."""
+        return self.n == self.dim
+
+    @property
+    def label(self) -> str:
+        """A short name of the task's structure, e.g. ``"3x3"`` (joints x axes)."""
+        return f"{self.n}x{self.dim}"
+
+
+def task_of(n: int) -> Task:
+    """The :class:`Task` of an arm with ``n`` actuated joints; a ``ValueError``
+    below :data:`MIN_JOINTS`."""
+    if n < MIN_JOINTS:
+        raise ValueError(f"{n} actuated joint{'s' if n != 1 else ''}: the closed loop needs at least "
+                         f"{MIN_JOINTS} (the tool point's position)")
+    return Task(n, 3 if n < 6 else 6)
+
 
 PUMA_JOINTS = ("joint1", "joint2", "joint3")
 PUMA_TIP = "wrist_centre"
@@ -130,6 +186,10 @@ class Robot:
         The PUMA's parameter set (None for a URDF arm).
     mass_scale : float
         The factor every mass and inertia was multiplied by.
+    position_ik : callable or None
+        A closed-form inverse kinematics of the tip position, ``p (3,) or (3,
+        k) -> q`` (rad), where the arm has one (the PUMA's); None: solved
+        numerically by the caller.
     """
 
     name: str
@@ -150,11 +210,17 @@ class Robot:
     key: str = ""
     links: tuple | None = None
     mass_scale: float = 1.0
+    position_ik: object = None
 
     @property
     def n(self) -> int:
         """Number of actuated joints."""
         return len(self.joint_names)
+
+    @property
+    def task(self) -> Task:
+        """The task its closed loop controls (:func:`task_of`; ``ValueError`` below 3 joints)."""
+        return task_of(self.n)
 
     @property
     def total_mass(self) -> float:
@@ -350,7 +416,7 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity, mass_scale) -
     return Robot(name="puma560", source="puma560", joint_names=PUMA_JOINTS, q_min=-inf, q_max=inf.copy(),
                  dq_max=inf.copy(), tau_max=inf.copy(), base="base", tip=PUMA_TIP, held={},
                  link_masses=masses, functions=fns, armature=arm, key=_puma_key(armature, friction, coulomb_velocity, mass_scale), links=links,
-                 mass_scale=mass_scale)
+                 mass_scale=mass_scale, position_ik=puma.inverse_kinematics)
 
 
 # -- URDF robots ----------------------------------------------------------------------

@@ -358,7 +358,7 @@ def _segment_rows(segs) -> list[list[str]]:
 def _simulation(rep: Report, sc: Scenario, p: dict):
     from ..simulation import figures as simf
     from ..simulation.metrics import first_contact, segment_metrics
-    from ..simulation.posesim import simulator_for
+    from ..simulation.simulator import simulator_for
     from ..simulation.simulator import SimulationError
 
     sim = simulator_for(sc)       # the PUMA's position-only loop, or the 6-D task-frame loop of an arm with >= 6 joints

@@ -1,14 +1,45 @@
-"""One control period of the sampled closed loop, assembled symbolically.
+"""One control period of the sampled closed loop, for every arm and every surface, assembled symbolically.
 
-At each sample t_k the controller reads the joint encoders (position through
-fk) and the force sensor, asks the force-tracking law (``control.laws``) for
-the normal-axis command of eq. (4) (the law owns its reference, eqs. 11-18 or
-a baseline, and its impedance filter, eqs. 2-3), forms the inner loop
-(eq. 6) and the Cartesian control force (eq. 5), mapped to joint torques
-tau = J^T F. The tangential axes carry no force, so their impedance
-adjustment is zero and their command is the circle itself. The torque is then
-held (zero-order hold) while a CasADi integrator advances the continuous
-plant, eq. (1) in joint space with the unilateral contact.
+At each sample t_k the controller reads the joint encoders (the tool point
+and orientation through fk) and the force sensor, asks the force-tracking
+law (``control.laws``) for the normal-axis command of eq. (4) (the law owns
+its reference, eqs. 11-18 or a baseline, and its impedance filter, eqs.
+2-3), forms the inner loop (eq. 6) on every task axis and the control force
+of eq. (5), mapped to joint torques. The torque is held (zero-order hold)
+while a CasADi integrator advances the continuous plant, eq. (1) in joint
+space with the unilateral contact of the surface (:mod:`tmtcontrol.surface`).
+
+The task is the robot's (:attr:`tmtcontrol.model.Robot.task`), declared
+once: the tool point's position (3 axes) on an arm with 3 to 5 joints, its
+position and orientation (6 axes) on 6 or more; an arm with more joints than
+task axes also runs a null-space posture task. On each axis:
+
+* normal axis (task axis 0, the surface's inward normal): the law's command
+  x_c of eq. (4), with the force-sensor filter, the guarded approach and the
+  damping schedule;
+* tangential axes: the impedance adjustment is zero (no tangential force)
+  and the command is the path;
+* rotational axes (6-D task): the command is the tool orientation R_d of
+  :func:`.geometry.tool_orientation`. The rotational impedance filter's
+  input is the contact moment about the tool point, zero for the point
+  contact modelled here, so its adjustment stays 0 and eq. (4) gives X_c =
+  R_d; they track it with the inner-loop gains of eq. (9), K_D = B_rot/M_rot,
+  K_P = K_rot/M_rot. The orientation error is the rotation vector
+  e_o = log(R_d R^T)^vee (base frame, rad) on the task axes; the angular
+  velocity omega = J_w dq.
+
+Inner loop, eqs. (5)-(6), as the operational-space computed torque with the
+controller's model (M^, n^ = C^ dq + g^, the task Jacobian J: the linear rows
+of the geometric Jacobian, and the angular rows on a 6-D task)::
+
+    U   = R-rotated ddX_c + K_D (dX_c - dX) + K_P (X_c - X)   per task axis (eq. 6)
+    tau = M^ J^-1 (U - dJ dq) + n^ + J^T F_e                  square J (eq. 5, J^T F)
+    tau = J^T (Lambda (U - dJ dq) + F_e) + n^ + N^T tau_0     redundant arm,
+          Lambda = (J M^-1 J^T)^-1,  N^T = I - J^T Lambda J M^-1,
+          tau_0 = M^ (K_post (q_post - q) - D_post dq)
+
+with F_e = f_m e_n; N^T is the dynamically consistent projector (J M^-1 N^T
+= 0: the posture torque does not change the task acceleration, tested).
 
 Two things real controllers have are part of the loop (beyond the paper):
 
@@ -21,37 +52,39 @@ Two things real controllers have are part of the loop (beyond the paper):
   held. When the measured force exceeds the contact threshold the surface
   estimate becomes the contact point (plus the configured x_e error), and
   the law takes over with its desired force ramped from 0 to f_d over the
-  force ramp. With f_d = 0 every law's command is the surface estimate, so
-  the hand-over has no jump in position. Starting on the surface
-  (``approach`` = 0, ramp = 1) is the paper's loop, unchanged.
+  force ramp. Starting on the surface (``approach`` = 0, ramp = 1) is the
+  paper's loop, unchanged.
 
 :func:`build_step` returns ``step: ["s", "u", "p"] -> ["s_next", "log"]``,
-whose vectors are laid out by :func:`state_layout`, :data:`INPUT`,
-:func:`param_layout` and :data:`LOG`. Numeric settings (gains, f_d, law
-parameters, stiffness, noise) are entries of ``p``/``u``; only the robot
-options, the integrator and the law's structure change the Function. The
-closed loop never asks which law it runs.
+laid out by :func:`state_layout`, :data:`INPUT`, :func:`param_layout` and
+:func:`log_layout`. Numeric settings (gains, f_d, law parameters, the
+surface's parameters, stiffness, noise) are entries of ``p``/``u``; only the
+robot, the surface's shape, the integrator and the law's structure change
+the Function. The closed loop never asks which law, arm or shape it runs.
+:func:`build_controller` (the exported controller) and :func:`build_plant`
+(software in the loop) are the same loop split at the sensors.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
 import casadi as ca
 import numpy as np
 
-from ..control.impedance import inner_loop, joint_torque
+from ..control.impedance import inner_loop
 from ..control.laws import MEASUREMENTS, Law
-from ..model.puma560 import PUMA560_LINKS, Puma560
-from .environment import contact_force
+from ..surface import Plane, contact_force
+from .geometry import rotation_vector
 
-__all__ = ["INPUT", "LOG", "Layout", "state_layout", "param_layout", "controller_model",
-           "damping_schedule", "build_step", "step_name", "build_plant", "build_controller",
-           "controller_state_layout", "controller_param_layout", "MEASUREMENT", "command_layout", "DIAGNOSTICS"]
+__all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "damping_schedule",
+           "operational_space_torque", "build_step", "step_name", "build_plant", "build_controller",
+           "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
+           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout"]
 
 
 class Layout:
-    """Named slices of a flat vector: ``layout["q"]`` is a slice."""
+    """Named slices of a flat vector: ``layout["q"]`` is a slice. A field may
+    have size 0 (a part the task does not have); :meth:`pack` needs no value
+    for it."""
 
     def __init__(self, *fields: tuple[str, int]):
         self.slices = {}
@@ -64,25 +97,34 @@ class Layout:
     def __getitem__(self, name):
         return self.slices[name]
 
+    def __contains__(self, name) -> bool:
+        return name in self.slices
+
+    def sizes(self) -> dict:
+        """Field name -> size."""
+        return {k: s.stop - s.start for k, s in self.slices.items()}
+
     def split(self, vec):
         return {name: vec[s] for name, s in self.slices.items()}
 
     def pack(self, **values) -> np.ndarray:
         out = np.zeros(self.size)
         for name, s in self.slices.items():
-            out[s] = np.ravel(values[name])
+            if s.stop > s.start:
+                out[s] = np.ravel(values[name])
         return out
 
 
-def state_layout(law: Law, delay: int = 0) -> Layout:
-    """Closed-loop state: joints (rad, rad/s), force-sensor filter state (N),
-    scheduled normal damping (N s/m), approach phase (1 while approaching,
-    else 0), approach command x_app (m, task normal), progress of the f_d
-    ramp (0..1), the controller's surface estimate x_e_hat (m), the
-    ``delay`` torques waiting to be applied (N m, oldest first), then the
-    law's own state."""
-    return Layout(("q", 3), ("dq", 3), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
-                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", 3 * delay), ("law", len(law.states)))
+def state_layout(task, law: Law, delay: int = 0) -> Layout:
+    """Closed-loop state: joints (n rad, n rad/s), force-sensor filter state
+    (N), scheduled normal damping (N s/m), approach phase (1 while
+    approaching, else 0), approach command x_app (m, task normal), progress
+    of the f_d ramp (0..1), the controller's surface estimate x_e_hat (m),
+    the ``delay`` torques of n joints waiting to be applied (N m, oldest
+    first), then the law's own state."""
+    n = task.n
+    return Layout(("q", n), ("dq", n), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
+                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", n * delay), ("law", len(law.states)))
 
 
 INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1))
@@ -90,28 +132,44 @@ INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1
 k_e (N/m), force-sensor noise sample (N)."""
 
 
-def param_layout(law: Law) -> Layout:
-    """Constant parameters: impedance M, B, K and gains K_D, K_P (task frame);
-    f_d (N); controller's x_e (m); force filter pole alpha; environment
-    damping (N s/m); task frame R (column-major) and origin c (m); control
-    period Ts (s); damping schedule on/off, target ratio, bounds on b
-    (N s/m), rate limit (N s/m per s), largest and smallest stiffness
-    estimate (N/m) and force threshold (N); approach speed (m/s), contact
-    threshold (N) and f_d ramp rate (1/s); then the law's parameters."""
+def param_layout(task, law: Law, surface=Plane) -> Layout:
+    """Constant parameters: impedance M, B, K and gains K_D, K_P (translational
+    task axes); f_d (N); controller's x_e (m); force filter pole alpha;
+    environment damping (N s/m); the surface's parameters (a plane: task
+    frame R, column-major, and origin c, m); control period Ts (s); damping
+    schedule on/off, target ratio, bounds on b (N s/m), rate limit (N s/m
+    per s), largest and smallest stiffness estimate (N/m) and force
+    threshold (N); approach speed (m/s), contact threshold (N) and f_d ramp
+    rate (1/s); the law's parameters; on a 6-D task the commanded tool
+    orientation R_d (column-major) and the rotational gains K_D,rot (1/s),
+    K_P,rot (1/s^2); on a redundant arm the posture q_post (n, rad) and the
+    null-space gains K_post (1/s^2), D_post (1/s)."""
+    r, post = task.rotational, task.posture
     return Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("x_e_hat", 1),
-                  ("alpha", 1), ("d_e", 1), ("R", 9), ("c", 3), ("Ts", 1), ("sched", 1), ("zeta", 1),
+                  ("alpha", 1), ("d_e", 1), *surface.fields, ("Ts", 1), ("sched", 1), ("zeta", 1),
                   ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1), ("k_hat_min", 1),
                   ("sched_f_th", 1), ("v_app", 1), ("f_contact", 1), ("ramp_rate", 1),
-                  ("law", len(law.parameter_names)))
+                  ("law", len(law.parameter_names)),
+                  ("R_d", 9 if r else 0), ("kd_rot", r), ("kp_rot", r),
+                  ("q_post", task.n if post else 0), ("kp_post", 1 if post else 0), ("kd_post", 1 if post else 0))
 
 
-LOG = Layout(("q", 3), ("dq", 3), ("tau", 3), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
-             ("f_e", 1), ("f_m", 1), ("b_n", 1), ("f_d", 1), ("x_e_hat", 1))
-"""Per-sample log at t_k: joints, torque applied over [t_k, t_k+1) (N m),
-wrist position (base, m), task position X, reference X_r, command X_c (task,
-m), true and measured normal force (N), normal impedance damping in use
-(N s/m), desired force in use (N, ramped after an approach) and the surface
-estimate (m)."""
+def log_layout(task) -> Layout:
+    """Per-sample log at t_k: joints, torque applied over [t_k, t_k+1) (N m),
+    tool position (base, m), task position X, reference X_r, command X_c
+    (task, m), true and measured normal force (N), normal impedance damping
+    in use (N s/m), desired force in use (N, ramped after an approach), the
+    surface estimate (m) and, on a 6-D task, the orientation error e_o (rad,
+    task axes)."""
+    n = task.n
+    return Layout(("q", n), ("dq", n), ("tau", n), ("p", 3), ("X", 3), ("X_r", 3), ("X_c", 3),
+                  ("f_e", 1), ("f_m", 1), ("b_n", 1), ("f_d", 1), ("x_e_hat", 1), ("e_o", task.rotational))
+
+
+def plant_inputs_layout(task, surface=Plane) -> Layout:
+    """The plant's parameters over one period: joint torques (n, N m), k_e
+    (N/m), contact damping d_e (N s/m), the surface's parameters, Ts (s)."""
+    return Layout(("tau", task.n), ("k_e", 1), ("d_e", 1), *surface.fields, ("Ts", 1))
 
 
 def damping_schedule(b_prev, f_m, depth, m, k, P):
@@ -129,18 +187,37 @@ def damping_schedule(b_prev, f_m, depth, m, k, P):
     target = ca.fmin(ca.fmax(target, P["b_min"]), P["b_max"])
     step = P["b_rate"] * P["Ts"]
     return b_prev + ca.fmin(ca.fmax(target - b_prev, -step), step)
-def controller_model(mass_scale: float, compensate_friction: bool) -> Puma560:
-    """The controller's model of the robot (D*^, h*^ of eq. 5): every mass and
-    inertia scaled by ``mass_scale``."""
-    links = tuple(dataclasses.replace(l, m=l.m * mass_scale, I=tuple(i * mass_scale for i in l.I),
-                                      Jm=l.Jm * mass_scale) for l in PUMA560_LINKS)
-    return Puma560(armature=True, friction="smooth" if compensate_friction else False, links=links)
 
 
-def _task(robot: Puma560, q, dq, R, c):
-    p = robot.fk(q)
-    J = robot.jacobian(q)
-    return p, J, ca.mtimes(R.T, p - c), ca.mtimes(R.T, ca.mtimes(J, dq))
+def operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0=None):
+    """Eq. (5) mapped to the joints for a d x n task Jacobian (n >= d):
+    ``tau = J^T (Lambda (U - dJ dq) + F_e) + n + N^T tau_0`` with
+    ``Lambda = (J M^-1 J^T)^-1`` and the dynamically consistent null-space
+    projector ``N^T = I - J^T Lambda J M^-1`` (``tau_0``: None for no
+    null-space torque). CasADi symbols; base frame.
+
+    For a square J (Lambda = J^-T M J^-1) the same torque is ``tau = M J^-1
+    (U - dJ dq) + n + J^T F_e``: one solve instead of two (equal to the
+    general form to rounding, tests/test_taskframe.py)."""
+    if J.size1() == J.size2() and tau_0 is None:
+        return ca.mtimes(M, ca.solve(J, U - Jdot_dq, "symbolicqr")) + n_bias + ca.mtimes(J.T, F_e)
+    A = ca.solve(M, J.T, "symbolicqr")                  # M^-1 J^T (n x d)
+    Linv = ca.mtimes(J, A)                              # J M^-1 J^T
+    tau = ca.mtimes(J.T, ca.solve(Linv, U - Jdot_dq, "symbolicqr") + F_e) + n_bias
+    if tau_0 is not None:
+        tau = tau + tau_0 - ca.mtimes(J.T, ca.solve(Linv, ca.mtimes(A.T, tau_0), "symbolicqr"))
+    return tau
+
+
+def _kinematics(robot, surface, q, dq, P):
+    """The encoders through fk: ``(p, R_tool, J, R, X, dX)``: tool point (m,
+    base), tool orientation, the 6 x n geometric Jacobian, and the
+    surface's task frame and coordinates at p (m, m/s)."""
+    T = robot.functions.fk(q)
+    J = robot.functions.jacobian(q)
+    p = T[:3, 3]
+    R, X, dX = surface.coordinates(p, ca.mtimes(J[:3, :], dq), P)
+    return p, T[:3, :3], J, R, X, dX
 
 
 def _rk4(ode, z, pz, n: int) -> ca.Function:
@@ -161,18 +238,69 @@ def _rk4(ode, z, pz, n: int) -> ca.Function:
     return ca.Function(f"plant_rk{n}", [z, pz], ca.cse([zf, switched]), ["z", "pz"], ["zf", "switched"])
 
 
-def _control(model: Puma560, law: Law, S: dict, P: dict, ref: dict, R, q, dq, J, X, dX, f_sensor,
-             delay: int, torque: bool = True) -> dict:
+def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, contact_refine: int):
+    """The plant over one period, time scaled to [0, 1] so Ts is a parameter:
+    ``(coarse, choose, flow)``; ``coarse`` (fixed step) is ``(z, pz) ->
+    (zf, switched)``, ``choose`` the contact refinement (or None), ``flow``
+    the CVODES integrator (``integrator="cvodes"``); ``pz`` laid out by
+    :func:`plant_inputs_layout`."""
+    task = plant.task
+    n = task.n
+    PZ = plant_inputs_layout(task, surface)
+    z = ca.SX.sym("z", 2 * n)
+    pz = ca.SX.sym("pz", PZ.size)
+    Z = PZ.split(pz)
+
+    def ode(z):
+        """Eq. (1) in joint space with the unilateral contact; and whether the
+        contact pushes at z."""
+        q, dq = z[:n], z[n:]
+        _, _, J, R, X, dX = _kinematics(plant, surface, q, dq, Z)
+        f_env = contact_force(X[0], dX[0], Z["k_e"], Z["d_e"])
+        F_env = R[:, 0] * f_env                                   # force on the environment, base frame
+        ddq = plant.functions.forward_dynamics(q, dq, Z["tau"] - ca.mtimes(J[:3, :].T, F_env))
+        return Z["Ts"] * ca.vertcat(dq, ddq), f_env > 0
+
+    if integrator == "cvodes":
+        flow = ca.integrator("plant", "cvodes", {"x": z, "p": pz, "ode": ode(z)[0]}, 0.0, 1.0,
+                             {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
+        return None, None, flow
+    if integrator != "fixed":
+        raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
+    coarse = _rk4(ode, z, pz, substeps)
+    choose = None
+    if contact_refine > 1:
+        # a period in which the contact force switches on or off (a kink of
+        # max(0, .) that a fixed step would straddle) is integrated again
+        # with contact_refine times more steps: the same coarse step called
+        # k times over Ts/k (little extra code to compile)
+        zm, z1, pm = ca.MX.sym("z", 2 * n), ca.MX.sym("z1", 2 * n), ca.MX.sym("pz", pz.numel())
+        k = int(contact_refine)
+        zr, p_sub = zm, ca.vertcat(pm[:-1], pm[-1] / k)
+        for _ in range(k):
+            zr = coarse(zr, p_sub)[0]
+        choose = ca.Function.conditional("refine_at_contact_switch",
+                                         [ca.Function("keep", [zm, z1, pm], [z1])],
+                                         ca.Function("refine", [zm, z1, pm], [zr]))
+    return coarse, choose, None
+
+
+def _control(model, law: Law, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor, delay: int,
+             torque: bool = True) -> dict:
     """The controller at t_k from the sampled measurements, as MX expressions:
     the normal force through the sensor filter, the guarded approach, the
-    (scheduled) damping, the law's command of eq. (4), and (``torque``) the
-    inner loop (eq. 6) and control force (eq. 5) as joint torques, with the
-    computation delay's queue. ``S``/``P`` are the state and parameter slices
-    by name, ``ref`` the tangential reference (pos_t, vel_t, acc_t), ``q, dq,
-    J, X, dX`` the joints and the task-frame kinematics of the encoders and
-    ``f_sensor`` the normal force read this period (N, before the filter).
-    Used by :func:`build_step` (the simulation) and :func:`build_controller`
-    (the exported controller): one set of expressions for both."""
+    (scheduled) damping, the law's command of eq. (4), the orientation error
+    on a 6-D task, and (``torque``) the inner loop (eq. 6) and control force
+    (eq. 5) as joint torques, with the computation delay's queue (``tau``,
+    N m, the one applied over [t_k, t_k+1); ``tau_wait`` the queue after
+    this period, oldest first). ``S``/``P`` are the state and parameter
+    slices by name, ``ref`` the tangential reference (pos_t, vel_t, acc_t),
+    ``kin`` :func:`_kinematics` of the encoders and ``f_sensor`` the normal
+    force read this period (N, before the filter). Used by :func:`build_step`
+    (the simulation) and :func:`build_controller` (the exported controller):
+    one set of expressions for both."""
+    task = model.task
+    pos, R_tool, J, R, X, dX = kin
     f_m = P["alpha"] * S["f_filt"] + (1 - P["alpha"]) * f_sensor   # measured normal force
     # guarded approach: contact detected now ends it; the surface estimate becomes the contact point
     approaching = S["approach"] > 0
@@ -196,70 +324,35 @@ def _control(model: Puma560, law: Law, S: dict, P: dict, ref: dict, R, q, dq, J,
                         ca.vertcat(ddx_c, ref["acc_t"]))                              # eq. (4)
     ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
     x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
+    # rotational axes: X_c = R_d (X_a = 0), the error on the task axes
+    e_o = (ca.mtimes(R.T, rotation_vector(ca.mtimes(ca.reshape(P["R_d"], 3, 3), R_tool.T)))
+           if task.rotational else ca.MX(0, 1))
     out = {"f_m": f_m, "engaged": engaged, "x_e_hat": x_e_hat, "f_d": f_d, "b_n": b_n, "law_next": law_next,
-           "X_r": X_r, "X_c": X_c, "dX_c": dX_c, "ddX_c": ddX_c, "ramp": ramp, "x_app": x_app,
+           "X_r": X_r, "X_c": X_c, "dX_c": dX_c, "ddX_c": ddX_c, "ramp": ramp, "x_app": x_app, "e_o": e_o,
            "tau": None, "tau_wait": None}
     if not torque:
         return out
-    U = inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"])                           # eq. (6)
-    F_e = ca.vertcat(f_m, 0, 0)
-    tau = joint_torque(model.mass_matrix(q), model.bias(q, dq), J, model.jacobian_dot(q, dq),
-                       ca.mtimes(R, U), ca.mtimes(R, F_e)) + model.friction(dq)        # eq. (5), J^T F
+    U = ca.mtimes(R, inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"]))           # eq. (6)
+    F_e = R[:, 0] * f_m
+    Jdot_dq = model.functions.jacobian_dot(q, dq)
+    if task.rotational:
+        w = ca.mtimes(R.T, ca.mtimes(J[3:, :], dq))
+        U = ca.vertcat(U, ca.mtimes(R, inner_loop(0, 0, e_o, w, 0, P["kd_rot"], P["kp_rot"])))
+        F_e = ca.vertcat(F_e, ca.MX.zeros(3))
+    else:
+        J, Jdot_dq = J[:3, :], Jdot_dq[:3]
+    M = model.functions.mass_matrix(q)
+    tau_0 = (ca.mtimes(M, P["kp_post"] * (P["q_post"] - q) - P["kd_post"] * dq)     # null-space posture
+             if task.posture else None)
+    tau = operational_space_torque(M, model.functions.bias(q, dq), J, Jdot_dq, U, F_e, tau_0) \
+        + model.functions.friction(dq)                                                # eq. (5)
     if delay:           # apply the oldest waiting torque; queue this one
         queue = ca.vertcat(S["tau_wait"], tau)
-        tau, tau_wait = queue[:3], queue[3:]
+        tau, tau_wait = queue[:task.n], queue[task.n:]
     else:
         tau_wait = ca.MX(0, 1)
     out.update(tau=tau, tau_wait=tau_wait)
     return out
-
-
-def _plant_step(plant: Puma560, integrator: str, substeps: int, tol: float, contact_refine: int):
-    """The plant over one period, time scaled to [0, 1] so Ts is a parameter:
-    ``(coarse, choose, plant_flow)``; ``coarse`` (fixed step) is ``(z, pz) ->
-    (zf, switched)``, ``choose`` the contact refinement (or None),
-    ``plant_flow`` the CVODES integrator (``integrator="cvodes"``).
-    ``pz = [tau (N m), k_e (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``."""
-    z = ca.SX.sym("z", 6)
-    pz = ca.SX.sym("pz", 3 + 1 + 1 + 9 + 3 + 1)
-    tau, k_e, d_e = pz[0:3], pz[3], pz[4]
-    R = ca.reshape(pz[5:14], 3, 3)
-    c, Ts = pz[14:17], pz[17]
-    coarse = choose = plant_flow = None
-
-    def ode(z):
-        """Eq. (1) in joint space with the unilateral contact; and whether the
-        contact pushes at z."""
-        q, dq = z[0:3], z[3:6]
-        _, J, X, dX = _task(plant, q, dq, R, c)
-        f_env = contact_force(X[0], dX[0], k_e, d_e)
-        F_env = R[:, 0] * f_env                                   # force on the environment, base frame
-        ddq = plant.forward_dynamics(q, dq, tau - ca.mtimes(J.T, F_env))
-        return Ts * ca.vertcat(dq, ddq), f_env > 0
-
-    if integrator == "fixed":
-        coarse = _rk4(ode, z, pz, substeps)
-        if contact_refine > 1:
-            # a period in which the contact force switches on or off (a kink of
-            # max(0, .) that a fixed step would straddle) is integrated again
-            # with contact_refine times more steps: the same coarse step called
-            # n times over Ts/n (little extra code to compile)
-            zm, z1, pm = ca.MX.sym("z", 6), ca.MX.sym("z1", 6), ca.MX.sym("pz", pz.numel())
-            n = int(contact_refine)
-            zr, p_sub = zm, ca.vertcat(pm[:-1], pm[-1] / n)
-            for _ in range(n):
-                zr = coarse(zr, p_sub)[0]
-            keep = ca.Function("keep", [zm, z1, pm], [z1])
-            refine = ca.Function("refine", [zm, z1, pm], [zr])
-            choose = ca.Function.conditional("refine_at_contact_switch", [keep], refine)
-    elif integrator == "cvodes":
-        dae = {"x": z, "p": pz, "ode": ode(z)[0]}
-        plant_flow = ca.integrator("plant", "cvodes", dae, 0.0, 1.0,
-                                   {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
-    else:
-        raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")
-
-    return coarse, choose, plant_flow
 
 
 def step_name(law: Law, delay: int = 0) -> str:
@@ -267,10 +360,17 @@ def step_name(law: Law, delay: int = 0) -> str:
     return f"step_{law.name}" + (f"_delay{delay}" if delay else "")
 
 
-def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixed", substeps: int = 1,
-               tol: float = 1e-10, delay: int = 0, contact_refine: int = 4) -> ca.Function:
+def _surface_parameters(P: dict, surface) -> list:
+    return [P[name] for name, _ in surface.fields]
+
+
+def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+               delay: int = 0, contact_refine: int = 4, surface=Plane) -> ca.Function:
     """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
-    and a computation delay of ``delay`` samples.
+    and a computation delay of ``delay`` samples. ``plant`` and ``model``
+    are robots (``load_robot``) with the same joints (the model may be
+    mass-scaled or carry friction to compensate); ``surface`` the surface's
+    shape (a :class:`tmtcontrol.surface.Surface` class or instance).
 
     ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
     in which the contact force switches on or off is integrated again with
@@ -280,64 +380,57 @@ def build_step(plant: Puma560, model: Puma560, law: Law, integrator: str = "fixe
     ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
     compilable; the accuracy reference).
     """
-    coarse, choose, plant_flow = _plant_step(plant, integrator, substeps, tol, contact_refine)
-
-    # -- controller at t_k -------------------------------------------------------
-    STATE, PARAM = state_layout(law, delay), param_layout(law)
-    s = ca.MX.sym("s", STATE.size)
-    u = ca.MX.sym("u", INPUT.size)
-    p = ca.MX.sym("p", PARAM.size)
+    task = plant.task
+    if model.n != task.n:
+        raise ValueError(f"plant and model must have the same joints, got {task.n} and {model.n}")
+    coarse, choose, flow = _plant_step(plant, surface, integrator, substeps, tol, contact_refine)
+    STATE, PARAM = state_layout(task, law, delay), param_layout(task, law, surface)
+    s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", INPUT.size), ca.MX.sym("p", PARAM.size)
     S, U_in, P = STATE.split(s), INPUT.split(u), PARAM.split(p)
-    R = ca.reshape(P["R"], 3, 3)
     q, dq = S["q"], S["dq"]
-    pos, J, X, dX = _task(model, q, dq, R, P["c"])            # encoders through fk
+    kin = _kinematics(model, surface, q, dq, P)                    # encoders through fk
+    pos, _, _, _, X, dX = kin
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    c = _control(model, law, S, P, U_in, R, q, dq, J, X, dX, f_true + U_in["noise"], delay)
-    f_m, b_n, engaged, x_e_hat, f_d = c["f_m"], c["b_n"], c["engaged"], c["x_e_hat"], c["f_d"]
-    tau, tau_wait, law_next, X_r, X_c = c["tau"], c["tau_wait"], c["law_next"], c["X_r"], c["X_c"]
-    ramp, x_app = c["ramp"], c["x_app"]
-    pz_val = ca.vertcat(tau, U_in["k_e"], P["d_e"], P["R"], P["c"], P["Ts"])
+    c = _control(model, law, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay)
+    pz = ca.vertcat(c["tau"], U_in["k_e"], P["d_e"], *_surface_parameters(P, surface), P["Ts"])
     z0 = ca.vertcat(q, dq)
-    zf = ca.MX.zeros(6) if integrator == "fixed" else plant_flow(x0=z0, p=pz_val)["xf"]
-    s_next = ca.vertcat(zf, f_m, b_n, ca.if_else(engaged, 0, 1), x_app, ramp, x_e_hat, tau_wait, law_next)
-    log = ca.vertcat(q, dq, tau, pos, X, X_r, X_c, f_true, f_m, b_n, f_d, x_e_hat)
+    rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
+                      c["tau_wait"], c["law_next"])
+    log = ca.vertcat(q, dq, c["tau"], pos, X, c["X_r"], c["X_c"], f_true, c["f_m"], c["b_n"], c["f_d"],
+                     c["x_e_hat"], c["e_o"])
     name = step_name(law, delay)
-    if integrator != "fixed":
-        return ca.Function(name, [s, u, p], [s_next, log], ["s", "u", "p"], ["s_next", "log"])
+    if flow is not None:
+        zf = flow(x0=z0, p=pz)["xf"]
+        return ca.Function(name, [s, u, p], [ca.vertcat(zf, rest), log], ["s", "u", "p"], ["s_next", "log"])
     # the controller expanded to SX (compilable) and fused with the coarse plant
     # step, common subexpressions merged: the controller's model at q_k and the
-    # plant's first stage share sin/cos of q_k (and, with an exact model, M, J
-    # and the kinematics); the contact refinement a branch in the generated code
-    ctrl = ca.Function("ctrl", [s, u, p], [z0, pz_val, s_next[6:], log]).expand()
-    sx = [ca.SX.sym(n, ctrl.size1_in(i)) for i, n in enumerate(("s", "u", "p"))]
-    z0s, pzs, rest, logs = ctrl(*sx)
+    # plant's first stage share the kinematics (and, with an exact model, M and
+    # J); the contact refinement a branch in the generated code
+    ctrl = ca.Function("ctrl", [s, u, p], [z0, pz, rest, log]).expand()
+    sx = [ca.SX.sym(k, ctrl.size1_in(i)) for i, k in enumerate(("s", "u", "p"))]
+    z0s, pzs, rests, logs = ctrl(*sx)
     zc, switched = coarse(z0s, pzs)
     if choose is None:
-        return ca.Function(name, sx, ca.cse([ca.vertcat(zc, rest), logs]), ["s", "u", "p"], ["s_next", "log"])
-    fused = ca.Function(f"{name}_ctrl_plant", sx, ca.cse([z0s, pzs, zc, switched, rest, logs]))
-    sm, um, pm = (ca.MX.sym(n, fused.size1_in(i)) for i, n in enumerate(("s", "u", "p")))
+        return ca.Function(name, sx, ca.cse([ca.vertcat(zc, rests), logs]), ["s", "u", "p"], ["s_next", "log"])
+    fused = ca.Function(f"{name}_ctrl_plant", sx, ca.cse([z0s, pzs, zc, switched, rests, logs]))
+    sm, um, pm = (ca.MX.sym(k, fused.size1_in(i)) for i, k in enumerate(("s", "u", "p")))
     z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
-    s_next_m = ca.vertcat(choose(sw, z0m, zcm, pzm), restm)
-    return ca.Function(name, [sm, um, pm], [s_next_m, logm], ["s", "u", "p"], ["s_next", "log"])
+    return ca.Function(name, [sm, um, pm], [ca.vertcat(choose(sw, z0m, zcm, pzm), restm), logm],
+                       ["s", "u", "p"], ["s_next", "log"])
 
 
 # -- the same loop split at the sensors: plant and controller as two Functions --------------------
 # (software-in-the-loop: tmtcontrol.export generates C from build_controller and steps build_plant)
 
-def build_plant(plant: Puma560, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
-                contact_refine: int = 4) -> ca.Function:
-    """The plant of :func:`build_step` alone over one period: ``["z","pz"] ->
-    ["zf"]``, joints ``z = [q, dq]`` (rad, rad/s) and ``pz = [tau (N m), k_e
-    (N/m), d_e (N s/m), R (column-major), c (m), Ts (s)]``, with the same
-    integrator and contact refinement."""
-    return _plant_function(*_plant_step(plant, integrator, substeps, tol, contact_refine), 6, 18)
-
-
-def _plant_function(coarse, choose, flow, nz: int, npz: int) -> ca.Function:
-    """``["z","pz"] -> ["zf"]`` from a plant step's parts (:func:`_plant_step`):
-    the adaptive ``flow``, else the ``coarse`` RK4 step refined by ``choose``
-    at a contact switch. Shared by the PUMA's and the 6-D loop's plants."""
-    z, pz = ca.MX.sym("z", nz), ca.MX.sym("pz", npz)
+def build_plant(plant, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+                contact_refine: int = 4, surface=Plane) -> ca.Function:
+    """The plant of :func:`build_step` alone over one period: ``["z","pz"]
+    -> ["zf"]``, joints ``z = [q, dq]`` (n rad, n rad/s) and ``pz`` laid out
+    by :func:`plant_inputs_layout`, with the same integrator and contact
+    refinement."""
+    coarse, choose, flow = _plant_step(plant, surface, integrator, substeps, tol, contact_refine)
+    z = ca.MX.sym("z", 2 * plant.n)
+    pz = ca.MX.sym("pz", plant_inputs_layout(plant.task, surface).size)
     if flow is not None:
         zf = flow(x0=z, p=pz)["xf"]
     else:
@@ -346,80 +439,123 @@ def _plant_function(coarse, choose, flow, nz: int, npz: int) -> ca.Function:
     return ca.Function("plant", [z, pz], [zf], ["z", "pz"], ["zf"])
 
 
-def controller_state_layout(law: Law, delay: int = 0, torque: bool = True) -> Layout:
+def controller_state_layout(task, law: Law, delay: int = 0, torque: bool = True) -> Layout:
     """The controller's own state: :func:`state_layout` without the joints
     (the delay queue only with ``torque``)."""
-    full = state_layout(law, delay if torque else 0)
-    return Layout(*((n, s.stop - s.start) for n, s in full.slices.items() if n not in ("q", "dq")))
+    full = state_layout(task, law, delay if torque else 0)
+    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k not in ("q", "dq")))
 
 
-def controller_param_layout(law: Law) -> Layout:
+def controller_param_layout(task, law: Law, surface=Plane) -> Layout:
     """The controller's parameters: :func:`param_layout` without the
     environment's damping ``d_e`` (a property of the simulated surface)."""
-    full = param_layout(law)
-    return Layout(*((n, s.stop - s.start) for n, s in full.slices.items() if n != "d_e"))
+    full = param_layout(task, law, surface)
+    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k != "d_e"))
 
 
-MEASUREMENT = Layout(("q", 3), ("dq", 3), ("force", 3), ("pos_t", 2), ("vel_t", 2), ("acc_t", 2))
-"""The controller's inputs each period: joint positions (rad) and velocities
-(rad/s); the contact force on the tool (N, base frame; its normal component
-is ``-R[:, 0] . force``); the tangential reference position (m), velocity
-(m/s) and acceleration (m/s^2) on task axes 2 and 3."""
+def measurement_layout(task) -> Layout:
+    """The controller's inputs each period: joint positions (n, rad) and
+    velocities (n, rad/s); the contact force on the tool (N, base frame; its
+    normal component is ``-e_n . force``); the tangential reference position
+    (m), velocity (m/s) and acceleration (m/s^2) on task axes 1 and 2."""
+    n = task.n
+    return Layout(("q", n), ("dq", n), ("force", 3), ("pos_t", 2), ("vel_t", 2), ("acc_t", 2))
 
 
 IK_NEWTON_STEPS = 4
-"""Newton steps of the joint position command from the measured joints: the
-command of eq. (4) lies up to f_d/k (0.1 m in the paper) from the measured
-position, and four steps reach it to rounding on the paper's path."""
+"""Newton steps of the joint position command from the measured joints on a
+square task: the command of eq. (4) lies up to f_d/k (0.1 m in the paper)
+from the measured position, and four steps reach it to rounding on the
+built-in paths; a redundant arm takes twice as many least-norm steps."""
 
 
-def command_layout(torque: bool = True) -> Layout:
-    """The controller's outputs: the command of eq. (4) X_c, dX_c, ddX_c
-    (task frame: m, m/s, m/s^2), the commanded wrist position p_c = R X_c + c
-    (base frame, m), the joint position command q_c with fk(q_c) = p_c
-    (:data:`IK_NEWTON_STEPS` Newton steps from the measured joints, the
-    branch the robot is in) and the joint velocity command dq_c =
-    J(q_c)^-1 R dX_c (rad, rad/s), and with ``torque`` the joint torques of
-    eqs. (5)-(6) (N m)."""
-    return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", 3), ("dq_c", 3),
-                  ("tau", 3 if torque else 0))
+def ik_steps(task) -> int:
+    """Newton steps of the joint position command: :data:`IK_NEWTON_STEPS`
+    on a square task, twice as many least-norm steps on a redundant arm
+    (whose first steps converge slower; tests/test_export_6d.py)."""
+    return IK_NEWTON_STEPS if task.square else 2 * IK_NEWTON_STEPS
 
 
-DIAGNOSTICS = Layout(("X", 3), ("dX", 3), ("X_r", 3), ("p", 3), ("f_m", 1), ("b_n", 1), ("f_d", 1),
-                     ("x_e_hat", 1))
-"""What the controller computed on the way: task position and velocity
-(m, m/s), reference X_r (m, task frame), wrist position p (m, base frame),
-filtered normal force f_m (N), normal damping b_n (N s/m), desired force in
-use f_d (N) and the surface estimate x_e_hat (m, task normal)."""
+def command_layout(task, torque: bool = True) -> Layout:
+    """The controller's outputs: the command of eq. (4) on the translational
+    axes X_c, dX_c, ddX_c (task frame: m, m/s, m/s^2), the commanded tool
+    position p_c = R X_c + c (base frame, m), the joint position command q_c
+    (n, rad) with the tool at p_c (and, on a 6-D task, in the commanded
+    orientation R_d) by :func:`ik_steps` Newton steps from the measured
+    joints, the joint velocity command dq_c = J(q_c)^+ [R dX_c; 0] (n,
+    rad/s), and with ``torque`` the joint torques of eqs. (5)-(6) (n, N m)."""
+    n = task.n
+    return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", n), ("dq_c", n),
+                  ("tau", n if torque else 0))
 
 
-def build_controller(model: Puma560, law: Law, delay: int = 0, torque: bool = True,
-                     name: str = "tmt_controller") -> ca.Function:
+def diagnostics_layout(task) -> Layout:
+    """What the controller computed on the way: task position and velocity
+    (m, m/s), reference X_r (m, task frame), tool position p (m, base
+    frame), filtered normal force f_m (N), normal damping b_n (N s/m),
+    desired force in use f_d (N), the surface estimate x_e_hat (m, task
+    normal) and, on a 6-D task, the orientation error e_o (rad, task axes)."""
+    return Layout(("X", 3), ("dX", 3), ("X_r", 3), ("p", 3), ("f_m", 1), ("b_n", 1), ("f_d", 1),
+                  ("x_e_hat", 1), ("e_o", task.rotational))
+
+
+def _least_norm(J, e):
+    """J^-1 e for a square J, else the least-norm solution J^T (J J^T)^-1 e."""
+    if J.size1() == J.size2():
+        return ca.solve(J, e, "symbolicqr")
+    return ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), e, "symbolicqr"))
+
+
+def _task_jacobian(task, J):
+    return J if task.rotational else J[:3, :]
+
+
+def _newton(model, J, pos, R_tool, q, p_c, R_d):
+    """:func:`ik_steps` Newton steps on the task error (tool position, and
+    orientation log(R_d R^T)^vee on a 6-D task) from the measured joints
+    ``q`` (least-norm steps on a redundant arm): ``(q_c, J_task(q_c))``."""
+    task = model.task
+    q_c, J_c, p, Rt = q, _task_jacobian(task, J), pos, R_tool
+    for _ in range(ik_steps(task)):       # a fixed count: constant execution time
+        e = p_c - p
+        if task.rotational:
+            e = ca.vertcat(e, rotation_vector(ca.mtimes(R_d, Rt.T)))
+        q_c = q_c + _least_norm(J_c, e)
+        T = model.functions.fk(q_c)
+        J_c, p, Rt = _task_jacobian(task, model.functions.jacobian(q_c)), T[:3, 3], T[:3, :3]
+    return q_c, J_c
+
+
+def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name: str = "tmt_controller",
+                     surface=Plane) -> ca.Function:
     """The controller of :func:`build_step` alone (the same expressions,
     :func:`_control`), expanded to SX: ``name: ["s","y","p"] ->
     ["s_next","cmd","diag"]`` with the state :func:`controller_state_layout`,
-    the measurement :data:`MEASUREMENT`, the parameters
+    the measurement :func:`measurement_layout`, the parameters
     :func:`controller_param_layout`, the command :func:`command_layout` and
-    :data:`DIAGNOSTICS`. ``torque=False`` leaves out the inner loop (eqs.
-    5-6) and the delay queue: the command for a position-controlled robot."""
-    STATE, PARAM = controller_state_layout(law, delay, torque), controller_param_layout(law)
-    s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEASUREMENT.size), ca.MX.sym("p", PARAM.size)
-    S, Y, P = STATE.split(s), MEASUREMENT.split(y), PARAM.split(p)
-    R = ca.reshape(P["R"], 3, 3)
+    :func:`diagnostics_layout`. ``torque=False`` leaves out the inner loop
+    (eqs. 5-6) and the delay queue: the command for a position-controlled
+    robot."""
+    task = model.task
+    STATE, PARAM = controller_state_layout(task, law, delay, torque), controller_param_layout(task, law, surface)
+    MEAS = measurement_layout(task)
+    s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEAS.size), ca.MX.sym("p", PARAM.size)
+    S, Y, P = STATE.split(s), MEAS.split(y), PARAM.split(p)
     q, dq = Y["q"], Y["dq"]
-    pos, J, X, dX = _task(model, q, dq, R, P["c"])
+    kin = _kinematics(model, surface, q, dq, P)
+    pos, R_tool, J, R, X, dX = kin
     f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
-    c = _control(model, law, S, P, Y, R, q, dq, J, X, dX, f_sensor, delay if torque else 0, torque)
-    p_c = ca.mtimes(R, c["X_c"]) + P["c"]
-    q_c, J_c = q, J
-    for _ in range(IK_NEWTON_STEPS):        # a fixed count: constant execution time
-        q_c = q_c + ca.solve(J_c, p_c - (pos if q_c is q else model.fk(q_c)), "symbolicqr")
-        J_c = model.jacobian(q_c)
-    dq_c = ca.solve(J_c, ca.mtimes(R, c["dX_c"]), "symbolicqr")
+    c = _control(model, law, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque)
+    p_c = surface.point(c["X_c"], P)
+    q_c, J_c = _newton(model, J, pos, R_tool, q, p_c, ca.reshape(P["R_d"], 3, 3) if task.rotational else None)
+    v_c = ca.mtimes(R, c["dX_c"])
+    if task.rotational:
+        v_c = ca.vertcat(v_c, ca.MX.zeros(3))
+    dq_c = _least_norm(J_c, v_c)
     queue = c["tau_wait"] if torque else ca.MX(0, 1)
     s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],
                         c["x_e_hat"], queue, c["law_next"])
     cmd = ca.vertcat(c["X_c"], c["dX_c"], c["ddX_c"], p_c, q_c, dq_c, c["tau"] if torque else ca.MX(0, 1))
-    diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"])
+    diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"], c["e_o"])
     return ca.Function(name, [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],
                        ["s_next", "cmd", "diag"]).expand()

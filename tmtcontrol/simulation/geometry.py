@@ -28,22 +28,24 @@ import math
 import casadi as ca
 import numpy as np
 
-from .environment import task_frame
+from ..surface import Plane, normal_frame, tilt_frame
 
-__all__ = ["surface_frame", "tool_orientation", "rotation_vector"]
+__all__ = ["surface_of", "surface_frame", "tool_orientation", "rotation_vector"]
+
+
+def surface_of(scenario) -> Plane:
+    """The scenario's surface (:mod:`tmtcontrol.surface`): the plane of
+    ``environment.normal`` (or, when unset, ``environment.tilt_deg``)
+    through ``trajectory.center``, the task frame's origin."""
+    return Plane(surface_frame(scenario.environment), scenario.trajectory.center)
 
 
 def surface_frame(environment) -> np.ndarray:
     """Rotation R (3x3): the task axes (normal, 1, 2) in the base frame, from
     ``environment.normal`` or, when unset, ``environment.tilt_deg``."""
     if environment.normal is None:
-        return task_frame(environment.tilt_deg)
-    e_n = np.asarray(environment.normal, dtype=float)
-    e_n = e_n / np.linalg.norm(e_n)
-    ref = np.array([0.0, 1.0, 0.0]) if abs(e_n[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    e_1 = ref - (ref @ e_n) * e_n
-    e_1 /= np.linalg.norm(e_1)
-    return np.column_stack([e_n, e_1, np.cross(e_n, e_1)])
+        return tilt_frame(environment.tilt_deg)
+    return normal_frame(environment.normal)
 
 
 def tool_orientation(R: np.ndarray, spin_deg: float = 0.0) -> np.ndarray:

@@ -384,7 +384,7 @@ def noise_free_twin(result: SimulationResult) -> SimulationResult:
     """``result``'s scenario run again with ``sensor.noise_std = 0`` (same
     arm, path, stiffness and law; the built-in loop); kept for the last few
     scenarios, so judging one run several times simulates its twin once."""
-    from .posesim import simulator_for
+    from .simulator import simulator_for
     from .scenario import apply_overrides
 
     sc0 = apply_overrides(result.scenario, ["sensor.noise_std=0"])

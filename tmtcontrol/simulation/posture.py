@@ -1,26 +1,30 @@
-"""Start posture and path check of a 6-D arm: inverse kinematics by CasADi's solvers.
+"""Start posture and path check of any arm: inverse kinematics by CasADi's solvers.
 
-:func:`pose_solver` builds one problem per robot (``rootfinder`` for six
-joints, ``nlpsol("ipopt")`` for more):
-the joint vector closest to a reference posture (least squares) whose tool
-point is at ``p`` and whose tool orientation equals ``R_d``, within the joint
-limits::
+The task is the robot's (:attr:`tmtcontrol.model.Robot.task`): the tool point
+(3 equations) or the tool point and orientation (6). :func:`pose_solver`
+builds one problem per robot (``rootfinder`` for a square task,
+``nlpsol("ipopt")`` for a redundant arm): the joint vector closest to a
+reference posture (least squares) whose tool point is at ``p`` and, on a
+6-D task, whose tool orientation equals ``R_d``, within the joint limits::
 
     min_q |q - q_ref|^2   s.t.  fk_p(q) = p,  vee(R_d^T R(q) - R(q)^T R_d)/2 = 0,
                                 tr(R_d^T R(q)) >= 1,  q_min <= q <= q_max
 
 (the orientation equality is sin(theta) axis = 0 with cos(theta) >= 0, smooth
-at the solution, unlike the rotation vector). For 6 joints the constraints
-fix q up to the branch, which the reference selects; for a redundant arm the
-objective resolves the redundancy.
+at the solution, unlike the rotation vector). For a square task the
+constraints fix q up to the branch, which the reference selects; for a
+redundant arm the objective resolves the redundancy. A robot with a
+closed-form position inverse kinematics (``Robot.position_ik``, the PUMA's)
+on a position task is solved by it (its default branch).
 
 :func:`check_pose_path` walks one period of the circle (every
 :data:`PATH_SAMPLES`-th of it), solving each point from the previous one, and
 refuses the path with one line naming the path time and the reason:
 unreachable (no solution even without limits), outside the joint limits
 (a solution exists only beyond them), or near a singularity: the smallest
-singular value of the 6 x n geometric Jacobian J (linear rows in m/rad,
-angular rows in rad/rad) below :data:`MIN_SINGULAR_VALUE`.
+singular value of the task Jacobian J (the linear rows of the geometric
+Jacobian in m/rad, and its angular rows in rad/rad on a 6-D task) below
+:data:`MIN_SINGULAR_VALUE`.
 """
 
 from __future__ import annotations
@@ -33,7 +37,8 @@ import numpy as np
 
 from .scenario import ScenarioError
 
-__all__ = ["MIN_SINGULAR_VALUE", "PATH_SAMPLES", "pose_solver", "solve_pose", "PosePath", "check_pose_path"]
+__all__ = ["MIN_SINGULAR_VALUE", "PATH_SAMPLES", "pose_solver", "solve_pose", "PosePath", "check_pose_path",
+           "task_jacobian"]
 
 MIN_SINGULAR_VALUE = 0.02
 """Smallest singular value of J accepted along the path. On the UR5 (a6 =
@@ -48,11 +53,22 @@ POSE_TOL = 1e-9
 
 
 def _pose_equations(robot, q, par):
+    """The task's equations at ``q`` (``par = [p, R_d, q_ref]``) and, on a 6-D
+    task, tr(R_d^T R) (None on a position task)."""
     T = robot.functions.fk(q)
+    if not robot.task.rotational:
+        return T[:3, 3] - par[:3], None
     Rd = ca.reshape(par[3:12], 3, 3)
     E = ca.mtimes(Rd.T, T[:3, :3])
     return (ca.vertcat(T[:3, 3] - par[:3], 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])),
             E[0, 0] + E[1, 1] + E[2, 2])
+
+
+def task_jacobian(robot, q) -> np.ndarray:
+    """The task Jacobian at ``q`` (NumPy): the geometric Jacobian's linear rows
+    on a position task, all six rows on a 6-D task."""
+    J = robot.jacobian(q)
+    return J if robot.task.rotational else J[:3]
 
 
 def pose_solver(robot, limits: bool = True, track: bool = False):
@@ -64,11 +80,11 @@ def pose_solver(robot, limits: bool = True, track: bool = False):
     equations are square and CasADi's ``rootfinder`` (``newton``) solves them
     from the previous pose, which keeps the branch (IPOPT was seen to jump to
     the UR5's flipped wrist there); the limits are checked after."""
-    n = robot.n
+    n, task = robot.n, robot.task
     q = ca.SX.sym("q", n)
     par = ca.SX.sym("par", 3 + 9 + n)
     g, trace = _pose_equations(robot, q, par)
-    if track and n == 6:
+    if track and task.square:
         rf = ca.rootfinder("pose", "newton", ca.Function("g", [q, par], [g]),
                            {"abstolStep": 1e-14, "abstol": 1e-13, "max_iter": 50, "error_on_fail": False})
 
@@ -77,29 +93,42 @@ def pose_solver(robot, limits: bool = True, track: bool = False):
         return solve
     opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-10,
             "ipopt.max_iter": 200}
-    nlp = ca.nlpsol("pose", "ipopt", {"x": q, "p": par, "f": ca.sumsqr(q - par[12:]), "g": ca.vertcat(g, trace)},
-                    opts)
+    m = g.numel()
+    g_all, lbg, ubg = (ca.vertcat(g, trace), np.r_[np.zeros(m), 1.0], np.r_[np.zeros(m), np.inf]) \
+        if trace is not None else (g, np.zeros(m), np.zeros(m))
+    nlp = ca.nlpsol("pose", "ipopt", {"x": q, "p": par, "f": ca.sumsqr(q - par[12:]), "g": g_all}, opts)
 
     def solve(x0, p, lo, hi):
-        sol = nlp(x0=x0, p=p, lbx=lo, ubx=hi, lbg=np.r_[np.zeros(6), 1.0], ubg=np.r_[np.zeros(6), np.inf])
+        sol = nlp(x0=x0, p=p, lbx=lo, ubx=hi, lbg=lbg, ubg=ubg)
         return np.array(sol["x"]).ravel()
     return solve
 
 
 def solve_pose(robot, solver, p, R_d, q_ref, limits: bool = True):
-    """``(q, ok)``: the pose closest to ``q_ref`` with tool point ``p`` (m) and
-    orientation ``R_d``; ``ok`` when the residual is below :data:`POSE_TOL`
-    (and, with ``limits``, q within the joint limits)."""
-    n = robot.n
+    """``(q, ok)``: the pose closest to ``q_ref`` with tool point ``p`` (m) and,
+    on a 6-D task, orientation ``R_d``; ``ok`` when the residual is below
+    :data:`POSE_TOL` (and, with ``limits``, q within the joint limits). A
+    position task on a robot with a closed-form inverse kinematics
+    (``Robot.position_ik``) is solved by it (``solver`` unused)."""
+    n, rot = robot.n, robot.task.rotational
     lo = np.where(np.isfinite(robot.q_min), robot.q_min, -1e20) if limits else np.full(n, -1e20)
     hi = np.where(np.isfinite(robot.q_max), robot.q_max, 1e20) if limits else np.full(n, 1e20)
     q_ref = np.asarray(q_ref, dtype=float)
-    par = np.concatenate([np.asarray(p, float), np.asarray(R_d, float).ravel(order="F"), q_ref])
-    q = solver(np.clip(q_ref, lo, hi), par, lo, hi)
+    if not rot and robot.position_ik is not None:
+        try:
+            q = np.asarray(robot.position_ik(np.asarray(p, float)), dtype=float)
+        except ValueError:
+            return q_ref, False
+    else:
+        R_d = np.eye(3) if R_d is None else R_d
+        par = np.concatenate([np.asarray(p, float), np.asarray(R_d, float).ravel(order="F"), q_ref])
+        q = solver(np.clip(q_ref, lo, hi), par, lo, hi)
     if not np.all(np.isfinite(q)):
         return q, False
     T = robot.fk(q)
-    err = max(np.abs(T[:3, 3] - p).max(), orientation_angle(np.asarray(R_d) @ T[:3, :3].T))
+    err = np.abs(T[:3, 3] - p).max()
+    if rot:
+        err = max(err, orientation_angle(np.asarray(R_d) @ T[:3, :3].T))
     ok = bool(err < POSE_TOL) and (not limits or bool(np.all(q >= lo - 1e-12) and np.all(q <= hi + 1e-12)))
     return q, ok
 
@@ -157,7 +186,8 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     raise :class:`ScenarioError` (one line: path time and reason) at the
     first point that is unreachable, outside the joint limits or near a
     singularity."""
-    start, track = pose_solver(robot), pose_solver(robot, track=True)
+    closed = not robot.task.rotational and robot.position_ik is not None
+    start, track = (None, None) if closed else (pose_solver(robot), pose_solver(robot, track=True))
     free = None
     qs, sig = [], []
     q_prev = np.asarray(q_seed, dtype=float)
@@ -166,7 +196,7 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
         if not ok and k == 0:
             q, ok = _start_from_nearby_seeds(robot, start, points[:, 0], R_d, q_prev)
         if not ok:
-            free = free or pose_solver(robot, limits=False)
+            free = free or (None if closed else pose_solver(robot, limits=False))
             q_free, ok_free = solve_pose(robot, free, points[:, k], R_d, q_prev, limits=False)
             if ok_free:
                 out = np.flatnonzero((q_free < robot.q_min) | (q_free > robot.q_max))
@@ -174,10 +204,11 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
                 raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the pose is outside the joint "
                                     f"limits ({names}) at {np.round(points[:, k], 4).tolist()} m")
             seed = "robot.q0" if k == 0 else "the previous path point"
+            orient = " with the commanded orientation" if robot.task.rotational else ""
             raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the pose is unreachable "
-                                f"(tool point {np.round(points[:, k], 4).tolist()} m with the commanded "
-                                f"orientation; no pose found from {seed})")
-        sv = np.linalg.svd(robot.jacobian(q), compute_uv=False)
+                                f"(tool point {np.round(points[:, k], 4).tolist()} m{orient}; no pose found "
+                                f"from {seed})")
+        sv = np.linalg.svd(task_jacobian(robot, q), compute_uv=False)
         s = sv[-1]
         if not s >= MIN_SINGULAR_VALUE:
             raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the path passes near a singularity "

@@ -1,11 +1,22 @@
-"""Time-domain simulation of the sampled TMT closed loop (section V).
+"""Time-domain simulation of the sampled TMT closed loop (section V), on any arm and surface.
 
-:class:`Simulator` builds the per-period step (``closedloop.build_step``),
-compiles its rollout once (``codegen.Rollout``) and runs it; every numeric
-setting (gains, f_d, stiffness profile, noise, Ts, plane geometry) is a
-runtime input, so :meth:`Simulator.run` can be called again, with another
-scenario of the same structure, without recompiling.
-:class:`SimulationResult` holds the named time series.
+:class:`Simulator` loads the scenario's arm (``load_robot``: the paper's
+PUMA, a bundled arm or a URDF), checks the whole path before simulating
+(:func:`.posture.check_pose_path`: reachable, within the joint limits, away
+from singularities; a failure is one line naming the path time), builds the
+per-period step of :func:`.closedloop.build_step` for the robot's task and
+the scenario's surface, compiles its rollout once (:class:`.rollout.Rollout`)
+and runs it; every numeric setting (gains, f_d, stiffness profile, noise,
+Ts, the surface's parameters) is a runtime input, so :meth:`Simulator.run`
+can be called again, with another scenario of the same structure, without
+recompiling. :class:`SimulationResult` holds the named time series.
+
+The analyses (``stability/``) use the same Simulator through its public
+loop interface: :attr:`Simulator.layout`, :attr:`Simulator.log`,
+:meth:`Simulator.build_step`, :meth:`Simulator.inputs`,
+:meth:`Simulator.path`, :meth:`Simulator.joints_at`,
+:meth:`Simulator.tool_position`, :meth:`Simulator.joint_rates` and
+:meth:`Simulator.normal_mass`: one algorithm on any arm.
 """
 
 from __future__ import annotations
@@ -18,22 +29,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..files import VerdictFailed, check_interrupt
 from ..control.laws import get_law
-from .closedloop import INPUT, LOG, build_step, controller_model, param_layout, state_layout, step_name
+from ..files import VerdictFailed, check_interrupt
+from ..model import URDFError, load_robot
+from ..model.urdf import TipError
+from .closedloop import INPUT, build_step, log_layout, param_layout, state_layout, step_name
+from .environment import stiffness_samples
+from .geometry import surface_of, tool_orientation
+from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
-from .environment import stiffness_samples, task_frame
-from ..model.puma560 import Puma560
 from .scenario import Scenario, ScenarioError, paper_scenario
-from .trajectory import circle_reference
 from .traces import SimulationTraces
+from .trajectory import circle_reference
 
-__all__ = ["Simulator", "SimulationResult", "SimulationError", "PathReport", "check_path",
-           "check_run_size", "MAX_STEPS", "contact_detection_threshold",
-           "contact_threshold_of"]
-
-MAX_CONDITION = 100.0
-"""Largest Jacobian condition number accepted along the path."""
+__all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS",
+           "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "structure",
+           "structure_key", "normal_mass", "simulator_for"]
 
 STIFFNESS_ESTIMATE_FORCE = 0.5
 """Force (N) above which the logged stiffness estimate f_m/(x - x_e) of
@@ -109,24 +120,38 @@ class SimulationError(VerdictFailed):
     """The simulation diverged (non-finite or runaway state)."""
 
 
-@dataclass(frozen=True)
-class PathReport:
-    """Joint-space image of the circle and its conditioning."""
-    q: np.ndarray                 # (3, n) joint angles along one cycle, rad
-    condition_number: np.ndarray  # (n,)
-
-    @property
-    def max_condition(self) -> float:
-        return float(self.condition_number.max())
+@functools.lru_cache(maxsize=8)
+def _robot(model: str, tip, friction, armature: bool, mass_scale: float):
+    return load_robot(model, tip=tip, friction=friction, armature=armature, mass_scale=mass_scale)
 
 
-def _structure(scenario: Scenario):
+def robot_of(scenario: Scenario, controller: bool = False):
+    """The simulated arm of ``scenario`` (``controller``: the controller's
+    model of it, mass-scaled by ``robot.model_mass_scale``, with the friction
+    it compensates); a :class:`ScenarioError` naming ``robot.model`` /
+    ``robot.tip`` if it cannot be loaded."""
+    r = scenario.robot
+    friction = ("smooth" if r.compensate_friction else False) if controller else ("smooth" if r.friction else False)
+    try:
+        return _robot(r.model, r.tip, friction, r.armature, r.model_mass_scale if controller else 1.0)
+    except URDFError as exc:
+        key = "robot.tip" if isinstance(exc, TipError) else "robot.model"
+        raise ScenarioError(f"{key}: {exc}") from None
+
+
+def _task(robot):
+    try:
+        return robot.task
+    except ValueError as exc:
+        raise ScenarioError(f"robot.model: {robot.name} has {exc}") from None
+
+
+def structure(scenario: Scenario):
     """What changes the compiled step (everything else is a runtime input)."""
     r, s = scenario.robot, scenario.simulation
     return (r.model, r.tip, r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
-            scenario.controller.law.kind,
-            scenario.controller.delay_samples)
+            scenario.controller.law.kind, scenario.controller.delay_samples, surface_of(scenario).kind)
 
 
 @functools.lru_cache(maxsize=1)
@@ -142,52 +167,63 @@ def _package_digest() -> str:
 
 def structure_key(scenario: Scenario, law) -> str | None:
     """A key that identifies the compiled step of ``scenario`` without building
-    it: the package's sources, the structural settings and the law's
-    declaration. None for a law declared outside the package (its code is
-    not covered by the digest; the step's serialisation is the key then)."""
+    it: the package's sources, the structural settings, the arm's and the
+    controller model's content and the law's declaration. None for a law
+    declared outside the package (its code is not covered by the digest; the
+    step's serialisation is the key then)."""
     if not getattr(law.update, "__module__", "").startswith(__package__.split(".")[0] + "."):
         return None
-    return repr((_package_digest(), _structure(scenario), law.name, law.states, law.parameter_names))
+    return repr((_package_digest(), structure(scenario), robot_of(scenario).key,
+                 robot_of(scenario, controller=True).key, law.name, law.states, law.parameter_names))
 
 
-def check_path(robot: Puma560, scenario: Scenario, n: int = 361) -> PathReport:
-    """Inverse kinematics around the circle (closed form, the default
-    branch); raises :class:`ScenarioError` if a point is unreachable or the
-    Jacobian is near-singular (cond > 100)."""
-    tr = scenario.trajectory
-    R = task_frame(scenario.environment.tilt_deg)
-    ref = circle_reference(np.linspace(0, tr.period, n), tr.radius, tr.period)
-    P = np.asarray(tr.center)[:, None] + R @ np.vstack([np.zeros(n), ref.pos])
-    try:
-        q = robot.inverse_kinematics(P)
-    except ValueError as exc:
-        raise ScenarioError(f"trajectory: unreachable path ({exc})") from None
-    conds = np.asarray(robot.condition_number.map(n)(q)).ravel()
-    k = int(np.argmax(~(conds < MAX_CONDITION)))
-    if not conds[k] < MAX_CONDITION:
-        raise ScenarioError(f"trajectory: the path passes near a singularity (Jacobian "
-                            f"condition number {conds[k]:.3g} > {MAX_CONDITION:g} at "
-                            f"{np.round(P[:, k], 4).tolist()} m)")
-    return PathReport(q, conds)
+def _frames(sc: Scenario):
+    """``(surface, R_d)``: the scenario's surface and the commanded tool
+    orientation (tool z along the inward normal at the path's centre)."""
+    surface = surface_of(sc)
+    return surface, tool_orientation(surface.frame(sc.trajectory.center), sc.trajectory.tool_spin_deg)
 
 
 _PATHS: dict = {}
 
 
-def _path(robot: Puma560, scenario: Scenario) -> PathReport:
-    """:func:`check_path`, computed once per distinct path (the IK depends only
-    on the robot's kinematics, the circle and the surface tilt); the arrays
-    are read-only."""
-    tr = scenario.trajectory
-    key = (tuple(tr.center), tr.radius, tr.period, scenario.environment.tilt_deg, robot.links)
+def path_of(robot, sc: Scenario) -> PosePath:
+    """:func:`.posture.check_pose_path` over one period of the path
+    (:data:`.posture.PATH_SAMPLES` points), seeded by ``robot.q0`` (default
+    the middle of the joint limits); computed once per distinct path (the
+    arrays are read-only)."""
+    tr, r = sc.trajectory, sc.robot
+    surface, R_d = _frames(sc)
+    if r.q0 is not None and len(r.q0) != robot.n:
+        raise ScenarioError(f"robot.q0: expected {robot.n} values (one per joint of {robot.name}), got {len(r.q0)}")
+    for i, (v, lo, hi) in enumerate(zip(r.q0 or (), robot.q_min, robot.q_max)):
+        if not lo <= v <= hi:          # the seed itself: not the path's fault
+            raise ScenarioError(f"robot.q0[{i}]: {v:g} is outside {robot.joint_names[i]}'s limits [{lo:.4g}, {hi:.4g}]")
+    finite = np.isfinite(robot.q_min) & np.isfinite(robot.q_max)
+    seed = np.asarray(r.q0, float) if r.q0 is not None else np.where(
+        finite, (np.where(finite, robot.q_min, 0.0) + np.where(finite, robot.q_max, 0.0)) / 2, 0.0)
+    key = (robot.key, repr(surface), tr.radius, tr.period, R_d.tobytes(), seed.tobytes())
     if key not in _PATHS:
-        rep = check_path(robot, scenario)
-        rep.q.setflags(write=False)
-        rep.condition_number.setflags(write=False)
-        if len(_PATHS) > 64:
+        _task(robot)
+        t = np.arange(PATH_SAMPLES) * tr.period / PATH_SAMPLES
+        ref = circle_reference(t, tr.radius, tr.period)
+        pts = surface.to_base(np.vstack([np.zeros(t.size), ref.pos]))
+        if len(_PATHS) > 16:
             _PATHS.clear()
-        _PATHS[key] = rep
+        path = check_pose_path(robot, pts, R_d, t, seed)
+        for a in (path.t, path.q, path.sigma_min, path.condition_number):
+            a.setflags(write=False)
+        _PATHS[key] = path
     return _PATHS[key]
+
+
+def normal_mass(robot, q, n) -> float:
+    """Effective mass (kg) of ``robot`` at joints ``q`` along the unit
+    direction ``n`` (base frame): ``1/(n^T J_v M^-1 J_v^T n)``, J_v the linear
+    rows of the geometric Jacobian (the mass the normal axis meets with the
+    other axes free)."""
+    Jv = np.asarray(robot.jacobian(q))[:3]
+    return float(1.0 / (n @ Jv @ np.linalg.solve(np.asarray(robot.mass_matrix(q)), Jv.T @ n)))
 
 
 @dataclass(frozen=True)
@@ -195,14 +231,15 @@ class SimulationResult:
     """Time series of one simulation, sampled at the control instants t_k.
 
     Positions are in the base frame (m) unless named ``*_task`` (task frame,
-    normal axis first); forces in N; stiffness in N/m.
+    normal axis first); forces in N; stiffness in N/m; joint arrays have one
+    row per joint.
     """
     scenario: Scenario
     time: np.ndarray                 # (N,) s
-    q: np.ndarray                    # (3, N) rad
-    dq: np.ndarray                   # (3, N) rad/s
-    tau: np.ndarray                  # (3, N) N m, held over [t_k, t_k+1)
-    position: np.ndarray             # (3, N) wrist centre X
+    q: np.ndarray                    # (n, N) rad
+    dq: np.ndarray                   # (n, N) rad/s
+    tau: np.ndarray                  # (n, N) N m, held over [t_k, t_k+1)
+    position: np.ndarray             # (3, N) tool point X
     reference_position: np.ndarray   # (3, N) X_r
     command_position: np.ndarray     # (3, N) X_c = X_r - X_a (eq. 4)
     position_task: np.ndarray        # (3, N)
@@ -214,8 +251,9 @@ class SimulationResult:
     stiffness: np.ndarray            # (N,) true k_e(t)
     stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e) of eq. (14); NaN out of contact
     damping: np.ndarray              # (N,) normal impedance damping in use, N s/m
-    path: PathReport
+    path: PosePath
     info: dict = field(default_factory=dict)
+    orientation_error: np.ndarray | None = None   # (r, N) rotation vector log(R_d R^T), task axes, rad (r = 0: position task)
 
     @property
     def Ts(self) -> float:
@@ -227,19 +265,28 @@ class SimulationResult:
         return self.contact_force - self.desired_force
 
     @property
+    def orientation_error_norm(self) -> np.ndarray:
+        """Angle between the tool orientation and its command (N,), rad (0 on a position task)."""
+        if self.orientation_error is None or self.orientation_error.shape[0] == 0:
+            return np.zeros(self.time.size)
+        return np.linalg.norm(self.orientation_error, axis=0)
+
+    @property
     def traces(self) -> SimulationTraces:
         """The series the figures draw and the surface under them, without
         the scenario (the arrays are shared, not copied)."""
         sc = self.scenario
+        oriented = self.orientation_error is not None and self.orientation_error.shape[0] > 0
         return SimulationTraces(
             time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
-            reference_position=self.reference_position, surface_frame=task_frame(sc.environment.tilt_deg),
-            center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius))
+            reference_position=self.reference_position, surface_frame=surface_of(sc).frame(sc.trajectory.center),
+            center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius),
+            orientation_error=self.orientation_error_norm if oriented else None)
 
 
 class Simulator:
-    """Build once, run many times.
+    """Build once, run many times: the closed loop of ``scenario``'s arm on its surface.
 
     Parameters
     ----------
@@ -262,20 +309,12 @@ class Simulator:
     """
 
     def __init__(self, scenario: Scenario | None = None, compile: bool | str = "auto"):
-        self.scenario = scenario or paper_scenario()
-        sc = self.scenario
-        if sc.robot.model.lower() != "puma560":      # this loop is built on the PUMA's own model class
-            from .posesim import robot_of
-
-            n = robot_of(sc).n                        # a model that cannot be loaded: its own one line
-            raise ScenarioError(
-                f"robot.model: {sc.robot.model!r} has {n} joint{'s' if n != 1 else ''}: "
-                + ("Simulator is the 3-joint PUMA 560's position-only loop; an arm with 6 or more joints runs "
-                   "PoseSimulator (simulator_for picks the loop)" if n >= 6 else
-                   "the 6-D task needs 6 or more (the position-only task is the 3-joint PUMA 560's; docs/robots.md)"))
+        self.scenario = sc = scenario or paper_scenario()
         t0 = time.perf_counter()
-        self.plant = Puma560(armature=sc.robot.armature,
-                             friction="smooth" if sc.robot.friction else False)
+        self.plant = robot_of(sc)
+        self.task = _task(self.plant)
+        self.model = robot_of(sc, controller=True)
+        self.surface = surface_of(sc)
         self.law = get_law(sc.controller.law.kind)
         self.delay = sc.controller.delay_samples
         # CVODES cannot be code-generated: that reference runs on the virtual machine
@@ -287,56 +326,156 @@ class Simulator:
             self.rollout = Rollout(self._build_step, compile=compile,
                                    structure=(step_name(self.law, self.delay), key))
         self.build_time = time.perf_counter() - t0
-        self._structure = _structure(sc)
-
-    @functools.cached_property
-    def model(self) -> Puma560:
-        """The controller's model of the robot (eq. 5's D*^, h*^)."""
-        sc = self.scenario
-        return controller_model(sc.robot.model_mass_scale, sc.robot.compensate_friction)
+        self._structure = structure(sc)
+        self.layout = state_layout(self.task, self.law, self.delay)
+        """The closed-loop state's layout."""
+        self.log = log_layout(self.task)
+        """The step's log layout (``log["f_e"]``: the true contact force's row)."""
+        self.name = f"{self.task.label}_{self.law.name}_d{self.delay}"
+        """A short name of the loop's structure (for compiled libraries)."""
+        self.cache_tag = f"|{self.plant.key}|{self.model.key}"
+        """What identifies the arm beyond the scenario's structure, for cache keys."""
+        self._posture = None
 
     @property
     def step(self):
         """The closed-loop step Function (built on first use)."""
         return self.rollout.step
 
-    def _build_step(self):
-        sc = self.scenario
-        return build_step(self.plant, self.model, self.law, sc.simulation.integrator, sc.simulation.substeps,
-                          sc.simulation.tol, self.delay, sc.simulation.contact_refine)
+    @property
+    def f_e(self) -> slice:
+        """The true contact force's row in the step's log."""
+        return self.log["f_e"]
+
+    def _build_step(self, contact_refine: int | None = None):
+        s = self.scenario.simulation
+        return build_step(self.plant, self.model, self.law, s.integrator, s.substeps, s.tol, self.delay,
+                          s.contact_refine if contact_refine is None else contact_refine, self.surface)
+
+    def build_step(self, contact_refine: int):
+        """The scenario's step with the fixed-step integrator and
+        ``contact_refine`` (1: no refinement), for the analyses."""
+        s = self.scenario.simulation
+        return build_step(self.plant, self.model, self.law, "fixed", s.substeps, s.tol, self.delay,
+                          contact_refine, self.surface)
 
     def run(self, scenario: Scenario | None = None, max_steps: int | None = None) -> SimulationResult:
         """Simulate ``scenario`` (default: the one given at construction). It
-        must have the same structure (robot options, integrator); everything
-        numeric may differ. Runs longer than ``max_steps`` control steps
-        (default :data:`MAX_STEPS`) are refused before any allocation."""
+        must have the same structure (arm, robot options, integrator, law,
+        delay, surface shape); everything numeric may differ. Runs longer than
+        ``max_steps`` control steps (default :data:`MAX_STEPS`) are refused
+        before any allocation."""
         sc = scenario or self.scenario
         check_run_size(sc, max_steps)
-        if _structure(sc) != self._structure:
-            raise ValueError("run(): scenario differs in robot options, integrator, law or delay from the "
+        if structure(sc) != self._structure:
+            raise ValueError("run(): scenario differs in robot options, integrator, law, delay or surface from the "
                              "one this Simulator was built for; build a new Simulator")
-        path = _path(self.plant, sc)
+        path = path_of(self.plant, sc)
         inputs, params, s0, t = self._inputs(sc, path)
         t0 = time.perf_counter()
         S, L = self.rollout.run(s0, inputs, params)
         check_interrupt()            # CasADi may swallow Ctrl-C inside a long evaluation
         run_time = time.perf_counter() - t0
-        self._check_finite(S, L, t)
+        self._check_finite(S, L, t, self.task.n)
         return self._result(sc, t, L, inputs, path,
                             {"integrator": sc.simulation.integrator, "code": self.rollout.how,
                              "build_time_s": self.build_time, "run_time_s": run_time,
-                             "steps": t.size})
+                             "steps": t.size, "robot": self.plant.name})
+
+    # -- the loop as the analyses see it -------------------------------------------
+    def path(self, scenario: Scenario | None = None) -> PosePath:
+        """The checked joint-space path of ``scenario`` (``.q``: n x k, rad)."""
+        return path_of(self.plant, scenario or self.scenario)
+
+    def inputs(self, scenario: Scenario | None = None, path: PosePath | None = None):
+        """``(U, P, s0, t)``: the rollout's inputs, parameters, start state and times."""
+        sc = scenario or self.scenario
+        return self._inputs(sc, path if path is not None else path_of(self.plant, sc))
+
+    def joints_at(self, point, seed=None, scenario: Scenario | None = None):
+        """Joints (rad) putting the tool at ``point`` (m, base frame) near
+        ``seed`` (on a 6-D task in the commanded orientation R_d). On a
+        redundant arm, once :meth:`inputs` has given the null-space posture
+        q_post, the pose where the posture task is balanced, ``M^ (q_post -
+        q) = J^T w`` for some w (then the projected posture torque N^T M^
+        K_post (q_post - q) is 0): the pose closest to q_post (IPOPT), refined
+        by CasADi's Newton rootfinder on the pose and balance equations.
+        ``scenario``: the scenario whose commanded orientation holds (default
+        the Simulator's)."""
+        from .posture import POSE_TOL
+
+        R_d = _frames(scenario or self.scenario)[1]
+        seed = self.path().q[:, 0] if seed is None else seed
+        if self.task.posture and self._posture is not None:
+            q, ok = solve_pose(self.plant, self._solver, point, R_d, self._posture)
+            if ok:
+                par = np.r_[np.asarray(point, float), R_d.ravel(order="F"), self._posture]
+                J, M = task_jacobian(self.model, q), np.asarray(self.model.mass_matrix(q))
+                w = np.linalg.lstsq(J.T, M @ (self._posture - q), rcond=None)[0]
+                qb = np.array(self._balanced(np.r_[q, w], par)).ravel()[:self.plant.n]
+                T = self.plant.fk(qb)
+                if np.all(np.isfinite(qb)) and np.abs(T[:3, 3] - point).max() < POSE_TOL \
+                        and (not self.task.rotational or np.abs(T[:3, :3] - R_d).max() < POSE_TOL):
+                    return qb
+                return q
+        q, ok = solve_pose(self.plant, self._solver, point, R_d, seed)
+        if not ok:
+            raise ValueError(f"no pose with the tool at {np.round(point, 4).tolist()} m"
+                             + (" and the commanded orientation" if self.task.rotational else "")
+                             + " near the given joints")
+        return q
+
+    @functools.cached_property
+    def _balanced(self):
+        import casadi as ca
+
+        from .posture import _pose_equations
+
+        n, d, model = self.plant.n, self.task.dim, self.model
+        x, par = ca.SX.sym("x", n + d), ca.SX.sym("par", 12 + n)
+        q, w = x[:n], x[n:]
+        pose, _ = _pose_equations(self.plant, q, par)
+        J = model.functions.jacobian(q)
+        J = J if self.task.rotational else J[:3, :]
+        balance = ca.mtimes(model.functions.mass_matrix(q), par[12:] - q) - ca.mtimes(J.T, w)
+        g = ca.Function("balanced_pose_equations", [x, par], [ca.vertcat(pose, balance)], ["x", "par"], ["g"])
+        return ca.rootfinder("balanced_pose", "newton", g, {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50,
+                                                             "error_on_fail": False})
+
+    @functools.cached_property
+    def _solver(self):
+        # a point solved from a nearby pose: the rootfinder keeps the branch on a square task; IPOPT on more
+        return pose_solver(self.plant, track=True)
+
+    def tool_position(self, q) -> np.ndarray:
+        """The tool point (m, base frame) at joints ``q``."""
+        return np.asarray(self.plant.fk(q))[:3, 3]
+
+    def joint_rates(self, q, v) -> np.ndarray:
+        """Joint rates (rad/s) giving the tool point the velocity ``v`` (m/s,
+        base frame), with zero angular velocity on a 6-D task (least-norm on a
+        redundant arm)."""
+        v = np.asarray(v, dtype=float)
+        J = task_jacobian(self.plant, q)
+        if self.task.rotational:
+            v = np.r_[v, np.zeros(3)]
+        return np.linalg.solve(J, v) if self.task.square else np.linalg.pinv(J) @ v
+
+    def normal_mass(self, q, n) -> float:
+        """The arm's effective mass (kg) along the unit direction ``n`` at ``q``
+        (:func:`normal_mass`)."""
+        return normal_mass(self.plant, q, n)
 
     # -- helpers -------------------------------------------------------------------
-    def _inputs(self, sc: Scenario, path: PathReport):
+    def _inputs(self, sc: Scenario, path: PosePath):
         Ts = sc.controller.Ts
         N = int(round(sc.duration / Ts))
         if N < 1:
             raise ScenarioError(f"trajectory.cycles: the run (cycles x period = {sc.duration:g} s) is shorter "
                                 f"than one control period (1/controller.rate = {Ts:g} s)")
         t = np.arange(N) * Ts
-        R = task_frame(sc.environment.tilt_deg)
-        c = np.asarray(sc.trajectory.center, dtype=float)
+        surface, R_d = _frames(sc)
+        R = surface.frame(sc.trajectory.center)
         ref = circle_reference(t, sc.trajectory.radius, sc.trajectory.period)
         k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
         if not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):
@@ -346,35 +485,45 @@ class Simulator:
         else:
             noise = np.zeros(N)
         U = np.vstack([ref.pos, ref.vel, ref.acc, k_e[None, :], noise[None, :]])
-        kd, kp = sc.impedance.gains
+        imp, ctl, law, task = sc.impedance, sc.controller, self.law, self.task
+        kd, kp = imp.gains
         alpha = sc.sensor.pole(Ts)
-        ctl, law = sc.controller, self.law
         sch = ctl.damping_schedule
         on = sch.kind == "zeta"
-        P = param_layout(law).pack(
-            m=sc.impedance.m, b=sc.impedance.b, k=sc.impedance.k, kd=kd, kp=kp, f_d=ctl.f_d,
-            x_e_hat=ctl.x_e_error, alpha=alpha, d_e=sc.environment.damping, R=R.ravel(order="F"), c=c, Ts=Ts,
+        # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the path
+        gap = sc.trajectory.approach_gap
+        q0 = path.q[:, 0]
+        if gap > 0:
+            q0, ok = solve_pose(self.plant, None if self.plant.position_ik is not None and not task.rotational
+                                else pose_solver(self.plant), surface.to_base(np.r_[-gap, ref.pos[:, 0]]), R_d, q0)
+            if not ok:
+                raise ScenarioError(f"trajectory.approach_gap: the start {gap:g} m above the surface is not "
+                                    "reachable" + (" with the commanded orientation" if task.rotational else "")
+                                    + " within the joint limits")
+        P = param_layout(task, law, surface).pack(
+            m=imp.m, b=imp.b, k=imp.k, kd=kd, kp=kp, f_d=ctl.f_d, x_e_hat=ctl.x_e_error, alpha=alpha,
+            d_e=sc.environment.damping, **surface.values(), Ts=Ts,
             sched=1.0 if on else 0.0, zeta=sch.zeta if on else 1.0, b_min=sch.b_min if on else 0.0,
             b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
             k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,
             v_app=ctl.approach_speed, f_contact=contact_threshold_of(sc, alpha),
-            ramp_rate=1.0 / ctl.force_ramp,
-            law=law.parameter_vector(ctl.law))
-        # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the circle
-        gap = sc.trajectory.approach_gap
-        q0 = path.q[:, 0] if gap == 0 else self.plant.inverse_kinematics(
-            c + R @ np.r_[-gap, ref.pos[:, 0]])
-        dq0 = np.linalg.solve(np.asarray(self.plant.jacobian(q0)), R @ np.r_[0.0, ref.vel[:, 0]])
-        b0 = min(max(sc.impedance.b[0], sch.b_min), sch.b_max) if on else sc.impedance.b[0]
+            ramp_rate=1.0 / ctl.force_ramp, law=law.parameter_vector(ctl.law),
+            R_d=R_d.ravel(order="F"), kd_rot=np.divide(imp.b_rot, imp.m_rot), kp_rot=np.divide(imp.k_rot, imp.m_rot),
+            q_post=q0, kp_post=sc.robot.posture_kp, kd_post=sc.robot.posture_kd)
+        if task.posture:
+            self._posture = np.asarray(q0, dtype=float).copy()
+        # at rest in the task's rotation, moving with the path (least-norm joint rates on a redundant arm)
+        dq0 = self.joint_rates(q0, R @ np.r_[0.0, ref.vel[:, 0]])
+        b0 = min(max(imp.b[0], sch.b_min), sch.b_max) if on else imp.b[0]
         guarded = gap > 0 and ctl.approach_speed > 0
-        s0 = state_layout(law, self.delay).pack(
+        s0 = state_layout(task, law, self.delay).pack(
             q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=-gap,
-            ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(3 * self.delay),
+            ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(task.n * self.delay),
             law=law.initial_state(ctl.law))
         return U, P, s0, t
 
     @staticmethod
-    def _check_finite(S, L, t, n: int = 3):
+    def _check_finite(S, L, t, n: int):
         """Raise :class:`SimulationError` at the first sample where the state
         S or log L is not finite or a joint velocity (rows n..2n of S, an arm
         of n joints) runs away."""
@@ -389,20 +538,23 @@ class Simulator:
             raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s (non-finite or runaway "
                                   "joint velocity); check the stiffness, gains and control rate")
 
-    @staticmethod
-    def _result(sc, t, L, U, path, info) -> SimulationResult:
-        lg = LOG.split(L)
-        R = task_frame(sc.environment.tilt_deg)
-        c = np.asarray(sc.trajectory.center, dtype=float)[:, None]
-        to_base = lambda X: c + R @ X
+    def _result(self, sc, t, L, U, path, info) -> SimulationResult:
+        lg = self.log.split(L)
+        surface = surface_of(sc)
         f_m = lg["f_m"][0]
         depth = lg["X"][0] - lg["x_e_hat"][0]
         with np.errstate(divide="ignore", invalid="ignore"):
             k_hat = np.where((f_m > STIFFNESS_ESTIMATE_FORCE) & (depth > 0), f_m / depth, np.nan)
         return SimulationResult(
             scenario=sc, time=t, q=lg["q"], dq=lg["dq"], tau=lg["tau"], position=lg["p"],
-            reference_position=to_base(lg["X_r"]), command_position=to_base(lg["X_c"]),
+            reference_position=surface.to_base(lg["X_r"]), command_position=surface.to_base(lg["X_c"]),
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
-            contact_force=lg["f_e"][0], measured_force=f_m,
-            desired_force=lg["f_d"][0], stiffness=U[INPUT["k_e"]][0],
-            stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path, info=info)
+            contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
+            stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,
+            info=info, orientation_error=lg["e_o"])
+
+
+def simulator_for(scenario: Scenario, compile: bool | str = "auto") -> Simulator:
+    """The :class:`Simulator` of ``scenario`` (one loop for every arm; kept for
+    callers of the earlier API)."""
+    return Simulator(scenario, compile=compile)

@@ -9,7 +9,7 @@ from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze
 from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
                       spectral_radius, stable_band, stiffness_band)
 
-__all__ = ["scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
+__all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
 
 
@@ -20,17 +20,10 @@ def scenario_parameters(scenario) -> dict:
     """Normal-axis parameters of a scenario for the analysis: m, b, k, f_d, the
     stiffness range of its profile, Ts, the inner-loop gains, the force filter
     pole, and the robot's effective normal mass along the path (min and max)."""
-    from ..simulation.environment import stiffness_samples, task_frame
-    from ..model import Puma560
-    from ..simulation.simulator import check_path
+    from ..simulation.environment import stiffness_samples
 
     sc = scenario
-    masses = _arm_normal_masses(sc)
-    if masses is None:                  # the 3-joint PUMA: its Cartesian inertia D* along the path
-        robot = Puma560(armature=sc.robot.armature, friction=False)
-        path = check_path(robot, sc, n=73)
-        n = task_frame(sc.environment.tilt_deg)[:, 0]
-        masses = [effective_mass(np.asarray(robot.cartesian_inertia(q)), n) for q in path.q.T]
+    masses = normal_masses(sc)
     t = np.arange(0.0, sc.duration, sc.controller.Ts)
     k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
     kd, kp = sc.impedance.gains
@@ -44,21 +37,19 @@ def scenario_parameters(scenario) -> dict:
             "x_e_error": sc.controller.x_e_error}
 
 
-def _arm_normal_masses(sc) -> list | None:
-    """An arm with 6 or more joints (``robot.model``): its effective mass
-    along the surface normal n at the checked path poses,
-    ``1/(n^T J_v M^-1 J_v^T n)`` (kg; J_v the linear rows of J: the mass the
-    normal axis meets with the other axes free), else None (the PUMA)."""
-    from ..simulation.armloop import normal_mass
-    from ..simulation.geometry import surface_frame
-    from ..simulation.posesim import pose_path, robot_of
+def normal_masses(sc) -> list:
+    """The arm's effective mass (kg) along the surface's inward normal n at the
+    checked path poses, ``1/(n^T J_v M^-1 J_v^T n)`` (J_v the linear rows of
+    J: the mass the normal axis meets with the other axes free; for a square
+    position task this is ``1/(n^T D*^-1 n)`` with the Cartesian inertia D*
+    of eq. 5)."""
+    from ..simulation.geometry import surface_of
+    from ..simulation.simulator import normal_mass, path_of, robot_of
 
     robot = robot_of(sc)
-    if robot.n < 6:
-        return None
-    path = pose_path(robot, sc)
-    n = surface_frame(sc.environment)[:, 0]
-    return [normal_mass(robot, q, n) for q in path.q.T]
+    path = path_of(robot, sc)
+    surface = surface_of(sc)
+    return [normal_mass(robot, q, surface.normal(robot.fk(q)[:3, 3])) for q in path.q.T]
 
 
 def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | None:

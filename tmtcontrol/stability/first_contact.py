@@ -84,19 +84,17 @@ def _start_duration(sc) -> float:
 
 class LoopRunner:
     """One simulator for the scenario's structure (``sim``: one already built
-    for it, reused), runs at constant k_e. The simulator is the scenario's
-    arm's (``simulation.armloop``, by task dimension: the PUMA's loop, or the
-    6-D loop of an arm with 6 or more joints)."""
+    for it, reused), runs at constant k_e: the scenario's own closed loop
+    (``simulation.Simulator``, any arm)."""
 
     def __init__(self, scenario, compile="auto", sim=None):
-        from ..simulation.armloop import arm_loop
-        from ..simulation.simulator import _structure
+        from ..simulation.simulator import Simulator, structure
 
         self.scenario = scenario
-        if sim is not None and _structure(sim.scenario) != _structure(scenario):
+        if sim is not None and structure(sim.scenario) != structure(scenario):
             raise ValueError("sim: built for another structure (robot options, integrator, law or delay)")
-        self.loop = arm_loop(scenario, compile=compile, sim=sim)
-        self.sim = self.loop.sim
+        self.loop = sim or Simulator(scenario, compile=compile)
+        self.sim = self.loop
         self.path = self.loop.path(scenario)
 
     def run(self, k_e: float, duration: float, stiffness: np.ndarray | None = None):

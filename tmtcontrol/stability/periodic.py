@@ -93,7 +93,7 @@ class PeriodicLoop:
 def _augmented(loop, dynamic):
     """``(s; vec Phi) -> (step(s); vec(A(s) Phi))`` with log ``f_e``: the
     orbit and the monodromy in one rollout (``loop``: the scenario's
-    ``simulation.armloop.ArmLoop``)."""
+    ``simulation.Simulator``)."""
     step = loop.build_step(contact_refine=1)
     s, u, p = step.sx_in()
     s_next, log = step(s, u, p)
@@ -189,7 +189,9 @@ class PeriodicModel:
 
         sc, L, loop = self.scenario, self.layout, self.frozen.loop
         s = self.frozen.at(k_e, 0.0).s_eq.copy()
-        R, _ = loop.frame(sc)
+        from ..simulation.geometry import surface_of
+
+        R = surface_of(sc).frame(sc.trajectory.center)
         vel = self.U[2:4, 0]
         s[L["dq"]] = loop.joint_rates(s[L["q"]], R @ np.r_[0.0, vel])
         return s

@@ -49,12 +49,12 @@ _BUILT: dict = {}
 
 def _build(sc):
     """The step of ``sc``'s structure as ``(s, [u; p]) -> (s_next, f_e)`` and its
-    Jacobian in s, with the loop that owns it (``simulation.armloop``) and the
+    Jacobian in s, with the loop that owns it (``simulation.Simulator``) and the
     dynamic states."""
-    from ..simulation.armloop import arm_loop
+    from ..simulation.simulator import Simulator
 
-    loop = arm_loop(sc, compile=False)
-    layout, step = loop.layout, loop.sim.step
+    loop = Simulator(sc, compile=False)
+    layout, step = loop.layout, loop.step
     s = ca.SX.sym("s", layout.size)
     u = ca.SX.sym("u", step.size1_in(1))
     p = ca.SX.sym("p", step.size1_in(2))
@@ -134,7 +134,7 @@ class WholeLoopModel:
     :meth:`at` for a stiffness and a path point."""
 
     def __init__(self, scenario):
-        from ..simulation.simulator import _structure
+        from ..simulation.simulator import structure
 
         if not get_law(scenario.controller.law.kind).linear_analysis:
             raise AnalysisError(f"controller.law: {scenario.controller.law.kind!r} has no linear verdict "
@@ -144,13 +144,13 @@ class WholeLoopModel:
             sc = sc.replace(simulation={"integrator": "fixed", "substeps": sc.simulation.substeps})
         sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "approach_gap": 0.0})
         self.scenario = sc
-        key = _structure(sc)
+        key = structure(sc)
         if key not in _BUILT:
             if len(_BUILT) >= 16:
                 _BUILT.clear()
             _BUILT[key] = _build(sc)
         self.loop, self.dynamic, self._f, self._jac = _BUILT[key]
-        self.sim, self.layout, self.law = self.loop.sim, self.loop.layout, self.loop.law
+        self.sim, self.layout, self.law = self.loop, self.loop.layout, self.loop.law
         self.path = self.loop.path(sc)
         self.U, self.P, self.s0, self.t = self.loop.inputs(sc, self.path)
         self._warm: dict = {}
@@ -175,14 +175,16 @@ class WholeLoopModel:
         i = int(round((path_time % period) / sc.controller.Ts)) % self.t.size
         u = np.r_[self._u(i, k_e), self.P]
         ctl = sc.controller
-        R, c = loop.frame(sc)
-        n = R[:, 0]
+        from ..simulation.geometry import surface_of
+
+        surface = surface_of(sc)
+        n = surface.normal(sc.trajectory.center)
         # the tangential point and its joint angles on the surface (near the checked path's pose there)
         from ..simulation.trajectory import circle_reference
 
         ref = circle_reference(np.array([self.t[i]]), sc.trajectory.radius, period)
         near = self.path.q[:, int(round((self.t[i] % period) / period * self.path.q.shape[1])) % self.path.q.shape[1]]
-        q_surface = loop.joints_at(c + R @ np.r_[0.0, ref.pos[:, 0]], near)
+        q_surface = loop.joints_at(surface.to_base(np.r_[0.0, ref.pos[:, 0]]), near, sc)
         m_p = loop.normal_mass(q_surface, n)
         L = self.layout
 
@@ -191,8 +193,8 @@ class WholeLoopModel:
             # the law state carry over, the penetration scales as 1/k_e
             s = s_prev.copy()
             s[L["b_n"]] = equilibrium_damping(sc, k_e)
-            pen = float(n @ (loop.tool_position(s[L["q"]]) - c))
-            s[L["q"]] = loop.joints_at(c + R @ np.r_[pen * k_prev / k_e, ref.pos[:, 0]], s[L["q"]])
+            pen = float(surface.signed_distance(loop.tool_position(s[L["q"]]))[0])
+            s[L["q"]] = loop.joints_at(surface.to_base(np.r_[pen * k_prev / k_e, ref.pos[:, 0]]), s[L["q"]], sc)
             return s
 
         def from_1d():
@@ -207,7 +209,7 @@ class WholeLoopModel:
                              kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,
                              settle=0.5)
             s = self.s0.copy()
-            s[L["q"]] = loop.joints_at(c + R @ np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]], q_surface)
+            s[L["q"]] = loop.joints_at(surface.to_base(np.r_[float(one_d.z_eq[0]), ref.pos[:, 0]]), q_surface, sc)
             s[L["dq"]] = 0.0
             s[L["b_n"]] = b
             s[L["f_filt"]] = one_d.f_eq

@@ -66,8 +66,8 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     per-segment metrics. With ``limits``, also the case's own predicted
     stiffness limits (:func:`case_limits`)."""
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
-    from ..simulation.posesim import simulator_for
-    from ..simulation.simulator import SimulationError, _structure
+    from ..simulation.simulator import simulator_for
+    from ..simulation.simulator import SimulationError, structure as _structure
 
     sc = case_scenario(base, case.values)
     key = _structure(sc)

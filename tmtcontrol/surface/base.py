@@ -1,0 +1,93 @@
+"""The surface interface (what every shape provides) and the contact force law (section III, eq. 13).
+
+Conventions (SI): the task frame's columns are the inward unit normal
+``e_n`` (pointing *into* the surface) and two tangential axes; the task
+coordinate along ``e_n`` is the penetration depth, positive inside the
+surface, so ``x - x_e`` of eqs. (13)-(18) is that coordinate minus the
+controller's belief of where the surface is.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["Surface", "contact_force"]
+
+
+def contact_force(x, dx, k_e, damping, x_e=0.0):
+    """Unilateral spring(-damper) normal force, N (section III, eq. 13).
+
+    ``f_e = max(0, k_e (x - x_e) + damping dx)`` while ``x > x_e``, else 0:
+    ``x`` the penetration depth (m), ``dx`` its rate (m/s), ``k_e`` the
+    stiffness (N/m), ``damping`` the contact damping (N s/m). Works on
+    floats, NumPy arrays and CasADi symbols.
+    """
+    pen = x - x_e
+    f = k_e * pen + damping * dx
+    if isinstance(pen, (ca.SX, ca.MX, ca.DM)):
+        return ca.if_else(pen > 0, ca.fmax(f, 0), 0)
+    return np.where(pen > 0, np.maximum(f, 0.0), 0.0)
+
+
+class Surface(abc.ABC):
+    """A contact surface.
+
+    Attributes
+    ----------
+    kind : str
+        The shape's name (part of the compiled loop's structure).
+    fields : tuple of (str, int)
+        The shape's parameters as named fields of the closed loop's parameter
+        vector (and of the exported controller's parameter struct), in order.
+    """
+
+    kind: str = ""
+    fields: tuple[tuple[str, int], ...] = ()
+
+    @abc.abstractmethod
+    def values(self) -> dict[str, np.ndarray]:
+        """The numeric value of each of :attr:`fields`."""
+
+    @staticmethod
+    @abc.abstractmethod
+    def coordinates(p, v, par: dict):
+        """Symbolic (CasADi): ``(R, X, dX)`` at the tool point ``p`` (m, base
+        frame) moving at ``v`` (m/s): the task frame R (3 x 3, columns inward
+        normal, tangent 1, tangent 2), the task coordinates X (m; X[0] the
+        penetration depth) and their rates dX (m/s). ``par`` maps each of
+        :attr:`fields` to its symbols."""
+
+    @staticmethod
+    @abc.abstractmethod
+    def point(X, par: dict):
+        """Symbolic (CasADi): the base-frame point (m) of task coordinates
+        ``X`` near the path (the commanded tool point of eq. 4)."""
+
+    @abc.abstractmethod
+    def frame(self, point=None) -> np.ndarray:
+        """The task frame (3 x 3, base frame) at ``point`` (m)."""
+
+    def normal(self, point=None) -> np.ndarray:
+        """The inward unit normal at ``point``."""
+        return self.frame(point)[:, 0]
+
+    @abc.abstractmethod
+    def to_base(self, X) -> np.ndarray:
+        """Base-frame points (m, 3 x k) of task coordinates ``X`` (3 x k)."""
+
+    @abc.abstractmethod
+    def from_base(self, p) -> np.ndarray:
+        """Task coordinates (3 x k) of base-frame points ``p`` (3 x k, m)."""
+
+    def signed_distance(self, p) -> np.ndarray:
+        """Penetration depth (m) of base-frame points ``p`` (3 x k): positive
+        inside the surface, negative above it."""
+        return np.asarray(self.from_base(np.asarray(p, dtype=float).reshape(3, -1)))[0]
+
+    @abc.abstractmethod
+    def shifted(self, offset: float) -> "Surface":
+        """The same shape moved ``offset`` (m) along its inward normal (the
+        surface the controller believes in with a location error)."""

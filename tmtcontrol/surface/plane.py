@@ -1,0 +1,101 @@
+"""The plane: the paper's tilted surface (Fig. 2) or any plane given by its inward normal.
+
+Task frame (base-frame columns, normal axis first): ``e_n`` the plane's
+*inward* unit normal, ``e_1`` base y projected onto the plane (base x when
+the normal is nearly along y), ``e_2 = e_n x e_1``; its origin ``c`` is a
+point of the plane (the circle's centre). The tilt shorthand (the outward
+normal is base z turned by ``tilt`` about base y) gives ``e_n = (sin t, 0,
+-cos t)``, ``e_1 = y``: :func:`tilt_frame`. Task coordinates are
+``X = R^T (p - c)``, the normal coordinate the penetration depth.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from .base import Surface
+
+__all__ = ["Plane", "tilt_frame", "normal_frame"]
+
+
+def tilt_frame(tilt_deg: float) -> np.ndarray:
+    """Rotation R (3x3) whose columns are the task axes in the base frame.
+
+    The plane's outward normal is base z rotated by ``tilt_deg`` about base y:
+    ``n_out = (-sin t, 0, cos t)``. Columns: ``e_n = -n_out`` (into the
+    surface), ``e_1 = y`` (along the plane, horizontal), ``e_2 = e_n x e_1``.
+    """
+    t = math.radians(tilt_deg)
+    e_n = np.array([math.sin(t), 0.0, -math.cos(t)])
+    e_1 = np.array([0.0, 1.0, 0.0])
+    e_2 = np.cross(e_n, e_1)
+    return np.column_stack([e_n, e_1, e_2])
+
+
+def normal_frame(normal) -> np.ndarray:
+    """The task frame of the module docstring for the inward ``normal``
+    (normalised here)."""
+    e_n = np.asarray(normal, dtype=float)
+    e_n = e_n / np.linalg.norm(e_n)
+    ref = np.array([0.0, 1.0, 0.0]) if abs(e_n[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e_1 = ref - (ref @ e_n) * e_n
+    e_1 /= np.linalg.norm(e_1)
+    return np.column_stack([e_n, e_1, np.cross(e_n, e_1)])
+
+
+class Plane(Surface):
+    """A plane through ``c`` (m) with task frame ``R`` (columns: inward normal, tangents).
+
+    Parameters in the loop: ``R`` (9, column-major) and ``c`` (3, m).
+    """
+
+    kind = "plane"
+    fields = (("R", 9), ("c", 3))
+
+    def __init__(self, R, c):
+        self.R = np.array(R, dtype=float).reshape(3, 3)
+        self.c = np.array(c, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
+            raise ValueError("plane: the task frame must be a finite rotation matrix")
+
+    @classmethod
+    def from_tilt(cls, tilt_deg: float, c) -> "Plane":
+        """The paper's plane, tilted ``tilt_deg`` about base y, through ``c``."""
+        return cls(tilt_frame(tilt_deg), c)
+
+    @classmethod
+    def from_normal(cls, normal, c) -> "Plane":
+        """The plane of inward ``normal`` through ``c``."""
+        return cls(normal_frame(normal), c)
+
+    def values(self) -> dict[str, np.ndarray]:
+        return {"R": self.R.ravel(order="F"), "c": self.c.copy()}
+
+    @staticmethod
+    def coordinates(p, v, par: dict):
+        R = ca.reshape(par["R"], 3, 3)
+        return R, ca.mtimes(R.T, p - par["c"]), ca.mtimes(R.T, v)
+
+    @staticmethod
+    def point(X, par: dict):
+        return ca.mtimes(ca.reshape(par["R"], 3, 3), X) + par["c"]
+
+    def frame(self, point=None) -> np.ndarray:
+        return self.R.copy()
+
+    def to_base(self, X) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        return (self.c[:, None] if X.ndim == 2 else self.c) + self.R @ X
+
+    def from_base(self, p) -> np.ndarray:
+        p = np.asarray(p, dtype=float)
+        return self.R.T @ (p - (self.c[:, None] if p.ndim == 2 else self.c))
+
+    def shifted(self, offset: float) -> "Plane":
+        return Plane(self.R, self.c + offset * self.R[:, 0])
+
+    def __repr__(self) -> str:
+        return f"Plane(normal={np.round(self.R[:, 0], 6).tolist()}, c={self.c.tolist()})"
