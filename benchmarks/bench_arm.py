@@ -55,11 +55,11 @@ def arm_row(name: str) -> dict:
     import pinocchio as pin
     from pinocchio_loop import PinocchioLoop
 
-    from tmtcontrol import PoseSimulator, Simulator, apply_overrides, load_scenario
-    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol import Simulator, Simulator, apply_overrides, load_scenario
+    from tmtcontrol.simulation.simulator import robot_of
 
     sc = load_scenario(name)
-    Sim = Simulator if name == "paper" else PoseSimulator
+    Sim = Simulator if name == "paper" else Simulator
     t0 = time.perf_counter()
     sim = Sim(sc, compile=True)
     res = sim.run()

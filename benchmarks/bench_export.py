@@ -28,7 +28,7 @@ os.environ.setdefault("TMTCONTROL_CACHE", tempfile.mkdtemp(prefix="tmt-bench-"))
 import numpy as np  # noqa: E402
 
 from tmtcontrol import load_scenario  # noqa: E402
-from tmtcontrol.simulation.posesim import simulator_for  # noqa: E402
+from tmtcontrol.simulation.simulator import simulator_for  # noqa: E402
 from tmtcontrol.export.generate import export_controller  # noqa: E402
 from tmtcontrol.export.sil import read_commands, write_measurements  # noqa: E402
 

@@ -34,7 +34,7 @@ def noise_sweep(scenario: str, cases: int):
 def warm(scenario: str) -> None:
     """Compile (or load) the scenario's step, so the timed sweeps below run warm."""
     from tmtcontrol import load_scenario
-    from tmtcontrol.simulation.posesim import simulator_for
+    from tmtcontrol.simulation.simulator import simulator_for
 
     simulator_for(load_scenario(scenario)).run()
 

@@ -4,14 +4,14 @@ A reference implementation for speed (issue 30: the compiled rollout against
 "the same closed loop written with Pinocchio in Python, its ABA per RK4
 stage, the controller in NumPy") and for correctness (a second, independent
 implementation of the same equations; ``tests/test_pinocchio_loop.py``
-compares the contact force with :class:`tmtcontrol.PoseSimulator`).
+compares the contact force with :class:`tmtcontrol.Simulator`).
 
 Nothing of tmtcontrol's symbolic model or controller is used: the arm is
 Pinocchio's model of the same URDF text (``robot.urdf``, held joints locked,
 the robot's armature), its tip the frame ``robot.tip``; the dynamics are
 Pinocchio's ABA (plant), CRBA, RNEA and frame kinematics (controller); the
 controller is written below in NumPy. From tmtcontrol only the run's numbers
-are taken: ``PoseSimulator(sc).inputs()`` (the tangential reference, k_e and
+are taken: ``Simulator(sc).inputs()`` (the tangential reference, k_e and
 noise per sample, the parameter vector with the task frame R, the commanded
 tool orientation R_d, the gains, and the start state), read by name through
 the layouts.
@@ -48,7 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from tmtcontrol.simulation.taskframe import POSE_INPUT, pose_param_layout, pose_state_layout
+from tmtcontrol.model.robot import task_of
+from tmtcontrol.simulation.closedloop import INPUT as POSE_INPUT, param_layout, state_layout
 
 __all__ = ["PinocchioLoop", "PinocchioRun", "pinocchio_arm"]
 
@@ -95,7 +96,7 @@ class PinocchioRun:
 
 class PinocchioLoop:
     """The 6-D loop of scenario ``sc`` on Pinocchio: ``PinocchioLoop(sc, robot).run(U, P, s0)``
-    with ``(U, P, s0, t) = PoseSimulator(sc).inputs()`` and ``robot`` the scenario's arm
+    with ``(U, P, s0, t) = Simulator(sc).inputs()`` and ``robot`` the scenario's arm
     (``tmtcontrol.simulation.posesim.robot_of(sc)``)."""
 
     def __init__(self, sc, robot):
@@ -183,8 +184,8 @@ class PinocchioLoop:
         model, data, tip, n = self.model, self.data, self.tip, self.n
         from tmtcontrol.control.laws import get_law
         law = get_law(self.law)
-        Pn = pose_param_layout(n, law).split(np.asarray(P, float))
-        S = pose_state_layout(n, law).split(np.asarray(s0, float))
+        Pn = param_layout(task_of(n), law).split(np.asarray(P, float))
+        S = state_layout(task_of(n), law).split(np.asarray(s0, float))
         u = POSE_INPUT.split(np.asarray(U, float))
         if S["approach"][0] > 0:
             raise ValueError("start state: approaching (guarded approach) is not written here")
@@ -196,7 +197,9 @@ class PinocchioLoop:
         m, b, k = Pn["m"], Pn["b"], Pn["k"]
         kd, kp, kd_rot, kp_rot = Pn["kd"], Pn["kp"], Pn["kd_rot"], Pn["kp_rot"]
         f_d_set, ramp_rate = float(Pn["f_d"][0]), float(Pn["ramp_rate"][0])
-        q_post, kp_post, kd_post = Pn["q_post"], float(Pn["kp_post"][0]), float(Pn["kd_post"][0])
+        posture = Pn["q_post"].size > 0               # a redundant arm's null-space posture task
+        q_post = Pn["q_post"] if posture else np.zeros(n)
+        kp_post, kd_post = (float(Pn["kp_post"][0]), float(Pn["kd_post"][0])) if posture else (0.0, 0.0)
         q, dq = S["q"].copy(), S["dq"].copy()
         f_filt, ramp, x_e_hat = float(S["f_filt"][0]), float(S["ramp"][0]), float(S["x_e_hat"][0])
         x_a, v_a = (float(v) for v in S["law"])
@@ -253,11 +256,11 @@ def _main():
     """A quick look: the UR5 scenario's first second on Pinocchio and in tmtcontrol."""
     import time
 
-    from tmtcontrol import PoseSimulator, apply_overrides, load_scenario
-    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol import Simulator, apply_overrides, load_scenario
+    from tmtcontrol.simulation.simulator import robot_of
 
     sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.25"])
-    sim = PoseSimulator(sc)
+    sim = Simulator(sc)
     U, P, s0, t = sim.inputs()
     t0 = time.perf_counter()
     run = PinocchioLoop(sc, robot_of(sc)).run(U, P, s0)

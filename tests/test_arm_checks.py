@@ -66,7 +66,7 @@ def test_a_projector_without_the_inverse_mass_fails_the_null_space_check(arm):
 
 
 def test_a_projector_that_removes_every_torque_fails_on_the_redundant_arm():
-    from tmtcontrol.simulation.taskframe import operational_space_torque
+    from tmtcontrol.simulation.closedloop import operational_space_torque
 
     robot = load_robot("panda")
     no_posture = lambda M, n, J, Jd, U, F_e, tau_0=None: operational_space_torque(M, n, J, Jd, U, F_e, None)

@@ -16,13 +16,13 @@ def _pinocchio_normal_masses(sc):
     pytest.importorskip("pinocchio")
     from tmtcontrol.model.verify import pinocchio_model
     from tmtcontrol.simulation.geometry import surface_frame
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
 
     robot = robot_of(sc)
     evaluate = pinocchio_model(robot)
     n = surface_frame(sc.environment)[:, 0]
     out = []
-    for q in pose_path(robot, sc).q.T:
+    for q in path_of(robot, sc).q.T:
         d = evaluate(q, np.zeros(robot.n), np.zeros(robot.n))
         Jv = d["J"][:3]
         out.append(float(1.0 / (n @ Jv @ np.linalg.solve(d["M"], Jv.T @ n))))

@@ -132,7 +132,7 @@ def test_a_surface_location_error_is_off_target_under_noise_where_the_law_predic
 
 def test_a_tip_that_is_not_a_link_names_robot_tip_not_the_model():
     """The URDF is fine; the key at fault is robot.tip (it named robot.model)."""
-    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol.simulation.simulator import robot_of
 
     sc = apply_overrides(load_scenario("ur5"), ['robot.tip="no_such_link"'])
     with pytest.raises(ScenarioError, match=r"^robot\.tip: ur5 \(ur5\.urdf\): tip 'no_such_link' is not a link; "
@@ -176,7 +176,7 @@ _SIMS = {}
 
 def _run(*sets):
     from tmtcontrol import Simulator
-    from tmtcontrol.simulation.simulator import _structure
+    from tmtcontrol.simulation.simulator import structure as _structure
 
     sc = _paper(*sets)
     key = _structure(sc)
@@ -292,11 +292,9 @@ PENDULUM = """<robot name="pendulum">
 </robot>"""
 
 
-def test_an_arm_with_fewer_than_6_joints_is_refused_in_one_line_naming_its_joints(tmp_path, capsys):
-    """The 6-D task needs 6 joints; a 1-joint URDF gets one line naming robot.model and its joint
-    count (it said 'this runs the PUMA only so far'); a UR5 given to the PUMA's Simulator class is
-    pointed to PoseSimulator."""
-    from tmtcontrol import Simulator
+def test_an_arm_with_fewer_than_3_joints_is_refused_in_one_line_naming_its_joints(tmp_path, capsys):
+    """The closed loop needs 3 joints (the tool point's position); a 1-joint URDF gets one line
+    naming robot.model and its joint count, and nothing is written."""
     from tmtcontrol.cli import main
 
     urdf = tmp_path / "pendulum.urdf"
@@ -304,12 +302,9 @@ def test_an_arm_with_fewer_than_6_joints_is_refused_in_one_line_naming_its_joint
     assert main(["simulate", "ur5", "--set", f'robot.model="{urdf}"', "--no-plots", "--out",
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"error: robot.model: '{urdf}' has 1 joint: the 6-D task needs 6 or more (the position-only "
-                   "task is the 3-joint PUMA 560's; docs/robots.md)"], err
+    assert err == ["error: robot.model: pendulum has 1 actuated joint: the closed loop needs at least 3 (the "
+                   "tool point's position)"], err
     assert not (tmp_path / "o").exists()
-    with pytest.raises(ScenarioError, match=r"^robot\.model: 'ur5' has 6 joints: Simulator is the 3-joint PUMA "
-                                            r"560's position-only loop; .* PoseSimulator"):
-        Simulator(load_scenario("ur5"))
 
 
 def test_tilt_deg_that_disagrees_with_the_normal_is_refused_and_not_printed():
@@ -361,11 +356,11 @@ def test_a_reachable_tool_spin_is_found_even_far_from_the_seed(spin):
     only; the pose exists (turn the UR5's wrist_3 of the spin-0 pose by the spin, within its
     +-2 pi limits). The start pose found is the commanded one, checked by forward kinematics."""
     from tmtcontrol.simulation.geometry import surface_frame, tool_orientation
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
 
     sc = apply_overrides(load_scenario("ur5"), [f"trajectory.tool_spin_deg={spin}"])
     robot = robot_of(sc)
-    path = pose_path(robot, sc)
+    path = path_of(robot, sc)
     T = np.array(robot.functions.fk(path.q[:, 0]))
     R_d = tool_orientation(surface_frame(sc.environment), spin)
     assert np.abs(T[:3, :3] - R_d).max() < 1e-8                       # the commanded orientation
@@ -376,12 +371,12 @@ def test_a_reachable_tool_spin_is_found_even_far_from_the_seed(spin):
 
 def test_a_start_seed_outside_the_joint_limits_names_robot_q0():
     """Review F5: the seed itself was out of range and the message blamed the path."""
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
 
     sc = apply_overrides(load_scenario("ur5"), ["robot.q0=[0.0,-1.9,1.9,-1.57,-1.57,10.0]"])
     with pytest.raises(ScenarioError, match=r"^robot\.q0\[5\]: 10 is outside wrist_3_joint's limits "
                                             r"\[-6\.283, 6\.283\]$"):
-        pose_path(robot_of(sc), sc)
+        path_of(robot_of(sc), sc)
 
 
 def test_the_noise_free_twin_runs_as_long_as_the_run_and_its_divergence_is_a_verdict(monkeypatch):

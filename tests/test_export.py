@@ -88,10 +88,8 @@ def test_short_software_in_the_loop_run_equals_the_built_in_one(exported_inner):
 def _synthetic_measurements(ctl, n, scale):
     """A deterministic measurement sequence near the paper's start (joints
     moving a little, a force rising into contact)."""
-    from tmtcontrol.simulation.simulator import check_path
-
     sc = paper_scenario()
-    q0 = check_path(Simulator(sc, compile=False).plant, sc).q[:, 0]
+    q0 = Simulator(sc, compile=False).path(sc).q[:, 0]
     k = np.arange(n)
     rows = np.zeros((n, 15))
     rows[:, 0:3] = q0 + 1e-3 * scale * np.sin(0.01 * k)[:, None]

@@ -46,9 +46,9 @@ def exported_ur5(tmp_path_factory):
 def test_export_of_the_ur5_writes_an_n_joint_interface(exported_ur5):
     header = (exported_ur5 / "tmt_controller.h").read_text()
     for decl in ("double q[6];", "double dq[6];", "double force[3];", "double q_c[6];", "double dq_c[6];",
-                 "double tau[6];", "double e_o[3];", "double R_d[9];", "double q_post[6];"):
+                 "double tau[6];", "double e_o[3];", "double R_d[9];"):
         assert decl in header, decl
-    assert "taskframe.build_pose_controller" in header
+    assert "closedloop.build_controller" in header
     meta = json.loads((exported_ur5 / generate.METADATA).read_text())
     assert {k: meta["robot"][k] for k in ("model", "tip", "joints", "armature")} == {
         "model": "ur5", "tip": None, "joints": 6, "armature": True}
@@ -66,9 +66,9 @@ def test_interface_tables_are_sized_by_the_joint_count():
         assert [f.size for f in generate.command_fields(False, n)] == [3, 3, 3, 3, n, n]
         assert generate.diagnostic_fields(n)[-1].name == "e_o"
     # the PUMA's tables are the ones its export always had
-    assert generate.measurement_fields(3) is generate.MEASUREMENT_FIELDS
-    assert generate.command_fields(True) is generate.COMMAND_FIELDS
-    assert generate.diagnostic_fields(3) is generate.DIAGNOSTIC_FIELDS
+    assert generate.measurement_fields(3) == generate.MEASUREMENT_FIELDS
+    assert generate.command_fields(True) == generate.COMMAND_FIELDS
+    assert generate.diagnostic_fields(3) == generate.DIAGNOSTIC_FIELDS
 
 
 @pytest.mark.parametrize("arm, delay", [("ur5", 0), ("ur5", 2), ("panda", 0)])
@@ -77,31 +77,32 @@ def test_exported_function_computes_what_the_6d_step_computes(arm, delay):
     and measurements (CasADi's virtual machine), gives the run's logged
     torques, commands and diagnostics (1e-12 relative: the force enters as a
     base-frame vector)."""
-    from tmtcontrol.simulation.posesim import PoseSimulator
-    from tmtcontrol.simulation.taskframe import (POSE_DIAGNOSTICS, pose_command_layout, pose_log_layout,
-                                                pose_param_layout, pose_state_layout)
+    from tmtcontrol.simulation.simulator import Simulator
+    from tmtcontrol.model.robot import task_of
+    from tmtcontrol.simulation.closedloop import (command_layout, diagnostics_layout, log_layout, param_layout,
+                                                  state_layout)
 
     sc = apply_overrides(load_scenario(arm), [*SHORT, f"controller.delay_samples={delay}"])
-    sim = PoseSimulator(sc, compile=False)
+    sim = Simulator(sc, compile=False)
     U, P, s0, _ = sim.inputs(sc)
     S, L = sim.rollout.run(s0, U, P)
     n, N = sim.plant.n, U.shape[1]
     iface = generate.interface(sc, True)
     fn, _ = generate.controller_function(sc, True)
-    before = pose_state_layout(n, sim.law, delay).split(np.hstack([s0[:, None], S[:, :-1]]))
+    before = state_layout(task_of(n), sim.law, delay).split(np.hstack([s0[:, None], S[:, :-1]]))
     s_ctl = np.vstack([before[k] for k, s in iface.state.slices.items() if s.stop > s.start])
-    lg = pose_log_layout(n).split(L)
-    R = pose_param_layout(n, sim.law).split(P)["R"].reshape(3, 3, order="F")
+    lg = log_layout(task_of(n)).split(L)
+    R = param_layout(task_of(n), sim.law).split(P)["R"].reshape(3, 3, order="F")
     force = -R[:, [0]] * (lg["f_e"] + U[-1:])                      # the sensor: contact force plus noise
     y = np.vstack([before["q"], before["dq"], force, U[:6]])
-    p = iface.param.pack(**pose_param_layout(n, sim.law).split(P))
+    p = iface.param.pack(**param_layout(task_of(n), sim.law).split(P))
     s_next, cmd, diag = (np.array(v) for v in fn.map(N)(s_ctl, y, p))
-    C, D = pose_command_layout(n, True).split(cmd), POSE_DIAGNOSTICS.split(diag)
+    C, D = command_layout(task_of(n), True).split(cmd), diagnostics_layout(task_of(n)).split(diag)
     assert lg["f_e"].max() > 1.0                                     # in contact
     for ours, logged in ((C["tau"], lg["tau"]), (C["X_c"], lg["X_c"]), (D["X_r"], lg["X_r"]), (D["X"], lg["X"]),
                          (D["p"], lg["p"]), (D["f_m"], lg["f_m"]), (D["b_n"], lg["b_n"]), (D["e_o"], lg["e_o"])):
         assert rel_err(ours, logged) < 1e-12
-    after = pose_state_layout(n, sim.law, delay).split(S)
+    after = state_layout(task_of(n), sim.law, delay).split(S)
     assert rel_err(s_next[iface.state["law"]], after["law"]) < 1e-12
     if delay:
         assert rel_err(s_next[iface.state["tau_wait"]], after["tau_wait"]) < 1e-12
@@ -129,7 +130,11 @@ def test_deploy_doc_lists_the_6d_code_sizes_and_tables():
     doc = (pathlib.Path(__file__).parents[1] / "docs" / "deploy.md").read_text()
     assert generate._md_table(generate.command_fields(True, 6)) in doc
     assert generate._md_table(generate.measurement_fields(6)[:2]) in doc
-    assert generate._md_table(generate.param_fields(get_law("tmt"), 6)[-6:]) in doc
+    tmt = get_law("tmt")
+    three = {f.name for f in generate.param_fields(tmt, 3)}
+    added = tuple(f for f in generate.param_fields(tmt, 7) if f.name not in three)
+    assert [f.name for f in added] == ["R_d", "kd_rot", "kp_rot", "q_post", "kp_post", "kd_post"]
+    assert generate._md_table(added) in doc
     for arm, name in (("ur5", "UR5"), ("panda", "Panda")):
         for inner, label in ((False, "without inner loop"), (True, "with inner loop")):
             fn, _ = generate.controller_function(load_scenario(arm), inner)
@@ -144,10 +149,10 @@ def _sil_and_built_in(sc, folder, compile=True):
     """The run of ``sc`` with the C controller exported to ``folder`` in place of the built-in one
     (`simulate --controller`), and the built-in 6-D run."""
     from tmtcontrol.export.sil import CompiledController, simulate_with_controller
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
 
     return (simulate_with_controller(sc, CompiledController(folder, scenario=sc)),
-            PoseSimulator(sc, compile=compile).run())
+            Simulator(sc, compile=compile).run())
 
 
 def _assert_same_signals(sil, ref, names=SIGNALS):
@@ -209,12 +214,12 @@ def test_6d_replay_of_the_logged_measurements_gives_the_logged_commands(tmp_path
     up to 0.1 m away at the start."""
     from tmtcontrol.export.sil import read_commands, write_measurements
     from tmtcontrol.simulation.geometry import rotation_vector, surface_frame, tool_orientation
-    from tmtcontrol.simulation.posesim import PoseSimulator, robot_of
+    from tmtcontrol.simulation.simulator import Simulator, robot_of
 
     sc = load_scenario(arm)
     export_controller(sc, tmp_path, True)
     assert subprocess.run(["make", "replay"], cwd=tmp_path, capture_output=True).returncode == 0
-    res = PoseSimulator(sc).run()
+    res = Simulator(sc).run()
     write_measurements(res, tmp_path / "measurements.csv")
     r = subprocess.run(["./replay", "measurements.csv", "commands.csv"], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
@@ -274,7 +279,7 @@ int main(void)
     calls = 0;
     for (k = 0; k < 20000; ++k) {
         for (i = 0; i < n; ++i) {      /* near the start posture (away from singular poses) */
-            meas.q[i] = params.q_post[i] + 0.01 * sin(1e-3 * (double)k + (double)i);
+            meas.q[i] = q_start[i] + 0.01 * sin(1e-3 * (double)k + (double)i);
             meas.dq[i] = 1e-5 * cos(1e-3 * (double)k + (double)i);
         }
         meas.force[2] = -(double)(k % 3000) / 100.0;
@@ -293,8 +298,14 @@ def test_6d_tmt_step_calls_no_malloc_and_has_no_global_state(tmp_path, arm):
     """As the PUMA's (tests/test_export.py): 20,000 calls with the allocator
     wrapped count no call; the object has no writable data and calls only
     libm's pure functions."""
-    export_controller(load_scenario(arm), tmp_path, True)
-    (tmp_path / "harness.c").write_text(HARNESS_6D)
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = load_scenario(arm)
+    export_controller(sc, tmp_path, True)
+    sim = Simulator(sc, compile=False)
+    q0 = sim.inputs()[2][:sim.task.n]          # the start posture, where the skeleton's robot stands
+    start = "static const double q_start[] = {" + ", ".join(repr(float(v)) for v in q0) + "};\n"
+    (tmp_path / "harness.c").write_text(HARNESS_6D.replace("int main(void)", start + "int main(void)", 1))
     wrap = "-Wl,--wrap=malloc,--wrap=free,--wrap=realloc,--wrap=calloc"
     for cmd in (["gcc", *STRICT, "-O2", "-ffp-contract=off", "-c", "tmt_controller.c"],
                 ["gcc", *STRICT, "-O0", "-fno-builtin", "harness.c", "tmt_controller.o", wrap, "-lm", "-o", "harness"]):
@@ -318,10 +329,12 @@ def test_6d_two_interleaved_instances_equal_two_separate_ones(tmp_path):
     sequences near the start posture."""
     from tmtcontrol.export.sil import CompiledController
 
+    from tmtcontrol.simulation.simulator import Simulator
+
     export_controller(load_scenario("ur5"), tmp_path, True)
     ctl = CompiledController(tmp_path)
     params = ctl.default_params()
-    q0 = np.array(params.q_post)
+    q0 = Simulator(load_scenario("ur5"), compile=False).inputs()[2][:6]
     N, n = 300, ctl.n
     seqs = []
     for scale in (1.0, 1.7):

@@ -1,9 +1,9 @@
 """benchmarks/pinocchio_loop.py (the 6-D loop written again with Pinocchio in Python, the
-reference of bench_arm.py's speed ratio) is the same closed loop as tmtcontrol's PoseSimulator.
+reference of bench_arm.py's speed ratio) is the same closed loop as tmtcontrol's Simulator.
 
 Two implementations of the same equations: Pinocchio's ABA, CRBA, RNEA and frame kinematics
 with the controller in NumPy, against tmtcontrol's CasADi step (its own symbolic dynamics of
-the URDF). Fed the same inputs (``PoseSimulator.inputs()``), they integrate the same equations
+the URDF). Fed the same inputs (``Simulator.inputs()``), they integrate the same equations
 with the same RK4 and contact refinement, so they may differ only by rounding: the operations
 are ordered differently (recursive ABA vs. a symbolic solve with M; NumPy's LU vs. CasADi's QR),
 about 1e-15 relative per evaluation, and the stable closed loop keeps this from growing much
@@ -19,8 +19,8 @@ import sys
 import numpy as np
 import pytest
 
-from tmtcontrol import PoseSimulator, apply_overrides, load_scenario
-from tmtcontrol.simulation.posesim import robot_of
+from tmtcontrol import Simulator, apply_overrides, load_scenario
+from tmtcontrol.simulation.simulator import robot_of
 
 # Pinocchio (imported by the module) is in pyproject's test extra: no skip
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -35,7 +35,7 @@ TOL = 1e-10     # N; see the module docstring
 def first_half_second(request):
     """The built-in scenario's first 0.5 s (500 steps) in tmtcontrol and on Pinocchio."""
     sc = apply_overrides(load_scenario(request.param), ["trajectory.cycles=0.125"])
-    sim = PoseSimulator(sc, compile=False)
+    sim = Simulator(sc, compile=False)
     U, P, s0, t = sim.inputs()
     loop = pinocchio_loop.PinocchioLoop(sc, robot_of(sc))
     return sc, sim.run(), loop, (U, P, s0)
@@ -71,12 +71,13 @@ def test_the_panda_comparison_sees_the_null_space_posture_task():
     redundant joint drifts: the joint angles differ by far more than the 1e-12 rad the
     comparison above allows (measured 0.1 rad), so the null-space term is compared too."""
     from tmtcontrol.control.laws import get_law
-    from tmtcontrol.simulation.taskframe import pose_param_layout
+    from tmtcontrol.model.robot import task_of
+    from tmtcontrol.simulation.closedloop import param_layout
 
     sc = apply_overrides(load_scenario("panda"), ["trajectory.cycles=0.125"])
-    sim = PoseSimulator(sc, compile=False)
+    sim = Simulator(sc, compile=False)
     U, P, s0, _ = sim.inputs()
-    layout = pose_param_layout(7, get_law("tmt"))
+    layout = param_layout(task_of(7), get_law("tmt"))
     P = P.copy()
     P[layout["kp_post"]] = P[layout["kd_post"]] = 0.0
     run = pinocchio_loop.PinocchioLoop(sc, robot_of(sc)).run(U, P, s0)

@@ -23,27 +23,18 @@ SHORT = ["trajectory.cycles=0.04"]      # 160 periods of the 4 s circle: contact
 def _runs(arm: str, delay: int):
     """(applied torque log of the delayed run (n, N), computed torque at each
     of its states (n, N), its states before each period, n, layout)."""
-    if arm == "puma560":
-        from tmtcontrol.simulation.closedloop import LOG, build_step, state_layout
-        from tmtcontrol.simulation.simulator import Simulator, check_path
+    from tmtcontrol.simulation.closedloop import build_step, log_layout, state_layout
+    from tmtcontrol.simulation.simulator import Simulator
 
-        sc = apply_overrides(paper_scenario(), [*SHORT, f"controller.delay_samples={delay}"])
-        sim = Simulator(sc, compile=False)
-        U, P, s0, _ = sim._inputs(sc, check_path(sim.plant, sc))
-        n, log, layout = 3, LOG, state_layout(sim.law, delay)
-        step0 = build_step(sim.plant, sim.model, sim.law, delay=0)
-        layout0 = state_layout(sim.law, 0)
-    else:
-        from tmtcontrol.simulation.posesim import PoseSimulator
-        from tmtcontrol.simulation.taskframe import build_pose_step, pose_log_layout, pose_state_layout
-
-        sc = apply_overrides(load_scenario(arm), [*SHORT, f"controller.delay_samples={delay}"])
-        sim = PoseSimulator(sc, compile=False)
-        U, P, s0, _ = sim.inputs(sc)
-        n = sim.plant.n
-        log, layout = pose_log_layout(n), pose_state_layout(n, sim.law, delay)
-        step0 = build_pose_step(sim.plant, sim.model, sim.law, delay=0)
-        layout0 = pose_state_layout(n, sim.law, 0)
+    base = paper_scenario() if arm == "puma560" else load_scenario(arm)
+    sc = apply_overrides(base, [*SHORT, f"controller.delay_samples={delay}"])
+    sim = Simulator(sc, compile=False)
+    U, P, s0, _ = sim.inputs(sc)
+    task = sim.task
+    n = task.n
+    log, layout = log_layout(task), state_layout(task, sim.law, delay)
+    step0 = build_step(sim.plant, sim.model, sim.law, delay=0)
+    layout0 = state_layout(task, sim.law, 0)
     S, L = sim.rollout.run(s0, U, P)
     before = np.hstack([s0[:, None], S[:, :-1]])                   # the state at t_k
     parts = layout.split(before)
@@ -80,20 +71,21 @@ def test_delay_zero_keeps_the_6d_loop_as_before():
     loop's arithmetic."""
     import pathlib
 
-    from tmtcontrol.simulation.posesim import PoseSimulator
-    from tmtcontrol.simulation.taskframe import pose_state_layout
+    from tmtcontrol.simulation.simulator import Simulator
+    from tmtcontrol.model.robot import task_of
+    from tmtcontrol.simulation.closedloop import state_layout
 
-    sim = PoseSimulator(apply_overrides(load_scenario("ur5"), SHORT), compile=False)
-    assert pose_state_layout(6, sim.law).size == 2 * 6 + 6 + len(sim.law.states)
-    assert sim.step.name() == "pose6_step_tmt"
+    sim = Simulator(apply_overrides(load_scenario("ur5"), SHORT), compile=False)
+    assert state_layout(task_of(6), sim.law).size == 2 * 6 + 6 + len(sim.law.states)
+    assert sim.step.name() == "step_tmt"
     ref = np.loadtxt(pathlib.Path(__file__).parent / "data" / "ur5_delay0_before_delay.csv", delimiter=",")
     r = sim.run()
     assert r.time.size == ref.shape[0] == 160
     np.testing.assert_allclose(r.contact_force, ref[:, 1], rtol=1e-12, atol=1e-12 * np.abs(ref[:, 1]).max())
     np.testing.assert_allclose(r.tau, ref[:, 2:].T, rtol=0, atol=1e-12 * np.abs(ref[:, 2:]).max())
-    one = PoseSimulator(apply_overrides(load_scenario("ur5"), [*SHORT, "controller.delay_samples=1"]),
+    one = Simulator(apply_overrides(load_scenario("ur5"), [*SHORT, "controller.delay_samples=1"]),
                         compile=False)
-    assert one.step.name() == "pose6_step_tmt_delay1"
+    assert one.step.name() == "step_tmt_delay1"
     assert one.step.size1_in(0) == sim.step.size1_in(0) + 6
 
 
@@ -103,9 +95,9 @@ def test_ur5_scenario_with_a_delay_of_one_sample_converges():
     (within controller.force_tolerance) and the tool within 1 mrad of its
     command over the last second (issue 30's bounds)."""
     from tmtcontrol.simulation.metrics import segment_metrics
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
 
-    r = PoseSimulator(apply_overrides(load_scenario("ur5"), ["controller.delay_samples=1"])).run()
+    r = Simulator(apply_overrides(load_scenario("ur5"), ["controller.delay_samples=1"])).run()
     segs = segment_metrics(r)
     assert [s.verdict for s in segs] == ["converged"] * 4
     assert max(abs(s.steady_state_error) for s in segs) < 1e-3

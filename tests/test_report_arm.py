@@ -15,13 +15,13 @@ from test_report import SECTIONS, make_report, section, table
 
 def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error():
     from tmtcontrol.report.document import Report, _simulation
-    from tmtcontrol.simulation.posesim import PoseSimulationResult
+    from tmtcontrol.simulation.simulator import SimulationResult
     from tmtcontrol.stability import scenario_parameters
 
     sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.5"])
     rep = Report(sc, "test")
     sec, _, res = _simulation(rep, sc, scenario_parameters(sc))
-    assert isinstance(res, PoseSimulationResult) and res.q.shape[0] == 6
+    assert isinstance(res, SimulationResult) and res.q.shape[0] == 6
     captions = [b.caption for b in sec.blocks if hasattr(b, "svg")]
     assert any(c.startswith("Tool orientation error") for c in captions)
     # the sentence quotes the largest angle over the last quarter, computed from the run

@@ -1,7 +1,7 @@
 """The whole-loop linearisation, the periodic (monodromy) analysis and the first-contact
 limit on a 6-D arm (issue 30): the PUMA's algorithms run on the UR5's 6-D task-frame loop
-(simulation.armloop picks the loop by task dimension), checked against closed forms and
-against bisection in the 6-D simulator (PoseSimulator at constant k_e); the heavy checks
+(the one closed loop, its task declared by the robot), checked against closed forms and
+against bisection in the 6-D simulator (Simulator at constant k_e); the heavy checks
 also on the Panda (7 joints, null-space posture task)."""
 import numpy as np
 import pytest
@@ -25,15 +25,15 @@ def test_the_analyses_pick_the_6d_loop_by_task_dimension(still_ur5):
     """Nothing above simulation/ asks which arm: the loop follows the robot's joint
     count, as simulator_for does; the 6-D state is q, dq (6 each) and the normal axis'
     controller states, the bookkeeping states left out."""
-    from tmtcontrol.simulation.armloop import PoseLoop, PositionLoop, arm_loop
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
     from tmtcontrol.simulation.scenario import paper_scenario
 
     loop = still_ur5.frozen.loop
-    assert isinstance(loop, PoseLoop) and isinstance(loop.sim, PoseSimulator)
+    assert isinstance(loop, Simulator) and loop.task.dim == 6
     assert still_ur5.states == (*(f"q[{i}]" for i in range(6)), *(f"dq[{i}]" for i in range(6)),
                                 "f_filt", "b_n", "x_a", "dx_a")
-    assert isinstance(arm_loop(paper_scenario(), compile=False), PositionLoop)
+    puma = Simulator(paper_scenario(), compile=False)
+    assert puma.task.dim == 3 and puma.layout["q"] == slice(0, 3)
 
 
 def test_ur5_fixed_point_holds_f_d_the_pose_and_the_orientation(still_ur5):
@@ -41,14 +41,15 @@ def test_ur5_fixed_point_holds_f_d_the_pose_and_the_orientation(still_ur5):
     force is f_d exactly (eqs. 23-24), the tool point lies f_d/k_e inside the surface at
     the circle's point, the tool orientation equals its command and the joints rest.
     Tolerances: the Newton residual (1e-11 relative) and rounding (1e-9)."""
-    from tmtcontrol.simulation.posesim import _frames
+    from tmtcontrol.simulation.simulator import _frames
 
     sc, mdl = still_ur5.scenario, still_ur5.frozen
     w = mdl.at(2e4, 0.0)
     assert w.residual < 1e-8
     assert w.f_eq == pytest.approx(sc.controller.f_d, abs=1e-7)
     L, loop = mdl.layout, mdl.loop
-    R, R_d, c = _frames(sc)
+    surface, R_d = _frames(sc)
+    R, c = surface.frame(), surface.c
     T = loop.plant.fk(w.s_eq[L["q"]])
     assert R.T @ (T[:3, 3] - c) == pytest.approx([sc.controller.f_d / 2e4, 0.0, 0.0], abs=1e-9)
     assert np.abs(R_d - T[:3, :3]).max() < 1e-9
@@ -84,19 +85,20 @@ def test_panda_guess_rests_where_its_null_space_posture_task_is_balanced():
     projected posture torque N^T M (q_post - q) vanishes (1e-12 of M (q_post - q):
     rounding of a 7 x 7 solve), while the pose closest to q_post in plain joint distance
     leaves a torque (the guess is not the naive one)."""
-    from tmtcontrol.simulation.armloop import PoseLoop, arm_loop
+    from tmtcontrol.simulation.geometry import surface_of
     from tmtcontrol.simulation.posture import solve_pose
+    from tmtcontrol.simulation.simulator import Simulator, _frames
 
     sc = apply_overrides(arm_scenario("panda"), CHEAP)
-    loop = arm_loop(sc, compile=False)
-    assert isinstance(loop, PoseLoop) and loop.plant.n == 7
+    loop = Simulator(sc, compile=False)
+    assert loop.task.posture and loop.plant.n == 7
     path = loop.path(sc)
     loop.inputs(sc, path)
-    R, c = loop.frame(sc)
+    R, c = surface_of(sc).frame(), np.asarray(sc.trajectory.center)
     point = c + R @ np.r_[1e-4, 0.05, 0.0]
 
     def projected(q):
-        M, J = loop.sim.model.mass_matrix(q), loop.sim.model.jacobian(q)
+        M, J = loop.model.mass_matrix(q), loop.model.jacobian(q)
         Lam = np.linalg.inv(J @ np.linalg.solve(M, J.T))
         NT = np.eye(7) - J.T @ Lam @ J @ np.linalg.inv(M)
         v = M @ (loop._posture - q)
@@ -104,9 +106,9 @@ def test_panda_guess_rests_where_its_null_space_posture_task_is_balanced():
 
     q = loop.joints_at(point, path.q[:, 0])
     T = loop.plant.fk(q)
-    assert np.abs(T[:3, 3] - point).max() < 1e-9 and np.abs(T[:3, :3] - loop._R_d).max() < 1e-9
+    assert np.abs(T[:3, 3] - point).max() < 1e-9 and np.abs(T[:3, :3] - _frames(sc)[1]).max() < 1e-9
     assert projected(q) < 1e-12
-    naive, ok = solve_pose(loop.plant, loop._solver, point, loop._R_d, loop._posture)
+    naive, ok = solve_pose(loop.plant, loop._solver, point, _frames(sc)[1], loop._posture)
     assert ok and projected(naive) > 1e-3
 
 
@@ -118,13 +120,13 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
     search's 3 s): at 0.97x the start settles (the force's ripple over the last second
     under 0.2 f_d), at 1.03x it keeps cycling (3 %: the short runs' verdict against ten
     periods watched; the heavy check below bisects 16 s runs to 2 % at 1 kHz)."""
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
     from tmtcontrol.stability.analysis import scenario_stiffness_limit
     from tmtcontrol.stability.first_contact import LoopRunner
     from tmtcontrol.sweep.run import case_limits
 
     sc = apply_overrides(arm_scenario("ur5"), [*CHEAP, "controller.x_e_error=-0.01"])
-    sim = PoseSimulator(sc, compile=False)
+    sim = Simulator(sc, compile=False)
     row = case_limits(sc, sim=sim)
     assert row["limits_error"] == ""
     assert row["small_signal_limit"] == scenario_stiffness_limit(sc)

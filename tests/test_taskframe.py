@@ -85,7 +85,7 @@ def test_rotation_vector_matches_scipy_for_every_angle_below_pi():
 # -- inner loop: eqs. (5)-(6) as operational-space computed torque -------------------------------
 
 def _numeric_torque(robot, q, dq, U, F_e, tau_0):
-    from tmtcontrol.simulation.taskframe import operational_space_torque
+    from tmtcontrol.simulation.closedloop import operational_space_torque
 
     f = robot.functions
     return np.array(ca.DM(operational_space_torque(f.mass_matrix(q), f.bias(q, dq), f.jacobian(q),
@@ -131,11 +131,11 @@ def test_exact_model_gives_the_commanded_task_acceleration_and_posture_does_not_
      "outside the joint limits"),
 ])
 def test_bad_path_is_refused_with_its_time_and_reason(arm, changes, reason):
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
 
     sc = apply_overrides(arm_scenario(arm), [f"{k}={v!r}" for k, v in changes.items()])
     with pytest.raises(ScenarioError) as exc:
-        pose_path(robot_of(sc), sc)
+        path_of(robot_of(sc), sc)
     msg = str(exc.value)
     assert msg.startswith("trajectory: at path time t = ") and reason in msg and "\n" not in msg
 
@@ -146,14 +146,14 @@ def test_builtin_paths_are_checked_against_pinocchio():
     tmtcontrol's), within the joint limits and above the singularity bound."""
     pin = pytest.importorskip("pinocchio")
     from tmtcontrol.simulation.geometry import surface_frame, tool_orientation
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
     from tmtcontrol.simulation.posture import MIN_SINGULAR_VALUE
     from tmtcontrol.simulation.trajectory import circle_reference
 
     for name in ("ur5", "panda"):
         sc = arm_scenario(name)
         robot = robot_of(sc)
-        path = pose_path(robot, sc)
+        path = path_of(robot, sc)
         model = pin.buildModelFromXML(robot.urdf)
         data = model.createData()
         fid = model.getFrameId(robot.tip)
@@ -177,10 +177,10 @@ def test_builtin_paths_are_checked_against_pinocchio():
 
 @pytest.fixture(scope="module")
 def ur5_short():
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
 
     sc = apply_overrides(arm_scenario("ur5"), ["trajectory.cycles=0.5"])
-    return PoseSimulator(sc, compile=False).run()
+    return Simulator(sc, compile=False).run()
 
 
 def test_ur5_short_run_tracks_force_and_holds_orientation(ur5_short):
@@ -199,7 +199,7 @@ def test_contact_force_is_stiffness_times_tip_penetration_from_logged_joints(ur5
     computed from the logged joints by Pinocchio's forward kinematics."""
     pin = pytest.importorskip("pinocchio")
     from tmtcontrol.simulation.geometry import surface_frame
-    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol.simulation.simulator import robot_of
 
     r = ur5_short
     robot = robot_of(r.scenario)
@@ -241,9 +241,9 @@ def test_cli_prints_the_ur5_scenario_and_refuses_an_unreachable_path(tmp_path, c
 def test_builtin_arm_scenario_converges_on_every_segment(name):
     """The paper's experiment on the arm: each 4 s segment's last second within
     1e-3 N of f_d, the tool within 1 mrad of its command."""
-    from tmtcontrol.simulation.posesim import PoseSimulator
+    from tmtcontrol.simulation.simulator import Simulator
 
-    r = PoseSimulator(arm_scenario(name)).run()
+    r = Simulator(arm_scenario(name)).run()
     for i in range(4):
         k = (r.time >= 4 * i + 3) & (r.time < 4 * i + 4)
         assert np.abs(r.force_error[k]).max() < 1e-3, (name, i)
@@ -273,7 +273,7 @@ def test_analyze_scenario_uses_the_arms_effective_normal_mass():
     tip of the arm at rest (gravity held) accelerates the tip along n by
     1/m_p (forward dynamics, independent of the formula)."""
     from tmtcontrol.simulation.geometry import surface_frame
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
     from tmtcontrol.stability.analysis import analyze_scenario, scenario_parameters
 
     sc = arm_scenario("ur5")
@@ -281,7 +281,7 @@ def test_analyze_scenario_uses_the_arms_effective_normal_mass():
     robot = robot_of(sc)
     n = surface_frame(sc.environment)[:, 0]
     acc = []
-    for q in pose_path(robot, sc).q.T:
+    for q in path_of(robot, sc).q.T:
         Jv = robot.jacobian(q)[:3]
         ddq = robot.forward_dynamics(q, np.zeros(6), robot.gravity(q) + Jv.T @ n)
         acc.append(n @ Jv @ ddq)
@@ -311,7 +311,7 @@ def test_robot_model_path_is_read_relative_to_the_scenario_file(tmp_path):
     line naming robot.model."""
     from importlib import resources
 
-    from tmtcontrol.simulation.posesim import robot_of
+    from tmtcontrol.simulation.simulator import robot_of
     from tmtcontrol.simulation.scenario import dump_scenario
 
     (tmp_path / "arms").mkdir()
@@ -331,11 +331,11 @@ def test_robot_model_path_is_read_relative_to_the_scenario_file(tmp_path):
 
 
 def test_start_posture_seed_of_the_wrong_length_is_one_line():
-    from tmtcontrol.simulation.posesim import pose_path, robot_of
+    from tmtcontrol.simulation.simulator import path_of, robot_of
 
     sc = apply_overrides(arm_scenario("ur5"), ["robot.q0=[0.0, 0.1, 0.2]"])
     with pytest.raises(ScenarioError, match=r"^robot\.q0: expected 6 values"):
-        pose_path(robot_of(sc), sc)
+        path_of(robot_of(sc), sc)
 
 
 @pytest.mark.heavy           # the law-loop limit search of the report line takes seconds

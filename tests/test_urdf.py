@@ -442,12 +442,16 @@ def test_regeneration_script_keeps_kinematics_and_inertials_only(tmp_path):
 
 
 def test_mass_scale_is_the_controllers_mismatched_model():
-    """mass_scale: the PUMA's as simulation.closedloop.controller_model (bit for bit);
-    a URDF arm's M and g scale linearly while fk and J do not change."""
-    from tmtcontrol.simulation.closedloop import controller_model
+    """mass_scale: the PUMA's as its parameter set with every mass and inertia scaled
+    (bit for bit); a URDF arm's M and g scale linearly while fk and J do not change."""
+    import dataclasses
+
+    from tmtcontrol.model import PUMA560_LINKS, Puma560
 
     q, dq = np.array([0.2, -0.6, 0.9]), np.array([0.3, 0.1, -0.5])
-    r, c = load_robot("puma560", friction=False, mass_scale=1.3), controller_model(1.3, False)
+    links = tuple(dataclasses.replace(l, m=l.m * 1.3, I=tuple(i * 1.3 for i in l.I), Jm=l.Jm * 1.3)
+                  for l in PUMA560_LINKS)
+    r, c = load_robot("puma560", friction=False, mass_scale=1.3), Puma560(armature=True, friction=False, links=links)
     assert np.array_equal(r.mass_matrix(q), np.array(c.mass_matrix(q)))
     assert np.array_equal(r.bias(q, dq), np.array(c.bias(q, dq)).ravel())
     assert check_robot(r, samples=2).ok

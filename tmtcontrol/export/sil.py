@@ -194,16 +194,11 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
     robot = meta["robot"]
     r = scenario.robot
     what = f"robot.model = {robot['model']!r} (tip {robot['tip']!r}, armature {robot['armature']!r})"
-    same_name = str(robot["model"]).lower() == r.model.lower()
-
     def other_arm():
         return ExportError(f"{flag}: {folder} was exported for {what}, the scenario has "
                            f"robot.model = {r.model!r} (tip {r.tip!r}, armature {r.armature!r})"
-                           + (" or another version of it" if same_name else "")
-                           + "; export this scenario (tmtcontrol export)")
+                           + " or another version of it; export this scenario (tmtcontrol export)")
 
-    if robot_of(scenario, controller=True).key != robot["key"]:
-        raise other_arm()
     want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction}
@@ -211,6 +206,8 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
         if meta[key] != value:
             raise ExportError(f"{flag}: {folder} was exported with {key} = {meta[key]!r}, "
                               f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
+    if robot_of(scenario, controller=True).key != robot["key"]:      # URDF content, chain and model options
+        raise other_arm()
     if not meta["inner_loop"]:
         raise ExportError(f"{flag}: {folder} was exported without --inner-loop, so it gives no "
                           "joint torques for the simulated (torque-driven) robot; export with --inner-loop")

@@ -253,7 +253,7 @@ class SimulationResult:
     damping: np.ndarray              # (N,) normal impedance damping in use, N s/m
     path: PosePath
     info: dict = field(default_factory=dict)
-    orientation_error: np.ndarray | None = None   # (r, N) rotation vector log(R_d R^T), task axes, rad (r = 0: position task)
+    orientation_error: np.ndarray | None = None   # (3, N) rotation vector log(R_d R^T), task axes, rad; None: position task
 
     @property
     def Ts(self) -> float:
@@ -267,7 +267,7 @@ class SimulationResult:
     @property
     def orientation_error_norm(self) -> np.ndarray:
         """Angle between the tool orientation and its command (N,), rad (0 on a position task)."""
-        if self.orientation_error is None or self.orientation_error.shape[0] == 0:
+        if self.orientation_error is None:
             return np.zeros(self.time.size)
         return np.linalg.norm(self.orientation_error, axis=0)
 
@@ -276,7 +276,7 @@ class SimulationResult:
         """The series the figures draw and the surface under them, without
         the scenario (the arrays are shared, not copied)."""
         sc = self.scenario
-        oriented = self.orientation_error is not None and self.orientation_error.shape[0] > 0
+        oriented = self.orientation_error is not None
         return SimulationTraces(
             time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
@@ -551,7 +551,7 @@ class Simulator:
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
             contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
             stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,
-            info=info, orientation_error=lg["e_o"])
+            info=info, orientation_error=lg["e_o"] if self.task.rotational else None)
 
 
 def simulator_for(scenario: Scenario, compile: bool | str = "auto") -> Simulator:
