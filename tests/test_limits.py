@@ -42,7 +42,7 @@ def test_periodic_limit_within_1_percent_of_the_simulator_where_the_frozen_minim
     than 1 % below (so this case tells the two apart). The simulated decay per period
     is the monodromy's spectral radius (2 %: the measured max difference between
     periods also carries the faster modes)."""
-    from tmtcontrol.stability.first_contact import LoopRunner, _periodic_decay
+    from tmtcontrol.stability.first_contact import LoopRunner, periodic_decay
     from tmtcontrol.stability.periodic import periodic_limit
     from tmtcontrol.stability.wholeloop import whole_loop_limit
 
@@ -52,9 +52,9 @@ def test_periodic_limit_within_1_percent_of_the_simulator_where_the_frozen_minim
                            bracket=(frozen_min / 1.02, max(l for _, l in points) * 1.02))
     assert frozen_min < 0.99 * limit
     runner = LoopRunner(sc, compile=False)
-    below = _periodic_decay(runner, 0.99 * limit, 5)
+    below = periodic_decay(runner, 0.99 * limit, 5)
     assert below < 1.0
-    assert _periodic_decay(runner, 1.01 * limit, 5) > 1.0
+    assert periodic_decay(runner, 1.01 * limit, 5) > 1.0
     assert below == pytest.approx(cheap_model.at(0.99 * limit).spectral_radius, rel=0.02)
 
 
@@ -186,7 +186,7 @@ def test_scheduled_damping_limits_match_the_simulator():
     import math
 
     from tmtcontrol.stability.analysis import scenario_stiffness_limit
-    from tmtcontrol.stability.first_contact import LoopRunner, _periodic_decay
+    from tmtcontrol.stability.first_contact import LoopRunner, periodic_decay
     from tmtcontrol.stability.periodic import PeriodicModel, periodic_limit
     from tmtcontrol.stability.wholeloop import whole_loop_limit
 
@@ -201,8 +201,8 @@ def test_scheduled_damping_limits_match_the_simulator():
     assert lo <= limit <= max(l for _, l in points) * 1.001
     assert 0.97 * limit < one_d < limit
     runner = LoopRunner(sc, compile=False)
-    assert _periodic_decay(runner, 0.99 * limit, 5) < 1.0
-    assert _periodic_decay(runner, 1.01 * limit, 5) >= 1.0
+    assert periodic_decay(runner, 0.99 * limit, 5) < 1.0
+    assert periodic_decay(runner, 1.01 * limit, 5) >= 1.0
 
 
 def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_sim, tmp_path, capsys):

@@ -538,11 +538,11 @@ def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, l
     (0.5 N/m), and only those ("no positive limit found" leaves the run unchanged)."""
     import dataclasses
 
-    from tmtcontrol.stability import analysis
+    from tmtcontrol.stability import onedim
 
-    monkeypatch.setattr(analysis, "scenario_stiffness_limit", lambda scenario: limit)
+    monkeypatch.setattr(onedim, "scenario_stiffness_limit", lambda scenario: limit)
     run = dataclasses.make_dataclass("Run", ["scenario", "info"], frozen=True)(None, {"kept": 1})
-    out = analysis.with_stiffness_limit(run)
+    out = onedim.with_stiffness_limit(run)
     assert out.info == ({"kept": 1, "stiffness_limit": limit} if attached else {"kept": 1})
 
 

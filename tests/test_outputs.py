@@ -206,7 +206,7 @@ def test_timeseries_in_two_processes_is_the_same_file(paper_result, tmp_path, mo
     def dies(fd, data):                       # what the forked process calls to hand its half back
         os._exit(3)
 
-    monkeypatch.setattr(tmtcontrol.drawing, "_write_all", dies)
+    monkeypatch.setattr(tmtcontrol.drawing, "write_all", dies)
     write_timeseries(paper_result, tmp_path / "died.csv", processes=2)
     assert (tmp_path / "died.csv").read_bytes() == one
 

@@ -50,18 +50,18 @@ class FigureProcessError(RuntimeError):
     """A figure process failed: its traceback, or how it ended."""
 
 
-def _can_fork() -> bool:
+def can_fork() -> bool:
     return sys.platform.startswith("linux") and hasattr(os, "fork")
 
 
-def _read_all(fd: int) -> bytes:
+def read_all(fd: int) -> bytes:
     chunks = []
     while chunk := os.read(fd, 1 << 20):
         chunks.append(chunk)
     return b"".join(chunks)
 
 
-def _write_all(fd: int, data: bytes) -> None:
+def write_all(fd: int, data: bytes) -> None:
     view = memoryview(data)
     while view:
         view = view[os.write(fd, view):]
@@ -95,7 +95,7 @@ class FigureWorkers:
         self._results: list[int] = []     # read ends: one result message per worker
         self._tokens: int | None = None   # write end of the shared queue
         self._sender: threading.Thread | None = None
-        if processes and _can_fork():
+        if processes and can_fork():
             self._start(processes)
 
     def _start(self, processes: int) -> None:
@@ -130,7 +130,7 @@ class FigureWorkers:
                 raise RuntimeError("FigureWorkers.draw: the workers have been given their figures already")
             if len(figures) > 255:
                 raise ValueError(f"figures: at most 255 per drawing, got {len(figures)}")
-            _write_all(self._tokens, bytes(range(len(figures))))      # the shared queue
+            write_all(self._tokens, bytes(range(len(figures))))      # the shared queue
             os.close(self._tokens)
             self._tokens = None
             message = pickle.dumps((figures, data, str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
@@ -146,7 +146,7 @@ class FigureWorkers:
         jobs, self._jobs = self._jobs, []
         for fd in jobs:
             try:
-                _write_all(fd, message)
+                write_all(fd, message)
             except OSError:              # the worker is gone (stopped, or failed: its result says)
                 pass
             finally:
@@ -209,7 +209,7 @@ class Drawing:
             return save_figures([(n, getattr(module, f)) for n, f in self._figures], self._data, self._folder)
         written, errors = {}, []
         for fd in w._results:
-            raw = _read_all(fd)
+            raw = read_all(fd)
             if not raw:
                 errors.append("a figure process ended without a result")
                 continue
@@ -265,7 +265,7 @@ def _worker(module, jobs, results, tokens):               # pragma: no cover - r
 def _draw(module, job_fd, result_fd, token_fd) -> int:      # pragma: no cover - runs in the worker
     """Read the job, draw the figures this process takes from the queue,
     report ``("ok", {name: path})`` or ``("error", traceback)``."""
-    raw = _read_all(job_fd)
+    raw = read_all(job_fd)
     if not raw:                                              # nothing to draw: the caller stopped
         return 0
     try:
@@ -286,7 +286,7 @@ def _draw(module, job_fd, result_fd, token_fd) -> int:      # pragma: no cover -
 
 def _report(fd: int, message) -> None:                     # pragma: no cover - runs in the worker
     try:
-        _write_all(fd, pickle.dumps(message))
+        write_all(fd, pickle.dumps(message))
         os.close(fd)
     except OSError:
         pass

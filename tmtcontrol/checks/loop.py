@@ -131,7 +131,7 @@ def check_extensions(rng) -> CheckResult:
     from ..simulation.scenario import apply_overrides, paper_scenario
     from ..stability.analysis import scenario_parameters
     from ..stability.sampled import largest_stable
-    from ..stability.first_contact import LoopRunner, _periodic_decay
+    from ..stability.first_contact import LoopRunner, periodic_decay
     from ..stability.lawloop import law_loop
     from ..stability.wholeloop import equilibrium_damping
 
@@ -152,8 +152,8 @@ def check_extensions(rng) -> CheckResult:
                 lambda ke: law_loop(law, sc.controller.law, k_e=ke, b=b(ke), **kw).spectral_radius < 1.0,
                 k_lo=3e3, k_hi=1e5, rtol=1e-3)
             runner = LoopRunner(sc, compile=False)
-            below = _periodic_decay(runner, (1 - EXTENSION_BAND) * limit, 5)
-            above = _periodic_decay(runner, (1 + EXTENSION_BAND) * limit, 5)
+            below = periodic_decay(runner, (1 - EXTENSION_BAND) * limit, 5)
+            above = periodic_decay(runner, (1 + EXTENSION_BAND) * limit, 5)
             res = max(res, float(below >= 1.0) + float(above < 1.0))
             if below >= 1.0 or above < 1.0:
                 bad.append(f"{schedule} damping: limit {limit:.5g} N/m, simulated decay per period "

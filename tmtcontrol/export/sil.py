@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 
 from ..model.robot import task_of
-from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, log_layout, param_layout,
+from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, param_layout,
                                      plant_inputs_layout)
 from ..simulation.rollout import compiler
 from ..surface import contact_force
@@ -283,7 +283,7 @@ def _sensor(robot, surface) -> ca.Function:
     """The simulated force sensor: the true normal contact force (N) at the
     joints ``z``, as the simulator's step computes it (eq. 1's environment),
     and the surface's inward normal there."""
-    from ..simulation.closedloop import _kinematics
+    from ..simulation.closedloop import kinematics
 
     n = robot.n
     z, k_e, d_e = ca.SX.sym("z", 2 * n), ca.SX.sym("k_e"), ca.SX.sym("d_e")
@@ -291,7 +291,7 @@ def _sensor(robot, surface) -> ca.Function:
     sv = ca.SX.sym("surface", sum(sizes))
     parts = ca.vertsplit(sv, np.cumsum([0, *sizes]).tolist())
     par = {name: part for (name, _), part in zip(surface.fields, parts)}
-    _, _, _, R, X, dX = _kinematics(robot, surface, z[:n], z[n:], par)
+    _, _, _, R, X, dX = kinematics(robot, surface, z[:n], z[n:], par)
     return ca.Function("sensor", [z, k_e, d_e, sv], [contact_force(X[0], dX[0], k_e, d_e), R[:, 0]])
 
 

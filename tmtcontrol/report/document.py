@@ -490,7 +490,7 @@ def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
 
 
 def _sweep(rep: Report, sc: Scenario, p: dict):
-    from ..sweep import _predicted, axis_labels, run_sweep, sweep_summary
+    from ..sweep import sweep_prediction, axis_labels, run_sweep, sweep_summary
     from ..sweep.figures import sweep_map_figure
     from ..simulation.scenario import apply_overrides, scenario_to_dict
     from ..sweep.spec import sweep_from_dict
@@ -502,7 +502,7 @@ def _sweep(rep: Report, sc: Scenario, p: dict):
     # the axes on this scenario (shortened)
     spec = dataclasses.replace(spec, base=scenario_to_dict(apply_overrides(sc, [f"trajectory.cycles={cycles!r}"])))
     df = run_sweep(spec)
-    pred = _predicted(spec, df)
+    pred = sweep_prediction(spec, df)
     counts = {v: n for v, n in sweep_summary(spec, df, pred)["verdicts"].items() if n}
     rows = []
     for rate in rates:

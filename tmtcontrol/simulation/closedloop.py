@@ -78,7 +78,7 @@ from .geometry import rotation_vector
 __all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "damping_schedule",
            "operational_space_torque", "build_step", "step_name", "build_plant", "build_controller",
            "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
-           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout"]
+           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics"]
 
 
 class Layout:
@@ -209,7 +209,7 @@ def operational_space_torque(M, n_bias, J, Jdot_dq, U, F_e, tau_0=None):
     return tau
 
 
-def _kinematics(robot, surface, q, dq, P):
+def kinematics(robot, surface, q, dq, P):
     """The encoders through fk: ``(p, R_tool, J, R, X, dX)``: tool point (m,
     base), tool orientation, the 6 x n geometric Jacobian, and the
     surface's task frame and coordinates at p (m, m/s)."""
@@ -255,7 +255,7 @@ def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, cont
         """Eq. (1) in joint space with the unilateral contact; and whether the
         contact pushes at z."""
         q, dq = z[:n], z[n:]
-        _, _, J, R, X, dX = _kinematics(plant, surface, q, dq, Z)
+        _, _, J, R, X, dX = kinematics(plant, surface, q, dq, Z)
         f_env = contact_force(X[0], dX[0], Z["k_e"], Z["d_e"])
         F_env = R[:, 0] * f_env                                   # force on the environment, base frame
         ddq = plant.functions.forward_dynamics(q, dq, Z["tau"] - ca.mtimes(J[:3, :].T, F_env))
@@ -295,7 +295,7 @@ def _control(model, law: Law, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor,
     N m, the one applied over [t_k, t_k+1); ``tau_wait`` the queue after
     this period, oldest first). ``S``/``P`` are the state and parameter
     slices by name, ``ref`` the tangential reference (pos_t, vel_t, acc_t),
-    ``kin`` :func:`_kinematics` of the encoders and ``f_sensor`` the normal
+    ``kin`` :func:`kinematics` of the encoders and ``f_sensor`` the normal
     force read this period (N, before the filter). Used by :func:`build_step`
     (the simulation) and :func:`build_controller` (the exported controller):
     one set of expressions for both."""
@@ -388,7 +388,7 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
     s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", INPUT.size), ca.MX.sym("p", PARAM.size)
     S, U_in, P = STATE.split(s), INPUT.split(u), PARAM.split(p)
     q, dq = S["q"], S["dq"]
-    kin = _kinematics(model, surface, q, dq, P)                    # encoders through fk
+    kin = kinematics(model, surface, q, dq, P)                    # encoders through fk
     pos, _, _, _, X, dX = kin
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
     c = _control(model, law, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay)
@@ -542,7 +542,7 @@ def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name:
     s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEAS.size), ca.MX.sym("p", PARAM.size)
     S, Y, P = STATE.split(s), MEAS.split(y), PARAM.split(p)
     q, dq = Y["q"], Y["dq"]
-    kin = _kinematics(model, surface, q, dq, P)
+    kin = kinematics(model, surface, q, dq, P)
     pos, R_tool, J, R, X, dX = kin
     f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
     c = _control(model, law, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque)

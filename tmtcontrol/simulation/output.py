@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 import pathlib
 
-from ..drawing import _can_fork
+from ..drawing import can_fork
 from ..files import versions, write_json
 
 __all__ = ["TIMESERIES_COLUMNS", "SIMULATION_FIGURES", "FIGURE_MODULE", "save_simulation", "write_timeseries",
@@ -87,12 +87,12 @@ def _formatted_elsewhere(data, row: str):
     import os
     import signal
 
-    from ..drawing import _read_all, _write_all
+    from ..drawing import read_all, write_all
 
     def here() -> bytes:
         return (_rows(data, row) + "\n").encode()
 
-    if not _can_fork():
+    if not can_fork():
         yield here
         return
     r, w = os.pipe()
@@ -107,7 +107,7 @@ def _formatted_elsewhere(data, row: str):
         code = 1
         try:
             os.close(r)
-            _write_all(w, here())
+            write_all(w, here())
             code = 0
         finally:
             os._exit(code)
@@ -116,7 +116,7 @@ def _formatted_elsewhere(data, row: str):
 
     def result() -> bytes:
         nonlocal status
-        text = _read_all(r)
+        text = read_all(r)
         status = os.waitpid(pid, 0)[1]
         return text if status == 0 else here()
 

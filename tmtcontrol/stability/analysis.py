@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
+from .onedim import (closed_form_applies, normal_masses, scenario_parameters, scenario_stiffness_limit,
+                     scheduled_damping, with_stiffness_limit)
 from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
                       spectral_radius, stable_band, stiffness_band)
 
@@ -14,100 +16,6 @@ __all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", 
 
 
 
-
-
-def scenario_parameters(scenario) -> dict:
-    """Normal-axis parameters of a scenario for the analysis: m, b, k, f_d, the
-    stiffness range of its profile, Ts, the inner-loop gains, the force filter
-    pole, and the robot's effective normal mass along the path (min and max)."""
-    from ..simulation.environment import stiffness_samples
-
-    sc = scenario
-    masses = normal_masses(sc)
-    t = np.arange(0.0, sc.duration, sc.controller.Ts)
-    k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
-    kd, kp = sc.impedance.gains
-    return {"m": sc.impedance.m[0], "b": sc.impedance.b[0], "k": sc.impedance.k[0],
-            "f_d": sc.controller.f_d, "k_e_min": float(k_e.min()), "k_e_max": float(k_e.max()),
-            "k_e_values": sorted({float(v) for v in k_e}) if len(set(k_e)) <= 20 else [],
-            "Ts": sc.controller.Ts, "kd": kd[0], "kp": kp[0],
-            "alpha": sc.sensor.pole(sc.controller.Ts),
-            "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
-            "law": sc.controller.law.kind, "delay": sc.controller.delay_samples,
-            "x_e_error": sc.controller.x_e_error}
-
-
-def normal_masses(sc) -> list:
-    """The arm's effective mass (kg) along the surface's inward normal n at the
-    checked path poses, ``1/(n^T J_v M^-1 J_v^T n)`` (J_v the linear rows of
-    J: the mass the normal axis meets with the other axes free; for a square
-    position task this is ``1/(n^T D*^-1 n)`` with the Cartesian inertia D*
-    of eq. 5)."""
-    from ..simulation.geometry import surface_of
-    from ..simulation.simulator import normal_mass, path_of, robot_of
-
-    robot = robot_of(sc)
-    path = path_of(robot, sc)
-    surface = surface_of(sc)
-    return [normal_mass(robot, q, surface.normal(robot.fk(q)[:3, 3])) for q in path.q.T]
-
-
-def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | None:
-    """The largest stable constant k_e (N/m) predicted for a scenario by the
-    sampled normal-axis loop of its law (``stability.lawloop``), the worse
-    of the path's two extreme effective masses, with the scenario's x_e
-    error, computation delay, force filter, contact damping and inner-loop
-    gains: the upper edge of the stable band of k_e that contains the
-    scenario's smallest stiffness (a stiff contact damper makes the loop
-    unstable on soft surfaces, below that band), 0 if the loop is unstable
-    there (the limit is below the scenario). ``None`` for
-    a law without a linear verdict (``Law.linear_analysis``)."""
-    from ..control.laws import get_law
-    from .lawloop import law_stiffness_limit
-
-    p = scenario_parameters(scenario) if params is None else params
-    law = get_law(scenario.controller.law.kind)
-    if not law.linear_analysis:
-        return None
-    ctl = scenario.controller
-    bk = _scheduled(scenario, p["m"])
-    if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error, p["k_e_min"], ctl.law):
-        # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
-        kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
-        if bk is None:
-            return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, within=p["k_e_min"], **kw)
-                       for mp in (p["m_p_min"], p["m_p_max"]))
-        return min(largest_stable(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
-                                                     **{**kw, **bk(ke)}) < 1.0, within=p["k_e_min"])
-                   for mp in (p["m_p_min"], p["m_p_max"]))
-    kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
-              d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
-    if bk is None:
-        return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, within=p["k_e_min"], **kw)
-                   for mp in (p["m_p_min"], p["m_p_max"]))
-    from .lawloop import law_loop
-
-    return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
-                                          **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4,
-                              within=p["k_e_min"])
-               for mp in (p["m_p_min"], p["m_p_max"]))
-
-
-def with_stiffness_limit(result):
-    """``result`` (a simulation) with ``info["stiffness_limit"]``, the
-    scenario's :func:`scenario_stiffness_limit` (N/m), attached: its segment
-    verdicts (``simulation.metrics.segment_metrics``) then call a segment
-    whose stiffness exceeds the limit ``diverged`` even when the run ended
-    before the instability grew (a ramp or a short hold above the limit).
-    The 1-D sampled limit is on the safe side of the simulated loop's (the
-    report of issue #28: within 2.5 %). Unchanged for a law without a linear
-    verdict or when no positive limit is found."""
-    import dataclasses
-
-    limit = scenario_stiffness_limit(result.scenario)
-    if limit is None or not np.isfinite(limit) or limit <= 0:
-        return result
-    return dataclasses.replace(result, info={**(result.info or {}), "stiffness_limit": float(limit)})
 
 
 def predicted_limits(scenario) -> dict:
@@ -126,20 +34,6 @@ def predicted_limits(scenario) -> dict:
     return {"small_signal": limit, "first_contact": first_contact_limit(scenario, limit)}
 
 
-def _scheduled(scenario, m: float):
-    """With a scheduled damping (``controller.damping_schedule.kind = "zeta"``),
-    ``k_e -> {"b": b, "kd": b/m}`` at the schedule's fixed point
-    (``stability.wholeloop.equilibrium_damping``); else None."""
-    if scenario.controller.damping_schedule.kind != "zeta":
-        return None
-    from .wholeloop import equilibrium_damping
-
-    def bk(ke):
-        b = equilibrium_damping(scenario, ke)
-        return {"b": b, "kd": b / m}
-    return bk
-
-
 def paper_effective_mass(worst: bool = False) -> float:
     """Effective normal mass along the paper scenario's path, kg: the
     smallest, or with ``worst`` the largest (the sampled stiffness limit
@@ -147,26 +41,6 @@ def paper_effective_mass(worst: bool = False) -> float:
     from ..simulation.scenario import paper_scenario
 
     return scenario_parameters(paper_scenario())["m_p_max" if worst else "m_p_min"]
-
-
-def closed_form_applies(law: str, delay: int, x_e_error: float, k_e_min: float | None = None,
-                        params=None) -> bool:
-    """Whether the closed-form 1-D model (``stability.sampled``) is the law's
-    sampled loop: TMT or the known-stiffness law, no delay, no x_e error, and
-    for TMT (given ``k_e_min``, N/m) no stiffness below the law's
-    ``min_stiffness`` (``params``, default the law's), where it clips its
-    compliance estimate and the closed form's unclipped reference does not
-    hold (with contact damping the closed form would call a soft surface
-    unstable that the clipped law holds). Otherwise the law's own loop
-    (``stability.lawloop``) is needed."""
-    if not (law in ("tmt", "known") and delay == 0 and x_e_error == 0.0):
-        return False
-    if law == "tmt" and k_e_min is not None:
-        from ..control.laws import get_law
-
-        floor = getattr(params if params is not None else get_law("tmt").parameters(), "min_stiffness", 0.0)
-        return k_e_min >= floor
-    return True
 
 
 def _band_dict(bands) -> dict:
@@ -309,7 +183,7 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     from .wholeloop import whole_loop_limit
 
     p = scenario_parameters(scenario)
-    bk = _scheduled(scenario, p["m"])
+    bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     if get_law(scenario.controller.law.kind).linear_analysis:

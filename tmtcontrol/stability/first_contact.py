@@ -158,7 +158,7 @@ def first_contact_limit(scenario, k_hi: float, rtol: float = 1e-3, runner: LoopR
     return float(lo)
 
 
-def _periodic_decay(runner: LoopRunner, k_e: float, cycles: int) -> float:
+def periodic_decay(runner: LoopRunner, k_e: float, cycles: int) -> float:
     """How the deviation from the periodic orbit changes over the last path
     period at constant ``k_e`` (after one period at 0.95 ``k_e`` from the
     scenario's start, and +-5 % on the stiffness for the first four samples
@@ -206,7 +206,7 @@ def simulated_limit(scenario, k_lo: float, k_hi: float, rtol: float = 1e-3, cycl
     shrinks. Raises :class:`AnalysisError` if ``k_lo`` does not converge or
     ``k_hi`` does."""
     r = runner or LoopRunner(scenario)
-    stable = lambda k: _periodic_decay(r, k, cycles) < 1.0
+    stable = lambda k: periodic_decay(r, k, cycles) < 1.0
     if not stable(k_lo):
         raise AnalysisError(f"k_lo: the simulated loop does not converge at {k_lo:.6g} N/m")
     if stable(k_hi):

@@ -260,7 +260,7 @@ def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[
             return 1.0
 
     if bracket is None:
-        from .analysis import scenario_stiffness_limit
+        from .onedim import scenario_stiffness_limit
         from .wholeloop import whole_loop_limit
 
         # the 1-D limit as the frozen search's guess (its log grid would start at 10 N/m, 1 m deep)

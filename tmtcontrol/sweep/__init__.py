@@ -45,7 +45,7 @@ def _facet_axis(sweep: Sweep, df) -> str | None:
     return third if 2 <= df[third].nunique() <= 4 else None
 
 
-def _predicted(sweep: Sweep, df) -> dict | None:
+def sweep_prediction(sweep: Sweep, df) -> dict | None:
     """The analysis' stiffness limit per value of the other map axis (and of
     the facet axis: keys are then ``(other, facet)`` pairs), when the stiffness
     is one of the first two axes and the law has a linear verdict: the
@@ -212,7 +212,7 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         table = partial.table()
         pq.write_table(table, folder.path / "results.parquet")
         df = table.to_pandas()
-        predicted = _predicted(sweep, df)
+        predicted = sweep_prediction(sweep, df)
         summary = sweep_summary(sweep, df, predicted)
         summary.update({"run": {"workers": workers, "engine": dask or "local", "seconds": time.perf_counter() - t0,
                                 "resumed_cases": len(done), "command": command_line},
