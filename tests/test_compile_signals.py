@@ -391,3 +391,15 @@ def test_a_full_disk_while_caching_a_robot_leaves_no_tmp(cache_env, monkeypatch)
     assert robot.n == 1
     left = [p.name for p in (cache_env / "cache").rglob("*") if p.is_file()]
     assert [n for n in left if n.endswith(".tmp")] == [] and not any(n.endswith(".casadi") for n in left), left
+
+
+def test_run_compiler_without_check_returns_the_failure_as_text(tmp_path):
+    """``check=False, text=True``: the drop-in for a caller that reads the return code and
+    the first line of stderr itself (the SIL's compile_export)."""
+    from tmtcontrol.processes import run_compiler
+
+    script = tmp_path / "badcc"
+    script.write_text('#!/bin/sh\necho "x.c:1: error: nope" >&2\nexit 3\n')
+    script.chmod(0o755)
+    out = run_compiler([script], tmp_path, check=False, text=True)
+    assert out.returncode == 3 and out.stderr == "x.c:1: error: nope\n"

@@ -296,24 +296,27 @@ sys.exit(rc if rc >= 0 else 128 - rc)
 _SUPERVISOR PARENT_PID CC ARGS...``, started as the leader of a new session."""
 
 
-def run_compiler(args: list[str], tmpdir: str | os.PathLike, timeout: float = 600.0) -> subprocess.CompletedProcess:
+def run_compiler(args: list[str], tmpdir: str | os.PathLike, timeout: float = 600.0, check: bool = True,
+                 text: bool = False) -> subprocess.CompletedProcess:
     """Run the C compiler ``args`` (``[cc, flags..., file, "-o", lib]``) to the
-    end, its output captured (bytes), with ``TMPDIR`` (and ``TMP``, ``TEMP``)
-    set to ``tmpdir``; raise :class:`subprocess.CalledProcessError` if it
-    fails and :class:`subprocess.TimeoutExpired` after ``timeout`` seconds.
-    However this call ends early (Ctrl-C, SIGTERM under the command line's
-    handlers, a timeout), the compiler and every process it started are
-    killed and waited for before the exception goes on; if tmtcontrol itself
-    is killed (SIGKILL), its supervisor kills them (see the module
-    docstring). Where process groups are missing (Windows), a plain
-    :func:`subprocess.run`."""
+    end, its output captured (bytes, or str with ``text``), with ``TMPDIR``
+    (and ``TMP``, ``TEMP``) set to ``tmpdir`` (a build folder's ``tmp/``,
+    :func:`tmtcontrol.cache.new_build_folder`); with ``check``, raise
+    :class:`subprocess.CalledProcessError` if it fails.
+    :class:`subprocess.TimeoutExpired` after ``timeout`` seconds. However
+    this call ends early (Ctrl-C, SIGTERM under the command line's handlers,
+    a timeout), the compiler and every process it started are killed before
+    the exception goes on; if tmtcontrol itself is killed (SIGKILL), its
+    supervisor kills them (see the module docstring). Where process groups
+    are missing (Windows), a plain :func:`subprocess.run`."""
     tmp = os.fspath(tmpdir)
     env = {**os.environ, "TMPDIR": tmp, "TMP": tmp, "TEMP": tmp}
-    if os.name != "posix":                       # pragma: no cover - no process groups
-        return subprocess.run(args, check=True, capture_output=True, timeout=timeout, env=env)
-    proc = subprocess.Popen([sys.executable, "-I", "-S", "-c", _SUPERVISOR, str(os.getpid()), *map(str, args)],
+    args = [os.fspath(a) for a in args]
+    if os.name != "posix" or not sys.executable:         # pragma: no cover - no process groups, no interpreter
+        return subprocess.run(args, check=check, capture_output=True, timeout=timeout, env=env, text=text)
+    proc = subprocess.Popen([sys.executable, "-I", "-S", "-c", _SUPERVISOR, str(os.getpid()), *args],
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True)
+                            start_new_session=True, text=text)
     try:
         out, err = proc.communicate(timeout=timeout)
     except BaseException:
@@ -322,9 +325,9 @@ def run_compiler(args: list[str], tmpdir: str | os.PathLike, timeout: float = 60
     finally:
         for stream in (proc.stdout, proc.stderr):
             stream.close()
-    if proc.returncode:
-        raise subprocess.CalledProcessError(proc.returncode, list(args), out, err)
-    return subprocess.CompletedProcess(list(args), 0, out, err)
+    if check and proc.returncode:
+        raise subprocess.CalledProcessError(proc.returncode, args, out, err)
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
