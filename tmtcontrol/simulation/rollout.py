@@ -20,7 +20,12 @@ an unwritable cache and pruning are in :mod:`tmtcontrol.cache`: a
 library that does not match its recorded size and SHA-256 (a crash during a
 write) is rebuilt, never loaded; a full disk leaves nothing partial and the
 library is used uncached; with no compiler a valid cached library is still
-used. Without a compiler, or when ``compile=False`` (the caller's choice for
+used. The C is built in a private build folder under the cache
+(:func:`tmtcontrol.cache.build_folder`) by :func:`tmtcontrol.processes.run_compiler`:
+Ctrl-C or SIGTERM during the compile kills the compiler and its children at
+once, removes the folder (the partial library and the compiler's
+temporaries) and goes on as KeyboardInterrupt (the command line's one-line
+exit 130/143); a SIGKILL of this process kills the compiler too. Without a compiler, or when ``compile=False`` (the caller's choice for
 Functions that cannot be code-generated, such as CVODES), the same rollout
 runs on CasADi's virtual machine — slower, identical in result.
 """
