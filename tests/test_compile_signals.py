@@ -403,3 +403,28 @@ def test_run_compiler_without_check_returns_the_failure_as_text(tmp_path):
     script.chmod(0o755)
     out = run_compiler([script], tmp_path, check=False, text=True)
     assert out.returncode == 3 and out.stderr == "x.c:1: error: nope\n"
+
+
+def test_a_robot_compiled_with_an_unwritable_cache_leaves_nothing_in_tmp(cache_env, monkeypatch):
+    """The robot's compiled dynamics with a cache that cannot be written: built in the
+    per-user fallback's build folder, loaded from there and correct after the folder is
+    gone; no tmtcontrol-lib-* (the old per-run copy) nor any build folder stays."""
+    import numpy as np
+
+    from tmtcontrol import cache
+    from tmtcontrol.model.robot import load_robot
+
+    if cache.compiler() is None:
+        pytest.skip("no C compiler")
+    (cache_env / "not-a-folder").write_text("")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(cache_env / "not-a-folder" / "cache"))
+    path = cache_env / "pend.urdf"
+    path.write_text(PENDULUM)
+    robot = load_robot(path, cache=False)
+    fn = robot.dynamics(compiled=True)
+    assert fn.is_a("External")
+    M, n = fn([0.4], [0.0])
+    assert abs(float(M) - (0.01 + 2.0 * 0.09)) < 1e-12
+    assert np.allclose(M.full(), robot.dynamics(compiled=False)([0.4], [0.0])[0].full(), rtol=0, atol=1e-15)
+    assert [p.name for p in (cache_env / "tmp").iterdir()] == [cache.fallback_dir().name]
+    assert list(cache.fallback_dir().iterdir()) == []
