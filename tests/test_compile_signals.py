@@ -333,6 +333,11 @@ def test_an_unwritable_cache_builds_in_the_private_fallback_not_in_tmp(cache_env
     with cache.build_folder("cg") as build:
         assert build.parent == cache.fallback_dir() / "build"
     assert list(cache.fallback_dir().iterdir()) == []
+    cache.fallback_dir().rmdir()
+    cache.fallback_dir().write_text("not a folder")          # no fallback either: the last resort
+    with cache.build_folder("cg") as build:
+        assert build.parent == cache_env / "tmp" and build.stat().st_mode & 0o077 == 0
+    assert [p.name for p in (cache_env / "tmp").iterdir()] == [cache.fallback_dir().name]
 
 
 # -- a full disk while caching ----------------------------------------------------------------

@@ -296,8 +296,8 @@ def _owner_alive(pid: int, start: int) -> bool:
 
 
 def _build_roots() -> list[pathlib.Path]:
-    """Where build folders are made, in order of preference: ``CACHE/build``,
-    the per-user fallback's ``build``, and (last resort) the temporary folder."""
+    """The folders holding build folders (besides the temporary folder, the
+    last resort): ``CACHE/build`` and the per-user fallback's ``build``."""
     roots = [cache_dir() / "build"]
     fb = fallback_cache(create=False)
     if fb is not None:
@@ -320,14 +320,9 @@ def new_build_folder(kind: str) -> pathlib.Path:
         raise ValueError(f"kind: expected lower-case letters, got {kind!r}")
     _prune_build_folders()
     prefix = f"tmtcontrol-build-{kind}-{os.getpid()}-{_start_time(os.getpid())}-"
-    path = None
-    for root in (lambda: cache_dir(), lambda: fallback_cache()):    # the fallback made only if needed
-        folder = root()
-        if folder is None:
-            continue
-        path = _make_in(folder / "build", prefix)
-        if path is not None:
-            break
+    path = _make_in(cache_dir() / "build", prefix)
+    if path is None and (fallback := fallback_cache()) is not None:      # the fallback made only if needed
+        path = _make_in(fallback / "build", prefix)
     if path is None:                                # no cache folder at all: the temporary folder
         path = pathlib.Path(tempfile.mkdtemp(prefix=prefix))
     _LIVE[path] = os.getpid()
