@@ -14,10 +14,17 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
 * After each new library the folder is pruned: libraries unused for
   :data:`MAX_AGE_DAYS` days go, then the least recently used until the
   libraries take at most :data:`MAX_BYTES`; staged files older than an hour
-  (a killed write) go too, and so do this user's build folders
-  (``$TMPDIR/tmtcontrol-cg-*``, left by a compile that was killed) and
-  private library folders of older versions (``tmtcontrol-lib-*``) older
-  than a day. Loading a library marks it used (its mtime).
+  (a killed write) go too, and so do this user's build folders whose
+  owner process has ended (:func:`build_folder`) and the temporary folders
+  of older versions (``$TMPDIR/tmtcontrol-cg-*``, ``-robot-*``, ``-sil-*``,
+  ``-lib-*``) older than a day. Loading a library marks it used (its mtime).
+* Every compile (a rollout, a robot's Functions, an exported controller)
+  builds in a private folder :func:`build_folder` makes under the cache
+  (``CACHE/build/tmtcontrol-build-KIND-PID-START-*``, the compiler's own
+  temporaries in its ``tmp/``), removed when the build ends or the process
+  exits; one whose owner was killed (SIGKILL) is removed by the next compile,
+  by :func:`prune_temporary` and by ``tmtcontrol cache --clear``. Nothing is
+  built in the temporary folder itself.
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -26,6 +33,8 @@ Standard library only: ``tmtcontrol cache`` starts without CasADi or NumPy.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import hashlib
 import json
 import os
@@ -37,7 +46,8 @@ import tempfile
 import time
 
 __all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
-           "mark_used", "prune", "prune_temporary", "cache_info", "clear_cache", "format_cache_info"]
+           "write_staged", "mark_used", "prune", "prune_temporary", "build_folder", "new_build_folder",
+           "remove_build_folder", "cache_info", "clear_cache", "format_cache_info"]
 
 MAX_BYTES = 200 * 2**20
 """The compiled libraries kept in one cache folder take at most 200 MiB
@@ -138,15 +148,22 @@ def verify(lib: pathlib.Path) -> bool:
 
 
 def store(built: pathlib.Path, lib: pathlib.Path) -> None:
-    """Copy ``built`` into the cache as ``lib``: both the library and its
-    sidecar are staged and fsync'ed first, then renamed (the library first, so
-    a crash between leaves an unverifiable library, which is rebuilt). If
-    staging fails (a full disk), the staged files are removed and the error
-    raised: nothing partial stays in the cache."""
-    lib.parent.mkdir(parents=True, exist_ok=True)
+    """Copy ``built`` into the cache as ``lib``, with its sidecar (size and
+    SHA-256), by :func:`write_staged`: a full disk leaves nothing partial."""
+    write_staged([(lib, built.read_bytes()), (_sidecar(lib), json.dumps(_digest(built)).encode())])
+
+
+def write_staged(files: list[tuple[pathlib.Path, bytes]]) -> None:
+    """Write each ``(path, data)``: all are staged as ``.NAME.PID.tmp`` and
+    fsync'ed first, then renamed in order (put the checksum last, so a crash
+    between leaves an unverifiable file, which is rebuilt). If anything fails
+    (a full disk, a signal), every staged file is removed and the error
+    raised: nothing partial is left."""
+    for path, _ in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
     staged = []
     try:
-        for target, data in ((lib, built.read_bytes()), (_sidecar(lib), json.dumps(_digest(built)).encode())):
+        for target, data in files:
             tmp = target.parent / f".{target.name}.{os.getpid()}.tmp"
             staged.append((tmp, target))
             with open(tmp, "wb") as fh:
@@ -242,23 +259,168 @@ def prune(folder: pathlib.Path, keep: tuple[pathlib.Path, ...] = (), max_bytes: 
     return removed
 
 
-_BUILD_LITTER = re.compile(r"tmtcontrol-(cg|lib)-[A-Za-z0-9_]+")
-"""Temporary folders of a compile killed half-way (``tmtcontrol-cg-*``, the
-build folder) and of versions before the per-user fallback
-(``tmtcontrol-lib-*``, one per run with an unwritable cache)."""
+_BUILD_LITTER = re.compile(r"tmtcontrol-(cg|lib|robot|sil)-[A-Za-z0-9_]+")
+"""Temporary folders of older versions, which built in the temporary folder
+itself: ``tmtcontrol-cg-*`` (a rollout), ``-robot-*`` (a robot's Functions),
+``-sil-*`` (an exported controller, kept for the run) and ``-lib-*`` (a
+private library of a run with an unwritable cache)."""
+
+_BUILD = re.compile(r"tmtcontrol-build-[a-z]+-([0-9]+)-([0-9]+)-[A-Za-z0-9_]+")
+"""A build folder of :func:`new_build_folder`: its owner's pid and start time."""
+
+_LIVE: dict[pathlib.Path, int] = {}
+"""The build folders this process made and has not removed, with the pid that
+made them (removed at its exit; a forked child inherits the record, not the folders)."""
+
+
+def _start_time(pid: int) -> int:
+    """The process' start time (clock ticks since boot, from /proc), or 0 where unknown."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return int(fh.read().rsplit(")", 1)[1].split()[19])
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def _owner_alive(pid: int, start: int) -> bool:
+    """The process ``pid`` started at ``start`` still runs (a reused pid is not it)."""
+    if start and os.path.isdir("/proc/self"):
+        return _start_time(pid) == start
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def _build_roots() -> list[pathlib.Path]:
+    """The folders holding build folders (besides the temporary folder, the
+    last resort): ``CACHE/build`` and the per-user fallback's ``build``."""
+    roots = [cache_dir() / "build"]
+    fb = fallback_cache(create=False)
+    if fb is not None:
+        roots.append(fb / "build")
+    return roots
+
+
+def new_build_folder(kind: str) -> pathlib.Path:
+    """A new private (0700) build folder for a compile of ``kind`` (a short
+    lower-case word: ``"cg"``, ``"robot"``, ``"sil"``), with an empty
+    ``tmp/`` for the compiler's temporaries (:func:`tmtcontrol.processes.run_compiler`).
+    It is made under the cache (``CACHE/build``), else the per-user fallback,
+    else the temporary folder, and named after this process (pid and start
+    time), so that once this process has ended it is recognised as stale and
+    removed (:func:`prune_temporary`). Removed by :func:`remove_build_folder`
+    or, at the latest, when the interpreter exits; use :func:`build_folder`
+    for a build whose products are not needed after a block. Earlier build
+    folders whose owner has ended are removed first."""
+    if not re.fullmatch(r"[a-z]+", kind):
+        raise ValueError(f"kind: expected lower-case letters, got {kind!r}")
+    _prune_build_folders()
+    prefix = f"tmtcontrol-build-{kind}-{os.getpid()}-{_start_time(os.getpid())}-"
+    path = _make_in(cache_dir() / "build", prefix)
+    if path is None and (fallback := fallback_cache()) is not None:      # the fallback made only if needed
+        path = _make_in(fallback / "build", prefix)
+    if path is None:                                # no cache folder at all: the temporary folder
+        path = pathlib.Path(tempfile.mkdtemp(prefix=prefix))
+    _LIVE[path] = os.getpid()
+    (path / "tmp").mkdir(mode=0o700)
+    return path
+
+
+def _make_in(root: pathlib.Path, prefix: str) -> pathlib.Path | None:
+    """A new folder in ``root`` (made 0700 if needed; None if it is not private
+    or cannot be written). Retried when another process removed ``root``,
+    empty, between the two steps."""
+    for _ in range(3):
+        try:
+            root.mkdir(mode=0o700, parents=True, exist_ok=True)
+            if not _private(root):
+                return None
+            return pathlib.Path(tempfile.mkdtemp(prefix=prefix, dir=root))
+        except FileNotFoundError:
+            continue
+        except OSError:
+            return None
+    return None
+
+
+def _remove_tree(path: pathlib.Path) -> None:
+    """Remove a build folder, then its ``build`` root if that is now empty."""
+    shutil.rmtree(path, ignore_errors=True)
+    if path.parent in _build_roots():
+        try:
+            path.parent.rmdir()
+        except OSError:
+            pass
+
+
+def remove_build_folder(path: pathlib.Path) -> None:
+    """Remove a build folder made by :func:`new_build_folder` (and only such a folder)."""
+    path = pathlib.Path(path)
+    if not _BUILD.fullmatch(path.name):
+        raise ValueError(f"{path} is not a tmtcontrol build folder")
+    _remove_tree(path)
+    _LIVE.pop(path, None)
+
+
+@atexit.register
+def _remove_live() -> None:
+    """At exit, this process' build folders (a library loaded from one has done its work)."""
+    for path, pid in sorted(_LIVE.items()):
+        if pid == os.getpid():
+            _remove_tree(path)
+    _LIVE.clear()
+
+
+@contextlib.contextmanager
+def build_folder(kind: str):
+    """A block with a new build folder (:func:`new_build_folder`), removed when
+    the block ends, however it ends (an error, Ctrl-C, SIGTERM under the
+    command line's handlers); a library loaded from it keeps working."""
+    path = new_build_folder(kind)
+    try:
+        yield path
+    finally:
+        remove_build_folder(path)
+
+
+def _prune_build_folders() -> int:
+    """Remove this user's build folders whose owner process has ended."""
+    removed = 0
+    for root in [*_build_roots(), pathlib.Path(tempfile.gettempdir())]:
+        try:
+            entries = list(os.scandir(root))
+        except OSError:
+            continue
+        for e in entries:
+            m = _BUILD.fullmatch(e.name)
+            if m is None or _owner_alive(int(m.group(1)), int(m.group(2))):
+                continue
+            try:
+                st = e.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if stat.S_ISDIR(st.st_mode) and (not hasattr(os, "getuid") or st.st_uid == os.getuid()):
+                _remove_tree(pathlib.Path(e.path))
+                removed += 1
+    return removed
 
 
 def prune_temporary(max_age_days: float = 1.0, now: float | None = None) -> int:
-    """Remove this user's compile litter from the temporary folder: build
-    folders and old private library folders (see :data:`_BUILD_LITTER`)
-    older than ``max_age_days`` (a build takes minutes at most; a library
-    already loaded keeps working without its file). Returns how many."""
+    """Remove this user's compile litter: build folders whose owner has ended
+    (:func:`new_build_folder`, whatever their age), and the temporary folders
+    of older versions (see :data:`_BUILD_LITTER`) older than
+    ``max_age_days`` (a build takes minutes at most; a library already loaded
+    keeps working without its file). Returns how many."""
     now = time.time() if now is None else now
-    removed = 0
+    removed = _prune_build_folders()
     try:
         entries = list(os.scandir(tempfile.gettempdir()))
     except OSError:
-        return 0
+        return removed
     for e in entries:
         if not _BUILD_LITTER.fullmatch(e.name):
             continue
@@ -268,8 +430,6 @@ def prune_temporary(max_age_days: float = 1.0, now: float | None = None) -> int:
             continue
         mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
         if stat.S_ISDIR(st.st_mode) and mine and now - st.st_mtime > max_age_days * 86400.0:
-            import shutil
-
             shutil.rmtree(e.path, ignore_errors=True)
             removed += 1
     return removed
@@ -287,8 +447,9 @@ def cache_info() -> dict:
 
 def clear_cache() -> dict:
     """Remove every file tmtcontrol put in its cache folders (libraries,
-    sidecars, staged files) and its compile litter in the temporary folder
-    (:func:`prune_temporary`, whatever its age); anything else stays.
+    sidecars, staged files), the build folders of ended processes and the
+    temporary folders of older versions (:func:`prune_temporary`, whatever
+    their age); anything else stays (a running build keeps its folder).
     Returns the counts."""
     prune_temporary(max_age_days=0.0)
     count = size = 0

@@ -30,6 +30,17 @@ report's second process (:mod:`tmtcontrol.report.document`). Both call
   yours). The command line also sets those variables for libraries it loads
   later (:func:`blas_env_defaults`).
 
+The C compiler (:func:`run_compiler`, every compile tmtcontrol runs) dies with
+tmtcontrol too, and leaves no temporaries: ``cc`` forks ``cc1`` and ``as``,
+which a ``PR_SET_PDEATHSIG`` of ``cc`` would not reach (the setting is not
+inherited across fork), so the compiler runs under a small supervisor (a
+bare ``python -I -S``) that leads a process group of its own, asks for
+SIGTERM when tmtcontrol dies (and polls its parent, the portable guard) and
+then kills the whole group; tmtcontrol itself kills the group at once when
+it is interrupted (Ctrl-C, SIGTERM, a timeout). The compiler's ``TMPDIR`` is
+the build folder's ``tmp/`` (:func:`tmtcontrol.cache.new_build_folder`),
+removed with it, or, after a SIGKILL, by the next compile.
+
 :func:`defer_in_finalizers` wraps the command line's SIGINT/SIGTERM handlers so
 that a signal arriving while a weakref callback or a ``__del__`` runs is not
 raised there (Python would print "Exception ignored in ..." and drop it): it is
@@ -41,11 +52,12 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import subprocess
 import sys
 import threading
 
 __all__ = ["worker_init", "die_with_parent", "one_blas_thread", "defer_in_finalizers", "blas_threads_limited",
-           "blas_env_defaults", "signals_held", "THREAD_VARIABLES", "PDEATHSIG"]
+           "blas_env_defaults", "signals_held", "run_compiler", "THREAD_VARIABLES", "PDEATHSIG"]
 
 PDEATHSIG = signal.SIGKILL if hasattr(signal, "SIGKILL") else None
 """The signal a Linux worker gets when its parent dies (a worker holds no
@@ -253,3 +265,76 @@ def _deferring(handler, retry: float):
 
     deferring._defers_finalizers = True
     return deferring
+
+
+_SUPERVISOR = r"""
+import os, signal, subprocess, sys
+parent = int(sys.argv[1])
+def end(*_):
+    os.killpg(0, signal.SIGKILL)         # the compiler, its cc1/as, and this supervisor
+for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+    signal.signal(s, end)
+if sys.platform.startswith("linux"):
+    import ctypes
+    try:
+        ctypes.CDLL(None).prctl(1, int(signal.SIGTERM), 0, 0, 0)     # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+if os.getppid() != parent:               # tmtcontrol died before the prctl
+    end()
+child = subprocess.Popen(sys.argv[2:])
+while True:
+    try:
+        rc = child.wait(0.2)
+        break
+    except subprocess.TimeoutExpired:
+        if os.getppid() != parent:       # the portable guard: tmtcontrol has gone
+            end()
+sys.exit(rc if rc >= 0 else 128 - rc)
+"""
+"""The compiler's supervisor (see the module docstring): ``python -I -S -c
+_SUPERVISOR PARENT_PID CC ARGS...``, started as the leader of a new session."""
+
+
+def run_compiler(args: list[str], tmpdir: str | os.PathLike, timeout: float = 600.0, check: bool = True,
+                 text: bool = False) -> subprocess.CompletedProcess:
+    """Run the C compiler ``args`` (``[cc, flags..., file, "-o", lib]``) to the
+    end, its output captured (bytes, or str with ``text``), with ``TMPDIR``
+    (and ``TMP``, ``TEMP``) set to ``tmpdir`` (a build folder's ``tmp/``,
+    :func:`tmtcontrol.cache.new_build_folder`); with ``check``, raise
+    :class:`subprocess.CalledProcessError` if it fails.
+    :class:`subprocess.TimeoutExpired` after ``timeout`` seconds. However
+    this call ends early (Ctrl-C, SIGTERM under the command line's handlers,
+    a timeout), the compiler and every process it started are killed before
+    the exception goes on; if tmtcontrol itself is killed (SIGKILL), its
+    supervisor kills them (see the module docstring). Where process groups
+    are missing (Windows), a plain :func:`subprocess.run`."""
+    tmp = os.fspath(tmpdir)
+    env = {**os.environ, "TMPDIR": tmp, "TMP": tmp, "TEMP": tmp}
+    args = [os.fspath(a) for a in args]
+    if os.name != "posix" or not sys.executable:         # pragma: no cover - no process groups, no interpreter
+        return subprocess.run(args, check=check, capture_output=True, timeout=timeout, env=env, text=text)
+    proc = subprocess.Popen([sys.executable, "-I", "-S", "-c", _SUPERVISOR, str(os.getpid()), *args],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                            start_new_session=True, text=text)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except BaseException:
+        _kill_group(proc)
+        raise
+    finally:
+        for stream in (proc.stdout, proc.stderr):
+            stream.close()
+    if check and proc.returncode:
+        raise subprocess.CalledProcessError(proc.returncode, args, out, err)
+    return subprocess.CompletedProcess(args, proc.returncode, out, err)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """SIGKILL the process group ``proc`` leads (its pid: a new session), then
+    reap ``proc`` (until then its pid, the group's id, cannot be reused)."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    proc.wait()

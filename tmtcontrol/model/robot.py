@@ -507,11 +507,14 @@ what CasADi's virtual machine computes."""
 def _compiled(fn: ca.Function, key: str) -> ca.Function:
     """``fn`` generated as C, compiled and loaded as an external Function;
     cached as ``<cache>/robots/<name>_<key>.so`` (written under a temporary
-    name and renamed). Without a compiler, or if compiling fails, ``fn``."""
+    name and renamed). Built in a private build folder, removed however the
+    build ends (:func:`tmtcontrol.cache.build_folder`); if the cache cannot be
+    written, loaded from there (the mapping outlives the file). Without a
+    compiler, or if compiling fails, ``fn``."""
     import subprocess
-    import tempfile
 
-    from ..cache import cache_dir, compiler      # the one cache folder and compiler choice
+    from ..cache import build_folder, cache_dir, compiler      # the one cache folder and compiler choice
+    from ..processes import run_compiler
 
     h = hashlib.sha256(f"{key} {' '.join(_CFLAGS)} {ca.__version__} {os.uname().machine}".encode())
     lib = cache_dir() / "robots" / f"{fn.name()}_{h.hexdigest()[:20]}.so"
@@ -524,20 +527,17 @@ def _compiled(fn: ca.Function, key: str) -> ca.Function:
     if cc is None:
         return fn
     try:
-        with tempfile.TemporaryDirectory(prefix="tmtcontrol-robot-") as tmp:
+        with build_folder("robot") as build:
             gen = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
             gen.add(fn)
-            cfile = gen.generate(tmp + os.sep)
-            built = pathlib.Path(tmp) / "lib.so"
-            subprocess.run([cc, *_CFLAGS, cfile, "-o", str(built), "-lm"], check=True, capture_output=True,
-                           timeout=600)
+            cfile = gen.generate(str(build) + os.sep)
+            built = build / "lib.so"
+            run_compiler([cc, *_CFLAGS, cfile, "-o", str(built), "-lm"], build / "tmp")
             try:
                 _store(lib, built.read_bytes())
                 return ca.external(fn.name(), str(lib))
             except OSError:
-                private = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-lib-")) / lib.name
-                private.write_bytes(built.read_bytes())
-                return ca.external(fn.name(), str(private))
+                return ca.external(fn.name(), str(built))
     except (OSError, subprocess.SubprocessError, RuntimeError):
         return fn
 
@@ -549,15 +549,11 @@ def _safe(name: str) -> str:
 def _store(path: pathlib.Path, data: bytes) -> None:
     """Write ``data`` to ``path`` and its SHA-256 to ``path.sha256``, each under a
     temporary name, fsync'ed and renamed (the checksum last, so a crash leaves an
-    unverifiable file, which is rebuilt)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for target, payload in ((path, data), (_sidecar(path), hashlib.sha256(data).hexdigest().encode())):
-        staged = target.parent / f".{target.name}.{os.getpid()}.tmp"
-        with open(staged, "wb") as fh:
-            fh.write(payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(staged, target)
+    unverifiable file, which is rebuilt); a failed write (a full disk) leaves no
+    staged file (:func:`tmtcontrol.cache.write_staged`)."""
+    from ..cache import write_staged
+
+    write_staged([(path, data), (_sidecar(path), hashlib.sha256(data).hexdigest().encode())])
 
 
 def _verified(path: pathlib.Path) -> bytes | None:

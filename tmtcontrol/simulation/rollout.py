@@ -20,7 +20,12 @@ an unwritable cache and pruning are in :mod:`tmtcontrol.cache`: a
 library that does not match its recorded size and SHA-256 (a crash during a
 write) is rebuilt, never loaded; a full disk leaves nothing partial and the
 library is used uncached; with no compiler a valid cached library is still
-used. Without a compiler, or when ``compile=False`` (the caller's choice for
+used. The C is built in a private build folder under the cache
+(:func:`tmtcontrol.cache.build_folder`) by :func:`tmtcontrol.processes.run_compiler`:
+Ctrl-C or SIGTERM during the compile kills the compiler and its children at
+once, removes the folder (the partial library and the compiler's
+temporaries) and goes on as KeyboardInterrupt (the command line's one-line
+exit 130/143); a SIGKILL of this process kills the compiler too. Without a compiler, or when ``compile=False`` (the caller's choice for
 Functions that cannot be code-generated, such as CVODES), the same rollout
 runs on CasADi's virtual machine — slower, identical in result.
 """
@@ -35,7 +40,6 @@ import os
 import pathlib
 import platform
 import subprocess
-import tempfile
 import warnings
 
 import casadi as ca
@@ -43,6 +47,7 @@ import numpy as np
 
 from .. import cache
 from ..cache import cache_dir, compiler
+from ..processes import run_compiler
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
@@ -184,13 +189,14 @@ class Rollout:
         # named as the library is (mapaccum names its Function after the chunk's factors)
         args = acc.mx_in()
         fn = ca.Function(name, args, acc.call(args), acc.name_in(), acc.name_out())
-        with tempfile.TemporaryDirectory(prefix="tmtcontrol-cg-", ignore_cleanup_errors=True) as tmp:
+        # a private build folder under the cache, removed however this ends; the compiler is killed
+        # with its children if this is interrupted, and its temporaries are in the folder's tmp/
+        with cache.build_folder("cg") as build:
             gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             gen.add(fn)
-            cfile = pathlib.Path(gen.generate(tmp + os.sep))
-            tmp_lib = pathlib.Path(tmp) / "lib.so"
-            subprocess.run([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"],
-                           check=True, capture_output=True, timeout=600)
+            cfile = pathlib.Path(gen.generate(str(build) + os.sep))
+            tmp_lib = build / "lib.so"
+            run_compiler([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
             lib = self._keep(tmp_lib, target)
             # an uncached library is loaded from the build folder, which is removed
             # after loading (the mapping stays valid): nothing is left behind
