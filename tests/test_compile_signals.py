@@ -435,3 +435,27 @@ def test_a_robot_compiled_with_an_unwritable_cache_leaves_nothing_in_tmp(cache_e
     assert np.allclose(M.full(), robot.dynamics(compiled=False)([0.4], [0.0])[0].full(), rtol=0, atol=1e-15)
     assert [p.name for p in (cache_env / "tmp").iterdir()] == [cache.fallback_dir().name]
     assert list(cache.fallback_dir().iterdir()) == []
+
+
+def test_simulate_with_an_exported_controller_leaves_nothing_in_the_temporary_folder(tmp_path):
+    """Issue: every `simulate --controller` left a tmtcontrol-sil-* build folder in $TMPDIR that
+    neither pruning nor `cache --clear` removed. The SIL library is now built in a private build
+    folder under the cache, removed when the command ends: $TMPDIR stays empty and the cache's
+    build folder holds nothing once the command is over."""
+    import os
+    import subprocess
+    import sys
+
+    tmp, cache = tmp_path / "tmp", tmp_path / "cache"
+    tmp.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp), "TMTCONTROL_CACHE": str(cache), "MPLBACKEND": "Agg"}
+    run = lambda *a: subprocess.run([sys.executable, "-m", "tmtcontrol.cli", *a], env=env, capture_output=True,
+                                    text=True, timeout=600)
+    r = run("export", "paper", "--inner-loop", "--out", str(tmp_path / "ctrl"))
+    assert r.returncode == 0, r.stderr
+    r = run("simulate", "paper", "--controller", str(tmp_path / "ctrl"), "--set", "trajectory.cycles=0.25",
+            "--no-plots", "--out", str(tmp_path / "out"))
+    assert r.returncode == 0, r.stderr
+    assert sorted(os.listdir(tmp)) == []
+    build = cache / "build"
+    assert not build.exists() or sorted(os.listdir(build)) == []

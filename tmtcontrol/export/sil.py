@@ -27,13 +27,13 @@ import json
 import os
 import pathlib
 import shutil
-import subprocess
-import tempfile
 
 import casadi as ca
 import numpy as np
 
+from ..cache import new_build_folder
 from ..model.robot import task_of
+from ..processes import run_compiler
 from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, param_layout,
                                      plant_inputs_layout)
 from ..simulation.rollout import compiler
@@ -64,10 +64,10 @@ def compile_export(folder: str | os.PathLike, flag: str = "--controller") -> pat
     cc = compiler()
     if cc is None:
         raise ExportError(f"{flag}: no C compiler found; install one (apt-get install gcc) or set CC")
-    build = pathlib.Path(tempfile.mkdtemp(prefix="tmtcontrol-sil-"))
+    build = new_build_folder("sil")
     lib = build / "libtmt_controller.so"
-    result = subprocess.run([cc, *SIL_FLAGS, "-I", str(folder), str(folder / "tmt_controller.c"), "-o", str(lib),
-                             "-lm"], capture_output=True, text=True, timeout=600)
+    result = run_compiler([cc, *SIL_FLAGS, "-I", str(folder), str(folder / "tmt_controller.c"), "-o", str(lib),
+                           "-lm"], build / "tmp", check=False, text=True)
     if result.returncode != 0:
         shutil.rmtree(build, ignore_errors=True)
         first = (result.stderr.strip().splitlines() or ["no message"])[0]
