@@ -342,6 +342,31 @@ def test_an_unwritable_cache_builds_in_the_private_fallback_not_in_tmp(cache_env
     assert [p.name for p in (cache_env / "tmp").iterdir()] == [cache.fallback_dir().name]
 
 
+def test_a_nearly_full_cache_disk_builds_in_the_temporary_folder_not_the_fallback(cache_env, monkeypatch):
+    """Below BUILD_MIN_FREE free on the cache's disk the build folder is made in
+    the temporary folder (a compile there would fail for lack of space); the
+    per-user fallback, meant for an unwritable cache, is not made. At exactly
+    the minimum the cache is used."""
+    from tmtcontrol import cache
+
+    free = {"bytes": cache.BUILD_MIN_FREE - 1}
+    monkeypatch.setattr(cache, "_free_bytes", lambda folder: free["bytes"])
+    with cache.build_folder("cg") as build:
+        assert build.parent == cache_env / "tmp"
+    assert list((cache_env / "tmp").iterdir()) == []
+    free["bytes"] = cache.BUILD_MIN_FREE
+    with cache.build_folder("cg") as build:
+        assert build.parent == cache_env / "cache" / "build"
+
+
+def test_free_bytes_of_a_missing_folder_is_its_disks_and_proc_is_not_full(tmp_path):
+    from tmtcontrol import cache
+
+    st = os.statvfs(tmp_path)
+    assert cache._free_bytes(tmp_path / "a" / "b") == pytest.approx(st.f_bavail * st.f_frsize, rel=0.01)
+    assert cache._free_bytes(pathlib.Path("/proc/no-such-cache")) == float("inf")
+
+
 # -- a full disk while caching ----------------------------------------------------------------
 def _enospc_on_fsync(monkeypatch, after: int = 0):
     """os.fsync raises ENOSPC from its ``after``-th call on (0: the first)."""

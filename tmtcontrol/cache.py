@@ -23,8 +23,10 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   (``CACHE/build/tmtcontrol-build-KIND-PID-START-*``, the compiler's own
   temporaries in its ``tmp/``), removed when the build ends or the process
   exits; one whose owner was killed (SIGKILL) is removed by the next compile,
-  by :func:`prune_temporary` and by ``tmtcontrol cache --clear``. Nothing is
-  built in the temporary folder itself.
+  by :func:`prune_temporary` and by ``tmtcontrol cache --clear``. Only when
+  no cache folder can be used (the disk holding it has less than
+  :data:`BUILD_MIN_FREE` free, or neither it nor the fallback can be
+  written) is a build folder made in the temporary folder, removed the same way.
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -320,14 +322,39 @@ def new_build_folder(kind: str) -> pathlib.Path:
         raise ValueError(f"kind: expected lower-case letters, got {kind!r}")
     _prune_build_folders()
     prefix = f"tmtcontrol-build-{kind}-{os.getpid()}-{_start_time(os.getpid())}-"
-    path = _make_in(cache_dir() / "build", prefix)
-    if path is None and (fallback := fallback_cache()) is not None:      # the fallback made only if needed
+    # a full disk under the cache: build in the temporary folder (the library is then not cached);
+    # an unwritable cache: the per-user fallback, made only if needed
+    full = _free_bytes(cache_dir()) < BUILD_MIN_FREE
+    path = None if full else _make_in(cache_dir() / "build", prefix)
+    if path is None and not full and (fallback := fallback_cache()) is not None:
         path = _make_in(fallback / "build", prefix)
-    if path is None:                                # no cache folder at all: the temporary folder
+    if path is None:                                # no usable cache folder: the temporary folder
         path = pathlib.Path(tempfile.mkdtemp(prefix=prefix))
     _LIVE[path] = os.getpid()
     (path / "tmp").mkdir(mode=0o700)
     return path
+
+
+BUILD_MIN_FREE = 64 * 2**20
+"""Free space (bytes) the disk holding the cache needs for a build folder
+there (the generated C of a 7-joint arm's step takes a few MiB, the
+compiler's temporaries as much again); with less, the build runs in the
+temporary folder and the library is not cached (a warning says so)."""
+
+
+def _free_bytes(folder: pathlib.Path) -> float:
+    """Free bytes for this user on the disk holding ``folder`` (its nearest
+    existing parent); infinite where that cannot be read or the file system
+    has no blocks (``/proc``: not a disk, so not full)."""
+    for f in (folder, *folder.parents):
+        try:
+            st = os.statvfs(f)
+        except FileNotFoundError:
+            continue
+        except (OSError, AttributeError):
+            return float("inf")
+        return st.f_bavail * st.f_frsize if st.f_blocks else float("inf")
+    return float("inf")
 
 
 def _make_in(root: pathlib.Path, prefix: str) -> pathlib.Path | None:

@@ -39,7 +39,7 @@ __all__ = [
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "ControllerSettings", "SensorSettings",
     "SimulationSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
     "scenario_to_dict", "dump_scenario", "apply_overrides", "set_key", "scenario_json_schema",
-    "read_stiffness_table", "SettingRow", "applicable_settings", "read_text_file", "InputFileError",
+    "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "applicable_settings", "read_text_file", "InputFileError",
     "MAX_INPUT_BYTES", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",
     "check_filter_cutoff", "setting_bounds", "BUILTIN_ARMS", "arm_scenario",
 ]
@@ -468,10 +468,10 @@ def _rebuild() -> None:
 
 on_register(_rebuild)
 
-_TAGGED = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default: m for m in (
-               PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness)},
-           ("controller", "law"): lambda: {n: law.parameters for n, law in laws().items()},
-           ("controller", "damping_schedule"): lambda: {"off": FixedDamping, "zeta": ScheduledDamping}}
+TAGGED_TABLES = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default: m for m in (
+                     PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness)},
+                 ("controller", "law"): lambda: {n: law.parameters for n, law in laws().items()},
+                 ("controller", "damping_schedule"): lambda: {"off": FixedDamping, "zeta": ScheduledDamping}}
 """Tagged unions by location: kind -> model."""
 
 _TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller", "law"): "tmt",
@@ -578,8 +578,8 @@ def _strip_tags(loc) -> tuple:
     loc = tuple(loc)
     while i < len(loc):
         out.append(loc[i])
-        if tuple(out[-2:]) in _TAGGED and i + 1 < len(loc) and isinstance(loc[i + 1], str) \
-                and loc[i + 1] in _TAGGED[tuple(out[-2:])]():
+        if tuple(out[-2:]) in TAGGED_TABLES and i + 1 < len(loc) and isinstance(loc[i + 1], str) \
+                and loc[i + 1] in TAGGED_TABLES[tuple(out[-2:])]():
             i += 1
         i += 1
     return tuple(out)
@@ -594,8 +594,8 @@ def _model_at(loc, data) -> type[BaseModel] | None:
             return None
         node = node.get(part) if isinstance(node, dict) else None
         key = tuple(loc[max(0, i - 1):i + 1])
-        if key in _TAGGED:
-            kinds = _TAGGED[key]()
+        if key in TAGGED_TABLES:
+            kinds = TAGGED_TABLES[key]()
             tagged = _tagged(node, _TAG_DEFAULTS[key])
             kind = tagged.get("kind") if isinstance(tagged, dict) else None
             model = kinds.get(kind)
@@ -637,7 +637,7 @@ def _message(err: dict, data: dict, key: str | None = None) -> str:
         tags = ctx.get("expected_tags", "")
         found = ctx.get("tag")
         return (f"{key}: expected kind one of {tags}, got {found!r}" if found is not None
-                else f"{key}: a table needs kind = one of {', '.join(map(repr, _TAGGED.get(tuple(loc[-2:]), dict)()))}")
+                else f"{key}: a table needs kind = one of {', '.join(map(repr, TAGGED_TABLES.get(tuple(loc[-2:]), dict)()))}")
     if typ in ("missing", "too_short", "too_long") and loc and isinstance(loc[-1], int):
         loc, got = loc[:-1], _input_at(data, loc[:-1])
         key = _dotted(loc)
@@ -693,7 +693,7 @@ def _field_type(key: str):
         if i == len(parts) - 1:
             break
         loc = tuple(parts[max(0, i - 1):i + 1])
-        model = (_TAGGED[loc]()[_TAG_DEFAULTS[loc]] if loc in _TAGGED else info.annotation)
+        model = (TAGGED_TABLES[loc]()[_TAG_DEFAULTS[loc]] if loc in TAGGED_TABLES else info.annotation)
     typ = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
     if get_origin(info.annotation) is tuple:
         typ = get_args(info.annotation)[0]
@@ -1022,23 +1022,23 @@ def set_key(d: dict, key: str, value: Any) -> None:
         raise ScenarioError(f"{key}: malformed key")
     node = d
     for i, p in enumerate(parts[:-1]):
-        if p not in node and tuple(parts[max(0, i - 1):i + 1]) in _TAGGED:
+        if p not in node and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
             node[p] = {}
         if not isinstance(node, dict) or p not in node:
             raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key")
-        if isinstance(node[p], str) and tuple(parts[max(0, i - 1):i + 1]) in _TAGGED:
+        if isinstance(node[p], str) and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
             node[p] = {"kind": node[p]}
         if not isinstance(node[p], dict):
             raise ScenarioError(f"{'.'.join(parts[:i + 1])}: is a value, not a table")
         node = node[p]
     last = parts[-1]
-    union = tuple(parts[-2:]) if tuple(parts[-2:]) in _TAGGED else None
-    kind_of = tuple(parts[-3:-1]) if last == "kind" and tuple(parts[-3:-1]) in _TAGGED else None
+    union = tuple(parts[-2:]) if tuple(parts[-2:]) in TAGGED_TABLES else None
+    kind_of = tuple(parts[-3:-1]) if last == "kind" and tuple(parts[-3:-1]) in TAGGED_TABLES else None
     if union is not None and isinstance(value, str):
         node[last] = {"kind": value}
         return
     if kind_of is not None and isinstance(value, str) and node.get("kind") != value:
-        model = _TAGGED[kind_of]().get(value)
+        model = TAGGED_TABLES[kind_of]().get(value)
         keep = {k: v for k, v in node.items() if model is not None and k in model.model_fields}
         node.clear()
         node.update(keep)
@@ -1129,7 +1129,7 @@ def scenario_reference() -> str:
                            ("controller", ControllerSettings), ("sensor", SensorSettings),
                            ("simulation", SimulationSettings)):
         lines += rows(model, section)
-        for (sec, field), kinds in _TAGGED.items():
+        for (sec, field), kinds in TAGGED_TABLES.items():
             if sec == section:
                 for kind, member in kinds().items():
                     lines += rows(member, f"{sec}.{field}] kind = \"{kind}\"".replace("] kind", " kind").rstrip("]"))

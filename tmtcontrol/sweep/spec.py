@@ -432,9 +432,9 @@ def _scopes() -> list[tuple[str, ...]]:
     group cannot make each other invalid."""
     from pydantic import BaseModel
 
-    from ..simulation.scenario import _TAGGED
+    from ..simulation.scenario import TAGGED_TABLES
 
-    scopes = [(".".join(loc),) for loc in _TAGGED]
+    scopes = [(".".join(loc),) for loc in TAGGED_TABLES]
     for name, info in Scenario.model_fields.items():
         ann = info.annotation
         if isinstance(ann, type) and issubclass(ann, BaseModel) and ann.__pydantic_decorators__.model_validators:
