@@ -40,13 +40,16 @@ SERIES = ("contact_force", "q", "tau", "position")
 
 def capture(out: pathlib.Path, analyze: bool) -> None:
     """Run every variant with the tmtcontrol on sys.path; write traces, metrics and limits into ``out``."""
-    from tmtcontrol.simulation import simulator
+    try:                                   # the one loop
+        from tmtcontrol.simulation.simulator import simulator_for
+    except ImportError:                    # the reference: the 6-D family picked the loop
+        from tmtcontrol.simulation.posesim import simulator_for
     from tmtcontrol.simulation.metrics import segment_metrics
     from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
 
     for name, (base, sets) in VARIANTS.items():
         sc = apply_overrides(load_scenario(base), sets) if sets else load_scenario(base)
-        res = simulator.simulator_for(sc).run()
+        res = simulator_for(sc).run()
         np.savez(out / f"{name}.npz", **{k: getattr(res, k) for k in SERIES})
         (out / f"{name}.json").write_text(json.dumps([dataclasses.asdict(m) for m in segment_metrics(res)],
                                                      default=str))
@@ -91,7 +94,7 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        ref_tree = tmp / "reference"
+        ref_tree = tmp / "reference-tree"
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(ref_tree), args.reference],
                        check=True, capture_output=True)
         try:
