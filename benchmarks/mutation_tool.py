@@ -94,7 +94,7 @@ TESTS: dict[str, tuple[str, ...]] = {
                                          "tests/test_mutation_kills.py", "tests/test_review_verdicts.py",
                                          "tests/test_noise_bias.py", "tests/test_edges_wave4.py",
                                          "tests/test_simulate.py"),
-    "tmtcontrol/simulation/scenario.py": ("tests/test_scenario.py", "tests/test_docs.py", "tests/test_scenario_fuzz.py",
+    "tmtcontrol/simulation/scenario": ("tests/test_scenario.py", "tests/test_docs.py", "tests/test_scenario_fuzz.py",
                                           "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py",
                                           "tests/test_review_inputs.py", "tests/test_bounds_wave3.py",
                                           "tests/test_edges_wave4.py"),

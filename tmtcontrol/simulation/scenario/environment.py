@@ -1,0 +1,167 @@
+"""The ``[environment]`` section: the surface (the plane of Fig. 2), its contact damping and the stiffness profile k_e(t) (Fig. 3)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import pathlib
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import Field, model_serializer, model_validator
+
+from .fields import MAX_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
+from .textfiles import InputFileError, read_text_file
+
+__all__ = ["PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
+           "StiffnessProfile", "read_stiffness_table", "EnvironmentSettings"]
+
+
+class PiecewiseConstantStiffness(Section):
+    """``values[i]`` on ``[i, i+1) * segment``, the last value held (Fig. 3)."""
+    kind: Literal["piecewise_constant"] = "piecewise_constant"
+    values: tuple[Stiff, ...] = Field((5e3, 2e4, 2e3, 1e4), min_length=1,
+                                    description="stiffness of each segment [N/m]", json_schema_extra={"unit": "N/m"})
+    segment: float = num(0.0, "s", "segment length, 0 (= the trajectory period) or at least 10 control "
+                         "periods", ge=0)
+
+
+class PiecewiseLinearStiffness(Section):
+    """Linear interpolation through (``times``, ``values``), held outside."""
+    kind: Literal["piecewise_linear"] = "piecewise_linear"
+    times: tuple[NonNeg, ...] = Field(..., min_length=1, description="knot times, strictly increasing [s]",
+                                      json_schema_extra={"unit": "s"})
+    values: tuple[Stiff, ...] = Field(..., min_length=1, description="stiffness at the knots [N/m]",
+                                    json_schema_extra={"unit": "N/m"})
+
+    @model_validator(mode="after")
+    def _knots(self):
+        if len(self.times) != len(self.values):
+            raise ValueError(f"times: needs one time per value ({len(self.values)}), got {len(self.times)}")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError(f"times: must be strictly increasing, got {list(self.times)}")
+        return self
+
+
+class SinusoidalStiffness(Section):
+    """``mean + amplitude sin(2 pi t / period)``."""
+    kind: Literal["sinusoidal"] = "sinusoidal"
+    mean: float = num(1e4, "N/m", "mean stiffness", gt=0, le=MAX_STIFFNESS)
+    amplitude: float = num(5e3, "N/m", "amplitude, < mean so that k_e stays > 0", ge=0)
+    period: float = num(4.0, "s", "period, at least 10 control periods", gt=0)
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if self.amplitude >= self.mean:
+            raise ValueError(f"amplitude: must be < mean ({self.mean:g}) so that k_e stays > 0, "
+                             f"got {self.amplitude:g}")
+        return self
+
+
+class TableStiffness(Section):
+    """A CSV file of ``t, k_e`` rows (s, N/m), linear interpolation. A header
+    row is allowed only if it holds no number; a relative path is relative
+    to the scenario file."""
+    kind: Literal["table"] = "table"
+    file: str = Field(..., min_length=1, description="CSV file of t, k_e rows")
+
+    @model_validator(mode="after")
+    def _readable(self):
+        read_stiffness_table(self.file)
+        return self
+
+
+StiffnessProfile = Annotated[
+    Union[PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness],
+    tag_default("piecewise_constant"), Field(discriminator="kind")]
+
+
+def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
+    """Read and validate a CSV table of ``t, k_e`` rows (s, N/m). A first row
+    with no number in it is a header; any other malformed row is an error."""
+    import numpy as np
+
+    try:
+        text = read_text_file(path)
+    except InputFileError as exc:
+        reason = str(exc)
+        if reason == "no such file":
+            raise ValueError(f"file: no such file {str(path)!r}") from None
+        if reason == "is a folder":
+            raise ValueError(f"file: {str(path)!r} is a folder, expected a CSV file") from None
+        if reason.startswith("not UTF-8"):
+            raise ValueError(f"file: {str(path)!r} is not UTF-8 text") from None
+        raise ValueError(f"file: {str(path)!r}: {reason}") from None
+    rows = [r for r in csv.reader(io.StringIO(text, newline=""))
+            if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
+
+    def number(cell):
+        try:
+            return float(cell)
+        except ValueError:
+            return None
+
+    data = []
+    for i, row in enumerate(rows):
+        vals = [number(c) for c in row]
+        if len(row) == 2 and None not in vals:
+            data.append(vals)
+        elif i == 0 and all(v is None for v in vals):
+            continue  # header: no number in it
+        else:
+            shown = repr(row)
+            if len(shown) > 200:            # one short line, whatever the row
+                shown = f"{shown[:120]}... ({len(row)} fields)"
+            raise ValueError(f"file: row {i + 1} of {str(path)!r} is not 't, k_e' numbers: {shown}")
+    if not data:
+        raise ValueError(f"file: no data rows in {str(path)!r}")
+    arr = np.array(data)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"file: non-finite value in {str(path)!r}")
+    if np.any(arr[:, 1] <= 0):
+        raise ValueError(f"file: stiffness must be > 0 in {str(path)!r}")
+    if np.any(arr[:, 1] > MAX_STIFFNESS):
+        raise ValueError(f"file: stiffness must be <= {MAX_STIFFNESS:g} N/m in {str(path)!r}")
+    if np.any(np.diff(arr[:, 0]) <= 0):
+        raise ValueError(f"file: times must be strictly increasing in {str(path)!r}")
+    return arr[:, 0], arr[:, 1]
+
+
+class EnvironmentSettings(Section):
+    """The tilted plane (Fig. 2) and its unilateral spring contact,
+    ``f_e = max(0, k_e(t) d + damping d')`` while the penetration d > 0. The
+    plane passes through ``trajectory.center``; its outward normal is base z
+    rotated by ``tilt_deg`` about base y."""
+    tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
+                          "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
+    normal: tuple[F, F, F] | None = Field(None, description=(
+        "inward unit normal of the plane (pointing into the surface), base frame; 6-D arms only; default: "
+        "from tilt_deg"), json_schema_extra={"unit": "1"})
+    point: tuple[F, F, F] | None = Field(None, description=(
+        "a point of the plane, base frame; default: trajectory.center (the circle's centre must lie on the "
+        "plane)"), json_schema_extra={"unit": "m"})
+    damping: float = num(0.0, "N s/m", "contact damping", ge=0)
+    stiffness: StiffnessProfile = Field(default_factory=PiecewiseConstantStiffness,
+                                        description="stiffness profile k_e(t), a table with its kind")
+
+    @model_serializer(mode="wrap")
+    def _without_unused_tilt(self, handler):
+        # with a normal, the plane is the normal's: the shorthand is left out of every dump (TOML,
+        # summary.json, a replaced copy), so it never comes back as an explicit, contradicting value
+        d = handler(self)
+        if isinstance(d, dict) and d.get("normal") is not None:
+            d.pop("tilt_deg", None)
+        return d
+
+    @model_validator(mode="after")
+    def _unit_normal(self):
+        if self.normal is not None:
+            norm = math.sqrt(sum(x * x for x in self.normal))
+            if abs(norm - 1.0) > 1e-6:
+                raise ValueError(f"normal: must be a unit vector (|n| = 1 within 1e-6), got |n| = {norm:.6g}")
+            if "tilt_deg" in self.model_fields_set:   # the shorthand given too: it must be the same plane
+                t = math.radians(self.tilt_deg)
+                if max(abs(a - b) for a, b in zip((math.sin(t), 0.0, -math.cos(t)), self.normal)) > 1e-6:
+                    raise ValueError(f"tilt_deg: {self.tilt_deg:g} deg is not the plane of normal "
+                                     f"{list(self.normal)}, which sets the plane; change normal, or drop tilt_deg")
+        return self

@@ -1,0 +1,138 @@
+"""The scenario described: its JSON Schema, the reference tables of docs/scenario.md and the keys that apply to a scenario's options."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel
+
+from .controller import ControllerSettings, ImpedanceSettings
+from .environment import EnvironmentSettings
+from .robot import RobotSettings
+from .schema import TAGGED_TABLES, Scenario
+from .sensor import SensorSettings, SimulationSettings
+from .tomlio import toml_value
+from .trajectory import TrajectorySettings
+
+__all__ = ["SettingRow", "applicable_settings", "scenario_json_schema", "scenario_reference"]
+
+
+@dataclass(frozen=True)
+class SettingRow:
+    """One applicable scenario key: dotted ``key``, its ``value`` (a Python
+    value), ``unit`` (SI, "1" for dimensionless, "" for none) and ``meaning``."""
+    key: str
+    value: Any
+    unit: str
+    meaning: str
+
+
+def _applies(sc: Scenario, key: str) -> bool:
+    """Whether ``key`` changes anything for the options ``sc`` chose (the
+    members of tagged unions already are the chosen kind's)."""
+    if key in ("controller.approach_speed", "controller.contact_threshold", "controller.force_ramp"):
+        return sc.trajectory.approach_gap > 0
+    if key == "sensor.seed":
+        return sc.sensor.noise_std > 0
+    if key == "environment.tilt_deg":
+        return sc.environment.normal is None
+    if key in ("simulation.substeps", "simulation.contact_refine"):
+        return sc.simulation.integrator == "fixed"
+    if key == "simulation.tol":
+        return sc.simulation.integrator == "cvodes"
+    return True
+
+
+def applicable_settings(sc: Scenario) -> list[SettingRow]:
+    """The scenario's keys that apply to its options, with value, unit and
+    meaning (from the schema), in schema order. Unset optional values (the
+    inner-loop gains) are shown as their defaults' rule."""
+    rows = []
+
+    def walk(model: BaseModel, prefix: str):
+        for name, info in type(model).model_fields.items():
+            key, value = f"{prefix}{name}", getattr(model, name)
+            if isinstance(value, BaseModel):
+                walk(value, key + ".")
+                continue
+            if not _applies(sc, key):
+                continue
+            extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+            desc = info.description or ""
+            bracket = re.search(r" \[([^\]]*)\]$", desc)
+            trailing = re.search(r", (N/m|N s/m|N|m|s|Hz|kg|1/s|m/\(N s\))$", desc)   # the laws' style
+            unit = extra.get("unit") or (bracket.group(1) if bracket else trailing.group(1) if trailing else "")
+            desc = desc.replace(f" [{unit}]", "")
+            if trailing and not bracket:
+                desc = desc[:trailing.start()]
+            if value is None and name in ("kd", "kp"):
+                value = "B/M" if name == "kd" else "K/M"
+            rows.append(SettingRow(key, value, "" if unit == "–" else unit, desc))
+
+    walk(sc, "")
+    return rows
+
+
+def scenario_json_schema() -> dict:
+    """The JSON Schema of scenario files (draft 2020-12)."""
+    schema = Scenario.model_json_schema()
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "tmtcontrol scenario"
+    return schema
+
+
+def scenario_reference() -> str:
+    """The scenario reference tables of ``docs/scenario.md``, generated from
+    the schema: one row per key with unit, default, valid range and meaning;
+    one table per kind of each tagged union."""
+    def rng(info) -> str:
+        parts = []
+        for m in info.metadata:
+            for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                if getattr(m, attr, None) is not None:
+                    parts.append(f"{op} {getattr(m, attr):g}")
+            if getattr(m, "min_length", None):
+                parts.append("non-empty")
+        from typing import get_args, get_origin
+
+        if get_origin(info.annotation) is tuple and get_args(info.annotation)[-1] is Ellipsis:   # each element's
+            for m in get_args(get_args(info.annotation)[0])[1:]:
+                for item in (getattr(m, "metadata", None) or [m]):
+                    for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                        if getattr(item, attr, None) is not None:
+                            parts.append(f"each {op} {getattr(item, attr):g}")
+        return ", ".join(parts) or "–"
+
+    def fmt(v) -> str:
+        if isinstance(v, tuple):
+            return "[" + ", ".join(fmt(x) for x in v) + "]"
+        return "–" if v is None else f"`{toml_value(v)}`" if not isinstance(v, BaseModel) else "(table)"
+
+    def rows(model, title):
+        doc = " ".join(model.__doc__.split("\n\n")[0].split()).replace("``", "`") if model.__doc__ else ""
+        out = [f"**[{title}]**" + (f" — {doc}" if doc else ""), "",
+               "| key | unit | default | valid range | meaning |", "|---|---|---|---|---|"]
+        for name, info in model.model_fields.items():
+            extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+            unit = extra.get("unit", "–")
+            desc = (info.description or "").replace(f" [{unit}]", "")
+            default = info.get_default(call_default_factory=True) if not info.is_required() else None
+            kind = "required" if info.is_required() else fmt(default)
+            if isinstance(default, BaseModel):
+                kind = f"kind `{getattr(default, 'kind', '')}`" if hasattr(default, "kind") else "(table)"
+            out.append(f"| `{name}` | {unit} | {kind} | {rng(info) if name != 'kind' else 'this kind'} | {desc} |")
+        return out + [""]
+
+    lines = []
+    for section, model in (("robot", RobotSettings), ("environment", EnvironmentSettings),
+                           ("trajectory", TrajectorySettings), ("impedance", ImpedanceSettings),
+                           ("controller", ControllerSettings), ("sensor", SensorSettings),
+                           ("simulation", SimulationSettings)):
+        lines += rows(model, section)
+        for (sec, field), kinds in TAGGED_TABLES.items():
+            if sec == section:
+                for kind, member in kinds().items():
+                    lines += rows(member, f"{sec}.{field}] kind = \"{kind}\"".replace("] kind", " kind").rstrip("]"))
+    return "\n".join(lines).rstrip() + "\n"

@@ -1,0 +1,31 @@
+"""The ``[robot]`` section: the arm (PUMA 560, a bundled arm or a URDF), its tool frame and the controller's model of it."""
+
+from __future__ import annotations
+
+from pydantic import Field, StrictBool
+
+from .fields import F, Section, num
+
+__all__ = ["RobotSettings"]
+
+
+class RobotSettings(Section):
+    """Plant and the controller's model of it."""
+    armature: StrictBool = Field(True, description="simulate the motor rotor inertias")
+    friction: StrictBool = Field(False, description="simulate joint friction (smooth Coulomb + viscous)")
+    model_mass_scale: float = num(1.0, "1", "scale of every mass and inertia in the controller's model "
+                                  "(D*^, h*^ of eq. 5); 1.1 is a 10 % overestimate", gt=0)
+    compensate_friction: StrictBool = Field(False, description="add the controller's friction model to the torque")
+    model: str = Field("puma560", min_length=1, description=(
+        "the arm: 'puma560' (the paper's 3 links, position-only task), a bundled arm ('ur5', 'panda') or the "
+        "path of a .urdf file (a relative path is read from the scenario file's folder); an arm with 6 or more "
+        "joints runs the 6-D task (position and orientation, docs/robots.md)"))
+    tip: str | None = Field(None, min_length=1, description="the tool frame (link or fixed frame); default: the "
+                            "arm's documented tip")
+    q0: tuple[F, ...] | None = Field(None, min_length=1, description=(
+        "start posture guess (one value per joint) for the start-posture solver; default: the middle of the "
+        "joint limits [rad or m]"), json_schema_extra={"unit": "rad"})
+    posture_kp: float = num(25.0, "1/s^2", "null-space posture stiffness of a redundant arm (more than 6 joints)",
+                            ge=0)
+    posture_kd: float = num(10.0, "1/s", "null-space posture damping of a redundant arm (more than 6 joints)",
+                            ge=0)

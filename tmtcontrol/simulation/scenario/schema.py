@@ -1,0 +1,343 @@
+"""The whole scenario: the :class:`Scenario` model, the checks across its sections, and validation with one-line errors.
+
+:func:`scenario_from_dict` validates nested dicts (the TOML layout) and turns
+pydantic's first error into ``dotted.key: expected ..., got ...``;
+:func:`scenario_to_dict` is its inverse. The numbers a command-line flag
+shares with a scenario key are checked by the same schema
+(:func:`check_setting`, :func:`check_period`, :func:`check_filter_cutoff`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Annotated, Any
+
+from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic.fields import FieldInfo
+
+from ...control.laws import laws, on_register
+from ...control.laws.tmt import TmtParameters
+from .controller import ControllerSettings, FixedDamping, ImpedanceSettings, ScheduledDamping, law_union
+from .environment import (EnvironmentSettings, PiecewiseConstantStiffness, PiecewiseLinearStiffness,
+                          SinusoidalStiffness, TableStiffness)
+from .fields import MIN_PERIODS, ScenarioError, Section, tagged
+from .robot import RobotSettings
+from .sensor import SensorSettings, SimulationSettings
+from .trajectory import TrajectorySettings
+
+__all__ = ["Scenario", "TAGGED_TABLES", "TAG_DEFAULTS", "SAMPLED_KEYS", "sampling_problem", "scenario_from_dict",
+           "scenario_to_dict", "model_at", "check_setting", "setting_bounds", "check_period", "check_filter_cutoff"]
+
+
+class Scenario(Section):
+    """One complete simulation setup (see ``docs/scenario.md``)."""
+    name: str = Field("paper", min_length=1, description="a label for outputs")
+    robot: RobotSettings = Field(default_factory=RobotSettings)
+    environment: EnvironmentSettings = Field(default_factory=EnvironmentSettings)
+    trajectory: TrajectorySettings = Field(default_factory=TrajectorySettings)
+    impedance: ImpedanceSettings = Field(default_factory=ImpedanceSettings)
+    controller: ControllerSettings = Field(default_factory=ControllerSettings)
+    sensor: SensorSettings = Field(default_factory=SensorSettings)
+    simulation: SimulationSettings = Field(default_factory=SimulationSettings)
+
+    @model_validator(mode="after")
+    def _sampled(self):
+        """The bounds relative to the control period (see :func:`sampling_problem`)."""
+        problem = sampling_problem(self)
+        if problem:
+            raise ValueError(problem)
+        return self
+
+    @property
+    def duration(self) -> float:
+        """Simulated time, s: ``cycles * period``."""
+        return self.trajectory.cycles * self.trajectory.period
+
+    def replace(self, **changes) -> "Scenario":
+        """A validated copy with top-level sections replaced."""
+        d = scenario_to_dict(self)
+        d.update({k: (v.model_dump() if isinstance(v, BaseModel) else v) for k, v in changes.items()})
+        return scenario_from_dict(d)
+
+
+def _rebuild() -> None:
+    """Accept every registered law in ``controller.law`` (called on registration)."""
+    ControllerSettings.model_fields["law"] = FieldInfo.from_annotated_attribute(
+        law_union(), Field(default_factory=TmtParameters, description="force-tracking law: its kind and parameters"))
+    ControllerSettings.model_rebuild(force=True)
+    Scenario.model_rebuild(force=True)
+
+
+on_register(_rebuild)
+
+TAGGED_TABLES = {("environment", "stiffness"): lambda: {m.model_fields["kind"].default: m for m in (
+                     PiecewiseConstantStiffness, PiecewiseLinearStiffness, SinusoidalStiffness, TableStiffness)},
+                 ("controller", "law"): lambda: {n: law.parameters for n, law in laws().items()},
+                 ("controller", "damping_schedule"): lambda: {"off": FixedDamping, "zeta": ScheduledDamping}}
+"""Tagged unions by location: kind -> model."""
+
+TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller", "law"): "tmt",
+                 ("controller", "damping_schedule"): "off"}
+"""The kind of a tagged table that does not say."""
+
+
+SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
+                "robot.model", "environment.normal", "environment.point", "trajectory.center")
+"""The keys :func:`sampling_problem` relates (the only check across sections)."""
+
+
+def _plane_problem(sc: Scenario) -> str | None:
+    """The plane across sections: the PUMA takes ``tilt_deg`` only, and the
+    circle's centre lies on the plane given by ``environment.point``."""
+    env = sc.environment
+    if env.normal is not None and sc.robot.model.lower() == "puma560":
+        return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
+                "(its analyses and export use it); leave normal unset")
+    if env.point is not None:
+        from ..geometry import surface_frame   # the one definition of the task frame's normal
+
+        n = surface_frame(env)[:, 0]
+        off = sum(a * (c - p) for a, c, p in zip(n, sc.trajectory.center, env.point))
+        if abs(off) > 1e-9:
+            return (f"trajectory.center: must lie on the plane (environment.point, normal), "
+                    f"it is {off:.6g} m off it")
+    return None
+
+
+def sampling_problem(sc: Scenario) -> str | None:
+    """What the control period ``Ts = 1/controller.rate`` forbids, as an error
+    message naming the key, or None: a path period, a stiffness segment or a
+    sinusoid's period shorter than :data:`MIN_PERIODS` control periods (fewer
+    samples cannot resolve them: a circle in under 10 samples, a segment whose
+    last quarter holds no sample), and a force-filter cut-off at or above the
+    Nyquist frequency ``rate/2`` (its discrete pole ``exp(-2 pi f_c Ts)``
+    would be below ``exp(-pi) = 0.04``: no filtering at all, silently); and
+    the plane's checks across sections (:func:`_plane_problem`)."""
+    plane = _plane_problem(sc)
+    if plane:
+        return plane
+    Ts, rate = sc.controller.Ts, sc.controller.rate
+    least = MIN_PERIODS * Ts
+    why = f"at least {MIN_PERIODS} control periods ({least:g} s at controller.rate = {rate:g} Hz)"
+    if sc.trajectory.period < least:
+        return f"trajectory.period: must be {why}, got {sc.trajectory.period!r}"
+    st = sc.environment.stiffness
+    if st.kind == "piecewise_constant" and st.segment != 0 and st.segment < least:
+        return f"environment.stiffness.segment: must be 0 (the path period) or {why}, got {st.segment!r}"
+    if st.kind == "sinusoidal" and st.period < least:
+        return f"environment.stiffness.period: must be {why}, got {st.period!r}"
+    cutoff = sc.sensor.filter_cutoff
+    if cutoff >= rate / 2:
+        return (f"sensor.filter_cutoff: must be below the Nyquist frequency controller.rate/2 = {rate / 2:g} Hz "
+                f"(0 = no filter), got {cutoff!r}")
+    return None
+
+# -- errors ----------------------------------------------------------------------------
+
+def _dotted(loc) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _strip_tags(loc) -> tuple:
+    """Drop the union tag pydantic inserts after a tagged field (``controller.law.tmt.x``)."""
+    out, i = [], 0
+    loc = tuple(loc)
+    while i < len(loc):
+        out.append(loc[i])
+        if tuple(out[-2:]) in TAGGED_TABLES and i + 1 < len(loc) and isinstance(loc[i + 1], str) \
+                and loc[i + 1] in TAGGED_TABLES[tuple(out[-2:])]():
+            i += 1
+        i += 1
+    return tuple(out)
+
+
+def model_at(loc, data) -> type[BaseModel] | None:
+    """The model class at ``loc`` (tag-free) for input ``data``."""
+    model: Any = Scenario
+    node = data
+    for i, part in enumerate(loc):
+        if not (isinstance(model, type) and issubclass(model, BaseModel)) or part not in model.model_fields:
+            return None
+        node = node.get(part) if isinstance(node, dict) else None
+        key = tuple(loc[max(0, i - 1):i + 1])
+        if key in TAGGED_TABLES:
+            kinds = TAGGED_TABLES[key]()
+            table = tagged(node, TAG_DEFAULTS[key])
+            kind = table.get("kind") if isinstance(table, dict) else None
+            model = kinds.get(kind)
+        else:
+            ann = model.model_fields[part].annotation
+            model = ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+    return model
+
+
+def _input_at(data, loc):
+    node = data
+    for part in loc:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, (list, tuple)) and isinstance(part, int) and part < len(node):
+            node = node[part]
+        else:
+            return None
+    return node
+
+
+def _message(err: dict, data: dict, key: str | None = None) -> str:
+    loc = _strip_tags(err["loc"])
+    typ, ctx, got = err["type"], err.get("ctx") or {}, err.get("input")
+    key = _dotted(loc) if key is None else key
+    if typ == "extra_forbidden":
+        parent = model_at(loc[:-1], data)
+        known = [f for f in (parent.model_fields if parent else {}) if f != "kind"]
+        hint = ""
+        if tuple(loc[:-1]) == ("controller",):
+            owners = [n for n, law in laws().items() if loc[-1] in law.parameters.model_fields]
+            if owners:
+                hint = f"; it is a parameter of law {owners[0]!r}: set it in [controller.law]"
+        if parent is not None and "kind" in parent.model_fields:
+            kind = parent.model_fields["kind"].default
+            return f"{key}: not a field of kind {kind!r} (its fields: {', '.join(known) or 'none'})"
+        return f"{key}: unknown key (known: {', '.join(known)}){hint}"
+    if typ in ("union_tag_invalid", "union_tag_not_found"):
+        tags = ctx.get("expected_tags", "")
+        found = ctx.get("tag")
+        return (f"{key}: expected kind one of {tags}, got {found!r}" if found is not None
+                else f"{key}: a table needs kind = one of {', '.join(map(repr, TAGGED_TABLES.get(tuple(loc[-2:]), dict)()))}")
+    if typ in ("missing", "too_short", "too_long") and loc and isinstance(loc[-1], int):
+        loc, got = loc[:-1], _input_at(data, loc[:-1])
+        key = _dotted(loc)
+        return f"{key}: expected a list of 3 numbers, got {got!r}"
+    if typ in ("too_short",) and ctx.get("min_length") == 1:
+        return f"{key}: empty list; give at least one value"
+    if typ == "missing":
+        return f"{key}: required"
+    expected = {
+        "float_type": "expected a number", "int_type": "expected an integer", "bool_type": "expected true or false",
+        "string_type": "expected a string", "finite_number": "must be finite", "tuple_type": "expected a list",
+        "model_type": "expected a table", "dict_type": "expected a table", "model_attributes_type": "expected a table",
+        "int_from_float": "expected an integer",
+    }.get(typ)
+    if expected is None:
+        if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+            op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}[typ]
+            bound = next(iter(v for k, v in ctx.items() if k in ("gt", "ge", "lt", "le")))
+            expected = f"must be {op} {bound:g}"
+        elif typ == "literal_error":
+            expected = f"expected {ctx.get('expected')}"
+        elif typ == "string_too_short":
+            expected = "must not be empty"
+        elif typ == "value_error":
+            msg = str(ctx.get("error", err["msg"]))
+            field, _, rest = msg.partition(": ")
+            return f"{_dotted((*loc, field))}: {rest}" if rest else f"{key}: {msg}"
+        else:
+            expected = err["msg"]
+    return f"{key}: {expected}, got {got!r}"
+
+
+def scenario_from_dict(data: Any, source: str = "") -> Scenario:
+    """Build and validate a :class:`Scenario` from nested dicts (TOML layout).
+    ``source`` (a file name, ``--set``) is named in errors."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"scenario: expected a table, got {data!r}" + (f" (in {source})" if source else ""))
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(_message(exc.errors()[0], data) + (f" (in {source})" if source else "")) from None
+
+
+def _field_type(key: str):
+    """The type (with its constraints) of the number at dotted ``key`` of the
+    schema: a tagged union's default kind; a list's element."""
+    from typing import get_args, get_origin
+
+    model: Any = Scenario
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        info = model.model_fields[part]
+        if i == len(parts) - 1:
+            break
+        loc = tuple(parts[max(0, i - 1):i + 1])
+        model = (TAGGED_TABLES[loc]()[TAG_DEFAULTS[loc]] if loc in TAGGED_TABLES else info.annotation)
+    typ = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
+    if get_origin(info.annotation) is tuple:
+        typ = get_args(info.annotation)[0]
+    return typ
+
+
+@functools.lru_cache(maxsize=None)
+def _adapter(key: str):
+    from pydantic import TypeAdapter
+
+    return TypeAdapter(_field_type(key))
+
+
+def check_setting(flag: str, key: str, value: Any) -> Any:
+    """``value`` checked against the scenario schema's field at dotted ``key``
+    (its type and range; a list key's element), for a command-line flag that
+    means the same setting: the error is the schema's, naming ``flag``, e.g.
+    ``--delay: must be <= 20, got 1000 (controller.delay_samples in a
+    scenario)``."""
+    try:
+        return _adapter(key).validate_python(value)
+    except ValidationError as exc:
+        raise ScenarioError(_message(exc.errors()[0], {}, key=flag) + f" ({key} in a scenario)") from None
+
+
+def setting_bounds(key: str) -> dict[str, float]:
+    """The range of the number at dotted ``key`` of the schema: its ``gt``,
+    ``ge``, ``lt``, ``le`` constraints that are set."""
+    from typing import get_args
+
+    out = {}
+    for m in get_args(_field_type(key))[1:]:
+        for item in (getattr(m, "metadata", None) or [m]):
+            for attr in ("gt", "ge", "lt", "le"):
+                if getattr(item, attr, None) is not None:
+                    out[attr] = getattr(item, attr)
+    return out
+
+
+def check_period(flag: str, Ts: Any) -> float:
+    """A control period ``Ts`` (s) from the command line, checked against the
+    schema's range of ``controller.rate = 1/Ts`` (so ``--ts`` takes exactly
+    the rates a scenario takes)."""
+    if not (isinstance(Ts, (int, float)) and not isinstance(Ts, bool) and math.isfinite(Ts) and Ts > 0):
+        raise ScenarioError(f"{flag}: must be a finite number > 0 s, got {Ts!r}")
+    bounds = setting_bounds("controller.rate")
+    rate = 1.0 / Ts
+    for attr, op, ok in (("le", ">=", lambda b: rate <= b), ("lt", ">", lambda b: rate < b),
+                         ("ge", "<=", lambda b: rate >= b), ("gt", "<", lambda b: rate > b)):
+        if attr in bounds and not ok(bounds[attr]):
+            sym = {"le": "<=", "lt": "<", "ge": ">=", "gt": ">"}[attr]
+            raise ScenarioError(f"{flag}: must be {op} {1 / bounds[attr]:g} s (controller.rate = 1/Ts must be "
+                                f"{sym} {bounds[attr]:g} Hz in a scenario), got {Ts!r}")
+    return float(Ts)
+
+
+def check_filter_cutoff(flag: str, cutoff: Any, Ts: float) -> float:
+    """A force-filter cut-off (Hz) from the command line: the schema's range
+    of ``sensor.filter_cutoff`` and, as :func:`sampling_problem` says, below
+    the Nyquist frequency ``1/(2 Ts)``."""
+    cutoff = check_setting(flag, "sensor.filter_cutoff", cutoff)
+    if cutoff >= 0.5 / Ts:
+        raise ScenarioError(f"{flag}: must be below the Nyquist frequency 1/(2 Ts) = {0.5 / Ts:g} Hz "
+                            f"(0 = no filter), got {cutoff!r}")
+    return cutoff
+
+
+def scenario_to_dict(scenario: Scenario) -> dict:
+    """Nested dict of plain Python values (lists for tuples; unset optional
+    fields left out), the TOML layout."""
+    def conv(v):
+        if isinstance(v, dict):
+            return {k: conv(x) for k, x in v.items() if x is not None}
+        if isinstance(v, (tuple, list)):
+            return [conv(x) for x in v]
+        return v
+    return conv(scenario.model_dump())     # (a normal's scenario has no tilt_deg: EnvironmentSettings' dump)

@@ -1,0 +1,42 @@
+"""The ``[sensor]`` and ``[simulation]`` sections: the force sensor (noise, filter) and the plant's integrator."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import Field, StrictInt
+
+from .fields import Section, num
+
+__all__ = ["filter_pole", "SensorSettings", "SimulationSettings"]
+
+
+def filter_pole(cutoff: float, Ts: float) -> float:
+    """The discrete pole ``exp(-2 pi f_c Ts)`` of a first-order low-pass at
+    ``cutoff`` Hz sampled every ``Ts`` s; 0 (no filter) for a cut-off of 0."""
+    return float(math.exp(-2 * math.pi * cutoff * Ts)) if cutoff > 0 else 0.0
+
+
+class SensorSettings(Section):
+    """Force sensor along the normal."""
+    noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0)
+    seed: StrictInt = Field(0, ge=0, description="seed of the noise generator (an integer)")
+    filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off, below the Nyquist frequency "
+                               "controller.rate/2; 0 = off", ge=0)
+
+    def pole(self, Ts: float) -> float:
+        """The force filter's discrete pole at control period ``Ts`` (0: no filter)."""
+        return filter_pole(self.filter_cutoff, Ts)
+
+
+class SimulationSettings(Section):
+    """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period,
+    ``contact_refine`` times more in a period where the contact force
+    switches on or off) or ``cvodes`` (adaptive, accuracy reference,
+    tolerance ``tol``)."""
+    integrator: Literal["fixed", "cvodes"] = Field("fixed", description="'fixed' (compiled RK4) or 'cvodes'")
+    substeps: StrictInt = Field(1, ge=1, le=1000, description="RK4 steps per control period (fixed)")
+    contact_refine: StrictInt = Field(4, ge=1, le=64, description=(
+        "RK4 steps per substep in a period where the contact force switches on or off (fixed; 1: off)"))
+    tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", gt=0, le=1e-2)

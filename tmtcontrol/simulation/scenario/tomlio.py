@@ -1,0 +1,156 @@
+"""Scenarios as TOML: dump, load (a file or a built-in name) and ``--set dotted.key=value`` overrides."""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import re
+import tomllib
+from typing import Any
+
+from .builtin import BUILTIN_ARMS, arm_scenario, paper_scenario
+from .fields import ScenarioError
+from .schema import TAGGED_TABLES, Scenario, model_at, scenario_from_dict, scenario_to_dict
+from .textfiles import InputFileError, parse_toml, read_toml
+
+__all__ = ["toml_key", "toml_value", "dump_scenario", "toml_document", "load_scenario", "set_key",
+           "apply_overrides"]
+
+
+def toml_key(k) -> str:
+    k = str(k)
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else toml_value(k)
+
+
+def toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):      # an inline table (a value where the schema wants a table, or a wrong one)
+        return "{" + ", ".join(f"{toml_key(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def dump_scenario(scenario: Scenario) -> str:
+    """The scenario as a TOML document that :func:`load_scenario` reads back;
+    it holds only the fields of the chosen kinds."""
+    return toml_document(scenario_to_dict(scenario))
+
+
+def toml_document(d: dict) -> str:
+    """A scenario dict (TOML layout, valid or not) as a TOML document: ``name``
+    and the sections (tables); other top-level values are left out."""
+    d = dict(d)
+    lines = ["# tmtcontrol scenario (SI units; see docs/scenario.md)", f"name = {toml_value(d.pop('name', 'scenario'))}"]
+
+    def table(name, body):
+        lines.append("")
+        lines.append(f"[{name}]")
+        sub = []
+        for k, v in body.items():
+            if isinstance(v, dict):
+                sub.append((k, v))
+            else:
+                lines.append(f"{k} = {toml_value(v)}")
+        for k, v in sub:
+            table(f"{name}.{k}", v)
+
+    for name, body in d.items():      # sections only: a scenario has no other top-level value
+        if isinstance(body, dict):
+            table(name, body)
+    return "\n".join(lines) + "\n"
+
+
+
+def load_scenario(path: str | pathlib.Path) -> Scenario:
+    """Read and validate a scenario TOML file; the string ``"paper"`` gives
+    :func:`paper_scenario`. A relative stiffness ``table`` file is resolved
+    against the scenario file's folder. An empty file is refused."""
+    if str(path) == "paper":
+        return paper_scenario()
+    if str(path) in BUILTIN_ARMS:
+        return arm_scenario(str(path))
+    path = pathlib.Path(path)
+    src = str(path)
+    data = read_toml(path, "scenario", ScenarioError)
+    if not data:
+        raise ScenarioError(f"{src}: empty scenario; start from 'tmtcontrol scenario paper > {path.name}'")
+    stiff = data.get("environment", {}).get("stiffness") if isinstance(data.get("environment"), dict) else None
+    if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
+            and not pathlib.Path(stiff["file"]).is_absolute():
+        stiff["file"] = str(path.parent / stiff["file"])
+    robot = data.get("robot")
+    if isinstance(robot, dict) and isinstance(robot.get("model"), str) and robot["model"].lower().endswith(".urdf") \
+            and not pathlib.Path(robot["model"]).is_absolute():
+        robot["model"] = str(path.parent / robot["model"])
+    return scenario_from_dict(data, src)
+
+
+def set_key(d: dict, key: str, value: Any) -> None:
+    """Set dotted ``key`` of the scenario dict ``d`` (TOML layout) in place.
+
+    Setting a tagged union (``controller.law``, ``environment.stiffness``,
+    ``controller.damping_schedule``) to a kind name, or changing its
+    ``kind``, starts that table afresh with the new kind's defaults, keeping
+    the fields the new kind also has."""
+    parts = key.split(".")
+    if not all(parts):
+        raise ScenarioError(f"{key}: malformed key")
+    node = d
+    for i, p in enumerate(parts[:-1]):
+        if p not in node and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
+            node[p] = {}
+        if not isinstance(node, dict) or p not in node:
+            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key")
+        if isinstance(node[p], str) and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
+            node[p] = {"kind": node[p]}
+        if not isinstance(node[p], dict):
+            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: is a value, not a table")
+        node = node[p]
+    last = parts[-1]
+    union = tuple(parts[-2:]) if tuple(parts[-2:]) in TAGGED_TABLES else None
+    kind_of = tuple(parts[-3:-1]) if last == "kind" and tuple(parts[-3:-1]) in TAGGED_TABLES else None
+    if union is not None and isinstance(value, str):
+        node[last] = {"kind": value}
+        return
+    if kind_of is not None and isinstance(value, str) and node.get("kind") != value:
+        model = TAGGED_TABLES[kind_of]().get(value)
+        keep = {k: v for k, v in node.items() if model is not None and k in model.model_fields}
+        node.clear()
+        node.update(keep)
+        node["kind"] = value
+        return
+    known = model_at(tuple(parts[:-1]), d)
+    tagged_member = known is not None and "kind" in known.model_fields   # the schema names the kind
+    if last not in node and not tagged_member and (known is None or last not in known.model_fields):
+        raise ScenarioError(f"{key}: unknown key")
+    node[last] = value
+
+
+def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
+    """Apply ``dotted.key=value`` strings (value in TOML syntax; bare words are
+    strings), e.g. ``controller.f_d=5``, ``controller.law=integral`` or
+    ``environment.stiffness.values=[1e3,1e4]``. The result goes through the
+    same schema as a file."""
+    d = scenario_to_dict(scenario)
+    for item in assignments:
+        if "=" not in item:
+            raise ScenarioError(f"--set {item!r}: expected dotted.key=value")
+        key, raw = (s.strip() for s in item.split("=", 1))
+        if not key:
+            raise ScenarioError(f"--set {item!r}: expected dotted.key=value")
+        try:
+            value = parse_toml(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw
+        except InputFileError as exc:
+            raise ScenarioError(f"--set {key}: {exc}") from None
+        set_key(d, key, value)
+    return scenario_from_dict(d, "--set")
