@@ -344,4 +344,43 @@ def test_doc_limit_tables_do_not_drift():
     t = bench.tables(bench.periodic_rows(), bench.first_contact_rows(), bench.law_rows(), bench.threshold_rows(),
                      bench.integral_rows())
     for name, page in bench.DOCS.items():
-        assert bench.block((root / page).read_text(), name) == t[name], name
+        _assert_same_table(bench.block((root / page).read_text(), name), t[name], name)
+
+
+def _cell_value(cell: str):
+    try:
+        return float(cell.replace("%", "").strip()), cell.strip().endswith("%")
+    except ValueError:
+        return None, False
+
+
+def _assert_same_table(doc: str, generated: str, name: str) -> None:
+    """The table in the docs is what the benchmark prints now: the same rows
+    and words; numbers to 1e-3 relative (4 significant digits print them, and
+    the scheduled-damping row's limit is where Newton shooting stalls at the
+    rounding of one period, which moves by a few 1e-4 with the order of the
+    floating-point operations, docs/theory.md) and percentages to 0.1
+    percentage point (the same shift, printed as a difference of two limits)."""
+    a, b = _rows(doc), _rows(generated)
+    assert doc.splitlines()[:2] == generated.splitlines()[:2], name
+    assert len(a) == len(b), (name, doc, generated)
+    for ra, rb in zip(a, b):
+        assert len(ra) == len(rb), (name, ra, rb)
+        for ca, cb in zip(ra, rb):
+            (va, pa), (vb, _) = _cell_value(ca), _cell_value(cb)
+            if va is None or vb is None:
+                assert ca == cb, (name, ra, rb)
+            elif pa:
+                assert abs(va - vb) <= 0.1 + 1e-9, (name, ra, rb)
+            else:
+                assert va == pytest.approx(vb, rel=1e-3, abs=1e-12), (name, ra, rb)
+
+
+def test_the_drift_comparison_catches_a_changed_number_and_a_changed_word():
+    """The tolerant comparison still fails on what a drift is."""
+    doc = "| case | k | d |\n|---|---|---|\n| a | 2.664e+06 | -0.19 % |"
+    _assert_same_table(doc, doc.replace("2.664e+06", "2.665e+06").replace("-0.19", "-0.11"), "t")
+    for bad in (doc.replace("2.664e+06", "2.67e+06"), doc.replace("-0.19", "-0.35"), doc.replace("| a |", "| b |"),
+                doc + "\n| c | 1 | 1 % |"):
+        with pytest.raises(AssertionError):
+            _assert_same_table(doc, bad, "t")
