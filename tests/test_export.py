@@ -288,6 +288,7 @@ def test_paper_software_in_the_loop_equals_the_built_in_run(exported_inner, pape
      "sensor.noise_std=0.05"],
     ["controller.law=known", "robot.model_mass_scale=1.1", "sensor.filter_cutoff=50.0"],
     ["controller.law=adaptive_damping", "controller.x_e_error=0.001"],
+    ["robot.saturate=true", "robot.tau_max=[5.0, 18.0, 10.0]"],        # the drive's clip, a C parameter
 ])
 def test_software_in_the_loop_equals_the_built_in_run_for_every_structure(tmp_path, sets):
     """The delay queue, the approach, the damping schedule, noise, the filter and a wrong controller
@@ -297,6 +298,8 @@ def test_software_in_the_loop_equals_the_built_in_run_for_every_structure(tmp_pa
     sil = simulate_with_controller(sc, CompiledController(tmp_path))
     ref = Simulator(sc).run()
     assert ref.contact_force.max() > 1.0                  # the runs are in contact
+    if sc.robot.saturate:                                 # and the clip acts
+        assert ref.limit_use().saturated.max() > 0.0
     for name in ("contact_force", "measured_force", "q", "dq", "tau", "command_task", "damping", "desired_force"):
         assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
 

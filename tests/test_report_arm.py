@@ -29,8 +29,26 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     quarter = res.orientation_error_norm[res.time >= 0.75 * res.time[-1]]
     assert np.max(quarter) < 1e-3                                    # the 1 mrad at steady state
     assert "rad" in text
-    (v,) = rep.verdicts
+    v, lim = rep.verdicts
     assert v.name.startswith("Force tracking") and isinstance(v.passed, bool)
+    # the first 2 s stay inside the URDF's limits (the 170 N m spike comes at the 12 s switch)
+    assert lim.name.startswith("Within the arm's torque") and lim.passed is True
+    (limits,) = [b for b in sec.blocks if getattr(b, "caption", "").startswith("The arm's limits")]
+    assert [r[0] for r in limits.rows] == [f"{j + 1} ({n})" for j, n in enumerate(res.limits.names)]
+    assert limits.rows[1][2].replace("\xa0", " ") == "150 N m"                          # shoulder_lift_joint's effort
+    seg_table = next(b for b in sec.blocks if getattr(b, "caption", "") == "Per-segment metrics")
+    assert "orientation error" in seg_table.head
+
+
+def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
+    from tmtcontrol.report.document import Report, _simulation
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.5", "robot.tau_max=[150,20,150,28,28,28]"])
+    rep = Report(sc, "test")
+    _simulation(rep, sc, scenario_parameters(sc))
+    lim = next(v for v in rep.verdicts if v.name.startswith("Within the arm's torque"))
+    assert lim.passed is False and "joint 2 (shoulder_lift_joint) torque" in lim.value
 
 
 def test_the_pumas_report_has_no_orientation_figure(run_once):

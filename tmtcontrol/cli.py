@@ -333,6 +333,12 @@ def _verdict_exit(sc, segs) -> int:
     bad = [(i, s) for i, s in enumerate(segs, 1) if s.verdict != "converged"]
     if not bad:
         return 0
+    for i, s in bad:                # a limit crossed: the joint, not the stiffness, is the news
+        if s.verdict == "over_limit":
+            print(f"over_limit: segment {i} ({s.start:g}-{s.end:g} s): {s.reason}", file=sys.stderr)
+    bad = [(i, s) for i, s in bad if s.verdict != "over_limit"]
+    if not bad:
+        return 1
     from .stability.analysis import predicted_limits
     from .fmt import num
 

@@ -182,6 +182,7 @@ _PARAM_DOCS = {
     "q_post": ("rad", "joint", "null-space posture (redundant arm)"),
     "kp_post": ("1/s^2", "joint", "null-space posture stiffness (redundant arm)"),
     "kd_post": ("1/s", "joint", "null-space posture damping (redundant arm)"),
+    "tau_max": ("N m", "joint", "the drive's torque clip: the torque is clipped at +-tau_max (INFINITY: none)"),
 }
 
 
@@ -204,7 +205,7 @@ def param_fields(law: Law, task=3) -> tuple[Field, ...]:
             continue
         unit, frame, doc = _PARAM_DOCS[name]
         size = s.stop - s.start
-        out.append(Field(name, size, unit, frame, doc, *((_joints(size),) if name == "q_post" else ())))
+        out.append(Field(name, size, unit, frame, doc, *((_joints(size),) if name in ("q_post", "tau_max") else ())))
     return tuple(out)
 
 
@@ -360,7 +361,10 @@ def initial_function(scenario: Scenario, law: Law, torque: bool) -> ca.Function:
 # -- writing ----------------------------------------------------------------------------------
 
 def _c_num(x: float) -> str:
-    return repr(float(x)) if np.isfinite(x) else "0.0"
+    x = float(x)
+    if np.isnan(x):
+        return "NAN"
+    return repr(x) if np.isfinite(x) else ("INFINITY" if x > 0 else "-INFINITY")
 
 
 def _struct_fields(fields, indent="    ") -> str:

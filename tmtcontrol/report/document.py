@@ -392,10 +392,14 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         "the overshoot is the controller's own, after the jump (after a jump above f_d, how far the force then "
         "falls below f_d: 100 % is a contact lost, for the time in the next column). A segment 'converged' "
         "when its last quarter settles within the ripple band."))
-    blocks.append(Table(
-        "Per-segment metrics", ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost",
-                                "settling 2 %", "steady-state |f_e − f_d|", "tangential RMS", "verdict"],
-        _segment_rows(segs), verdict_column=9))
+    head, rows = ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost", "settling 2 %",
+                  "steady-state |f_e − f_d|", "tangential RMS", "verdict"], _segment_rows(segs)
+    if getattr(res, "orientation_error", None) is not None:     # a 6-D task: the orientation is judged too
+        head.insert(-1, "orientation error")
+        for r, c in zip(rows, _cells([s.orientation_error for s in segs], "rad")):
+            r.insert(-1, c)
+    blocks.append(Table("Per-segment metrics", head, rows, verdict_column=len(head) - 1))
+    blocks += _limit_blocks(rep, res)
     blocks.append(Table("First contact", ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))
@@ -420,6 +424,48 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
                              "(log scale).", simf.orientation_figure, res))
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
     return Section("simulation", "Simulation", blocks), sim, res
+
+
+def _limit_blocks(rep: Report, res) -> list:
+    """The arm's torque, rate and joint-position use against its limits
+    (:mod:`tmtcontrol.simulation.limits`): a table per joint, and a verdict
+    when the robot or the scenario states any limit (a bound nobody set is
+    not judged)."""
+    use = res.limit_use() if getattr(res, "limits", None) is not None else None
+    if use is None:
+        return []
+    L = use.limits
+    stated = bool(np.any(np.isfinite(L.tau_max)) or np.any(np.isfinite(L.dq_max))
+                  or np.any(np.isfinite(L.q_min) | np.isfinite(L.q_max)))
+    if not stated:
+        peaks = ", ".join(fmt.qty(v, "N m") for v in use.peak_torque)
+        return [Paragraph(f"The robot states no torque, rate or joint limits (the paper's PUMA parameter set has "
+                          f"none), so none is judged; peak |tau| per joint {peaks}. Set robot.tau_max and "
+                          "robot.dq_max to judge the run against the drives.")]
+
+    def pct(x):
+        return "none" if not np.isfinite(x) else f"{100 * x:.1f} %"
+
+    rows = [[f"{j + 1} ({L.names[j]})", fmt.qty(use.peak_torque[j], L.unit("torque", j)),
+             fmt.qty(L.tau_max[j], L.unit("torque", j)) if np.isfinite(L.tau_max[j]) else "none",
+             pct(use.torque_margin[j]), fmt.qty(use.peak_rate[j], L.unit("rate", j)),
+             fmt.qty(L.dq_max[j], L.unit("rate", j)) if np.isfinite(L.dq_max[j]) else "none", pct(use.rate_margin[j]),
+             fmt.qty(use.position_margin[j], L.unit("position", j)) if np.isfinite(use.position_margin[j]) else "none"]
+            for j in range(len(L.names))]
+    head = ["joint", "peak |tau|", "tau_max", "torque margin", "peak |dq|", "dq_max", "rate margin",
+            "to the nearest joint end"]
+    if L.saturate:
+        head.append("on the torque clip")
+        for r, s in zip(rows, use.saturated):
+            r.append(fmt.qty(s, "s"))
+    worst = min(use.excursions, key=lambda e: (e.kind != "torque", e.time), default=None)
+    rep.verdicts.append(Verdict(
+        "Within the arm's torque, rate and joint limits (simulation)", use.ok,
+        f"least torque margin {pct(float(np.min(use.torque_margin)))}, least rate margin "
+        f"{pct(float(np.min(use.rate_margin)))}" + (f"; {worst.text}" if worst else ""),
+        f"every sample of the run against the limits less robot.limit_margin = {L.margin:g}"
+        + ("; the drive clips the torque (robot.saturate)" if L.saturate else "")))
+    return [Table("The arm's limits over the run: peaks, limits and the margin left (1 − peak/limit)", head, rows)]
 
 
 def _worst_settling(segs) -> str:
@@ -638,7 +684,7 @@ Importing it takes ~0.8 s; only the second process does."""
 def _remote_tasks(sc: Scenario | None = None) -> list[str]:
     """Work that needs nothing from this process' stages, in the order the
     second process takes it: first :data:`_CONTROL_TASKS`, then the others
-    (one check group per law and the scenario's arm, ~0.1 s each, the law
+    (one check group per law, the scenario's arm model and its loop, ~0.1 s each, the law
     comparison, the sweep)
     shortest first. This process runs its own stages, then takes tasks last
     first (the longest of the others first; see :func:`_claim`), but none of
@@ -646,7 +692,7 @@ def _remote_tasks(sc: Scenario | None = None) -> list[str]:
     among the short tasks, so they end within about one of each other."""
     from ..checks import check_groups
 
-    short = [f"checks: {g}" for g in check_groups(sc) if g.startswith("law: ") or g == "arm"]
+    short = [f"checks: {g}" for g in check_groups(sc) if g.startswith("law: ") or g in ("model", "arm")]
     return [*_CONTROL_TASKS, *short, "law comparison", "robustness sweep"]
 
 

@@ -143,7 +143,8 @@ def param_layout(task, law: Law, surface=Plane) -> Layout:
     rate (1/s); the law's parameters; on a 6-D task the commanded tool
     orientation R_d (column-major) and the rotational gains K_D,rot (1/s),
     K_P,rot (1/s^2); on a redundant arm the posture q_post (n, rad) and the
-    null-space gains K_post (1/s^2), D_post (1/s)."""
+    null-space gains K_post (1/s^2), D_post (1/s); the drive's torque clip
+    tau_max (n, N m; inf: no clip, ``robot.saturate`` off)."""
     r, post = task.rotational, task.posture
     return Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("x_e_hat", 1),
                   ("alpha", 1), ("d_e", 1), *surface.fields, ("Ts", 1), ("sched", 1), ("zeta", 1),
@@ -151,7 +152,8 @@ def param_layout(task, law: Law, surface=Plane) -> Layout:
                   ("sched_f_th", 1), ("v_app", 1), ("f_contact", 1), ("ramp_rate", 1),
                   ("law", len(law.parameter_names)),
                   ("R_d", 9 if r else 0), ("kd_rot", r), ("kp_rot", r),
-                  ("q_post", task.n if post else 0), ("kp_post", 1 if post else 0), ("kd_post", 1 if post else 0))
+                  ("q_post", task.n if post else 0), ("kp_post", 1 if post else 0), ("kd_post", 1 if post else 0),
+                  ("tau_max", task.n))
 
 
 def log_layout(task) -> Layout:
@@ -346,6 +348,7 @@ def _control(model, law: Law, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor,
              if task.posture else None)
     tau = operational_space_torque(M, model.functions.bias(q, dq), J, Jdot_dq, U, F_e, tau_0) \
         + model.functions.friction(dq)                                                # eq. (5)
+    tau = ca.fmin(ca.fmax(tau, -P["tau_max"]), P["tau_max"])      # the drive's clip (robot.saturate; inf: none)
     if delay:           # apply the oldest waiting torque; queue this one
         queue = ca.vertcat(S["tau_wait"], tau)
         tau, tau_wait = queue[:task.n], queue[task.n:]

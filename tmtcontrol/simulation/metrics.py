@@ -16,7 +16,15 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
   the tolerance too;
 * ``off_target``: stable (not growing, contact kept), but not within the
   tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
-  forced response to a varying stiffness, or a transient still decaying;
+  forced response to a varying stiffness, or a transient still decaying; on
+  a 6-D task also a tool orientation error above
+  ``controller.orientation_tolerance`` over the last quarter;
+* ``over_limit``: a joint torque, joint rate or joint position beyond the
+  arm's limit somewhere in the segment (:mod:`.limits`: the robot's own or
+  ``robot.tau_max``/``robot.dq_max``, less ``robot.limit_margin``), a
+  segment that would otherwise be ``converged`` or ``off_target``: a drive
+  faults or clips there, so the run's force says nothing about the robot's;
+  the reason names the joint, the value, the limit, when and for how long;
 * ``limit_cycle``: the contact is lost in the last quarter, or an oscillation
   above the ripple band that does not decay and is not the periodic response
   to the forcing;
@@ -56,13 +64,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .limits import limit_use
 from .scenario import read_stiffness_table
 from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "segment_verdict",
            "judge_segment", "judging_periods", "bias_allowance", "VERDICTS", "FirstContact", "first_contact", "FIRST_CONTACT_WINDOW"]
 
-VERDICTS = ("converged", "off_target", "limit_cycle", "diverged")
+VERDICTS = ("converged", "off_target", "over_limit", "limit_cycle", "diverged")
 """Per-segment verdicts, best first (see the module docstring)."""
 
 STEADY_FRACTION = 0.25
@@ -132,7 +141,14 @@ class SegmentMetrics:
     * ``tolerance``: the tracking tolerance the verdict used (N, the
       scenario's ``controller.force_tolerance``, plus 6 standard deviations
       of what the sensor noise did to the force under noise);
-    * ``verdict``: :func:`judge_segment`; ``reason``: why, in words.
+    * ``verdict``: :func:`judge_segment`, then the limits and the
+      orientation (module docstring); ``reason``: why, in words;
+    * ``torque_margin`` / ``rate_margin``: the least fraction of a joint's
+      torque / rate limit left over the segment (1 - peak/limit; negative:
+      over; inf: no limit); ``position_margin``: the least distance of a
+      joint to either end of its range (rad; inf: no limits);
+      ``orientation_error``: the largest angle between the tool and its
+      command over the last quarter (rad; 0 on a position task).
     """
     start: float
     end: float
@@ -152,6 +168,10 @@ class SegmentMetrics:
     verdict: str
     tolerance: float = math.nan
     reason: str = ""
+    torque_margin: float = math.inf
+    rate_margin: float = math.inf
+    position_margin: float = math.inf
+    orientation_error: float = 0.0
 
     def as_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
@@ -397,7 +417,7 @@ def noise_free_twin(result: SimulationResult) -> SimulationResult:
     return _TWINS[key]
 
 
-_RANK = {v: i for i, v in enumerate(("converged", "off_target", "limit_cycle", "diverged"))}
+_RANK = {v: i for i, v in enumerate(VERDICTS)}
 
 
 def _judge(result: SimulationResult, twin: SimulationResult | None, i0: int, i1: int,
@@ -440,6 +460,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         except SimulationError as exc:       # the loop diverges without the noise: no segment is stable
             twin_error = str(exc)
     limit = (getattr(result, "info", None) or {}).get("stiffness_limit")
+    limits, e_rot = getattr(result, "limits", None), getattr(result, "orientation_error", None)
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -464,6 +485,10 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             verdict, reason = "diverged", (f"k_e reaches {k_max:,.0f} N/m, above the loop's predicted limit "
                                            f"{limit:,.0f} N/m: unstable there, although this run ended before "
                                            f"the growth showed ({verdict}: {reason})")
+        use = None if limits is None else limit_use(limits, t, result.q[:, i0:i1], result.dq[:, i0:i1],
+                                                     result.tau[:, i0:i1], result.Ts)
+        e_o = 0.0 if e_rot is None else float(np.max(np.linalg.norm(e_rot[:, i0:i1][:, ss], axis=0)))
+        verdict, reason = _limits_and_orientation(verdict, reason, use, e_o, sc.controller.orientation_tolerance)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
             stiffness=float(np.mean(result.stiffness[i0:i1])),
@@ -477,8 +502,26 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             contact_lost_steady=bool(np.any(f[ss] <= 0.0)),
             contact_lost_time=float(lost * result.Ts),
             verdict=verdict, tolerance=tol, reason=reason,
+            torque_margin=float(np.min(use.torque_margin)) if use else math.inf,
+            rate_margin=float(np.min(use.rate_margin)) if use else math.inf,
+            position_margin=float(np.min(use.position_margin)) if use else math.inf,
+            orientation_error=e_o,
         ))
     return out
+
+
+def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, tolerance: float) -> tuple[str, str]:
+    """A segment that tracks its force (``converged`` or ``off_target``) but
+    crosses a limit is ``over_limit``; one ``converged`` whose tool orientation
+    error ``e_o`` (rad) exceeds ``tolerance`` is ``off_target``."""
+    if use is not None and use.excursions and _RANK[verdict] < _RANK["over_limit"]:
+        shown = "; ".join(e.text for e in use.excursions[:3])
+        more = f" (and {len(use.excursions) - 3} more)" if len(use.excursions) > 3 else ""
+        return "over_limit", f"{shown}{more}; the force tracking alone: {verdict}"
+    if verdict == "converged" and e_o > tolerance:
+        return "off_target", (f"tool orientation error {e_o * 1e3:.3g} mrad over the last quarter, above "
+                              f"controller.orientation_tolerance = {tolerance * 1e3:.3g} mrad")
+    return verdict, reason
 
 
 FIRST_CONTACT_WINDOW = 1.0

@@ -166,6 +166,8 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, work
             "segments": [s.as_dict() for s in segs],
             "first_contact": first_contact(r).as_dict(),
         }
+        if r.limits is not None:        # the arm's torque, rate and joint margins (simulation.limits)
+            summary["limits"] = r.limit_use().as_dict()
         if drawing is not None:
             summary["figures"] = [p.name for p in drawing.result()]
         write_json(folder / "summary.json", summary)

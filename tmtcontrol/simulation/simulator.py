@@ -36,6 +36,7 @@ from ..model.urdf import TipError
 from .closedloop import INPUT, build_step, log_layout, param_layout, state_layout, step_name
 from .environment import stiffness_samples
 from .geometry import surface_of, tool_orientation
+from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError, paper_scenario
@@ -254,6 +255,7 @@ class SimulationResult:
     path: PosePath
     info: dict = field(default_factory=dict)
     orientation_error: np.ndarray | None = None   # (3, N) rotation vector log(R_d R^T), task axes, rad; None: position task
+    limits: JointLimits | None = None             # the arm's limits the run is judged against (.limits)
 
     @property
     def Ts(self) -> float:
@@ -270,6 +272,14 @@ class SimulationResult:
         if self.orientation_error is None:
             return np.zeros(self.time.size)
         return np.linalg.norm(self.orientation_error, axis=0)
+
+    def limit_use(self, start: float = -np.inf, end: float = np.inf) -> LimitUse | None:
+        """The torques, joint rates and positions over ``start <= t < end``
+        (s) against :attr:`limits` (:func:`.limits.limit_use`); None without limits."""
+        if self.limits is None:
+            return None
+        w = (self.time >= start) & (self.time < end)
+        return limit_use(self.limits, self.time[w], self.q[:, w], self.dq[:, w], self.tau[:, w], self.Ts)
 
     @property
     def traces(self) -> SimulationTraces:
@@ -509,7 +519,8 @@ class Simulator:
             v_app=ctl.approach_speed, f_contact=contact_threshold_of(sc, alpha),
             ramp_rate=1.0 / ctl.force_ramp, law=law.parameter_vector(ctl.law),
             R_d=R_d.ravel(order="F"), kd_rot=np.divide(imp.b_rot, imp.m_rot), kp_rot=np.divide(imp.k_rot, imp.m_rot),
-            q_post=q0, kp_post=sc.robot.posture_kp, kd_post=sc.robot.posture_kd)
+            q_post=q0, kp_post=sc.robot.posture_kp, kd_post=sc.robot.posture_kd,
+            tau_max=limits_of(self.plant, sc).torque_clip)
         if task.posture:
             self._posture = np.asarray(q0, dtype=float).copy()
         # at rest in the task's rotation, moving with the path (least-norm joint rates on a redundant arm)
@@ -551,7 +562,8 @@ class Simulator:
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
             contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
             stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,
-            info=info, orientation_error=lg["e_o"] if self.task.rotational else None)
+            info=info, orientation_error=lg["e_o"] if self.task.rotational else None,
+            limits=limits_of(self.plant, sc))
 
 
 def simulator_for(scenario: Scenario, compile: bool | str = "auto") -> Simulator:

@@ -84,6 +84,7 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     except SimulationError as exc:
         row.update({"verdict": "diverged", "max_steady_error": math.inf, "first_contact_time": None,
                     "first_contact_peak": None, "first_contact_ratio": None, "first_contact_bounces": None,
+                    "torque_margin": math.nan, "rate_margin": math.nan, "position_margin": math.nan,
                     "error": str(exc), "run_time_s": time.perf_counter() - t0})
         return row
     if limits and row["small_signal_limit"] > 0:       # NaN (no linear verdict) compares False
@@ -94,6 +95,10 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                 "max_steady_error": max(s.steady_state_error for s in segs),
                 "first_contact_time": fc.time, "first_contact_peak": fc.peak_force,
                 "first_contact_ratio": fc.peak_ratio, "first_contact_bounces": fc.bounces,
+                # the arm's limits (simulation.limits): the least fraction of a torque / rate limit left, the
+                # least distance to a joint end (rad); inf without limits, negative over them
+                "torque_margin": min(s.torque_margin for s in segs), "rate_margin": min(s.rate_margin for s in segs),
+                "position_margin": min(s.position_margin for s in segs),
                 "error": "", "run_time_s": time.perf_counter() - t0})
     for i, s in enumerate(segs, 1):
         for f in SEGMENT_FIELDS:

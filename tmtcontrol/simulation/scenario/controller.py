@@ -109,6 +109,9 @@ class ControllerSettings(Section):
                                  "over its last quarter, and its mean error there; with sensor noise also its noise-free "
                                  "twin, the noisy run's limits widened only by what the noise did to the force "
                                  "(docs/simulation.md)", gt=0)
+    orientation_tolerance: float = num(1e-3, "rad", "6-D task: the tool's orientation error (angle between "
+                                       "the tool and its command, max over a segment's last quarter) above "
+                                       "which a segment is not 'converged' (off_target)", gt=0)
     law: law_union() = Field(default_factory=TmtParameters,
                               description="force-tracking law: its kind and parameters")
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,

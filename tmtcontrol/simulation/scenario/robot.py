@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field, StrictBool
 
-from .fields import F, Section, num
+from .fields import F, Pos, Section, num
 
 __all__ = ["RobotSettings"]
 
@@ -29,3 +29,16 @@ class RobotSettings(Section):
                             ge=0)
     posture_kd: float = num(10.0, "1/s", "null-space posture damping of a redundant arm (more than 6 joints)",
                             ge=0)
+    tau_max: tuple[Pos, ...] | None = Field(None, min_length=1, description=(
+        "joint torque limits, one per joint (N for a prismatic joint); default: the robot's own (URDF effort; "
+        "the paper's PUMA parameter set has none) [N m]"), json_schema_extra={"unit": "N m"})
+    dq_max: tuple[Pos, ...] | None = Field(None, min_length=1, description=(
+        "joint rate limits, one per joint (m/s for a prismatic joint); default: the robot's own (URDF "
+        "velocity; the PUMA's: none) [rad/s]"), json_schema_extra={"unit": "rad/s"})
+    limit_margin: float = num(0.0, "1", "fraction of each limit held in reserve: a torque or rate above "
+                              "(1 - margin) x its limit, or a joint within margin x half its range of either "
+                              "end, is over the limit (verdict over_limit)", ge=0, lt=1)
+    saturate: StrictBool = Field(False, description=(
+        "the drive model: clip the applied joint torque at tau_max, as a real drive does (the exported C "
+        "clips at the same parameter); off, the torque is whatever the controller asks and a run beyond a "
+        "limit is judged over_limit"))

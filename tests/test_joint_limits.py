@@ -1,0 +1,174 @@
+"""The arm's limits in the verdict (issue: a verdict you can take to the robot).
+
+Each limit kind on a case whose answer is known without the code under test:
+synthetic series with a closed-form excursion, the drive's clip against the
+unclipped run (identical up to the first sample over the limit, then the
+clipped torque is exactly clip(unclipped)), and the UR5 reviewer's figures
+(joint 2 at 170.1 N m against the URDF's 150 N m at the 12 s switch).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tmtcontrol import Simulator, apply_overrides, load_scenario, paper_scenario
+from tmtcontrol.cli import main
+from tmtcontrol.simulation.limits import JointLimits, limit_use
+from tmtcontrol.simulation.metrics import segment_metrics
+
+INF = np.inf
+
+
+def _limits(tau=(10.0, INF), dq=(1.0, INF), q_min=(-1.0, -INF), q_max=(1.0, INF), margin=0.0):
+    return JointLimits(("a", "b"), (False, True), np.array(tau), np.array(dq), np.array(q_min), np.array(q_max),
+                       margin)
+
+
+def _series(N=100):
+    t = np.arange(N) * 0.01
+    return t, np.zeros((2, N)), np.zeros((2, N)), np.zeros((2, N))
+
+
+def test_a_torque_step_beyond_the_limit_is_one_excursion_with_its_time_value_and_duration():
+    t, q, dq, tau = _series()
+    tau[0, 30:37] = 12.5          # 7 samples over 10 N m, from t = 0.30 s
+    tau[0, 33] = -14.0            # the worst sample of the run, of the other sign
+    tau[1, :] = 1e6               # no limit on joint b: never an excursion
+    use = limit_use(_limits(), t, q, dq, tau, 0.01)
+    (e,) = use.excursions
+    assert (e.kind, e.name, e.value, e.limit) == ("torque", "a", -14.0, -10.0)
+    assert e.time == pytest.approx(0.30, abs=1e-12) and e.duration == pytest.approx(0.07, abs=1e-12)
+    assert use.torque_margin[0] == pytest.approx(1 - 14.0 / 10.0) and use.torque_margin[1] == INF
+    assert "joint 1 (a) torque -14 N m beyond its limit -10 N m at 0.300 s (70 ms over)" == e.text
+
+
+def test_a_rate_limit_counts_every_separate_run_and_the_margin_tightens_it():
+    t, q, dq, tau = _series()
+    dq[0, 10:12] = 0.95           # within 1 rad/s ...
+    dq[0, 50:53] = -0.95          # ... but over (1 - 0.1) x 1 rad/s with a 10 % margin
+    assert limit_use(_limits(), t, q, dq, tau, 0.01).ok
+    use = limit_use(_limits(margin=0.1), t, q, dq, tau, 0.01)
+    assert [(e.kind, round(e.time, 9), round(e.duration, 9), e.limit) for e in use.excursions] == [
+        ("rate", 0.10, 0.02, 0.9), ("rate", 0.50, 0.03, -0.9)]
+    assert use.rate_margin[0] == pytest.approx(0.05)
+
+
+def test_a_joint_position_beyond_either_end_and_a_prismatic_unit():
+    t, q, dq, tau = _series()
+    q[0, 90:] = 1.2               # past q_max = 1 rad for the last 10 samples
+    q[1, :] = -3.0                # joint b has no position limits
+    use = limit_use(_limits(), t, q, dq, tau, 0.01)
+    (e,) = use.excursions
+    assert (e.kind, e.value, e.limit, e.unit) == ("position", 1.2, 1.0, "rad")
+    assert e.duration == pytest.approx(0.10)
+    assert use.position_margin[0] == pytest.approx(-0.2) and use.position_margin[1] == INF
+    # with a margin of 0.5, half of the half-range (0.5 rad) is held back at each end
+    q[0, :] = 0.0
+    q[0, 20] = -0.6
+    (e,) = limit_use(_limits(margin=0.5), t, q, dq, tau, 0.01).excursions
+    assert e.limit == pytest.approx(-0.5) and e.time == pytest.approx(0.20)
+    assert _limits().unit("rate", 1) == "m/s" and _limits().unit("torque", 1) == "N"
+
+
+def test_a_non_finite_sample_is_beyond_every_finite_limit():
+    t, q, dq, tau = _series()
+    tau[0, 5] = np.nan
+    assert [e.kind for e in limit_use(_limits(), t, q, dq, tau, 0.01).excursions] == ["torque"]
+
+
+@pytest.fixture(scope="module")
+def ur5_runs():
+    sc = load_scenario("ur5")
+    return Simulator(sc).run(), Simulator(apply_overrides(sc, ["robot.saturate=true"])).run()
+
+
+def test_the_ur5_switch_at_12_s_drives_joint_2_over_its_urdf_effort_and_the_segment_is_over_limit(ur5_runs):
+    """The reviewer's numbers: 170.1 N m against 150 N m for 2 ms at 12 s; 131.5 N m at 4 s (inside)."""
+    res, _ = ur5_runs
+    assert res.limits.tau_max[1] == 150.0                               # the bundled URDF's effort
+    segs = segment_metrics(res)
+    assert [s.verdict for s in segs] == ["converged", "converged", "converged", "over_limit"]
+    assert "joint 2 (shoulder_lift_joint) torque -170.1 N m beyond its limit -150 N m at 12.000 s (2 ms over)" \
+        in segs[3].reason
+    assert np.max(np.abs(res.tau[1, (res.time >= 4) & (res.time < 8)])) == pytest.approx(131.5, abs=0.05)
+    assert segs[3].torque_margin == pytest.approx(1 - 170.1 / 150, abs=1e-3)
+    # a 15 % reserve puts 131.5 N m (segment 2) over 127.5 N m as well
+    tight = apply_overrides(res.scenario, ["robot.limit_margin=0.15"])
+    res2 = Simulator(tight).run()
+    assert [s.verdict for s in segment_metrics(res2)] == ["converged", "over_limit", "converged", "over_limit"]
+
+
+def test_the_drive_clip_is_the_unclipped_torque_clipped_and_keeps_the_run_inside(ur5_runs):
+    res, sat = ur5_runs
+    k = int(np.flatnonzero(np.abs(res.tau[1]) > 150.0)[0])              # the first sample over the limit
+    assert np.array_equal(sat.tau[:, :k], res.tau[:, :k])               # identical before it (inf: no clip)
+    assert np.array_equal(sat.tau[:, k], np.clip(res.tau[:, k], -sat.limits.tau_max, sat.limits.tau_max))
+    assert np.all(np.abs(sat.tau) <= sat.limits.tau_max[:, None])
+    assert [s.verdict for s in segment_metrics(sat)] == ["converged"] * 4
+    use = sat.limit_use()
+    assert use.ok and use.saturated[1] == pytest.approx(0.002) and use.saturated[0] == 0.0
+    assert not np.array_equal(sat.contact_force, res.contact_force)     # the clip changes what follows
+
+
+def test_simulate_exits_1_naming_the_joint_and_summary_json_carries_the_margins(tmp_path, capsys):
+    out = tmp_path / "run"
+    sets = ["--set", "robot.tau_max=[5.0, 18.0, 10.0]", "--set", "trajectory.cycles=0.5"]
+    assert main(["simulate", "paper", *sets, "--no-plots", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "over_limit: segment 1" in err and "joint 1 (" in err and "beyond its limit" in err
+    summary = json.loads((out / "summary.json").read_text())
+    joints = summary["limits"]["joints"]
+    assert [j["tau_max"] for j in joints] == [5.0, 18.0, 10.0]
+    assert joints[0]["torque_margin"] < 0 and summary["segments"][0]["verdict"] == "over_limit"
+    assert summary["limits"]["excursions"][0]["joint"] == joints[0]["joint"]
+
+
+def test_the_paper_puma_has_no_limits_unless_the_scenario_states_them(paper_result):
+    use = paper_result.limit_use()
+    assert use.ok and np.all(np.isinf(paper_result.limits.tau_max))
+    assert all(s.torque_margin == INF for s in segment_metrics(paper_result))
+
+
+@pytest.mark.parametrize("sets, key", [
+    (["robot.tau_max=[1.0, 2.0]"], "robot.tau_max: expected 3 values"),
+    (["robot.dq_max=[1.0, 2.0, 3.0, 4.0]"], "robot.dq_max: expected 3 values"),
+    (["robot.saturate=true"], "robot.saturate: no torque limit"),
+])
+def test_limits_that_do_not_fit_the_arm_are_one_line_and_exit_2(tmp_path, capsys, sets, key):
+    out = tmp_path / "run"
+    assert main(["simulate", "paper", *[a for s in sets for a in ("--set", s)], "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert key in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_a_limit_margin_outside_0_1_is_refused():
+    from tmtcontrol import ScenarioError
+
+    for bad in ("1.0", "-0.1"):
+        with pytest.raises(ScenarioError, match="robot.limit_margin"):
+            apply_overrides(paper_scenario(), [f"robot.limit_margin={bad}"])
+
+
+def test_an_orientation_error_above_the_tolerance_is_off_target(ur5_runs):
+    res, _ = ur5_runs
+    segs = segment_metrics(res)
+    worst = max(s.orientation_error for s in segs[:3])
+    assert 0 < worst < 1e-3                                             # held, well inside 1 mrad
+    strict = Simulator(apply_overrides(res.scenario, [f"controller.orientation_tolerance={worst / 2}"])).run()
+    verdicts = [(s.verdict, s.reason) for s in segment_metrics(strict)[:3]]
+    assert any(v == "off_target" and "controller.orientation_tolerance" in r for v, r in verdicts)
+
+
+def test_the_over_limit_line_quoted_in_the_docs_is_what_simulate_ur5_prints(ur5_runs):
+    """docs/simulation.md quotes the line `simulate ur5` prints (cli._verdict_exit's format)."""
+    import pathlib
+
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "simulation.md").read_text()
+    (quoted,) = [line.strip() for line in doc.splitlines() if line.strip().startswith("over_limit: segment")]
+    res, _ = ur5_runs
+    printed = [f"over_limit: segment {i} ({s.start:g}-{s.end:g} s): {s.reason}"
+               for i, s in enumerate(segment_metrics(res), 1) if s.verdict == "over_limit"]
+    assert printed == [quoted]

@@ -1,0 +1,211 @@
+"""The arm's actuator and joint limits in a run: peaks, margins and excursions.
+
+A verdict a user takes to hardware must hold on the robot's drives, not only
+in eq. (1): a drive faults (or clips) where the commanded torque or the joint
+rate exceeds its rating, and a joint stops at its end. :func:`limits_of`
+gives a scenario's limits (the robot's own: URDF ``effort``, ``velocity``,
+``lower``/``upper``; ``robot.tau_max`` and ``robot.dq_max`` replace the first
+two, which is how the paper's PUMA, whose parameter set has none, gets
+some), and :func:`limit_use` measures a run against them:
+
+* torque: the torque applied over each period (N m, N if prismatic),
+  against ``(1 - robot.limit_margin) tau_max``;
+* rate: the joint rate at the control instants (rad/s, m/s), against
+  ``(1 - robot.limit_margin) dq_max``;
+* position: the joint position (rad, m), against ``[q_min, q_max]`` shrunk
+  at each end by ``robot.limit_margin`` of half the range.
+
+An excursion is a run of samples beyond a limit; :attr:`Excursion.text` says
+which joint, how far, when and for how long. :mod:`.metrics` turns an
+excursion inside a segment into the segment's ``over_limit`` verdict.
+
+With ``robot.saturate = true`` the loop clips the torque at ``tau_max``
+(the drive model of :mod:`.closedloop`), so the torque never exceeds its
+limit; :attr:`LimitUse.saturated` says for how long it sat on it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scenario import ScenarioError
+
+__all__ = ["JointLimits", "Excursion", "LimitUse", "limits_of", "limit_use", "KINDS"]
+
+KINDS = ("torque", "rate", "position")
+"""The limit kinds, in the order they are reported."""
+
+_UNITS = {"torque": ("N m", "N"), "rate": ("rad/s", "m/s"), "position": ("rad", "m")}
+
+SATURATION_RTOL = 1e-12
+"""A torque within this relative distance of its limit is on it (clipped)."""
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint limits (arrays of n; inf: none) and how they are judged.
+
+    ``names`` the joints; ``prismatic`` which are prismatic (units m, m/s, N);
+    ``tau_max`` (N m), ``dq_max`` (rad/s), ``q_min``/``q_max`` (rad);
+    ``margin`` the fraction held in reserve (``robot.limit_margin``);
+    ``saturate`` whether the loop clips the torque at ``tau_max``."""
+    names: tuple[str, ...]
+    prismatic: tuple[bool, ...]
+    tau_max: np.ndarray
+    dq_max: np.ndarray
+    q_min: np.ndarray
+    q_max: np.ndarray
+    margin: float = 0.0
+    saturate: bool = False
+
+    def bounds(self, kind: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` per joint that ``kind`` is judged against (the margin applied)."""
+        keep = 1.0 - self.margin
+        if kind == "torque":
+            return -keep * self.tau_max, keep * self.tau_max
+        if kind == "rate":
+            return -keep * self.dq_max, keep * self.dq_max
+        if kind == "position":
+            half = np.where(np.isfinite(self.q_max - self.q_min), (self.q_max - self.q_min) / 2, 0.0)
+            return self.q_min + self.margin * half, self.q_max - self.margin * half
+        raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
+
+    def unit(self, kind: str, joint: int) -> str:
+        return _UNITS[kind][int(self.prismatic[joint])]
+
+    @property
+    def torque_clip(self) -> np.ndarray:
+        """The loop's torque clip (N m): ``tau_max`` with ``saturate``, else inf (no clip)."""
+        return self.tau_max.copy() if self.saturate else np.full(len(self.names), np.inf)
+
+
+def _values(key: str, given, robot_values, robot) -> np.ndarray:
+    if given is None:
+        return np.asarray(robot_values, dtype=float).copy()
+    if len(given) != robot.n:
+        raise ScenarioError(f"{key}: expected {robot.n} values (one per joint of {robot.name}), got {len(given)}")
+    return np.asarray(given, dtype=float)
+
+
+def limits_of(robot, scenario) -> JointLimits:
+    """The limits ``scenario`` judges ``robot`` against (module docstring);
+    a ``robot.tau_max``/``robot.dq_max`` of the wrong length raises
+    :class:`ScenarioError` naming the key."""
+    r = scenario.robot
+    tau = _values("robot.tau_max", r.tau_max, robot.tau_max, robot)
+    dq = _values("robot.dq_max", r.dq_max, robot.dq_max, robot)
+    if r.saturate and not np.all(np.isfinite(tau)):
+        names = [robot.joint_names[j] for j in np.flatnonzero(~np.isfinite(tau))]
+        raise ScenarioError(f"robot.saturate: no torque limit to clip at for {', '.join(names)} "
+                            f"(set robot.tau_max)")
+    prismatic = tuple(bool(p) for p in getattr(robot, "prismatic", (False,) * robot.n))
+    return JointLimits(tuple(robot.joint_names), prismatic, tau, dq, np.asarray(robot.q_min, dtype=float),
+                       np.asarray(robot.q_max, dtype=float), float(r.limit_margin), bool(r.saturate))
+
+
+@dataclass(frozen=True)
+class Excursion:
+    """One run of samples beyond a limit: ``kind``, ``joint`` (index) and
+    its ``name``, the worst ``value`` (signed, the kind's unit), the
+    ``limit`` it crossed (the judged bound, signed), the ``time`` it first
+    crossed (s) and ``duration`` (s, samples x Ts)."""
+    kind: str
+    joint: int
+    name: str
+    value: float
+    limit: float
+    time: float
+    duration: float
+    unit: str
+
+    @property
+    def text(self) -> str:
+        return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.4g} {self.unit} beyond its limit "
+                f"{self.limit:.4g} {self.unit} at {self.time:.3f} s ({self.duration * 1e3:.0f} ms over)")
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "joint": self.name, "value": self.value, "limit": self.limit,
+                "time": self.time, "duration": self.duration, "unit": self.unit}
+
+
+@dataclass(frozen=True)
+class LimitUse:
+    """A run (or a time window of it) against :class:`JointLimits`.
+
+    Per joint (arrays of n): ``peak_torque`` max |tau| (N m), ``peak_rate``
+    max |dq| (rad/s), ``torque_margin`` / ``rate_margin`` = 1 - peak/limit
+    (fraction of the limit left; negative: over; inf without a limit),
+    ``position_margin`` the least distance to either joint end (rad; inf
+    without limits), ``saturated`` the time the torque sat on its clip (s);
+    ``excursions`` every run beyond a judged bound, first first."""
+    limits: JointLimits
+    peak_torque: np.ndarray
+    peak_rate: np.ndarray
+    torque_margin: np.ndarray
+    rate_margin: np.ndarray
+    position_margin: np.ndarray
+    saturated: np.ndarray
+    excursions: tuple[Excursion, ...]
+
+    @property
+    def ok(self) -> bool:
+        return not self.excursions
+
+    def rows(self) -> list[dict]:
+        """One dict per joint: its name, peaks, limits and margins (JSON-ready: inf as None)."""
+        L = self.limits
+
+        def val(x):
+            return float(x) if np.isfinite(x) else None
+
+        return [{"joint": L.names[j], "peak_torque": val(self.peak_torque[j]), "tau_max": val(L.tau_max[j]),
+                 "torque_margin": val(self.torque_margin[j]), "peak_rate": val(self.peak_rate[j]),
+                 "dq_max": val(L.dq_max[j]), "rate_margin": val(self.rate_margin[j]),
+                 "position_margin": val(self.position_margin[j]), "saturated": float(self.saturated[j])}
+                for j in range(len(L.names))]
+
+    def as_dict(self) -> dict:
+        return {"margin": self.limits.margin, "saturate": self.limits.saturate, "joints": self.rows(),
+                "excursions": [e.as_dict() for e in self.excursions]}
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of every run of True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
+    """:class:`LimitUse` of the samples ``time`` (N,), ``q``, ``dq``, ``tau``
+    (n x N each; a non-finite sample counts as beyond every finite limit)."""
+    series = {"torque": np.asarray(tau, float), "rate": np.asarray(dq, float), "position": np.asarray(q, float)}
+    time = np.asarray(time, float)
+    excursions = []
+    for kind in KINDS:
+        x = series[kind]
+        lo, hi = limits.bounds(kind)
+        for j in range(x.shape[0]):
+            xj = x[j]
+            below, above = (xj < lo[j]) | ~np.isfinite(xj), xj > hi[j]
+            if not (np.isfinite(lo[j]) or np.isfinite(hi[j])):
+                continue
+            for i0, i1 in _runs(below | above):
+                seg = xj[i0:i1]
+                k = i0 + int(np.nanargmax(np.abs(seg))) if np.any(np.isfinite(seg)) else i0
+                up = xj[k] > hi[j] or not (xj[k] < lo[j])
+                excursions.append(Excursion(kind, j, limits.names[j], float(xj[k]), float(hi[j] if up else lo[j]),
+                                            float(time[i0]), (i1 - i0) * Ts, limits.unit(kind, j)))
+    excursions.sort(key=lambda e: (e.time, KINDS.index(e.kind), e.joint))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        peak_tau = np.max(np.abs(series["torque"]), axis=1)
+        peak_dq = np.max(np.abs(series["rate"]), axis=1)
+        t_margin = np.where(np.isfinite(limits.tau_max), 1.0 - peak_tau / limits.tau_max, np.inf)
+        r_margin = np.where(np.isfinite(limits.dq_max), 1.0 - peak_dq / limits.dq_max, np.inf)
+        qq = series["position"]
+        p_margin = np.min(np.minimum(qq - limits.q_min[:, None], limits.q_max[:, None] - qq), axis=1)
+        on_clip = np.abs(np.abs(series["torque"]) - limits.tau_max[:, None]) <= SATURATION_RTOL * limits.tau_max[:, None]
+    saturated = (np.count_nonzero(on_clip, axis=1) * Ts if limits.saturate else np.zeros(len(limits.names)))
+    return LimitUse(limits, peak_tau, peak_dq, t_margin, r_margin, p_margin, saturated.astype(float),
+                    tuple(excursions))
