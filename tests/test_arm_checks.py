@@ -86,7 +86,7 @@ def arm_checks_only(monkeypatch):
     """The paper's, the laws' and the loop's checks left out (tested elsewhere, ~5 s)."""
     from tmtcontrol.checks import derivations, laws, loop
 
-    monkeypatch.setattr(derivations, "run_checks", lambda seed=2024: [])
+    monkeypatch.setattr(derivations, "run_checks", lambda seed=2024, model=True: [])
     monkeypatch.setattr(loop, "run_loop_checks", lambda seed=2024: [])
     monkeypatch.setattr(laws, "law_checks", lambda law, seed=2024: [])
 
@@ -94,7 +94,10 @@ def arm_checks_only(monkeypatch):
 def test_cli_check_scenario_adds_the_arm_rows(arm_checks_only, capsys):
     assert main(["check", "--scenario", "panda", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert [r["equation"] for r in rows] == ["(5)-(6)", "(19)-(22)", "(5), null space", "(8)-(9), other axes"]
+    model = [r for r in rows if r["equation"] == "(1)"]          # the Panda's own eq. (1) rows (checks.model)
+    assert len(model) >= 5 and any("Pinocchio" in r["name"] for r in model)
+    assert [r["equation"] for r in rows[len(model):]] == ["(5)-(6)", "(19)-(22)", "(5), null space",
+                                                            "(8)-(9), other axes"]
     assert all(r["passed"] and "panda" in r["name"] for r in rows)
 
 

@@ -9,11 +9,14 @@ from __future__ import annotations
 def check_groups(scenario=None) -> list[str]:
     """The independent groups of :func:`all_checks`, in its order: the
     paper's derivations, one group per registered law (``"law: NAME"``), the
-    loop, and with a ``scenario`` its arm (``"arm"``; the report runs them in
-    parallel)."""
+    loop, and with a ``scenario`` its arm's model (``"model"``: eq. (1)
+    identities and Pinocchio, :mod:`.model`, in place of the PUMA's rows of
+    the derivations) and its loop (``"arm"``); the report runs them in
+    parallel."""
     from ..control.laws import laws
 
-    return ["derivations", *(f"law: {name}" for name in laws()), "loop", *(["arm"] if scenario is not None else [])]
+    return ["derivations", *(f"law: {name}" for name in laws()), "loop",
+            *(["model", "arm"] if scenario is not None else [])]
 
 
 def run_check_group(group: str, seed: int = 2024, scenario=None) -> list:
@@ -24,8 +27,12 @@ def run_check_group(group: str, seed: int = 2024, scenario=None) -> list:
         from .arm import arm_implementation, run_arm_checks
 
         return run_arm_checks(arm_implementation(scenario), seed)
-    if group == "derivations":
-        return derivations.run_checks(seed=seed)
+    if group == "model" and scenario is not None:
+        from .model import model_checks
+
+        return model_checks(scenario, seed)
+    if group == "derivations":      # with a scenario, its own arm's eq. (1) rows (group "model") replace the PUMA's
+        return derivations.run_checks(seed=seed, model=scenario is None)
     if group == "loop":
         return loop.run_loop_checks(seed)
     if group.startswith("law: ") and group.removeprefix("law: ") in laws.laws():
