@@ -149,3 +149,22 @@ def test_no_branch_on_the_joint_count_or_a_name_above_model_and_surface():
             if BRANCH.search(code) and not code.lstrip().startswith(('"', "'")):
                 hits.append(f"{rel}:{i}: {line.strip()}")
     assert hits == []
+
+
+LAYERS = ("model", "surface", "control", "simulation", "stability", "checks", "export", "sweep", "report", "cli")
+"""The data path (docs/architecture.md): a package imports only earlier layers
+(and the utilities: cache, processes, files, fmt, plotstyle, drawing, the
+package root)."""
+
+
+def test_packages_import_only_earlier_layers_of_the_data_path():
+    bad = []
+    for module in MODULES:
+        layer = module.split(".")[1] if "." in module else None
+        if layer not in LAYERS:
+            continue
+        for target, _ in imports_of(module):
+            other = target.split(".")[1] if "." in target else None
+            if other in LAYERS and LAYERS.index(other) > LAYERS.index(layer):
+                bad.append(f"{module} imports {target}")
+    assert not bad, bad

@@ -46,3 +46,20 @@ def test_scenario_reference_is_generated_from_the_schema():
     text = (pathlib.Path(__file__).parents[1] / "docs" / "scenario.md").read_text()
     block = text.split("do not edit -->\n")[1].split("<!-- end of generated reference -->")[0]
     assert block == scenario_reference()
+
+
+def test_api_package_map_lists_every_module_and_only_those():
+    """docs/api.md's package map against the package: a module added, renamed
+    or removed without the map fails (the law and scenario packages are listed
+    as one entry each)."""
+    pkg = ROOT / "tmtcontrol"
+    grouped = ("control.laws", "simulation.scenario")
+    actual = set()
+    for f in pkg.rglob("*.py"):
+        name = ".".join(f.relative_to(pkg).with_suffix("").parts)
+        if name.endswith("__init__"):
+            continue
+        actual.add(next((g for g in grouped if name.startswith(g + ".")), name))
+    text = (ROOT / "docs" / "api.md").read_text().split("## Package map", 1)[1]
+    listed = set(re.findall(r"^\| `([\w.]+)` \|", text, flags=re.M))
+    assert listed == actual, (sorted(actual - listed), sorted(listed - actual))
