@@ -24,9 +24,9 @@ def make_report(out, *args):
 @pytest.fixture(scope="module")
 def paper_report(run_once):
     out, r = run_once("paper-report", lambda out: make_report(out, "paper"))
-    # the paper's b = 60 N s/m overshoots 50 % at first contact (damping ratio 0.21 at 2e4 N/m):
-    # the damping verdict judges the scenario as run and fails it (issue 28.5), so the report exits 1
-    assert r.returncode == 1, r.stderr
+    # the paper claims a stable loop whose force converges, and the report judges that: it passes (exit 0);
+    # the 54.8 % first-contact overshoot of b = 60 N s/m is shown, not judged (no requirement stated)
+    assert r.returncode == 0, r.stderr
     return out, r
 
 
@@ -93,12 +93,14 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     _, head, rows = table(section(html, "summary"), "Verdicts")
     assert head == ["verdict", "result", "number", "computed by"]
     verdicts = {row[0]: row for row in rows}
-    assert [row[1] for row in rows] == ["✔ PASS"] * 4 + ["✘ FAIL"] and r.stdout.count("PASS ") == 4
-    # in the order of the stages behind them, whichever process ran each stage
+    assert [row[1] for row in rows] == ["✔ PASS"] * 4 and r.stdout.count("PASS ") == 4
+    # in the order of the stages behind them, whichever process ran each stage; no overshoot verdict: the
+    # paper scenario states no requirements.first_contact_overshoot, and the PUMA no limits
     assert [row[0] for row in rows] == ["Derivation checks pass", "BIBO stable in continuous time (eq. 22)",
                                         "Stable in the sampled implementation (Ts = 1\xa0ms)",
-                                        "Force tracking within tolerance (simulation)",
-                                        "Scenario's damping within the design bounds (b = 60\xa0N s/m)"]
+                                        "Force tracking within tolerance (simulation)"]
+    design = section(html, "design")
+    assert "54.8 %" in design and "Not judged" in design and "requirements.first_contact_overshoot" in design
     # derivation checks: n/N = the PASS rows of the checks table
     _, _, check_rows = table(section(html, "derivations"), "Derivation checks")
     n = len(check_rows)
@@ -214,7 +216,7 @@ def test_pdf_is_the_same_document_paginated(paper_report):
     for i, text in enumerate(pages, 1):
         assert f"Page {i} of {n}" in text
     text = re.sub(r"\s+", " ", "\n".join(pages))
-    assert "Overall: ✘ FAIL" in pages[0]        # the paper's b = 60 fails the damping verdict
+    assert "Overall: ✔ PASS" in pages[0]        # the paper judged on what it claims (no requirement stated)
     # the contents list carries page numbers
     assert re.search(r"Simulation \.{5,} \d+", text)
     # every table's header row and caption, every figure's numbered caption
@@ -232,7 +234,7 @@ def test_pdf_is_the_same_document_paginated(paper_report):
         assert f"Figure {i}." in text
 
 
-@pytest.mark.heavy   # a second whole report (28 s); the paper report's failing verdict is checked in the default suite
+@pytest.mark.heavy   # a second whole report (28 s); the default suite checks the paper report, which passes
 def test_unstable_configuration_fails_with_growth_not_overshoot(unstable_report):
     out, r = unstable_report
     html = (out / "report.html").read_text()

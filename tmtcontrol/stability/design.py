@@ -53,7 +53,7 @@ from .sampled import spectral_radius
 __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
            "ImpedanceCheck", "check_impedance",
            "overshoot_closed_form", "sampled_overshoot", "damping_alternatives", "format_design",
-           "scenario_design_spec", "DESIGN_OVERSHOOT"]
+           "scenario_design_spec", "DESIGN_OVERSHOOT", "overshoot_bound"]
 
 
 SAMPLING_MARGIN = 1e-3
@@ -571,6 +571,7 @@ class ImpedanceCheck:
     k: float
     worst_overshoot: float
     sampled_limit: float
+    worst_stiffness: float = math.nan     # N/m: where the worst overshoot is
 
     @property
     def violations(self) -> list[str]:
@@ -589,8 +590,9 @@ def check_impedance(spec: DesignSpec, b: float, k: float | None = None, verify_p
     k = spec.k if k is None else float(k)
     dense = (np.geomspace(spec.k_e_min, spec.k_e_max, verify_points) if spec.k_e_max > spec.k_e_min
              else spec.stiffness_grid)
-    worst = max(sampled_overshoot(spec, b, k, ke) for ke in dense)
-    return ImpedanceCheck(spec, float(b), k, worst, _limit(spec, float(b), k))
+    over = [sampled_overshoot(spec, b, k, ke) for ke in dense]
+    i = int(np.argmax(over))
+    return ImpedanceCheck(spec, float(b), k, float(over[i]), _limit(spec, float(b), k), float(dense[i]))
 
 
 def _limit(spec: DesignSpec, b: float, k: float) -> float:
@@ -627,8 +629,17 @@ def damping_alternatives(scenario, result: DesignResult) -> dict:
 
 
 DESIGN_OVERSHOOT = 5.0
-"""The first-contact overshoot bound (percent) of a scenario's design when
-none is given: the report's and ``tmtcontrol design --scenario``'s."""
+"""The first-contact overshoot (percent) a scenario's design aims at when
+the scenario states no ``requirements.first_contact_overshoot``: a design
+target of ``tmtcontrol design --scenario`` and the report, never a verdict
+(the report judges the scenario's damping only against a stated bound)."""
+
+
+def overshoot_bound(scenario) -> float:
+    """The first-contact overshoot bound (percent) of ``scenario``'s design:
+    its ``requirements.first_contact_overshoot``, else :data:`DESIGN_OVERSHOOT`."""
+    stated = scenario.requirements.first_contact_overshoot
+    return DESIGN_OVERSHOOT if stated is None else float(stated)
 
 
 def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> DesignSpec:
@@ -639,8 +650,8 @@ def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> D
     grows), all from :func:`.analysis.scenario_parameters` (``params``, if
     already computed): for the PUMA its Cartesian inertia along the path, for
     an arm with 6 or more joints ``1/(n^T J_v M^-1 J_v^T n)`` at the path
-    poses, as ``analyze --scenario``. The overshoot bound is
-    :data:`DESIGN_OVERSHOOT`. ``overrides`` (DesignSpec fields; None ignored)
+    poses, as ``analyze --scenario``. The overshoot bound is the scenario's
+    ``requirements.first_contact_overshoot``, else :data:`DESIGN_OVERSHOOT`. ``overrides`` (DesignSpec fields; None ignored)
     replace any of these; a new ``Ts`` without an ``alpha`` moves the
     scenario's filter pole to it."""
     from .analysis import scenario_parameters
@@ -650,7 +661,7 @@ def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> D
     Ts = kw.get("Ts", p["Ts"])
     alpha = p["alpha"] if Ts == p["Ts"] else scenario.sensor.pole(Ts)
     base = dict(m=p["m"], k=p["k"], k_e_min=p["k_e_min"], k_e_max=p["k_e_max"], Ts=Ts,
-                max_overshoot=DESIGN_OVERSHOOT, f_d=p["f_d"], m_p=p["m_p_max"], delay=p["delay"], alpha=alpha)
+                max_overshoot=overshoot_bound(scenario), f_d=p["f_d"], m_p=p["m_p_max"], delay=p["delay"], alpha=alpha)
     return DesignSpec(**{**base, **kw})
 
 

@@ -14,6 +14,7 @@ One module per section, and one per job around them::
     fields       the error, number fields with units, the section base, tagged tables
     robot        [robot]           environment  [environment]     trajectory  [trajectory]
     controller   [impedance], [controller]       sensor       [sensor], [simulation]
+    requirements [requirements]: the user's bounds, judged only where stated
     schema       the Scenario, checks across sections, one-line errors, flag checks
     builtin      the built-in scenarios (paper, ur5, panda)
     tomlio       TOML dump and load, --set overrides
@@ -31,6 +32,7 @@ from .environment import (EnvironmentSettings, PiecewiseConstantStiffness, Piece
                           SinusoidalStiffness, StiffnessProfile, TableStiffness, read_stiffness_table)
 from .fields import MAX_STIFFNESS, MIN_PERIODS, ScenarioError
 from .reference import SettingRow, applicable_settings, scenario_json_schema, scenario_reference
+from .requirements import RequirementsSettings
 from .robot import RobotSettings
 from .schema import (SAMPLED_KEYS, TAGGED_TABLES, Scenario, check_filter_cutoff, check_period, check_setting,
                      sampling_problem, scenario_from_dict, scenario_to_dict, setting_bounds)
@@ -43,7 +45,7 @@ __all__ = [
     "ScenarioError", "RobotSettings", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness",
     "SinusoidalStiffness", "TableStiffness", "StiffnessProfile", "EnvironmentSettings", "TrajectorySettings",
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "DampingSchedule", "ControllerSettings",
-    "SensorSettings", "SimulationSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
+    "SensorSettings", "SimulationSettings", "RequirementsSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
     "scenario_to_dict", "dump_scenario", "toml_document", "apply_overrides", "set_key", "scenario_json_schema",
     "scenario_reference", "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "SAMPLED_KEYS",
     "applicable_settings", "read_text_file", "read_toml", "parse_toml", "InputFileError", "MAX_INPUT_BYTES",

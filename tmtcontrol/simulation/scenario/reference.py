@@ -13,6 +13,7 @@ from .environment import EnvironmentSettings
 from .robot import RobotSettings
 from .schema import TAGGED_TABLES, Scenario
 from .sensor import SensorSettings, SimulationSettings
+from .requirements import RequirementsSettings
 from .tomlio import toml_value
 from .trajectory import TrajectorySettings
 
@@ -129,7 +130,7 @@ def scenario_reference() -> str:
     for section, model in (("robot", RobotSettings), ("environment", EnvironmentSettings),
                            ("trajectory", TrajectorySettings), ("impedance", ImpedanceSettings),
                            ("controller", ControllerSettings), ("sensor", SensorSettings),
-                           ("simulation", SimulationSettings)):
+                           ("simulation", SimulationSettings), ("requirements", RequirementsSettings)):
         lines += rows(model, section)
         for (sec, field), kinds in TAGGED_TABLES.items():
             if sec == section:

@@ -24,6 +24,7 @@ from .environment import (EnvironmentSettings, PiecewiseConstantStiffness, Piece
 from .fields import MIN_PERIODS, ScenarioError, Section, tagged
 from .robot import RobotSettings
 from .sensor import SensorSettings, SimulationSettings
+from .requirements import RequirementsSettings
 from .trajectory import TrajectorySettings
 
 __all__ = ["Scenario", "TAGGED_TABLES", "TAG_DEFAULTS", "SAMPLED_KEYS", "sampling_problem", "scenario_from_dict",
@@ -40,6 +41,7 @@ class Scenario(Section):
     controller: ControllerSettings = Field(default_factory=ControllerSettings)
     sensor: SensorSettings = Field(default_factory=SensorSettings)
     simulation: SimulationSettings = Field(default_factory=SimulationSettings)
+    requirements: RequirementsSettings = Field(default_factory=RequirementsSettings)
 
     @model_validator(mode="after")
     def _sampled(self):
