@@ -8,7 +8,10 @@ largest difference of the force trace (N) and of every per-segment metric
 (relative), and the paper scenario's ``analyze`` limits (relative). The issue's
 bounds: the PUMA within 1e-12 relative, the UR5 and the Panda within 1e-9 N.
 
-    python benchmarks/bench_one_loop.py [--reference COMMIT] [--no-analyze]
+    python benchmarks/bench_one_loop.py [--reference COMMIT] [--no-analyze] [--speed]
+
+``--speed`` also runs ``bench_simulate.py`` and ``bench_arm.py`` of both trees
+alternately (the issue: within 5 % of the reference in the same run).
 """
 
 from __future__ import annotations
@@ -78,8 +81,8 @@ ADDED_METRICS = ("torque_margin", "rate_margin", "position_margin", "orientation
 def worst_relative(a, b) -> tuple[float, str]:
     A, B = dict(_numbers(a)), dict(_numbers(b))
     # metrics added since the reference (the limits' margins, the orientation error) have nothing to compare
-    new = {k for k in A.keys() - B.keys() if k.rsplit(".", 1)[-1] in ADDED_METRICS}
-    A = {k: v for k, v in A.items() if k not in new}
+    new = {k for k in A.keys() ^ B.keys() if k.rsplit(".", 1)[-1] in ADDED_METRICS}
+    A, B = ({k: v for k, v in X.items() if k not in new} for X in (A, B))
     assert A.keys() == B.keys(), sorted(A.keys() ^ B.keys())[:5]
     out = (0.0, "")
     for k, x in A.items():
@@ -94,6 +97,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reference", default="48d3a50")
     ap.add_argument("--no-analyze", action="store_true")
+    ap.add_argument("--speed", action="store_true", help="also run bench_simulate.py and bench_arm.py of both "
+                    "trees, alternately, and print both")
     ap.add_argument("--capture", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.capture:
@@ -110,6 +115,8 @@ def main() -> int:
                 env = {**os.environ, "PYTHONPATH": str(tree), "MPLBACKEND": "Agg"}
                 subprocess.run([sys.executable, str(pathlib.Path(__file__).resolve()), "--capture", str(tmp / label),
                                 *(["--no-analyze"] if args.no_analyze else [])], env=env, check=True, cwd=tree)
+            if args.speed:
+                speed = _speed(ref_tree)
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(ref_tree)],
                            capture_output=True)
@@ -125,7 +132,24 @@ def main() -> int:
             r, k = worst_relative(json.loads((tmp / "reference" / "analyze.json").read_text()),
                                   json.loads((tmp / "current" / "analyze.json").read_text()))
             print(f"analyze paper: worst relative difference {r:.3g} ({k or 'none'})")
+        if args.speed:
+            print(speed)
     return 0
+
+
+def _speed(ref_tree: pathlib.Path) -> str:
+    """The speed benchmarks of both trees, each tree's own script on its own
+    code, run alternately (reference, current, reference, current) so a load
+    change on the machine hits both; their outputs, labelled."""
+    out = []
+    for script in ("bench_simulate.py", "bench_arm.py"):
+        for round_ in (1, 2):
+            for label, tree in (("reference", ref_tree), ("current", ROOT)):
+                env = {**os.environ, "PYTHONPATH": str(tree), "MPLBACKEND": "Agg"}
+                r = subprocess.run([sys.executable, str(tree / "benchmarks" / script)], env=env, cwd=tree,
+                                   capture_output=True, text=True)
+                out.append(f"--- {script}, {label} (round {round_}), exit {r.returncode} ---\n{r.stdout.strip()}")
+    return "\n".join(out)
 
 
 if __name__ == "__main__":
