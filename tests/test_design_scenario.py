@@ -146,3 +146,18 @@ def test_a_stated_overshoot_requirement_is_the_designs_bound_and_the_reports_ver
     rep = Report(paper_scenario(), "test")
     _design(rep, paper_scenario(), scenario_parameters(paper_scenario()), None, None)
     assert rep.verdicts == []                                  # nobody stated a bound: information only
+
+
+def test_the_reports_effective_normal_mass_is_pinocchios_along_the_path():
+    """The report shows m_p = 1/(n^T J_v M^-1 J_v^T n) along the path: equal to Pinocchio's M and J at the
+    same poses (1e-10 relative: both double precision from the same URDF), range quoted in its sentence."""
+    from tmtcontrol.report.document import Report, _normal_mass_blocks
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = load_scenario("ur5")
+    rep = Report(sc, "test")
+    para, fig = _normal_mass_blocks(rep, sc, scenario_parameters(sc))
+    ref = np.array(_pinocchio_normal_masses(sc))
+    np.testing.assert_allclose(rep.data["normal_mass"]["m_p"], ref, rtol=1e-10)
+    assert f"{ref.max():.3g}" in para.text.replace("\xa0", " ") and "ur5" in para.text
+    assert fig.caption.startswith("Effective normal mass m_p of the ur5") and "<svg" in fig.svg

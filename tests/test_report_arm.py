@@ -38,6 +38,7 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     assert limits.rows[1][2].replace("\xa0", " ") == "150 N m"                          # shoulder_lift_joint's effort
     seg_table = next(b for b in sec.blocks if getattr(b, "caption", "") == "Per-segment metrics")
     assert "orientation error" in seg_table.head
+    assert any(c.startswith("Joint torques and rates as fractions of their limits") for c in captions)
 
 
 def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():

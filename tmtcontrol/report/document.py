@@ -323,6 +323,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     if rows:
         blocks.append(Table("Whole-loop stiffness limit along the path", ["path time", "largest stable k_e (N/m)",
                                                                           "margin over k_e max"], rows))
+    blocks += _normal_mass_blocks(rep, sc, p)
     blocks.append(figure(
         "Largest stable stiffness against the control period (1-D loop of the scenario's law, with its delay, "
         "filter and x_e error); the scenario's operating points and the whole-loop limit at its Ts. The margin "
@@ -333,6 +334,26 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     # the second process: the numbers only (analyze_scenario(sc)["systems"] rebuilds the systems)
     rep.data["sampled"] = {key: v for key, v in a.items() if key != "systems"}
     return Section("sampled", "Sampled-data analysis", blocks)
+
+
+def _normal_mass_blocks(rep: Report, sc: Scenario, p: dict) -> list:
+    """The arm's effective normal mass along the path, which the 1-D limit and
+    the design use (their m_p: the largest, the worst case)."""
+    from ..simulation.simulator import path_of, robot_of
+    from ..stability import figures as sf
+    from ..stability.onedim import normal_masses
+
+    robot = robot_of(sc)
+    t, masses = path_of(robot, sc).t, np.asarray(normal_masses(sc), float)
+    rep.data["normal_mass"] = {"t": t, "m_p": masses}
+    return [Paragraph(
+        f"The {robot.name}'s effective mass along the surface normal, m_p = 1/(nᵀ J_v M⁻¹ J_vᵀ n) at "
+        f"{masses.size} poses of the path (J_v the linear rows of the Jacobian, M the joint-space inertia of "
+        f"eq. 1), ranges over {fmt.qty(masses.min(), 'kg')}–{fmt.qty(masses.max(), 'kg')}; the 1-D model and the "
+        f"damping design take the largest, {fmt.qty(masses.max(), 'kg')} (the sampled limit falls as m_p "
+        "grows)."),
+        figure(f"Effective normal mass m_p of the {robot.name} along one period of the path, with its largest "
+               "value, the 1-D model's and the design's worst case.", sf.normal_mass_figure, t, masses, robot.name)]
 
 
 def _cells(values, unit: str, sig: int = 3) -> list[str]:
@@ -465,7 +486,12 @@ def _limit_blocks(rep: Report, res) -> list:
         f"{pct(float(np.min(use.rate_margin)))}" + (f"; {worst.text}" if worst else ""),
         f"every sample of the run against the limits less robot.limit_margin = {L.margin:g}"
         + ("; the drive clips the torque (robot.saturate)" if L.saturate else "")))
-    return [Table("The arm's limits over the run: peaks, limits and the margin left (1 − peak/limit)", head, rows)]
+    from ..simulation.figures import limit_use_figure
+
+    return [Table("The arm's limits over the run: peaks, limits and the margin left (1 − peak/limit)", head, rows),
+            figure("Joint torques and rates as fractions of their limits over the run (joints with a stated "
+                   "limit); above the dashed line (1 − robot.limit_margin) a drive faults or clips.",
+                   limit_use_figure, res)]
 
 
 def _worst_settling(segs) -> str:

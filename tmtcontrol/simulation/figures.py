@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 __all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
            "path_figure",
            "desired_path", "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
-           "save_comparison_figures", "envelope"]
+           "save_comparison_figures", "envelope", "limit_use_figure"]
 
 DRAW_POINTS = 1200
 """Buckets per time-series line: more than a figure has pixels across."""
@@ -195,6 +195,26 @@ def orientation_figure(res: SimulationResult | SimulationTraces) -> Figure:
     ax.legend()
     ax.grid(True, which="both", alpha=0.3)
     return fixed_layout(fig)
+
+
+def limit_use_figure(res: SimulationResult) -> Figure:
+    """The arm's limits over the run: per joint with a stated limit, |tau| /
+    tau_max and |dq| / dq_max against time (the judged bound, 1 - the margin,
+    dashed): a curve above it is an excursion (``over_limit``)."""
+    L = res.limits
+    fig = Figure(figsize=(7, 5.2))
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, series, limit, what in ((axes[0], res.tau, L.tau_max, "|tau| / tau_max"),
+                                    (axes[1], res.dq, L.dq_max, "|dq| / dq_max")):
+        for j in np.flatnonzero(np.isfinite(limit)):
+            ax.plot(*envelope(res.time, np.abs(series[j]) / limit[j]), lw=1, label=f"{j + 1} ({L.names[j]})")
+        ax.axhline(1.0 - L.margin, color="k", ls="--", lw=1, label="judged limit")
+        ax.set(ylabel=what, ylim=(0, None))
+        ax.grid(True, alpha=0.3)
+    axes[0].set(title="Joint torques and rates against the arm's limits")
+    axes[1].set(xlabel="time (s)")
+    legend_below(fig, axes[1], ncol=4)
+    return fixed_layout(fig, bottom=legend_margin(len(axes[1].get_legend_handles_labels()[1]), 4))
 
 
 def save_simulation_figures(res: SimulationResult | SimulationTraces,

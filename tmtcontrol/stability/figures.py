@@ -170,6 +170,22 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     return fixed_layout(fig, bottom=legend_margin(len(ax.get_legend_handles_labels()[1]), 2))
 
 
+def normal_mass_figure(t, masses, arm: str = "") -> Figure:
+    """The arm's effective mass along the surface normal, ``1/(n^T J_v M^-1
+    J_v^T n)`` (kg), at the checked path poses against the path time (s): the
+    m_p of the 1-D sampled loop (eq. 22 with the robot), whose largest value
+    the 1-D limit and the design take as the worst case."""
+    fig = Figure(figsize=(6.5, 3.4))
+    ax = fig.add_subplot()
+    t, masses = np.asarray(t, float), np.asarray(masses, float)
+    ax.plot(t, masses, "o-", ms=3, lw=1.4, label="effective normal mass m_p")
+    ax.axhline(masses.max(), color="C1", lw=1, ls="--", label=f"largest, {num(masses.max(), 3)} kg (the worst case)")
+    ax.set(xlabel="path time (s)", ylabel="m_p (kg)", ylim=(0, masses.max() * 1.15),
+           title="Effective normal mass along the path" + (f" of the {arm}" if arm else ""))
+    legend_below(fig, ax, ncol=2)
+    return fixed_layout(fig, bottom=legend_margin(2, 2))
+
+
 def save_analysis_figures(d: dict, folder: str | pathlib.Path) -> list[pathlib.Path]:
     """Figures for an :func:`~tmtcontrol.stability.analyze` result: root locus,
     damping versus k_e, step responses and (with Ts) the stability region."""
