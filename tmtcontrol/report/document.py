@@ -432,7 +432,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         figure("Tracking errors: |f_e − f_d| (log scale) and the tangential position error within the surface.",
                simf.tracking_error_figure, res),
         figure("Environment stiffness and the TMT estimate f_e/(x − x_e) (Fig. 3).", simf.stiffness_figure, res),
-        figure("Tip position (the tip frame's origin: the PUMA's wrist centre, a 6-D arm's tool point) against "
+        figure(f"Tool point X ({res.tool}) against "
                "the desired path on the surface (Fig. 5); the controller's reference X_r lies inside the surface by "
                "design (eq. 18) and is not drawn.", simf.position_figure, res)]
     if getattr(res, "orientation_error", None) is not None:      # a 6-D task: the tool orientation is held too

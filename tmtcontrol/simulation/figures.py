@@ -150,13 +150,13 @@ def desired_path(res: SimulationResult | SimulationTraces) -> np.ndarray:
 
 
 def position_figure(res: SimulationResult | SimulationTraces) -> Figure:
-    """Fig. 5: x, y, z of the wrist centre against the desired path X_d on the
+    """Fig. 5: x, y, z of the tool point (the tip frame's origin) against the desired path X_d on the
     surface (:func:`desired_path`, base frame), the legend under the axes."""
     fig = Figure(figsize=(7, 5.7))
     axes = fig.subplots(3, 1, sharex=True)
     xd = desired_path(res)
     for i, (ax, name) in enumerate(zip(axes, "xyz")):
-        ax.plot(*envelope(res.time, res.position[i]), label="wrist centre X")
+        ax.plot(*envelope(res.time, res.position[i]), label=f"X, {_traces(res).tool}")
         ax.plot(*envelope(res.time, xd[i]), "k--", lw=1, label="desired path X_d (on the surface)")
         ax.set_ylabel(f"{name} (m)")
         ax.grid(True, alpha=0.3)
@@ -167,7 +167,9 @@ def position_figure(res: SimulationResult | SimulationTraces) -> Figure:
 
 
 def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
-    """3-D view of the wrist path on the tilted plane."""
+    """3-D view of the tool point's path on the surface plane, against the
+    desired path X_d on the surface (not the reference X_r, which lies inside
+    the surface by eq. 18's modification)."""
     res = _traces(res)
     fig = Figure(figsize=(6, 5.5))
     ax = fig.add_subplot(projection="3d")
@@ -176,8 +178,8 @@ def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
     ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
     stride = max(1, res.time.size // (2 * DRAW_POINTS))     # a smooth curve: every stride-th sample
-    ax.plot(*res.position[:, ::stride], lw=1.5, label="wrist centre")
-    ax.plot(*res.reference_position[:, ::stride], "k--", lw=0.8, label="reference X_r")
+    ax.plot(*res.position[:, ::stride], lw=1.5, label=f"X, {res.tool}")
+    ax.plot(*desired_path(res)[:, ::stride], "k--", lw=0.8, label="desired path X_d (on the surface)")
     ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
     ax.legend()
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)

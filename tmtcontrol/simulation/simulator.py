@@ -256,6 +256,7 @@ class SimulationResult:
     info: dict = field(default_factory=dict)
     orientation_error: np.ndarray | None = None   # (3, N) rotation vector log(R_d R^T), task axes, rad; None: position task
     limits: JointLimits | None = None             # the arm's limits the run is judged against (.limits)
+    tool: str = "tool point"                      # what ``position`` is: "<robot> <tip frame> origin"
 
     @property
     def Ts(self) -> float:
@@ -292,7 +293,7 @@ class SimulationResult:
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
             reference_position=self.reference_position, surface_frame=surface_of(sc).frame(sc.trajectory.center),
             center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius),
-            orientation_error=self.orientation_error_norm if oriented else None)
+            orientation_error=self.orientation_error_norm if oriented else None, tool=self.tool)
 
 
 class Simulator:
@@ -563,7 +564,7 @@ class Simulator:
             contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
             stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,
             info=info, orientation_error=lg["e_o"] if self.task.rotational else None,
-            limits=limits_of(self.plant, sc))
+            limits=limits_of(self.plant, sc), tool=f"{self.plant.name} {self.plant.tip} origin")
 
 
 def simulator_for(scenario: Scenario, compile: bool | str = "auto") -> Simulator:

@@ -26,9 +26,10 @@ class SimulationTraces:
     desired_force: np.ndarray        # (N,) f_d, N
     stiffness: np.ndarray            # (N,) k_e(t), N/m
     stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e), N/m; NaN out of contact
-    position: np.ndarray             # (3, N) wrist centre X, m
+    position: np.ndarray             # (3, N) tool point X (the tip frame's origin), m
     reference_position: np.ndarray   # (3, N) X_r, m
     surface_frame: np.ndarray        # (3, 3) task axes (e_n, e_1, e_2) as columns
     center: np.ndarray               # (3,) centre of the circle, m
     radius: float                    # radius of the circle, m
     orientation_error: np.ndarray | None = None   # (N,) angle between tool and command, rad (6-D arms only)
+    tool: str = "tool point"         # what X is, for the labels: "<robot> <tip frame> origin"
