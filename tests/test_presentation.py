@@ -26,6 +26,14 @@ def test_a_column_has_one_unit_and_the_same_significant_digits_in_every_cell():
     assert fmt.column([float("nan"), None, 1.0], "N", attach=True)[1] == ["–", "–", "1.00\u00a0N"]
 
 
+def test_rounding_residue_in_a_column_prints_as_zero_and_a_small_real_value_does_not():
+    """The UR5's first switch jump, 9.81e-14 N beside 30 N and 40 N, is the arithmetic (fmt.RESIDUE);
+    1e-6 of the largest is a value."""
+    assert fmt.column([9.81e-14, 30.0, -9.0, 40.0], "N")[1] == ["0", "30.0", "−9.00", "40.0"]
+    assert fmt.column([4e-5, 40.0], "N")[1][0] != "0"
+    assert "0" not in fmt.column([1e-20, 2e-20], "N")[1]                     # alone, a small column is a value
+
+
 @pytest.mark.parametrize("value, bound, text", [(4.995, 5.0, "4.995"), (5.0, 5.0, "5"), (3.2, 5.0, "3.2"),
                                                 (5.004, 5.0, "5.004"), (163_400.0, 160_000.0, "163,000")])
 def test_a_value_beside_its_bound_prints_the_digits_that_tell_them_apart(value, bound, text):

@@ -443,6 +443,13 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
             f"between the tool and its command stays below {fmt.qty(worst, 'rad')}."))
         blocks.append(figure("Tool orientation error: the angle between the tool orientation and its command "
                              "(log scale).", simf.orientation_figure, res))
+    if getattr(res, "posture_drift", None) is not None:          # a redundant arm: the null space is free to move
+        drift = ", ".join(f"{j + 1}: {fmt.qty(d, 'rad')}" for j, d in enumerate(res.posture_drift))
+        blocks.append(Paragraph(
+            f"The arm is redundant for the task: the null-space posture task (robot.posture_kp, robot.posture_kd) "
+            f"holds the remaining freedom near the start pose. The path returns to its start every period, so "
+            f"the joints would too; how far each has drifted after whole periods (joint: largest |q(kT) − q(0)|): "
+            f"{drift}."))
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
     return Section("simulation", "Simulation", blocks), sim, res
 

@@ -168,6 +168,8 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, work
         }
         if r.limits is not None:        # the arm's torque, rate and joint margins (simulation.limits)
             summary["limits"] = r.limit_use().as_dict()
+        if r.posture_drift is not None:     # a redundant arm: how far the null space let the joints wander (rad)
+            summary["posture_drift"] = dict(zip(r.limits.names, map(float, r.posture_drift)))
         if drawing is not None:
             summary["figures"] = [p.name for p in drawing.result()]
         write_json(folder / "summary.json", summary)

@@ -257,6 +257,7 @@ class SimulationResult:
     orientation_error: np.ndarray | None = None   # (3, N) rotation vector log(R_d R^T), task axes, rad; None: position task
     limits: JointLimits | None = None             # the arm's limits the run is judged against (.limits)
     tool: str = "tool point"                      # what ``position`` is: "<robot> <tip frame> origin"
+    posture_drift: np.ndarray | None = None       # (n,) rad: a redundant arm's drift over whole periods (below)
 
     @property
     def Ts(self) -> float:
@@ -564,7 +565,18 @@ class Simulator:
             contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
             stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,
             info=info, orientation_error=lg["e_o"] if self.task.rotational else None,
-            limits=limits_of(self.plant, sc), tool=f"{self.plant.name} {self.plant.tip} origin")
+            limits=limits_of(self.plant, sc), tool=f"{self.plant.name} {self.plant.tip} origin",
+            posture_drift=_posture_drift(lg["q"], sc) if self.task.posture else None)
+
+
+def _posture_drift(q: np.ndarray, sc: Scenario) -> np.ndarray | None:
+    """A redundant arm's null-space drift (n,), rad: the path returns to its
+    start every period, so the joints would too; the largest |q(k T) - q(0)|
+    over the whole periods k T of the run, per joint (None: shorter than one
+    period)."""
+    every = int(round(sc.trajectory.period / sc.controller.Ts))
+    ends = np.arange(every, q.shape[1], every)
+    return np.max(np.abs(q[:, ends] - q[:, :1]), axis=1) if ends.size else None
 
 
 def simulator_for(scenario: Scenario, compile: bool | str = "auto") -> Simulator:
