@@ -282,8 +282,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         f"largest stable stiffness {fmt.qty(verdict_limit, 'N/m')} vs k_e max {fmt.qty(p['k_e_max'], 'N/m')} "
         f"(margin {fmt.ratio(margin)})",
         how + f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"))
-    rows = [[fmt.qty(w["path_time"], "s"), fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])]
-            for w in a.get("whole_loop_points", [])]
+    points_ = a.get("whole_loop_points", [])
+    times = _cells([w["path_time"] for w in points_], "s")          # one unit for the column (not 0 s beside 500 ms)
+    rows = [[times[i], fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])] for i, w in enumerate(points_)]
     # the boundary against Ts: the same law loop at other rates
     closed_form = closed_form_applies(sc.controller.law.kind, sc.controller.delay_samples, sc.controller.x_e_error)
     Ts_grid = np.geomspace(Ts / 8, Ts * 8, 13 if closed_form else 5)
@@ -326,10 +327,10 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     blocks += _normal_mass_blocks(rep, sc, p)
     blocks.append(figure(
         "Largest stable stiffness against the control period (1-D loop of the scenario's law, with its delay, "
-        "filter and x_e error); the scenario's operating points and the whole-loop limit at its Ts. The margin "
-        "is the vertical distance to the boundary.",
-        sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, whole) if whole is not None else None,
-        label="1-D sampled loop"))
+        "filter and x_e error); the scenario's operating points and, at its Ts, the limit that decides the "
+        "verdict (the models table's decisive row). The margin is the vertical distance to the boundary.",
+        sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, verdict_limit) if verdict_limit else None,
+        label="1-D sampled loop", mark="deciding limit at the scenario's Ts"))
     # python-control's state-space objects cannot be pickled (python-control#1162), and this stage may run in
     # the second process: the numbers only (analyze_scenario(sc)["systems"] rebuilds the systems)
     rep.data["sampled"] = {key: v for key, v in a.items() if key != "systems"}

@@ -140,11 +140,13 @@ def stability_region_figure(m, b, k, m_p, Ts_grid, k_e_grid, points=(), **kw) ->
     return fig
 
 
-def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1-D sampled loop") -> Figure:
+def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1-D sampled loop",
+                           mark="whole-loop limit at the scenario's Ts") -> Figure:
     """The largest stable stiffness against the control period (log-log):
     ``limits`` (N/m) at ``Ts_grid`` (s) as the boundary, the unstable side
     hatched, the operating points ``[(Ts, k_e, label), ...]`` and the
-    whole-loop limit ``(Ts, k_e)`` at the scenario's period. Distance to the
+    limit ``(Ts, k_e)`` at the scenario's period labelled ``mark`` (the
+    report marks the one that decides its verdict). Distance to the
     boundary is the margin, readable at any Ts."""
     fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
@@ -161,7 +163,7 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
         ax.plot(Ts, ke, "o", color="C1", label="operating points" if i == 0 else None)
         ax.annotate(text, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
     if whole_loop is not None:
-        ax.plot(*whole_loop, "D", color="C2", ms=7, label="whole-loop limit at the scenario's Ts")
+        ax.plot(*whole_loop, "D", color="C2", ms=7, label=mark)
     ax.set(xscale="log", yscale="log", xlabel="control period Ts", ylabel="stiffness k_e (N/m)",
            ylim=(min(values) / 3, top),
            title="Sampled-data stability boundary")
