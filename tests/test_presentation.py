@@ -263,7 +263,7 @@ def test_position_figure_plots_the_path_against_the_desired_path(paper_result):
                         for ax in fig.axes])
     # on the surface plane (through the circle's centre): 1e-12 m, rounding
     assert np.max(np.abs(n @ (desired - tr.center[:, None]))) < 1e-12
-    actual = np.array([next(l for l in ax.get_lines() if l.get_label().startswith("wrist")).get_ydata()
+    actual = np.array([next(l for l in ax.get_lines() if l.get_label().startswith("X, ")).get_ydata()
                        for ax in fig.axes])
     # the wrist stays within the contact penetration f/k_e (at most 10 N / 2,000 N/m = 5 mm plus the
     # switch transients) of the desired path, where X_r is 0.1 m inside the surface
