@@ -179,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--joints", help="comma-separated actuated joints (default: every movable joint base to tip)")
     p.add_argument("--samples", type=int, default=20, help="random states checked (default: 20)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random states (default: 0)")
+    p.add_argument("--against", choices=["mujoco"], action="append", default=[],
+                   help="also compare M, the bias, fk and the tip Jacobian with MuJoCo's model of the same URDF "
+                        "(needs the mujoco extra)")
     p.set_defaults(func=_robot)
 
     p = sub.add_parser("export", help="the scenario's controller as a C99 library for a real-time loop",
@@ -625,6 +628,17 @@ def _robot(args) -> int:
     except TipError as exc:        # the file is fine; the flag is at fault
         raise UsageError(f"--tip: {exc}") from None
     check = check_robot(robot, samples=args.samples, seed=args.seed)
+    if "mujoco" in args.against:
+        import dataclasses
+
+        from .model.against_mujoco import MujocoMissing, check_against_mujoco
+
+        try:
+            mj = check_against_mujoco(robot, samples=args.samples, seed=args.seed)
+        except (MujocoMissing, NotImplementedError) as exc:
+            raise UsageError(f"--against mujoco: {exc}") from None
+        check = dataclasses.replace(check, identities=check.identities + mj.identities,
+                                    reference=f"{check.reference}; {mj.reference}")
     print(describe(robot, check))
     return 0 if check.ok else 1
 
