@@ -99,6 +99,10 @@ def test_ur5_scenario_with_a_delay_of_one_sample_converges():
 
     r = Simulator(apply_overrides(load_scenario("ur5"), ["controller.delay_samples=1"])).run()
     segs = segment_metrics(r)
-    assert [s.verdict for s in segs] == ["converged"] * 4
+    # the force tracks in every segment; the 12 s switch drives joint 2 past the URDF's 150 N m (over_limit,
+    # tests/test_joint_limits.py), which the verdict says while the force-tracking verdict stays converged
+    assert all(s.verdict == "converged" or (s.verdict == "over_limit"
+                                            and s.reason.endswith("the force tracking alone: converged"))
+               for s in segs), [(s.verdict, s.reason) for s in segs]
     assert max(abs(s.steady_state_error) for s in segs) < 1e-3
     assert r.orientation_error_norm[r.time >= r.time[-1] - 1.0].max() < 1e-3

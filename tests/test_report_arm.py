@@ -74,8 +74,10 @@ def test_report_ur5_html(tmp_path):
     assert all(("FAIL" if name in failed else "PASS") in r.stdout for name in (row[0] for row in rows))
     # the arm's checks (6-D: four), all passing on the exact model
     _, _, checks = table(section(html, "derivations"), "Derivation checks")
-    arm = [row for row in checks if "(ur5)" in row[1]]
+    arm = [row for row in checks if "(ur5)" in row[1] and row[0] not in ("(1)", "(6)")]     # the loop's (checks.arm)
     assert len(arm) == 4 and all("PASS" in row[4] for row in arm)
+    model = [row for row in checks if row[0] == "(1)" and "(ur5)" in row[1]]      # the UR5's own model (checks.model)
+    assert len(model) >= 11 and all("PASS" in row[4] for row in model)
     # simulation in the task frame: force, tangential error, orientation error
     sim = section(html, "simulation")
     for caption in ("Contact force and desired force", "tangential position error", "Tool orientation error"):

@@ -57,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--controller", metavar="DIR", help="software in the loop: compile the C controller exported "
                    "to DIR (tmtcontrol export --inner-loop) and run it in place of the built-in one")
+    p.add_argument("--plant", choices=["builtin", "mujoco"], default="builtin",
+                   help="the arm's dynamics: tmtcontrol's (default) or MuJoCo's model of the same URDF with the "
+                        "ideal spring contact (an independent check of eq. 1 in the loop; needs the mujoco extra)")
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("compare", help="run one scenario with several force-tracking laws, side by side",
@@ -242,6 +245,17 @@ def _simulate_with(args, workers) -> int:
     sc = _load(args)
     check_run_size(sc, args.max_steps)
     controller = None
+    if args.plant == "mujoco":
+        if args.controller is not None:
+            raise UsageError("--plant mujoco: runs the built-in controller; the exported C (--controller) runs "
+                             "against the built-in plant")
+        from .model.against_mujoco import MujocoMissing, mujoco_model
+        from .simulation.simulator import robot_of
+
+        try:                                   # refused before anything is written
+            mujoco_model(robot_of(sc))
+        except (MujocoMissing, NotImplementedError) as exc:
+            raise UsageError(f"--plant mujoco: {exc}") from None
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
 
@@ -253,7 +267,11 @@ def _simulate_with(args, workers) -> int:
             raise UsageError(f"--out: {args.out} holds the --controller folder {args.controller}; the run would "
                              "replace the exported controller: choose another folder (nothing was written)")
     with OutputFolder(args.out, "--out") as out:
-        if controller is None:
+        if args.plant == "mujoco":
+            from .simulation.mujoco_plant import simulate_on_mujoco
+
+            res = simulate_on_mujoco(sc, max_steps=args.max_steps)
+        elif controller is None:
             res = simulator_for(sc).run(max_steps=args.max_steps)
         else:
             from .export.sil import simulate_with_controller
@@ -265,8 +283,9 @@ def _simulate_with(args, workers) -> int:
                         csv_processes=2 if args.no_plots else 1)
         out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
-          f"{sc.simulation.integrator} integrator ({res.info['code']}), "
-          f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
+          + (f"plant {res.info['plant']}, {res.info['integrator']} ({res.info['code']}), " if "plant" in res.info
+             else f"{sc.simulation.integrator} integrator ({res.info['code']}), ")
+          + f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
     segs = segment_metrics(res)
     print(format_table(segs))
     fc = first_contact(res)

@@ -223,60 +223,61 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     C (SIL)"``."""
     import time
 
-    from ..files import check_interrupt
+    from ..simulation.cosim import run_split
     from ..simulation.simulator import Simulator, check_run_size
 
     check_run_size(scenario, max_steps)
     controller.check_matches(scenario)
     t0 = time.perf_counter()
     sim = Simulator(scenario, compile=False)      # its inputs and result packing; its step is never built
-    sc = scenario.simulation
-    task, surface = sim.task, sim.surface
-    n = task.n
-    plant = build_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine, surface)
-    sensor = _sensor(sim.plant, surface)
-    path = sim.path(scenario)
-    U, P, s0, t = sim.inputs(scenario, path)
-    PP = param_layout(task, controller.law, surface).split(P)
-    PZ = plant_inputs_layout(task, surface)
-    surf = np.concatenate([PP[name] for name, _ in surface.fields])
-    build_time = time.perf_counter() - t0
+    _, P, s0, _ = sim.inputs(scenario)
+    plant = BuiltinPlant(sim, P)
     params = controller.params_from(P)
     state = controller.new_state(params)
-    n_s = controller.meta["sizes"]["state"]
+    n, n_s = sim.task.n, controller.meta["sizes"]["state"]
     ctypes.memmove(state.s, np.ascontiguousarray(s0[2 * n:2 * n + n_s]).ctypes.data, 8 * n_s)
     meas, cmd = controller.Measurement(), controller.Command()
-    y = np.frombuffer(meas, dtype=float)
-    out = np.frombuffer(cmd, dtype=float)
-    n_c = sum(f.size for f in controller.cmd_fields)
-    N = U.shape[1]
-    L = np.empty((sim.log.size, N))
-    Uin = INPUT.split(U)
-    z = s0[:2 * n].copy()
-    pz = PZ.pack(tau=np.zeros(n), k_e=0.0, d_e=PP["d_e"], Ts=PP["Ts"], **{k: PP[k] for k, _ in surface.fields})
-    m = 2 * n                                          # the force's place in the measurement
-    t0 = time.perf_counter()
-    for k in range(N):
-        k_e = Uin["k_e"][0, k]
-        f_true, normal = (np.asarray(v).ravel() for v in sensor(z, k_e, PP["d_e"], surf))
-        y[0:m] = z
-        y[m:m + 3] = -normal * (f_true[0] + Uin["noise"][0, k])
-        y[m + 3:m + 5], y[m + 5:m + 7], y[m + 7:m + 9] = Uin["pos_t"][:, k], Uin["vel_t"][:, k], Uin["acc_t"][:, k]
+    y_c, out = np.frombuffer(meas, dtype=float), np.frombuffer(cmd, dtype=float)
+    build_time = time.perf_counter() - t0
+
+    def control(y):
+        y_c[:] = y
         if controller.step(params, state, meas, cmd) != 0:
-            raise RuntimeError(f"tmt_step failed at t = {t[k]:.4f} s")
-        tau = out[n_c - n:n_c]
-        d = out[n_c:]
-        L[:, k] = np.concatenate([z, tau, d[9:12], d[0:3], d[6:9], out[0:3], f_true, d[12:16], d[16:]])
-        pz[PZ["tau"]], pz[PZ["k_e"]] = tau, k_e
-        z = np.asarray(plant(z, pz)).ravel()
-        if k % 1000 == 0:
-            check_interrupt()
-    run_time = time.perf_counter() - t0
-    S = np.hstack([L[0:2 * n, 1:], z[:, None]])      # the joints after each period, as the built-in run's
-    Simulator._check_finite(S, L, t, n)
-    return sim._result(scenario, t, L, U, path, {"integrator": sc.integrator, "code": "exported C (SIL)",
-                                                 "controller": str(controller.folder), "build_time_s": build_time,
-                                                 "run_time_s": run_time, "steps": t.size, "robot": sim.plant.name})
+            raise RuntimeError("tmt_step failed")
+        return out.copy()
+
+    sc = scenario.simulation
+    return run_split(sim, scenario, control, plant, {"integrator": sc.integrator, "code": "exported C (SIL)",
+                                                     "controller": str(controller.folder),
+                                                     "build_time_s": build_time},
+                     sum(f.size for f in controller.cmd_fields))
+
+
+class BuiltinPlant:
+    """tmtcontrol's plant as a :func:`~tmtcontrol.simulation.cosim.run_split`
+    plant: :func:`~tmtcontrol.simulation.closedloop.build_plant` (the
+    simulator's integrator and contact refinement) and the simulated force
+    sensor, with the scenario's parameters ``P``."""
+
+    def __init__(self, sim, P):
+        sc = sim.scenario.simulation
+        surface, task = sim.surface, sim.task
+        self.plant = build_plant(sim.plant, sc.integrator, sc.substeps, sc.tol, sc.contact_refine, surface)
+        self.sensor = _sensor(sim.plant, surface)
+        PP = param_layout(task, sim.law, surface).split(P)
+        self.PZ = plant_inputs_layout(task, surface)
+        self.surf = np.concatenate([PP[name] for name, _ in surface.fields])
+        self.d_e = PP["d_e"]
+        self.pz = self.PZ.pack(tau=np.zeros(task.n), k_e=0.0, d_e=PP["d_e"], Ts=PP["Ts"],
+                               **{k: PP[k] for k, _ in surface.fields})
+
+    def sense(self, z, k_e):
+        f, normal = self.sensor(z, k_e, self.d_e, self.surf)
+        return float(f), np.asarray(normal).ravel()
+
+    def advance(self, z, tau, k_e):
+        self.pz[self.PZ["tau"]], self.pz[self.PZ["k_e"]] = tau, k_e
+        return np.asarray(self.plant(z, self.pz)).ravel()
 
 
 def _sensor(robot, surface) -> ca.Function:

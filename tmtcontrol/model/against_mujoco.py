@@ -44,14 +44,23 @@ def _import():
     return mujoco
 
 
-def mujoco_model(robot):
+def mujoco_model(robot, lock_held: bool = False):
     """``(mujoco, MjModel, MjData)`` of the robot's URDF, every link a body,
-    the rotor inertia as armature on the actuated joints."""
+    the rotor inertia as armature on the actuated joints; ``lock_held``: the
+    held joints made fixed (at their held value, which must be 0: the
+    joint's zero is its URDF origin), so a simulation moves none of them."""
     mujoco = _import()
     if robot.urdf is None:
         raise NotImplementedError(f"{robot.name} has no URDF (its model is a parameter set): MuJoCo loads URDF files")
+    text = robot.urdf
+    if lock_held:
+        for name, value in robot.held.items():
+            if value != 0:
+                raise NotImplementedError(f"the held joint {name} is at {value:g}, not 0: MuJoCo cannot lock it "
+                                          "there from the URDF")
+            text = re.sub(rf'(<joint\b[^>]*\bname="{re.escape(name)}"[^>]*\btype=")\w+(")', r"\1fixed\2", text)
     text = re.sub(r"(<robot\b[^>]*>)", r'\1<mujoco><compiler fusestatic="false" discardvisual="true" '
-                  r'balanceinertia="false" strippath="true"/></mujoco>', robot.urdf, count=1)
+                  r'balanceinertia="false" strippath="true"/></mujoco>', text, count=1)
     text = re.sub(r"<(visual|collision)\b.*?</\1>", "", text, flags=re.S)     # meshes are not dynamics
     model = mujoco.MjModel.from_xml_string(text)
     model.opt.gravity[:] = (0.0, 0.0, -9.81)
