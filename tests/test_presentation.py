@@ -633,3 +633,17 @@ def test_outputs_page_lists_what_compare_and_sweep_write(tmp_path):
     for name in ("results.parquet", "summary.json", "sweep_map.png", "law_distribution.png"):
         assert f"`{name}`" in rows["sweep"]
     assert PartialFolder.path_for(tmp_path / "OUT").name == "OUT.partial" and "`OUT.partial/`" in text
+
+
+def test_a_column_constant_over_every_row_moves_into_the_caption():
+    """(issue: constant columns, worst overshoot at 100 % for every law, carry no information)"""
+    from tmtcontrol.report.document import _constant_columns_out
+
+    head = ["law", "error", "worst overshoot", "verdict"]
+    rows = [["tmt", "1 mN", "100 %", "converged"], ["rls", "2 mN", "100 %", "limit_cycle"]]
+    tab = _constant_columns_out("Laws", head, rows, 3, (1, 2))
+    assert tab.head == ["law", "error", "verdict"] and tab.verdict_column == 2
+    assert tab.rows == [["tmt", "1 mN", "converged"], ["rls", "2 mN", "limit_cycle"]]
+    assert tab.caption == "Laws (worst overshoot: 100 % in every row)"
+    one = _constant_columns_out("One", head, rows[:1], 3, (2,))       # a single row keeps its columns
+    assert one.head == head

@@ -237,16 +237,15 @@ def _continuous(rep: Report, p: dict):
                                                f"{fmt.num(abs(z.imag))}j" if abs(z.imag) > 0 else fmt.num(z.real)
                                                for z in a.poles),
                      fmt.num(a.natural_frequency), fmt.num(a.damping_ratio), over, settle,
-                     fmt.num(a.critical_damping), fmt.ratio(b / a.critical_damping),
-                     _mark(a.bibo_stable)])
+                     fmt.num(a.critical_damping), _mark(a.bibo_stable)])
     lo, hi = p["k_e_min"], p["k_e_max"]
     sec = Section("continuous", "Continuous-time analysis (eqs. 22, 25)", [
         Paragraph(f"The force error dynamics of eq. (22), m ë + b ė + (k + k_e) e, with m = {fmt.qty(m, 'kg')}, "
                   f"b = {fmt.qty(b, 'N s/m')}, k = {fmt.qty(k, 'N/m')}, at each operating stiffness. "
-                  "Eq. (25) is the damping for a critically damped response."),
+                  "Eq. (25) is the damping for a critically damped response (b / b_crit is the damping ratio ζ)."),
         Table("Continuous-time force error dynamics per stiffness",
               ["k_e (N/m)", "poles (1/s)", "ω_n (rad/s)", "ζ", "overshoot", "settling 2 %", "b_crit eq. 25 (N s/m)",
-               "b / b_crit", "BIBO stable"], rows, verdict_column=8),
+               "BIBO stable"], rows, verdict_column=7),
         figure("Root locus of eq. (22) as k_e varies over the range (×/÷ 10), the operating range drawn thick.", sf.root_locus_figure, m, b, k,
                lo / 10, hi * 10, operating=(lo, hi)),
         figure("Damping ratio and natural frequency of eq. (22) against k_e, the operating range shaded.",
@@ -355,6 +354,19 @@ def _normal_mass_blocks(rep: Report, sc: Scenario, p: dict) -> list:
         "grows)."),
         figure(f"Effective normal mass m_p of the {robot.name} along one period of the path, with its largest "
                "value, the 1-D model's and the design's worst case.", sf.normal_mass_figure, t, masses, robot.name)]
+
+
+def _constant_columns_out(caption: str, head: list[str], rows: list[list[str]], verdict_column: int | None,
+                          columns: tuple[int, ...]) -> Table:
+    """A :class:`Table` without those of ``columns`` whose every row holds the
+    same cell (a column that never changes tells nothing row by row): each
+    one is said once in the caption instead."""
+    drop = [j for j in columns if len(rows) > 1 and len({r[j] for r in rows}) == 1]
+    said = "; ".join(f"{head[j]}: {rows[0][j]} in every row" for j in drop)
+    keep = [j for j in range(len(head)) if j not in drop]
+    vc = None if verdict_column is None else keep.index(verdict_column)
+    return Table(caption + (f" ({said})" if said else ""), [head[j] for j in keep],
+                 [[r[j] for j in keep] for r in rows], verdict_column=vc)
 
 
 def _cells(values, unit: str, sig: int = 3) -> list[str]:
@@ -537,9 +549,10 @@ def _comparison(rep: Report, sc: Scenario):
                   "parameters (the scenario's own law with the scenario's). Worst values over the segments. "
                   "The verdict says whether the loop settles; whether it settles on f_d is the tolerance "
                   f"column (the scenario's tracking tolerance, {fmt.qty(sc.controller.force_tolerance, 'N')})."),
-        Table("Force-tracking laws on this scenario",
-              ["law", "worst steady-state error", f"within {fmt.qty(sc.controller.force_tolerance, 'N')}", "worst overshoot",
-               "worst settling 2 %", "worst tangential RMS", "verdict"], rows, verdict_column=6),
+        _constant_columns_out(
+            "Force-tracking laws on this scenario",
+            ["law", "worst steady-state error", f"within {fmt.qty(sc.controller.force_tolerance, 'N')}",
+             "worst overshoot", "worst settling 2 %", "worst tangential RMS", "verdict"], rows, 6, (3, 4)),
         figure("Contact force of every law.", simf.comparison_force_figure, cmp),
         figure("Force error of every law (log scale).", simf.comparison_error_figure, cmp)])
 
@@ -684,9 +697,9 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
         Table("Damping designs", ["design", "b (N s/m)", "worst-case ISE (N² s)", "worst first-contact overshoot"],
               rows)]
     if sim_rows:
-        blocks.append(Table("The designs simulated on this scenario",
-                            ["damping", "worst overshoot after a switch", "worst steady-state error", "verdict"],
-                            sim_rows, verdict_column=3))
+        blocks.append(_constant_columns_out("The designs simulated on this scenario",
+                                            ["damping", "worst overshoot after a switch", "worst steady-state error",
+                                             "verdict"], sim_rows, 3, (1,)))
     blocks.append(figure("Worst-case cost against b, the optimum and the eq. (25) design marked; below, the worst "
                          f"first-contact overshoot of the sampled loop against b and its {fmt.num(spec.max_overshoot)} % "
                          "bound: the shaded b break it, which is why the optimum lies right of the cost's minimum.",
