@@ -1,4 +1,4 @@
-"""The 6-D closed loop of ``tmtcontrol.simulation.taskframe`` written again with Pinocchio in Python.
+"""The 6-D closed loop of ``tmtcontrol.simulation.closedloop`` written again with Pinocchio in Python.
 
 A reference implementation for speed (issue 30: the compiled rollout against
 "the same closed loop written with Pinocchio in Python, its ABA per RK4
@@ -16,7 +16,7 @@ noise per sample, the parameter vector with the task frame R, the commanded
 tool orientation R_d, the gains, and the start state), read by name through
 the layouts.
 
-One control period, as ``taskframe.build_pose_step`` (paper eqs. 1-6, 13, 18):
+One control period, as ``closedloop.build_step`` on a 6-D task (paper eqs. 1-6, 13, 18):
 
 * sensor: f_e = max(0, k_e x + d_e dx) while x > 0 (x: tip depth along the
   inward normal), f_m = alpha f_filt + (1 - alpha)(f_e + noise);
@@ -97,7 +97,7 @@ class PinocchioRun:
 class PinocchioLoop:
     """The 6-D loop of scenario ``sc`` on Pinocchio: ``PinocchioLoop(sc, robot).run(U, P, s0)``
     with ``(U, P, s0, t) = Simulator(sc).inputs()`` and ``robot`` the scenario's arm
-    (``tmtcontrol.simulation.posesim.robot_of(sc)``)."""
+    (``tmtcontrol.simulation.simulator.robot_of(sc)``)."""
 
     def __init__(self, sc, robot):
         r, ctl = sc.robot, sc.controller

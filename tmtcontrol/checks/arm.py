@@ -6,12 +6,10 @@ The checks build the closed loop from the expressions the simulator uses —
 the robot's CasADi Functions (eq. 1, ``load_robot``), the impedance filter,
 command and inner loop of ``control/impedance.py`` (eqs. 2, 4, 6), the TMT
 reference of ``control/laws/tmt.py`` (eq. 16), the rotation-vector error of
-``simulation/geometry.py`` and the inner loop's torque: for an arm with 6 or
-more joints :func:`.taskframe.operational_space_torque` (eq. 5 with the
-dynamically consistent null-space projector), for the 3-joint PUMA
-:func:`.closedloop.operational_space_torque` (position task), the torque of the
-simulator's :mod:`.taskframe` and :mod:`.closedloop` — never formulas
-retyped here, and evaluate each claim at seeded random joint states within
+``simulation/geometry.py`` and the inner loop's torque
+:func:`.closedloop.operational_space_torque` (eq. 5; on a redundant arm with
+the dynamically consistent null-space projector), the torque of the
+simulator's one loop — never formulas retyped here, and evaluate each claim at seeded random joint states within
 the joint limits (well conditioned: the smallest singular value of the task
 Jacobian at least :data:`MIN_SINGULAR_VALUE`), with random commands. CasADi
 cannot simplify ``J M^-1 J^T (J M^-1 J^T)^-1`` to the identity symbolically

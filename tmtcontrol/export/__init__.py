@@ -8,7 +8,6 @@
         -> sil.replay: the logged measurements through the C code
 
 The generated C comes from :func:`tmtcontrol.simulation.closedloop.build_controller`,
-the same expressions (eqs. 2-6 and the law) as the simulator's step; on an arm
-with 6 or more joints from :func:`tmtcontrol.simulation.taskframe.build_pose_controller`,
-the 6-D simulation's expressions (n joints in, n joint torques out).
+the same expressions (eqs. 2-6 and the law) as the simulator's step, for every
+arm (n joints in, n joint torques out).
 """

@@ -269,7 +269,6 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
     index = {name: k for k, name in enumerate(actuated)}
     place = {base: (-1, np.eye(3), np.zeros(3))}
     specs: list = [None] * len(actuated)
-    members: list[list] = [[] for _ in actuated]
     for link in below:
         if link == base:
             continue

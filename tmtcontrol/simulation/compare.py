@@ -13,7 +13,6 @@ from __future__ import annotations
 import pathlib
 from dataclasses import dataclass, field
 
-import numpy as np
 
 from ..control.laws import get_law, laws
 from .metrics import VERDICTS, SegmentMetrics, segment_metrics

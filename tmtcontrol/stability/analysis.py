@@ -8,8 +8,7 @@ import numpy as np
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .onedim import (closed_form_applies, normal_masses, scenario_parameters, scenario_stiffness_limit,
                      scheduled_damping, with_stiffness_limit)
-from .sampled import (effective_mass, largest_stable, max_stable_stiffness, sampled_closed_loop,
-                      spectral_radius, stable_band, stiffness_band)
+from .sampled import sampled_closed_loop, spectral_radius, stable_band, stiffness_band
 
 __all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
            "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
@@ -176,9 +175,9 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     own start (``first_contact_limit``, N/m; ``stability.first_contact``,
     searched up to the periodic limit). Then the smaller of the two decides
     the sampled verdict, and the frozen-point minimum stays as the
-    conservative bound. On an arm with 6 or more joints these analyses run
-    the 6-D task-frame loop (``simulation.armloop``), the 1-D model with
-    the arm's effective normal mass along the path."""
+    conservative bound. Every arm runs the same loop (its task declared by
+    the robot), the 1-D model with the arm's effective normal mass along
+    the path."""
     from ..control.laws import get_law
     from .wholeloop import whole_loop_limit
 

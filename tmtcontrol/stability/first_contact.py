@@ -11,8 +11,8 @@ large swing, and above some stiffness the loop locks into a limit cycle
 that keeps re-entering it, although the equilibrium is locally stable: the
 loop is bistable. :func:`first_contact_limit` finds that stiffness by
 bisection on short simulations of the compiled rollout
-(``simulation.simulator``, or ``simulation.posesim`` on an arm with 6 or
-more joints) from the scenario's start at constant k_e.
+(``simulation.simulator``, the same for every arm) from the scenario's
+start at constant k_e.
 
 :func:`settles` is the verdict on one run: a limit cycle is an oscillation
 of the force of at least ``LIMIT_CYCLE_AMPLITUDE`` x f_d peak to peak over

@@ -7,9 +7,8 @@ points of the circle against the decay at others. This module linearises
 the loop *as it runs*: at a constant stiffness k_e the closed loop of the
 scenario's arm (the full robot of eq. (1), the controller's model of eq.
 (5), the inner loop of eq. (6), the force filter, the law's update, the
-computation delay; the PUMA's ``simulation.closedloop.build_step`` or, on an
-arm with 6 or more joints, the 6-D ``simulation.taskframe.build_pose_step``,
-chosen by task dimension in ``simulation.armloop``) driven by the circle is periodic
+computation delay; ``simulation.closedloop.build_step``, the one loop of
+every arm) driven by the circle is periodic
 with the path's period ``N = period / Ts`` samples. Its steady periodic
 orbit ``s_0, s_1, ..., s_N = s_0`` is found by Newton shooting on the
 one-period map, and the product of the per-sample Jacobians along the orbit

@@ -7,11 +7,8 @@ scenario's simulator compiles (the full robot of eq. (1), the controller's
 model D*^, h*^ of eq. (5) with any mass mismatch, the inner loop of eq. (6),
 the force filter, the law's own update, the computation delay), frozen at one
 point of the path (tangential reference held, velocity and acceleration zero,
-constant k_e). The step is the 3-joint PUMA's position-only loop
-(``simulation.closedloop.build_step``) or, on an arm with 6 or more joints,
-the 6-D task-frame loop (``simulation.taskframe.build_pose_step``, the tool
-orientation held), chosen by task dimension (``simulation.armloop``); the
-algorithm is the same.
+constant k_e). The step is ``simulation.closedloop.build_step``, the one
+loop of every arm (on a 6-D task the tool orientation held too).
 
 At that point the step is an autonomous map ``s -> s_next``. Its fixed
 point (Newton, started from the law's 1-D equilibrium, ``stability.lawloop``)

@@ -116,7 +116,7 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
         fig.suptitle("Sweep: verdict (marker) and accuracy (colour)")
     # fixed margins (constrained layout measured every text: half the figure's time), the colour
     # bar in the right margin beside the last panel
-    handles, names = {}, {}
+    handles = {}
     for ax in fig.axes:                         # one entry per verdict over the panels
         for h, n in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(n.rsplit(" (", 1)[0] if n.rsplit(" (", 1)[0] in VERDICT_STYLE else n, h)
