@@ -87,7 +87,7 @@ def test_a_bias_is_still_off_target_under_noise_and_noise_alone_converges():
         # band and tolerance widened by 6 sigma = 3 N as segment_metrics does; the bias tolerance 0.01 N
         v, why = judge_segment(10.2 + noise, 10.0, 3.1, 3.01, bias_tolerance=0.01 + bias_allowance(noise[3000:]))
         # the reported bias is the sample mean: 0.2 N within 5 standard errors (0.08 N)
-        assert v == "off_target" and abs(float(re.search(r"bias of ([+-][0-9.]+) N", why)[1]) - 0.2) < 0.08, why
+        assert v == "off_target" and abs(_newtons(re.search(r"bias of ([+−-][0-9.]+) (µN|mN|N)", why)) - 0.2) < 0.08, why
         assert judge_segment(10.0 + noise, 10.0, 3.1, 3.01,
                              bias_tolerance=0.01 + bias_allowance(noise[3000:]))[0] == "converged"
     # a noise-free run: the bias tolerance is the tolerance itself
@@ -411,3 +411,8 @@ def test_a_scenario_with_a_normal_round_trips_through_its_dump_without_tilt_deg(
     assert again.environment.normal == panda.environment.normal and again.trajectory.cycles == 0.5
     assert apply_overrides(panda, ["trajectory.cycles=0.5"]).environment == panda.environment
     assert load_scenario("paper").environment.model_dump()["tilt_deg"] == 45.0
+
+
+def _newtons(match) -> float:
+    """A force a verdict's reason printed with its SI prefix (fmt.qty), in N."""
+    return float(match[1].replace("−", "-")) * {"N": 1.0, "mN": 1e-3, "µN": 1e-6}[match[2]]

@@ -131,7 +131,7 @@ def test_interrupt_during_design_is_not_a_result(tmp_path):
     _wait_for_staging(p, tmp_path)          # the design computes from here (several seconds: scan, then IPOPT)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=60)
-    assert p.returncode == 130 and out == "" and "interrupted" in one_line(err)
+    assert p.returncode == 130 and out == "" and "interrupted" in one_line(err), (p.returncode, out, err)
     assert list(tmp_path.iterdir()) == []
 
 

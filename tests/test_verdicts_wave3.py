@@ -175,7 +175,7 @@ def test_tolerance_and_band_on_synthetic_forces():
     # a constant bias is off target whatever its size
     f = np.full(4000, 10.5)
     assert judge_segment(f, 10.0, 0.1, 0.01) == ("off_target", judge_segment(f, 10.0, 0.1, 0.01)[1])
-    assert "bias of +0.5 N" in judge_segment(f, 10.0, 0.1, 0.01)[1]
+    assert "bias of +500 mN" in judge_segment(f, 10.0, 0.1, 0.01)[1]
     # a segment too short for two windows (10 samples) is judged by the tolerance alone, not assumed
     assert judge_segment(np.full(10, 10.005), 10.0, 0.1, 0.01)[0] == "converged"
     assert judge_segment(np.full(10, 10.5), 10.0, 0.1, 0.01)[0] == "off_target"
@@ -383,4 +383,4 @@ def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and len(err) == 1
     assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5,000 N/m, predicted limit")
-    assert "(tolerance 0.01 N): a bias of +0.2" in err[0]
+    assert "(tolerance 10 mN): a bias of +2" in err[0] and " mN" in err[0].split("a bias of")[1]

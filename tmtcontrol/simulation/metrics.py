@@ -354,8 +354,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     e = force - f_d
     if last.size < 4:           # too short for two windows: the tolerance alone, over the whole segment
         worst = float(np.max(np.abs(e))) if n else 0.0
-        return (("converged", f"|f_e - f_d| <= {worst:.3g} N (a segment of {n} samples)") if worst <= tolerance
-                else ("off_target", f"|f_e - f_d| up to {worst:.3g} N (tolerance {tolerance:.3g} N, a segment of "
+        return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
+                else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
@@ -369,25 +369,26 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     forced = (P is not None and float(np.max(np.abs(e_B - e_A))) <= FORCED * a_B
               and _gain(e_A, e_B) <= 1.0 + REPEAT_GROWTH)
     if a_B > band and a_B >= SUSTAINED * a_A and not forced:
-        return "limit_cycle", f"oscillation of {a_B:.3g} N peak-to-peak does not decay over {over}"
+        return "limit_cycle", f"oscillation of {_N(a_B)} peak-to-peak does not decay over {over}"
     worst = float(np.max(np.abs(e[n - last.size:])))
     bias = float(np.mean(e[n - last.size:]))
     if bias_tolerance is None:
         bias_tolerance = tolerance
     if worst <= tolerance and abs(bias) <= bias_tolerance:
-        return "converged", f"|f_e - f_d| <= {worst:.3g} N at the end"
+        return "converged", f"|f_e - f_d| <= {_N(worst)} at the end"
     if worst <= tolerance:
-        return "off_target", (f"a bias of {bias:+.3g} N over the last quarter (tolerance {bias_tolerance:.3g} N; "
-                              f"|f_e - f_d| <= {worst:.3g} N is within the noise allowance)")
+        return "off_target", (f"a bias of {_N(bias, sign=True)} over the last quarter "
+                              f"(tolerance {_N(bias_tolerance)}; |f_e - f_d| <= {_N(worst)} is within the noise "
+                              "allowance)")
     if forced:
-        why = f"a periodic forced response of {a_B:.3g} N peak-to-peak"
+        why = f"a periodic forced response of {_N(a_B)} peak-to-peak"
     elif a_B > band:
         why = f"still decaying ({a_B / max(a_A, 1e-300):.3g}x over {over})"
     else:
         drift = float(np.mean(e_B) - np.mean(e_A))
-        why = f"a bias of {float(np.mean(e_B)):+.3g} N" + (f", drifting {drift:+.3g} N over {over}"
+        why = f"a bias of {_N(float(np.mean(e_B)), sign=True)}" + (f", drifting {_N(drift, sign=True)} over {over}"
                                                           if abs(drift) > 0.1 * tolerance else "")
-    return "off_target", f"|f_e - f_d| up to {worst:.3g} N at the end (tolerance {tolerance:.3g} N): {why}"
+    return "off_target", f"|f_e - f_d| up to {_N(worst)} at the end (tolerance {_N(tolerance)}): {why}"
 
 
 def segment_verdict(force: np.ndarray, f_d: float, band: float, tolerance: float = 0.01,
@@ -418,6 +419,13 @@ def noise_free_twin(result: SimulationResult) -> SimulationResult:
 
 
 _RANK = {v: i for i, v in enumerate(VERDICTS)}
+
+
+def _N(v: float, sign: bool = False) -> str:
+    """A force in a verdict's reason, as the tables print it (``fmt.qty``: 439 µN, 11 mN, 2.5 N)."""
+    from .. import fmt
+
+    return ("+" if sign and v >= 0 else "") + fmt.qty(float(v), "N").replace(fmt.NBSP, " ")
 
 
 def _judge(result: SimulationResult, twin: SimulationResult | None, i0: int, i1: int,
