@@ -72,3 +72,37 @@ def test_the_built_in_arms_on_mujoco_agree_segment_by_segment(arm):
         assert a.verdict == b.verdict, (a.reason, b.reason)
         assert abs(a.steady_state_error - b.steady_state_error) < 1e-3
     assert np.max(np.abs(mj.contact_force - builtin.contact_force)) < 0.1
+
+
+def test_crosscheck_prints_both_plants_and_agrees_on_the_ur5(tmp_path, capsys):
+    out = tmp_path / "xc"
+    assert main(["crosscheck", "ur5", "--set", "trajectory.cycles=0.5", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "ss err MuJoCo" in text and "the plants agree" in text
+    import json
+
+    summary = json.loads((out / "crosscheck.json").read_text())
+    assert summary["agree"] is True and summary["max_force_difference_N"] < 5e-3
+    assert (out / "crosscheck.png").is_file()
+
+
+def test_crosscheck_disagrees_when_a_plant_misses_the_force(monkeypatch, ur5_short):
+    """A MuJoCo run whose steady force is off by twice the tolerance (a planted plant error): not agreed."""
+    import dataclasses
+
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.simulation.crosscheck import crosscheck
+
+    mj, _ = ur5_short
+    tol = mj.scenario.controller.force_tolerance
+    off = dataclasses.replace(mj, contact_force=mj.contact_force + 2 * tol)
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: off)
+    c = crosscheck(mj.scenario)
+    assert not c.agree and not c.segments[0]["agree"]
+    assert c.max_force_difference == pytest.approx(2 * tol, abs=5e-3)
+
+
+def test_crosscheck_refuses_the_puma_in_one_line(tmp_path, capsys):
+    assert main(["crosscheck", "paper", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "crosscheck: puma560 has no URDF" in err and not (tmp_path / "x").exists()

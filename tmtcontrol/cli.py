@@ -74,6 +74,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.set_defaults(func=_compare)
 
+    p = sub.add_parser("crosscheck", help="the scenario on tmtcontrol's plant and on MuJoCo's, segment by segment",
+                       formatter_class=_RAW,
+                       description="Runs the scenario's controller on the built-in plant and on MuJoCo's dynamics of "
+                                   "the same URDF (ideal spring contact),\nand compares each segment's steady-state "
+                                   "error and verdict. Exit 1 if the plants disagree (a verdict differs, or a\n"
+                                   "steady-state error by more than controller.force_tolerance). Needs the mujoco "
+                                   "extra and an arm with a URDF.",
+                       epilog="example:\n  tmtcontrol crosscheck ur5 --out ur5-crosscheck")
+    _add_scenario_args(p, "tmt-crosscheck")
+    p.add_argument("--no-plots", action="store_true", help="skip the figure")
+    p.set_defaults(func=_crosscheck)
+
     p = sub.add_parser(
         "analyze", help="stability and damping of the TMT error dynamics (eqs. 22, 25)",
         formatter_class=_RAW,
@@ -249,13 +261,7 @@ def _simulate_with(args, workers) -> int:
         if args.controller is not None:
             raise UsageError("--plant mujoco: runs the built-in controller; the exported C (--controller) runs "
                              "against the built-in plant")
-        from .model.against_mujoco import MujocoMissing, mujoco_model
-        from .simulation.simulator import robot_of
-
-        try:                                   # refused before anything is written
-            mujoco_model(robot_of(sc))
-        except (MujocoMissing, NotImplementedError) as exc:
-            raise UsageError(f"--plant mujoco: {exc}") from None
+        _mujoco_ready(sc, "--plant mujoco")
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
 
@@ -347,6 +353,35 @@ def _compare(args) -> int:
         print(f"{s.verdict}: law {n}, segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m; "
               f"{s.reason}", file=sys.stderr)
     return 0 if cmp.converged else 1
+
+
+def _mujoco_ready(sc, flag: str) -> None:
+    """Refuse (one line, exit 2, before anything is written) a MuJoCo run that cannot be made."""
+    from .model.against_mujoco import MujocoMissing, mujoco_model
+    from .simulation.simulator import robot_of
+
+    try:
+        mujoco_model(robot_of(sc))
+    except (MujocoMissing, NotImplementedError) as exc:
+        raise UsageError(f"{flag}: {exc}") from None
+
+
+def _crosscheck(args) -> int:
+    from .files import OutputFolder
+    from .simulation.crosscheck import crosscheck, format_crosscheck, save_crosscheck
+    from .simulation.simulator import check_run_size
+
+    sc = _load(args)
+    check_run_size(sc, args.max_steps)
+    _mujoco_ready(sc, "crosscheck")
+    with OutputFolder(args.out, "--out") as out:
+        c = crosscheck(sc, max_steps=args.max_steps)
+        save_crosscheck(c, out.path, plots=not args.no_plots)
+        out.commit()
+    print(f"scenario {sc.name!r}: the built-in plant and MuJoCo ({c.mujoco.info['code']}, spring contact)")
+    print(format_crosscheck(c))
+    print(f"wrote {out.out}/")
+    return 0 if c.agree else 1
 
 
 def _verdict_exit(sc, segs) -> int:

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 __all__ = ["stiffness_figure", "force_figure", "switch_figure", "tracking_error_figure", "position_figure",
            "path_figure",
            "desired_path", "save_simulation_figures", "comparison_force_figure", "comparison_error_figure",
-           "save_comparison_figures", "envelope", "limit_use_figure"]
+           "save_comparison_figures", "envelope", "limit_use_figure", "crosscheck_figure"]
 
 DRAW_POINTS = 1200
 """Buckets per time-series line: more than a figure has pixels across."""
@@ -217,6 +217,24 @@ def limit_use_figure(res: SimulationResult) -> Figure:
     axes[1].set(xlabel="time (s)")
     legend_below(fig, axes[1], ncol=4)
     return fixed_layout(fig, bottom=legend_margin(len(axes[1].get_legend_handles_labels()[1]), 4))
+
+
+def crosscheck_figure(c) -> Figure:
+    """The contact force on tmtcontrol's plant and on MuJoCo's
+    (:mod:`.crosscheck`), and their difference below."""
+    fig = Figure(figsize=(7, 5.2))
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    a, b = c.builtin, c.mujoco
+    top.plot(*envelope(a.time, a.contact_force), lw=1.2, label="built-in plant")
+    top.plot(*envelope(b.time, b.contact_force), lw=1.0, ls="--", label="MuJoCo plant")
+    top.plot(a.time, a.desired_force, "k:", lw=0.8, label="f_d")
+    top.set(ylabel="contact force (N)", title="The same controller on two plants")
+    bottom.plot(*envelope(a.time, b.contact_force - a.contact_force), lw=1.0, color="C3")
+    bottom.set(xlabel="time (s)", ylabel="MuJoCo − built-in (N)")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+    legend_below(fig, bottom, 3, *top.get_legend_handles_labels())
+    return fixed_layout(fig, bottom=legend_margin(3, 3))
 
 
 def save_simulation_figures(res: SimulationResult | SimulationTraces,
