@@ -259,3 +259,28 @@ def test_forked_half_is_killed_when_the_writer_stops_early(tmp_path, monkeypatch
     timer.cancel()
     assert not waited, "the writer waited for the forked process instead of killing it"
     assert _children(before) == []
+
+
+def test_a_signal_raised_inside_a_c_extension_is_an_interruption_not_a_traceback(monkeypatch, capsys):
+    """CI saw Ctrl-C during `design` end in a traceback: the handler's exception, raised while CasADi's C code
+    ran, came back as "SystemError: <method 'get' of 'dict' objects> returned a result with an exception set"
+    (its cause the signal's exception). That is an interruption: one line, exit 130."""
+    from tmtcontrol import cli
+    from tmtcontrol.files import Interrupted
+
+    def c_call_interrupted(args):
+        try:
+            raise Interrupted(2)
+        except Interrupted as exc:
+            raise SystemError("<method 'get' of 'dict' objects> returned a result with an exception set") from exc
+
+    monkeypatch.setattr(cli, "_cache", c_call_interrupted)
+    assert cli.main(["cache"]) == 130
+    assert one_line(capsys.readouterr().err).startswith("interrupted (Ctrl-C)")
+
+    def a_real_system_error(args):
+        raise SystemError("a bug, not a signal")
+
+    monkeypatch.setattr(cli, "_cache", a_real_system_error)
+    with pytest.raises(SystemError, match="a bug"):
+        cli.main(["cache"])

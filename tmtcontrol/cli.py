@@ -728,6 +728,27 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"warning: {text}", file=sys.stderr if file is None else file)
 
 
+def _interrupted_by(exc: BaseException) -> int | None:
+    """The exit code of the signal behind ``exc`` (an :class:`Interrupted` or
+    KeyboardInterrupt in its cause or context chain, or a signal the
+    handlers recorded), else None."""
+    from .files import Interrupted, check_interrupt
+
+    seen, e = set(), exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, Interrupted):
+            return e.exit_code
+        if isinstance(e, KeyboardInterrupt):
+            return 130
+        e = e.__cause__ or e.__context__
+    try:
+        check_interrupt()
+    except Interrupted as pending:
+        return pending.exit_code
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     import threading
 
@@ -761,6 +782,15 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         print(f"interrupted (Ctrl-C): {getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
         return 130
+    except SystemError as exc:
+        # a signal's exception raised inside a C extension's call (CasADi checks for Ctrl-C while it
+        # evaluates): Python reports "returned a result with an exception set", the signal's as its cause
+        code = _interrupted_by(exc)
+        if code is None:
+            raise
+        print(f"interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}): "
+              f"{getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
+        return code
     except VerdictFailed as exc:   # computed verdicts (diverged simulation, infeasible design): exit 1
         print(f"error: {exc}", file=sys.stderr)
         return 1
