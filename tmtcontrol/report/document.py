@@ -395,7 +395,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     from ..simulation.simulator import simulator_for
     from ..simulation.simulator import SimulationError
 
-    sim = simulator_for(sc)       # the PUMA's position-only loop, or the 6-D task-frame loop of an arm with >= 6 joints
+    sim = simulator_for(sc)       # one loop for every arm; the task (3 or 6 axes) is the robot's
     blocks = []
     try:
         res = sim.run()

@@ -98,7 +98,7 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
     for n in names:
         sc = with_law(scenario, n)
         try:
-            from .simulator import simulator_for    # the PUMA's loop or the 6-D loop, by the arm's joints
+            from .simulator import simulator_for    # one loop for every arm
 
             res = simulator_for(sc).run(sc, max_steps=max_steps)
         except SimulationError as exc:
