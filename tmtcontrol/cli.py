@@ -31,7 +31,7 @@ _RAW = argparse.RawDescriptionHelpFormatter
 
 
 def _add_scenario_args(p, out_default: str):
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda'")
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda', 'ur5-pipe', 'panda-bowl'")
     p.add_argument("--out", default=out_default,
                    help=f"output folder (default ./{out_default}); an existing folder is replaced only "
                         "if tmtcontrol wrote it")
@@ -205,7 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "a Makefile, example_loop.c, replay.c and README.md to --out.",
                        epilog="examples:\n  tmtcontrol export paper --out tmt-c\n"
                               "  tmtcontrol export paper --inner-loop --out tmt-c && tmtcontrol simulate paper --controller tmt-c")
-    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda'")
+    p.add_argument("scenario", nargs="?", default="paper", help="scenario TOML file, or a built-in: 'paper' (default), 'ur5', 'panda', 'ur5-pipe', 'panda-bowl'")
     p.add_argument("--out", default="tmt-export",
                    help="output folder (default ./tmt-export); an existing folder is replaced only if tmtcontrol wrote it")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -221,7 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cache)
 
     p = sub.add_parser("scenario", help="print a built-in scenario as TOML, or the scenario JSON Schema")
-    p.add_argument("name", nargs="?", default="paper", choices=["paper", "ur5", "panda"])
+    p.add_argument("name", nargs="?", default="paper", choices=["paper", "ur5", "panda", "ur5-pipe", "panda-bowl"])  # tests: == BUILTIN_ARMS
     p.add_argument("--schema", action="store_true", help="print the JSON Schema of scenario files")
     p.set_defaults(func=_scenario)
     return parser

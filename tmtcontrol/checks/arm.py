@@ -27,6 +27,9 @@ Checks (one :class:`.derivations.CheckResult` each):
 * null space (6-D only): a joint torque tau_0 through ``N^T`` does not change
   the task acceleration (``J M^-1 N^T = 0``), while on a redundant arm it
   does move the joints (the posture task acts);
+* on a curved surface (sphere, cylinder), eqs. (19)-(22) again with the
+  depth along the local normal as the normal coordinate and the inner loop
+  mapped through the surface's chart, at joint states along the path;
 * tangential and rotational impedance (6-D only): with no tangential force
   and no contact moment the tangential axes follow ``M E'' + B E' + K E = 0``
   and the rotational axes ``M_rot w' + B_rot w = K_rot e_o`` (rotation-vector
@@ -82,6 +85,8 @@ class ArmImplementation:
     impedance_acceleration: Callable = impedance.impedance_acceleration
     command: Callable = impedance.command
     inner_loop: Callable = impedance.inner_loop
+    surface: Any = None            # the scenario's surface (a curved one adds its own normal-axis check)
+    path_q: Any = None             # joint states along the scenario's path (n x k, rad)
 
     @property
     def task_dim(self) -> int:
@@ -102,8 +107,13 @@ def arm_implementation(scenario) -> ArmImplementation:
     friction, armature), as both plant and model: the ideal inner loop."""
     from ..simulation.simulator import robot_of
 
+    from ..simulation.geometry import surface_of
+    from ..simulation.simulator import path_of
+
     plant = robot_of(scenario)
-    return ArmImplementation(plant=plant, model=plant)
+    surface = surface_of(scenario)
+    path_q = path_of(plant, scenario).q if surface.turns else None
+    return ArmImplementation(plant=plant, model=plant, surface=surface, path_q=path_q)
 
 
 def _states(impl: ArmImplementation, rng, count: int):
@@ -295,6 +305,59 @@ def check_tangential_rotational(impl: ArmImplementation, rng) -> CheckResult:
                    res, ARM_RTOL)
 
 
+def check_curved_normal_axis(impl: ArmImplementation, rng) -> CheckResult:
+    """Eqs. (19)-(22) on a curved surface: the normal coordinate is the depth
+    along the local normal, the inner loop maps through the chart."""
+    surface, d, n = impl.surface, impl.task_dim, impl.plant.n
+    s = {k: ca.MX.sym(k) for k in ("m", "b", "k", "k_e", "f_d", "u")}
+    U_rest = ca.MX.sym("U_rest", d - 1)
+    q, dq = ca.MX.sym("q", n), ca.MX.sym("dq", n)
+    par = {k: ca.DM(v) for k, v in surface.values().items()}
+    mf, pf = impl.model.functions, impl.plant.functions
+    p, Jv = mf.fk(q)[:3, 3], mf.jacobian(q)[:3, :]
+    R, X, dX = surface.coordinates(p, ca.mtimes(Jv, dq), par)
+    x, dx = X[0], dX[0]
+    x_e = x - s["u"]
+    f_e = s["k_e"] * (x - x_e)                                                               # eq. (13)
+    x_r = impl.tmt_reference(x, f_e, x_e, s["f_d"], s["k"], 1e-9, 1e-12)                    # eq. (16)
+    x_a, dx_a = x_r - x, -dx
+    ddx_a = impl.impedance_acceleration(f_e, x_a, dx_a, s["m"], s["b"], s["k"])              # eq. (2)
+    x_c, dx_c, ddx_c = impl.command(x_r, x_a), impl.command(0, dx_a), impl.command(0, ddx_a)  # eq. (4)
+    u_n = impl.inner_loop(ddx_c, dx_c, x_c, dx, x, s["b"] / s["m"], s["k"] / s["m"])          # eq. (6)
+    U_task = ca.vertcat(u_n, U_rest)
+    U = surface.acceleration(X, dX, U_task[:3], par)
+    if d == 6:
+        U = ca.vertcat(U, ca.mtimes(R, U_task[3:]))
+    F_n = R[:, 0] * f_e
+    J = mf.jacobian(q)[:d, :]
+    tau = impl.inner_torque(mf.mass_matrix(q), mf.bias(q, dq), J, mf.jacobian_dot(q, dq)[:d],
+                            U, ca.vertcat(F_n, ca.MX.zeros(d - 3))) + mf.friction(dq)
+    ddq = pf.forward_dynamics(q, dq, tau - ca.mtimes(pf.jacobian(q)[:3, :].T, F_n))
+    # the depth's acceleration by the chain rule through the inverse chart (coordinates of the plant's
+    # tool point), not through the chart's own acceleration
+    x_plant = surface.coordinates(pf.fk(q)[:3, 3], ca.MX.zeros(3), par)[1][0]
+    dx_plant = ca.jtimes(x_plant, q, dq)
+    ddx = ca.jtimes(dx_plant, q, dq) + ca.jtimes(dx_plant, dq, ddq)
+    eps, deps, ddeps = x_e - x, -dx, -ddx
+    k, k_e, f_d = s["k"], s["k_e"], s["f_d"]
+    lhs = s["m"] * ddeps + s["b"] * deps + (k + k_e) * eps
+    rhs = -f_d * (k + k_e) / k_e
+    scale = ca.fmax(1.0, ca.fmax(ca.fabs(rhs), ca.fabs((k + k_e) * eps)))
+    f = ca.Function("curved_normal_axis", [q, dq, U_rest, *s.values()], [(lhs - rhs) / scale])
+    res = 0.0
+    cols = np.linspace(0, impl.path_q.shape[1] - 1, STATES).astype(int)
+    for j in cols:
+        vals = [rng.uniform(0.5, 2), rng.uniform(1, 100), rng.uniform(10, 1e3), 10 ** rng.uniform(2, 5),
+                rng.uniform(1, 50), rng.uniform(1e-4, 1e-2)]
+        res = max(res, abs(float(f(impl.path_q[:, j], rng.uniform(-1, 1, n), rng.normal(size=d - 1), *vals))))
+    return _result(f"normal axis is eq. (22) on the {surface.kind} ({impl.plant.name})", "(19)-(22)",
+                   f"model = plant, E = X_a: on the {surface.kind}, the depth along the local normal obeys eq. (22) "
+                   "with the inner loop mapped through the surface's chart (curvature fed forward)",
+                   f"CasADi: {impl.plant.name} plant at {STATES} joint states along the scenario's path, random "
+                   "joint rates and impedances; the depth's acceleration by the chain rule through the surface's "
+                   "coordinates of the plant's tool point", res, ARM_RTOL)
+
+
 CHECKS_3D = (check_task_acceleration, check_normal_axis)
 CHECKS_6D = (check_task_acceleration, check_normal_axis, check_null_space, check_tangential_rotational)
 
@@ -304,7 +367,10 @@ def run_arm_checks(impl: ArmImplementation, seed: int = 2024) -> list[CheckResul
     rotational checks on a 6-D task only); a check that raises is reported
     as failed."""
     out = []
-    for i, chk in enumerate(CHECKS_6D if impl.task_dim == 6 else CHECKS_3D):
+    checks = CHECKS_6D if impl.task_dim == 6 else CHECKS_3D
+    if impl.surface is not None and impl.surface.turns:
+        checks = (*checks, check_curved_normal_axis)
+    for i, chk in enumerate(checks):
         rng = np.random.default_rng(seed + 100 + i)
         try:
             out.append(chk(impl, rng))

@@ -129,7 +129,7 @@ def orientation_error_check(scenario, seed: int = 2024) -> CheckResult | None:
     from scipy.spatial.transform import Rotation
 
     from ..simulation.closedloop import param_layout
-    from ..simulation.geometry import surface_of
+    from ..simulation.geometry import surface_of, tool_orientation
     from ..simulation.simulator import Simulator
 
     sim = Simulator(scenario, compile=False)
@@ -146,10 +146,17 @@ def orientation_error_check(scenario, seed: int = 2024) -> CheckResult | None:
         s[L["q"]] += rng.uniform(-0.15, 0.15, sim.plant.n)
         q = s[L["q"]]
         T = sim.plant.fk(q)
-        R_task = surface_of(scenario).frame(T[:3, 3])
-        expected = R_task.T @ Rotation.from_matrix(R_d @ T[:3, :3].T).as_rotvec()
+        surface = surface_of(scenario)
+        R_task = surface.frame(T[:3, 3])
         _, log = step(s, U[:, 0], P)
-        got = np.asarray(log).ravel()[G["e_o"]]
+        log = np.asarray(log).ravel()
+        got = log[G["e_o"]]
+        R_c = R_d
+        if surface.turns:          # the command turns with the surface: the tool orientation on the frame where
+            # the command's tangential coordinates meet the surface (its depth may reach a pipe's axis)
+            at = surface.to_base(np.r_[0.0, log[G["X_c"]][1:]])
+            R_c = tool_orientation(surface.frame(at), scenario.trajectory.tool_spin_deg)
+        expected = R_task.T @ Rotation.from_matrix(R_c @ T[:3, :3].T).as_rotvec()
         worst = max(worst, float(np.linalg.norm(got - expected) / max(np.linalg.norm(expected), 1e-12)))
     return _row(f"loop orientation error = SciPy's from fk ({sim.plant.name})",
                 "the closed loop's e_o = log(R_d R^T)^vee in the task axes, R the tool orientation of eq. (1)'s fk",

@@ -38,6 +38,7 @@ from ..simulation.closedloop import (Layout, build_controller, command_layout, c
                                      controller_state_layout, diagnostics_layout, ik_steps, measurement_layout,
                                      param_layout, state_layout)
 from ..simulation.scenario import Scenario
+from ..surface import Plane
 
 __all__ = ["ExportError", "Field", "MEASUREMENT_FIELDS", "COMMAND_FIELDS", "DIAGNOSTIC_FIELDS", "param_fields",
            "command_fields", "measurement_fields", "diagnostic_fields", "Interface", "interface",
@@ -163,6 +164,8 @@ _PARAM_DOCS = {
     "R": ("1", "base <- task", "task-frame rotation, column-major; column 1 the surface normal pointing "
           "into the surface"),
     "c": ("m", "base", "task-frame origin (the estimated surface point at the path centre)"),
+    "radius": ("m", "-", "sphere's or cylinder's radius (its tangent plane at c is R's)"),
+    "side": ("1", "-", "sphere or cylinder: +1 the tool on the outside (convex), -1 on the inside (concave)"),
     "Ts": ("s", "-", "control period"),
     "sched": ("1", "-", "damping schedule of eq. (25): 1 on, 0 off"),
     "zeta": ("1", "-", "schedule: target damping ratio"),
@@ -186,12 +189,12 @@ _PARAM_DOCS = {
 }
 
 
-def param_fields(law: Law, task=3) -> tuple[Field, ...]:
+def param_fields(law: Law, task=3, surface=Plane) -> tuple[Field, ...]:
     """The parameter struct: the controller's parameter layout for the
-    robot's ``task`` (:func:`controller_param_layout`; fields the task does
-    not have are left out), the law's parameters as scalars ``law_<name>``
-    (units from its schema)."""
-    layout = controller_param_layout(_as_task(task), law)
+    robot's ``task`` on the ``surface``'s shape (:func:`controller_param_layout`;
+    fields the task does not have are left out), the law's parameters as
+    scalars ``law_<name>`` (units from its schema)."""
+    layout = controller_param_layout(_as_task(task), law, surface)
     out = []
     for name, s in layout.slices.items():
         if s.stop == s.start:
@@ -219,6 +222,7 @@ class Interface:
     delay: int
     torque: bool
     model: object
+    surface: type
     state: Layout
     param: Layout
     measurement: Layout
@@ -243,7 +247,7 @@ class Interface:
 
     @property
     def param_fields(self):
-        return param_fields(self.law, self.task)
+        return param_fields(self.law, self.task, self.surface)
 
     @property
     def builder(self) -> str:
@@ -252,14 +256,17 @@ class Interface:
 
 def interface(scenario: Scenario, torque: bool) -> Interface:
     """The :class:`Interface` of ``scenario``'s controller, for its robot's task."""
+    from ..simulation.geometry import surface_of
     from ..simulation.simulator import robot_of
 
     law = get_law(scenario.controller.law.kind)
     delay = scenario.controller.delay_samples
     model = robot_of(scenario, controller=True)
     task = model.task
-    return Interface(task, law, delay, torque, model, controller_state_layout(task, law, delay, torque),
-                     controller_param_layout(task, law), measurement_layout(task), command_layout(task, torque),
+    surface = type(surface_of(scenario))
+    return Interface(task, law, delay, torque, model, surface, controller_state_layout(task, law, delay, torque),
+                     controller_param_layout(task, law, surface), measurement_layout(task),
+                     command_layout(task, torque),
                      diagnostics_layout(task))
 
 
@@ -270,7 +277,7 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
     iface = interface(scenario, torque)
     law = iface.law
     try:
-        fn = build_controller(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION)
+        fn = build_controller(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION, surface=iface.surface)
     except Exception as exc:       # a law whose update cannot be expanded to SX
         raise ExportError(f"controller.law: law {law.name!r} cannot be exported to C: its update does not "
                           f"expand to CasADi SX ({str(exc).splitlines()[0][:160]})") from None
@@ -317,7 +324,7 @@ def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.nd
     iface = interface(scenario, torque)
     law, delay = iface.law, iface.delay
     P, s0 = _start(scenario)
-    full_p = param_layout(iface.task, law).split(P)
+    full_p = param_layout(iface.task, law, iface.surface).split(P)
     full_s = state_layout(iface.task, law, delay).split(s0)
     p = iface.param.pack(**full_p)
     cs = iface.state
@@ -462,7 +469,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         text = _fill((_TEMPLATES / name).read_text(encoding="utf-8"), values)
         (folder / name).write_text(text, encoding="utf-8")
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
-            "scenario": scenario.name, "law": law.name, "inner_loop": inner_loop,
+            "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind, "inner_loop": inner_loop,
             "delay": scenario.controller.delay_samples, "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},

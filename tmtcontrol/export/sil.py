@@ -37,7 +37,7 @@ from ..processes import run_compiler
 from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, param_layout,
                                      plant_inputs_layout)
 from ..simulation.rollout import compiler
-from ..surface import contact_force
+from ..surface import SHAPES, Plane, contact_force
 from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
                        param_fields)
 
@@ -121,12 +121,17 @@ class CompiledController:
         self.robot = self.meta["robot"]
         self.n = self.robot["joints"]
         self.task = task_of(self.n)
+        kind = self.meta.get("surface", Plane.kind)
+        if kind not in SHAPES:
+            raise ExportError(f"{flag}: {self.folder / METADATA} names surface {kind!r}, not one of "
+                              f"{', '.join(SHAPES)}; export the scenario again (tmtcontrol export)")
+        self.surface = SHAPES[kind]
         if scenario is not None:            # refused before compiling
             self.check_matches(scenario)
         self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
         self.cmd_fields = command_fields(self.torque, self.task)
         self.diag_fields = diagnostic_fields(self.task)
-        self.Params = _struct("tmt_params", param_fields(self.law, self.task))
+        self.Params = _struct("tmt_params", param_fields(self.law, self.task, self.surface))
         self.Measurement = _struct("tmt_measurement", measurement_fields(self.task))
         self.Command = _struct("tmt_command", (*self.cmd_fields, *self.diag_fields))
         sz = self.meta["sizes"]
@@ -178,7 +183,8 @@ class CompiledController:
 
     def params_from(self, P_full: np.ndarray):
         """The C parameter struct from the simulator's parameter vector."""
-        vec = controller_param_layout(self.task, self.law).pack(**param_layout(self.task, self.law).split(P_full))
+        vec = controller_param_layout(self.task, self.law, self.surface).pack(
+            **param_layout(self.task, self.law, self.surface).split(P_full))
         return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
 
 
@@ -199,12 +205,16 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
                            f"robot.model = {r.model!r} (tip {r.tip!r}, armature {r.armature!r})"
                            + " or another version of it; export this scenario (tmtcontrol export)")
 
-    want = {"law": scenario.controller.law.kind, "delay": scenario.controller.delay_samples,
+    from ..simulation.geometry import surface_of
+
+    want = {"law": scenario.controller.law.kind, "surface": surface_of(scenario).kind,
+            "delay": scenario.controller.delay_samples,
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction}
     for key, value in want.items():
-        if meta[key] != value:
-            raise ExportError(f"{flag}: {folder} was exported with {key} = {meta[key]!r}, "
+        have = meta.get(key, Plane.kind if key == "surface" else None)    # an export older than curved surfaces
+        if have != value:
+            raise ExportError(f"{flag}: {folder} was exported with {key} = {have!r}, "
                               f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
     if robot_of(scenario, controller=True).key != robot["key"]:      # URDF content, chain and model options
         raise other_arm()

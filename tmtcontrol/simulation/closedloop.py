@@ -287,7 +287,7 @@ def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, cont
     return coarse, choose, None
 
 
-def _control(model, law: Law, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor, delay: int,
+def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor, delay: int,
              torque: bool = True) -> dict:
     """The controller at t_k from the sampled measurements, as MX expressions:
     the normal force through the sensor filter, the guarded approach, the
@@ -326,20 +326,27 @@ def _control(model, law: Law, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor,
                         ca.vertcat(ddx_c, ref["acc_t"]))                              # eq. (4)
     ramp = ca.if_else(engaged, ca.fmin(S["ramp"] + P["ramp_rate"] * P["Ts"], 1.0), S["ramp"])
     x_app = ca.if_else(engaged, S["x_app"], S["x_app"] + P["v_app"] * P["Ts"])
-    # rotational axes: X_c = R_d (X_a = 0), the error on the task axes
-    e_o = (ca.mtimes(R.T, rotation_vector(ca.mtimes(ca.reshape(P["R_d"], 3, 3), R_tool.T)))
-           if task.rotational else ca.MX(0, 1))
+    # rotational axes: X_c = R_d (X_a = 0) turned with the surface's frame at the command (a curved
+    # surface: its angular velocity and acceleration fed forward), the error on the task axes
+    R_d, w_d, a_d = None, 0, 0
+    if task.rotational:
+        R_d = ca.reshape(P["R_d"], 3, 3)
+        turn = surface.turn(X_c, dX_c, ddX_c, P)
+        if turn is not None:
+            R_t, w_d, a_d = turn
+            R_d, w_d, a_d = ca.mtimes(R_t, R_d), ca.mtimes(R.T, w_d), ca.mtimes(R.T, a_d)
+    e_o = ca.mtimes(R.T, rotation_vector(ca.mtimes(R_d, R_tool.T))) if task.rotational else ca.MX(0, 1)
     out = {"f_m": f_m, "engaged": engaged, "x_e_hat": x_e_hat, "f_d": f_d, "b_n": b_n, "law_next": law_next,
            "X_r": X_r, "X_c": X_c, "dX_c": dX_c, "ddX_c": ddX_c, "ramp": ramp, "x_app": x_app, "e_o": e_o,
-           "tau": None, "tau_wait": None}
+           "R_d": R_d, "w_d": w_d, "tau": None, "tau_wait": None}
     if not torque:
         return out
-    U = ca.mtimes(R, inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"]))           # eq. (6)
+    U = surface.acceleration(X, dX, inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"]), P)   # eq. (6)
     F_e = R[:, 0] * f_m
     Jdot_dq = model.functions.jacobian_dot(q, dq)
     if task.rotational:
         w = ca.mtimes(R.T, ca.mtimes(J[3:, :], dq))
-        U = ca.vertcat(U, ca.mtimes(R, inner_loop(0, 0, e_o, w, 0, P["kd_rot"], P["kp_rot"])))
+        U = ca.vertcat(U, ca.mtimes(R, inner_loop(a_d, w_d, e_o, w, 0, P["kd_rot"], P["kp_rot"])))
         F_e = ca.vertcat(F_e, ca.MX.zeros(3))
     else:
         J, Jdot_dq = J[:3, :], Jdot_dq[:3]
@@ -394,7 +401,7 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
     kin = kinematics(model, surface, q, dq, P)                    # encoders through fk
     pos, _, _, _, X, dX = kin
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    c = _control(model, law, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay)
+    c = _control(model, law, surface, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay)
     pz = ca.vertcat(c["tau"], U_in["k_e"], P["d_e"], *_surface_parameters(P, surface), P["Ts"])
     z0 = ca.vertcat(q, dq)
     rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
@@ -548,12 +555,12 @@ def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name:
     kin = kinematics(model, surface, q, dq, P)
     pos, R_tool, J, R, X, dX = kin
     f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
-    c = _control(model, law, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque)
+    c = _control(model, law, surface, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque)
     p_c = surface.point(c["X_c"], P)
-    q_c, J_c = _newton(model, J, pos, R_tool, q, p_c, ca.reshape(P["R_d"], 3, 3) if task.rotational else None)
-    v_c = ca.mtimes(R, c["dX_c"])
+    q_c, J_c = _newton(model, J, pos, R_tool, q, p_c, c["R_d"])
+    v_c = surface.velocity(c["X_c"], c["dX_c"], P)
     if task.rotational:
-        v_c = ca.vertcat(v_c, ca.MX.zeros(3))
+        v_c = ca.vertcat(v_c, ca.mtimes(R, c["w_d"]) if isinstance(c["w_d"], ca.MX) else ca.MX.zeros(3))
     dq_c = _least_norm(J_c, v_c)
     queue = c["tau_wait"] if torque else ca.MX(0, 1)
     s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],

@@ -28,16 +28,19 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..surface import Plane, normal_frame, tilt_frame
+from ..surface import Surface, make_surface, normal_frame, tilt_frame
 
 __all__ = ["surface_of", "surface_frame", "tool_orientation", "rotation_vector"]
 
 
-def surface_of(scenario) -> Plane:
+def surface_of(scenario) -> Surface:
     """The scenario's surface (:mod:`tmtcontrol.surface`): the plane of
     ``environment.normal`` (or, when unset, ``environment.tilt_deg``)
-    through ``trajectory.center``, the task frame's origin."""
-    return Plane(surface_frame(scenario.environment), scenario.trajectory.center)
+    through ``trajectory.center``, the task frame's origin; or the sphere or
+    cylinder of ``environment.radius`` touching that plane there (a
+    cylinder's axis along ``environment.axis``, default task axis 2)."""
+    env = scenario.environment
+    return make_surface(env.shape, surface_frame(env), scenario.trajectory.center, env.radius, env.side, env.axis)
 
 
 def surface_frame(environment) -> np.ndarray:

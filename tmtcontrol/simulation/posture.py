@@ -182,7 +182,8 @@ def _start_from_nearby_seeds(robot, solver, p, R_d, q_seed):
 
 def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     """Solve the pose at every path point (``points`` 3 x k, base frame, m;
-    ``t`` their path times, s) from ``q_seed`` then from the previous pose;
+    ``t`` their path times, s; ``R_d`` the commanded orientation, one 3 x 3
+    or one per point, k x 3 x 3) from ``q_seed`` then from the previous pose;
     raise :class:`ScenarioError` (one line: path time and reason) at the
     first point that is unreachable, outside the joint limits or near a
     singularity."""
@@ -191,7 +192,9 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     free = None
     qs, sig = [], []
     q_prev = np.asarray(q_seed, dtype=float)
+    R_all = np.asarray(R_d, dtype=float) if R_d is not None else None
     for k in range(points.shape[1]):
+        R_d = R_all[k] if R_all is not None and R_all.ndim == 3 else R_all
         q, ok = solve_pose(robot, track if k else start, points[:, k], R_d, q_prev)
         if not ok and k == 0:
             q, ok = _start_from_nearby_seeds(robot, start, points[:, 0], R_d, q_prev)

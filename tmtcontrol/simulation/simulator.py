@@ -185,6 +185,20 @@ def _frames(sc: Scenario):
     return surface, tool_orientation(surface.frame(sc.trajectory.center), sc.trajectory.tool_spin_deg)
 
 
+def orientation_at(sc: Scenario, surface, points, R_d):
+    """The commanded tool orientation at base-frame ``points`` (3 or 3 x k,
+    m): ``R_d`` on a surface whose frame does not turn, else the tool
+    orientation on the task frame at each point (k x 3 x 3 for 3 x k
+    points)."""
+    if not surface.turns:
+        return R_d
+    pts = np.asarray(points, dtype=float)
+    spin = sc.trajectory.tool_spin_deg
+    if pts.ndim == 1:
+        return tool_orientation(surface.frame(pts), spin)
+    return np.stack([tool_orientation(surface.frame(p), spin) for p in pts.T])
+
+
 _PATHS: dict = {}
 
 
@@ -211,7 +225,7 @@ def path_of(robot, sc: Scenario) -> PosePath:
         pts = surface.to_base(np.vstack([np.zeros(t.size), ref.pos]))
         if len(_PATHS) > 16:
             _PATHS.clear()
-        path = check_pose_path(robot, pts, R_d, t, seed)
+        path = check_pose_path(robot, pts, orientation_at(sc, surface, pts, R_d), t, seed)
         for a in (path.t, path.q, path.sigma_min, path.condition_number):
             a.setflags(write=False)
         _PATHS[key] = path
@@ -416,7 +430,8 @@ class Simulator:
         the Simulator's)."""
         from .posture import POSE_TOL
 
-        R_d = _frames(scenario or self.scenario)[1]
+        surface, R_d = _frames(scenario or self.scenario)
+        R_d = orientation_at(scenario or self.scenario, surface, point, R_d)
         seed = self.path().q[:, 0] if seed is None else seed
         if self.task.posture and self._posture is not None:
             q, ok = solve_pose(self.plant, self._solver, point, R_d, self._posture)
@@ -463,14 +478,14 @@ class Simulator:
         """The tool point (m, base frame) at joints ``q``."""
         return np.asarray(self.plant.fk(q))[:3, 3]
 
-    def joint_rates(self, q, v) -> np.ndarray:
+    def joint_rates(self, q, v, w=None) -> np.ndarray:
         """Joint rates (rad/s) giving the tool point the velocity ``v`` (m/s,
-        base frame), with zero angular velocity on a 6-D task (least-norm on a
-        redundant arm)."""
+        base frame) and, on a 6-D task, the angular velocity ``w`` (rad/s,
+        base frame; default 0) (least-norm on a redundant arm)."""
         v = np.asarray(v, dtype=float)
         J = task_jacobian(self.plant, q)
         if self.task.rotational:
-            v = np.r_[v, np.zeros(3)]
+            v = np.r_[v, np.zeros(3) if w is None else np.asarray(w, dtype=float)]
         return np.linalg.solve(J, v) if self.task.square else np.linalg.pinv(J) @ v
 
     def normal_mass(self, q, n) -> float:
@@ -487,7 +502,6 @@ class Simulator:
                                 f"than one control period (1/controller.rate = {Ts:g} s)")
         t = np.arange(N) * Ts
         surface, R_d = _frames(sc)
-        R = surface.frame(sc.trajectory.center)
         ref = circle_reference(t, sc.trajectory.radius, sc.trajectory.period)
         k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
         if not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):
@@ -506,8 +520,9 @@ class Simulator:
         gap = sc.trajectory.approach_gap
         q0 = path.q[:, 0]
         if gap > 0:
+            start = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
             q0, ok = solve_pose(self.plant, None if self.plant.position_ik is not None and not task.rotational
-                                else pose_solver(self.plant), surface.to_base(np.r_[-gap, ref.pos[:, 0]]), R_d, q0)
+                                else pose_solver(self.plant), start, orientation_at(sc, surface, start, R_d), q0)
             if not ok:
                 raise ScenarioError(f"trajectory.approach_gap: the start {gap:g} m above the surface is not "
                                     "reachable" + (" with the commanded orientation" if task.rotational else "")
@@ -526,7 +541,7 @@ class Simulator:
         if task.posture:
             self._posture = np.asarray(q0, dtype=float).copy()
         # at rest in the task's rotation, moving with the path (least-norm joint rates on a redundant arm)
-        dq0 = self.joint_rates(q0, R @ np.r_[0.0, ref.vel[:, 0]])
+        dq0 = self.joint_rates(q0, *surface.rates(np.r_[-gap, ref.pos[:, 0]], np.r_[0.0, ref.vel[:, 0]]))
         b0 = min(max(imp.b[0], sch.b_min), sch.b_max) if on else imp.b[0]
         guarded = gap > 0 and ctl.approach_speed > 0
         s0 = state_layout(task, law, self.delay).pack(

@@ -39,6 +39,9 @@ class Surface(abc.ABC):
     ----------
     kind : str
         The shape's name (part of the compiled loop's structure).
+    turns : bool
+        Whether the task frame turns from point to point (then the 6-D
+        task's commanded orientation turns with it, :meth:`turn`).
     fields : tuple of (str, int)
         The shape's parameters as named fields of the closed loop's parameter
         vector (and of the exported controller's parameter struct), in order.
@@ -46,6 +49,8 @@ class Surface(abc.ABC):
 
     kind: str = ""
     fields: tuple[tuple[str, int], ...] = ()
+    turns: bool = False
+    """Whether the task frame turns along the surface (a curved shape)."""
 
     @abc.abstractmethod
     def values(self) -> dict[str, np.ndarray]:
@@ -91,3 +96,47 @@ class Surface(abc.ABC):
     def shifted(self, offset: float) -> "Surface":
         """The same shape moved ``offset`` (m) along its inward normal (the
         surface the controller believes in with a location error)."""
+
+    # -- the chart's motion (symbolic): what the inner loop and the command need ------------
+    @classmethod
+    def velocity(cls, X, dX, par: dict):
+        """Symbolic: the base-frame velocity (m/s) of task coordinates ``X``
+        moving at ``dX``: ``(d point / d X) dX``."""
+        return cls._motion()(X, dX, ca.DM.zeros(3), *cls._par(par))[0]
+
+    @classmethod
+    def acceleration(cls, X, dX, ddX, par: dict):
+        """Symbolic: the base-frame acceleration (m/s^2) of task coordinates
+        ``X`` moving at ``dX`` and accelerating at ``ddX``: ``(d point / d X)
+        ddX + d/dt(d point / d X) dX`` (the curvature feed-forward; 0 on a
+        plane). The inner loop (eq. 6) acts on the task coordinates and this
+        maps its output to the Cartesian acceleration of eq. (5)."""
+        return cls._motion()(X, dX, ddX, *cls._par(par))[1]
+
+    @classmethod
+    def turn(cls, X, dX, ddX, par: dict):
+        """Symbolic: ``(R_t, omega, alpha)``: the rotation taking the task
+        frame at the chart's origin (X = 0) to the task frame at ``X``, and
+        its angular velocity (rad/s) and acceleration (rad/s^2) in the base
+        frame while X moves at ``dX``, ``ddX``; None on a shape whose frame
+        does not turn (a plane)."""
+        return None
+
+    @classmethod
+    def _par(cls, par: dict) -> list:
+        return [par[name] for name, _ in cls.fields]
+
+    @classmethod
+    def _motion(cls) -> ca.Function:
+        """``(X, dX, ddX, *fields) -> (v, a)`` by automatic differentiation of
+        :meth:`point` (built once per shape)."""
+        key = "_motion_fn_" + cls.__name__
+        if key not in cls.__dict__:
+            X, dX, ddX = (ca.SX.sym(k, 3) for k in ("X", "dX", "ddX"))
+            par = {name: ca.SX.sym(name, n) for name, n in cls.fields}
+            p = cls.point(X, par)
+            v = ca.jtimes(p, X, dX)
+            a = ca.jtimes(p, X, ddX) + ca.jtimes(v, X, dX)
+            setattr(cls, key, ca.Function(f"{cls.kind}_motion", [X, dX, ddX, *par.values()], [v, a],
+                                          ["X", "dX", "ddX", *par], ["v", "a"]))
+        return cls.__dict__[key]

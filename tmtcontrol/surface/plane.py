@@ -83,6 +83,19 @@ class Plane(Surface):
     def point(X, par: dict):
         return ca.mtimes(ca.reshape(par["R"], 3, 3), X) + par["c"]
 
+    @staticmethod
+    def velocity(X, dX, par: dict):
+        return ca.mtimes(ca.reshape(par["R"], 3, 3), dX)
+
+    @staticmethod
+    def acceleration(X, dX, ddX, par: dict):
+        return ca.mtimes(ca.reshape(par["R"], 3, 3), ddX)
+
+    def rates(self, X, dX) -> tuple[np.ndarray, np.ndarray]:
+        """Numeric ``(v, omega)``: base-frame velocity (m/s) of coordinates
+        moving at ``dX``; the frame does not turn (omega = 0)."""
+        return self.R @ np.asarray(dX, dtype=float), np.zeros(3)
+
     def frame(self, point=None) -> np.ndarray:
         return self.R.copy()
 

@@ -1,4 +1,4 @@
-"""The built-in scenarios: the paper's section V (``paper``) and its experiment on the bundled 6-D arms."""
+"""The built-in scenarios: the paper's section V (``paper``) and its experiment on the bundled 6-D arms, on planes and curved parts."""
 
 from __future__ import annotations
 
@@ -17,26 +17,40 @@ def paper_scenario() -> Scenario:
     return Scenario()
 
 
-BUILTIN_ARMS = ("ur5", "panda")
-"""Built-in scenarios beside ``paper``: the paper's experiment on a bundled 6-D arm."""
+BUILTIN_ARMS = ("ur5", "panda", "ur5-pipe", "panda-bowl")
+"""Built-in scenarios beside ``paper``: the paper's experiment on a bundled 6-D
+arm, on a plane and on a curved part."""
 
 
 def arm_scenario(name: str) -> Scenario:
     """The paper's experiment (section V) moved onto a bundled arm: a 0.1 m
-    circle in 4 s on a tilted plane in a comfortable part of the workspace,
-    f_d = 10 N, the stiffness stepping 5e3 -> 2e4 -> 2e3 -> 1e4 N/m after
-    each cycle, 1 kHz, the tool z axis along the inward normal. ``"ur5"``:
-    the paper's 45 deg tilt, centre (0.4, 0.2, 0.2) m; ``"panda"``: 30 deg,
-    centre (0.5, 0, 0.3) m, the tool turned 180 deg about the normal (the
-    hand's comfortable wrist)."""
-    arms = {   # model, start-posture seed (rad), centre (m), tilt (deg), tool spin (deg)
-        "ur5": ("ur5", (0.0, -1.9, 1.9, -1.57, -1.57, 3.14), (0.4, 0.2, 0.2), 45.0, 0.0),
-        "panda": ("panda", (0.0, 0.1, 0.0, -2.0, 0.0, 2.1, 0.785), (0.5, 0.0, 0.3), 30.0, 180.0),
+    circle in 4 s, f_d = 10 N, the stiffness stepping 5e3 -> 2e4 -> 2e3 ->
+    1e4 N/m after each cycle, 1 kHz, the tool z axis along the inward normal.
+    ``"ur5"``: on the paper's 45 deg plane, centre (0.4, 0.2, 0.2) m;
+    ``"panda"``: on a 30 deg plane, centre (0.5, 0, 0.3) m, the tool turned
+    180 deg about the normal (the hand's comfortable wrist). On curved parts
+    (the circle wrapped onto the surface, the tool turning with its normal):
+    ``"ur5-pipe"``: the outside of a horizontal pipe of radius 0.1 m (axis
+    along base y) from above, the circle's centre on its top line at (0.4,
+    0.2, 0.2) m; ``"panda-bowl"``: the inside of a spherical bowl of radius
+    0.25 m whose lowest point is (0.5, 0, 0.3) m."""
+    arms = {   # model, start-posture seed (rad), centre (m), inward normal, tool spin (deg), the shape
+        "ur5": ("ur5", (0.0, -1.9, 1.9, -1.57, -1.57, 3.14), (0.4, 0.2, 0.2), _tilted(45.0), 0.0, {}),
+        "panda": ("panda", (0.0, 0.1, 0.0, -2.0, 0.0, 2.1, 0.785), (0.5, 0.0, 0.3), _tilted(30.0), 180.0, {}),
+        "ur5-pipe": ("ur5", (0.0, -1.9, 1.9, -1.57, -1.57, 3.14), (0.4, 0.2, 0.2), [0.0, 0.0, -1.0], 0.0,
+                     {"shape": "cylinder", "radius": 0.1, "axis": [0.0, 1.0, 0.0]}),
+        "panda-bowl": ("panda", (0.0, 0.1, 0.0, -2.0, 0.0, 2.1, 0.785), (0.5, 0.0, 0.3), [0.0, 0.0, -1.0], 180.0,
+                       {"shape": "sphere", "radius": 0.25, "side": "inside"}),
     }
     if name not in arms:
         raise ScenarioError(f"scenario: expected 'paper' or one of {', '.join(BUILTIN_ARMS)}, got {name!r}")
-    model, q0, center, tilt, spin = arms[name]
-    t = math.radians(tilt)
+    model, q0, center, normal, spin, shape = arms[name]
     return scenario_from_dict({"name": name, "robot": {"model": model, "q0": list(q0)},
-                               "environment": {"normal": [math.sin(t), 0.0, -math.cos(t)]},
+                               "environment": {"normal": normal, **shape},
                                "trajectory": {"center": list(center), "tool_spin_deg": spin}})
+
+
+def _tilted(tilt_deg: float) -> list:
+    """The inward normal of the plane tilted ``tilt_deg`` about base y."""
+    t = math.radians(tilt_deg)
+    return [math.sin(t), 0.0, -math.cos(t)]

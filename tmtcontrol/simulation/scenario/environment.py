@@ -1,4 +1,4 @@
-"""The ``[environment]`` section: the surface (the plane of Fig. 2), its contact damping and the stiffness profile k_e(t) (Fig. 3)."""
+"""The ``[environment]`` section: the surface (the plane of Fig. 2, a sphere or a cylinder), its contact damping and the stiffness profile k_e(t) (Fig. 3)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pydantic import Field, model_serializer, model_validator
 from .fields import MAX_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
 from .textfiles import InputFileError, read_text_file
 
-__all__ = ["PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
+__all__ = ["SHAPES", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
            "StiffnessProfile", "read_stiffness_table", "EnvironmentSettings"]
 
 
@@ -127,11 +127,29 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
     return arr[:, 0], arr[:, 1]
 
 
+SHAPES = ("plane", "sphere", "cylinder")
+"""The surface's shapes (:mod:`tmtcontrol.surface`)."""
+
+
 class EnvironmentSettings(Section):
-    """The tilted plane (Fig. 2) and its unilateral spring contact,
-    ``f_e = max(0, k_e(t) d + damping d')`` while the penetration d > 0. The
-    plane passes through ``trajectory.center``; its outward normal is base z
-    rotated by ``tilt_deg`` about base y."""
+    """The surface and its unilateral spring contact, ``f_e = max(0, k_e(t) d +
+    damping d')`` while the penetration d > 0. The tilted plane (Fig. 2) by
+    default: it passes through ``trajectory.center``; its outward normal is
+    base z rotated by ``tilt_deg`` about base y. A sphere or cylinder of
+    ``radius`` touches that plane at ``trajectory.center`` (the plane is its
+    tangent plane there), the tool on its ``side``; a cylinder's axis lies
+    along ``axis`` (default task axis 2)."""
+    shape: Literal["plane", "sphere", "cylinder"] = Field("plane", description=(
+        "the surface's shape: plane, sphere or cylinder (touching the plane of tilt_deg/normal at "
+        "trajectory.center)"))
+    radius: float | None = Field(None, description="sphere's or cylinder's radius [m]", allow_inf_nan=False,
+                                 strict=True, gt=0, json_schema_extra={"unit": "m"})
+    side: Literal["outside", "inside"] | None = Field(None, description=(
+        "sphere or cylinder: the tool works on the outside (a dome, a pipe) or the inside (a bowl, a bore); "
+        "default outside"))
+    axis: tuple[F, F, F] | None = Field(None, description=(
+        "cylinder: direction of its axis, base frame, perpendicular to the normal; default task axis 2"),
+        json_schema_extra={"unit": "1"})
     tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
                           "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
     normal: tuple[F, F, F] | None = Field(None, description=(
@@ -152,6 +170,26 @@ class EnvironmentSettings(Section):
         if isinstance(d, dict) and d.get("normal") is not None:
             d.pop("tilt_deg", None)
         return d
+
+    @model_validator(mode="after")
+    def _shape_keys(self):
+        curved = self.shape != "plane"
+        if curved and self.radius is None:
+            raise ValueError(f"radius: a {self.shape} needs its radius (m)")
+        for key in ("radius", "side", "axis"):
+            if getattr(self, key) is not None and (not curved or (key == "axis" and self.shape != "cylinder")):
+                raise ValueError(f"{key}: not used by shape = {self.shape!r}"
+                                 + ("; set shape = 'sphere' or 'cylinder'" if not curved else ""))
+        if curved and self.point is not None:
+            raise ValueError(f"point: a {self.shape} touches its tangent plane at trajectory.center; "
+                             "leave point unset")
+        if self.axis is not None:
+            norm = math.sqrt(sum(x * x for x in self.axis))
+            if not norm > 0:
+                raise ValueError("axis: must be a non-zero vector")
+            if self.normal is not None and abs(sum(a * b for a, b in zip(self.axis, self.normal))) > 1e-6 * norm:
+                raise ValueError("axis: must be perpendicular to normal (the axis lies in the tangent plane)")
+        return self
 
     @model_validator(mode="after")
     def _unit_normal(self):

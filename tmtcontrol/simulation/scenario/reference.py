@@ -39,6 +39,10 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.sensor.noise_std > 0
     if key == "environment.tilt_deg":
         return sc.environment.normal is None
+    if key in ("environment.radius", "environment.side"):
+        return sc.environment.shape != "plane"
+    if key == "environment.axis":
+        return sc.environment.shape == "cylinder"
     if key in ("simulation.substeps", "simulation.contact_refine"):
         return sc.simulation.integrator == "fixed"
     if key == "simulation.tol":

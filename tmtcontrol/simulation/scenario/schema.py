@@ -85,7 +85,8 @@ TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller
 
 
 SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
-                "robot.model", "environment.normal", "environment.point", "trajectory.center")
+                "robot.model", "environment.normal", "environment.point", "trajectory.center",
+                "environment.radius", "trajectory.radius", "environment.axis")
 """The keys :func:`sampling_problem` relates (the only check across sections)."""
 
 
@@ -96,6 +97,19 @@ def _plane_problem(sc: Scenario) -> str | None:
     if env.normal is not None and sc.robot.model.lower() == "puma560":
         return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
                 "(its analyses and export use it); leave normal unset")
+    if env.shape != "plane":
+        # the chart of a curved surface is regular within these angles from the path's centre
+        # (a sphere's latitude below pi/2, a cylinder's turn below pi): the path must stay in it
+        reach, limit = sc.trajectory.radius / env.radius, (1.2 if env.shape == "sphere" else 2.5)
+        if reach > limit:
+            return (f"trajectory.radius: the path leaves the {env.shape}'s domain: {sc.trajectory.radius:g} m on "
+                    f"radius {env.radius:g} m spans {reach:.3g} rad (at most {limit:g} rad from its centre)")
+        if env.axis is not None and env.normal is None:
+            from ..geometry import surface_frame
+
+            n = surface_frame(env)[:, 0]
+            if abs(sum(a * b for a, b in zip(env.axis, n))) > 1e-6 * math.sqrt(sum(a * a for a in env.axis)):
+                return "environment.axis: must be perpendicular to the surface's normal (from tilt_deg)"
     if env.point is not None:
         from ..geometry import surface_frame   # the one definition of the task frame's normal
 

@@ -1,0 +1,241 @@
+"""Curved surfaces (issue 40): the sphere and the cylinder behind the surface
+interface, checked against closed forms written here in NumPy (not the
+package's CasADi charts), and the one closed loop on them: the force law's
+equilibrium on the sphere, the tool turning with the pipe's normal, the plane
+as the large-radius limit, bad input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tmtcontrol.simulation.scenario import apply_overrides, arm_scenario, paper_scenario
+from tmtcontrol.surface import Cylinder, Plane, Sphere, tilt_frame
+
+R0 = tilt_frame(45.0)
+C0 = np.array([0.5, -0.15, 0.55])
+RNG = np.random.default_rng(40)          # fixed seed: deterministic in CI
+
+
+def _centre(r, side):
+    """Centre of curvature (closed form): inside the material on the outside."""
+    return C0 + (1.0 if side == "outside" else -1.0) * r * R0[:, 0]
+
+
+def _depth_np(kind, p, r, side):
+    """Penetration depth (m) by the textbook distance: to the centre, or to the axis (along R0[:, 2])."""
+    w = p - _centre(r, side)
+    if kind == "cylinder":
+        w = w - (w @ R0[:, 2]) * R0[:, 2]
+    d = np.linalg.norm(w)
+    return r - d if side == "outside" else d - r
+
+
+SHAPES = [(cls, side) for cls in (Sphere, Cylinder) for side in ("outside", "inside")]
+
+
+@pytest.mark.parametrize("cls, side", SHAPES)
+def test_depth_and_normal_are_the_closed_form_distance_and_its_gradient(cls, side):
+    r = 0.3
+    s = cls(R0, C0, r, side)
+    for _ in range(20):
+        p = C0 + RNG.uniform(-0.1, 0.1, 3)
+        X = s.from_base(p)
+        # depth: the distance to the centre (axis) minus r, to rounding (1e-15 m on 0.3 m)
+        assert abs(X[0] - _depth_np(cls.kind, p, r, side)) < 1e-14
+        # the chart is one-to-one: back to the same point
+        assert np.abs(s.to_base(X) - p).max() < 1e-14
+        F = s.frame(p)
+        assert np.abs(F.T @ F - np.eye(3)).max() < 1e-14 and np.linalg.det(F) > 0.999999
+        # e_n is the gradient of the depth (central difference, h = 1e-6: error ~ h^2/r = 3e-12, rounding 1e-10)
+        h = 1e-6
+        grad = np.array([(_depth_np(cls.kind, p + h * e, r, side) - _depth_np(cls.kind, p - h * e, r, side)) / (2 * h)
+                         for e in np.eye(3)])
+        assert np.abs(grad - F[:, 0]).max() < 1e-8
+    # at the path's centre the frame is the tangent plane's
+    assert np.abs(s.frame(C0) - R0).max() < 1e-15 and abs(s.from_base(C0)).max() < 1e-15
+
+
+@pytest.mark.parametrize("cls, side", SHAPES)
+def test_curvature_feed_forward_is_the_second_derivative_of_the_path(cls, side):
+    """acceleration(X, dX, ddX) against a finite difference of to_base along
+    X(t) = X0 + V t + A t^2/2 (h = 1e-4 s: truncation ~ h^2 |p'''| ~ 1e-8 m/s^2)."""
+    import casadi as ca
+
+    s = cls(R0, C0, 0.3, side)
+    par = {k: ca.DM(v) for k, v in s.values().items()}
+    X0, V, A = np.array([2e-4, 0.03, -0.02]), np.array([1e-3, 0.15, 0.1]), np.array([0.0, 0.4, -0.3])
+    X = lambda t: X0 + V * t + A * t * t / 2                        # noqa: E731
+    h = 1e-4
+    fd_v = (s.to_base(X(h)) - s.to_base(X(-h))) / (2 * h)
+    fd_a = (s.to_base(X(h)) - 2 * s.to_base(X(0.0)) + s.to_base(X(-h))) / h ** 2
+    v = np.array(type(s).velocity(ca.DM(X0), ca.DM(V), par)).ravel()
+    a = np.array(type(s).acceleration(ca.DM(X0), ca.DM(V), ca.DM(A), par)).ravel()
+    assert np.abs(v - fd_v).max() < 1e-8
+    assert np.abs(a - fd_a).max() < 1e-5          # rounding of the second difference: 1e-16/h^2 = 1e-8
+
+
+def test_sphere_equator_motion_is_the_centripetal_closed_form():
+    """Along the chart's equator at speed v on a sphere of radius r, the point
+    circles at radius r - d with angular rate v/r: acceleration (r - d)(v/r)^2
+    towards the centre; the frame turns at v/r about t_2."""
+    import casadi as ca
+
+    r, d, v = 0.25, 1e-3, 0.2
+    s = Sphere(R0, C0, r, "outside")
+    par = {k: ca.DM(val) for k, val in s.values().items()}
+    X, dX = ca.DM([d, 0.05, 0.0]), ca.DM([0.0, v, 0.0])
+    a = np.array(Sphere.acceleration(X, dX, ca.DM.zeros(3), par)).ravel()
+    p = s.to_base(np.array(X).ravel())
+    towards_centre = (_centre(r, "outside") - p) / np.linalg.norm(_centre(r, "outside") - p)
+    assert np.abs(a - (r - d) * (v / r) ** 2 * towards_centre).max() < 1e-14
+    R_t, w, _ = (np.array(m) for m in Sphere.turn(X, dX, ca.DM.zeros(3), par))
+    assert np.abs(np.abs(w.ravel()) - np.abs(v / r * R0[:, 2])).max() < 1e-14
+    assert np.abs(R_t @ R0 - s.frame(p)).max() < 1e-14
+
+
+def test_a_large_sphere_is_the_plane():
+    """The plane is the limit r -> infinity: depth differs by |s|^2/(2r)."""
+    plane = Plane(R0, C0)
+    big = Sphere(R0, C0, 1e4, "outside")
+    X = np.array([1e-3, 0.08, -0.06])
+    p = plane.to_base(X)
+    assert np.abs(big.from_base(p) - X).max() < 0.1 ** 2 / 1e4
+    assert np.abs(big.frame(p) - R0).max() < 0.1 / 1e4
+
+
+@pytest.mark.parametrize("bad", [{"radius": 0.0}, {"radius": -1.0}, {"side": "top"}])
+def test_surface_refuses_a_bad_radius_or_side(bad):
+    kw = {"radius": 0.3, "side": "outside", **bad}
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        Sphere(R0, C0, **kw)
+
+
+# -- the one closed loop on curved parts ------------------------------------------------------------
+
+def _sphere_scenario(radius=0.3, side="outside", cycles=0.75):
+    return apply_overrides(paper_scenario(), ['environment.shape="sphere"', f"environment.radius={radius!r}",
+                                              f'environment.side="{side}"', f"trajectory.cycles={cycles!r}"])
+
+
+@pytest.mark.parametrize("side", ["outside", "inside"])
+def test_puma_on_a_sphere_presses_f_d_at_the_spring_depth(side):
+    """The TMT settles at f_d: the tool then sits f_d/k_e inside the sphere,
+    |p - centre| = r -+ f_d/k_e, measured from the tool position in NumPy."""
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = _sphere_scenario(side=side)
+    res = Simulator(sc, compile=False).run()
+
+    late = res.time > 2.0
+    assert np.abs(res.contact_force[late] - 10.0).max() < 5e-3     # the plane's tolerance is 10 mN
+    dist = np.linalg.norm(res.position[:, late] - _centre(0.3, side)[:, None], axis=0)
+    expected = 0.3 - 10.0 / 5e3 if side == "outside" else 0.3 + 10.0 / 5e3
+    assert np.abs(dist - expected).max() < 5e-3 / 5e3 + 1e-9
+    # the tool follows the circle wrapped onto the sphere (arc lengths from the centre: the reference's)
+    assert np.abs(res.position_task[1:, late] - res.reference_task[1:, late]).max() < 1e-4
+
+
+def test_ur5_on_the_pipe_turns_the_tool_with_the_normal():
+    """ur5-pipe: tool z (forward kinematics) along the pipe's radial inward
+    direction, computed in NumPy from the axis, within the orientation
+    tolerance; the force tracks f_d."""
+    from tmtcontrol.model import load_robot
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(arm_scenario("ur5-pipe"), ["trajectory.cycles=0.5"])
+    res = Simulator(sc, compile=False).run()
+    robot = load_robot("ur5")
+    axis_pt, axis = np.array([0.4, 0.2, 0.2 - 0.1]), np.array([0.0, 1.0, 0.0])
+    worst = 0.0
+    for k in range(500, res.time.size, 97):
+        T = np.asarray(robot.fk(res.q[:, k]))
+        w = T[:3, 3] - axis_pt
+        inward = -(w - (w @ axis) * axis) / np.linalg.norm(w - (w @ axis) * axis)
+        worst = max(worst, np.arccos(np.clip(T[:3, 2] @ inward, -1, 1)))
+    assert worst < sc.controller.orientation_tolerance
+    assert np.abs(res.contact_force[res.time > 1.0] - 10.0).max() < 10e-3
+    # the path really goes round the pipe: the tool's normal turns by > 0.9 rad (a 0.1 m circle on r = 0.1 m)
+    assert np.ptp(np.arctan2(res.position[0] - 0.4, res.position[2] - 0.1)) > 0.9
+
+
+def test_builtin_curved_scenarios_print_and_load():
+    from tmtcontrol.simulation.scenario import BUILTIN_ARMS, load_scenario
+
+    for name in ("ur5-pipe", "panda-bowl"):
+        assert name in BUILTIN_ARMS
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "scenario", name], capture_output=True, text=True)
+        assert r.returncode == 0 and f'name = "{name}"' in r.stdout
+        assert load_scenario(name).environment.shape in ("sphere", "cylinder")
+
+
+@pytest.mark.parametrize("content, needle", [
+    ('[environment]\nshape = "sphere"\n', "environment.radius: a sphere needs its radius"),
+    ('[environment]\nshape = "sphere"\nradius = 0.0\n', "environment.radius: must be > 0"),
+    ('[environment]\nradius = 0.3\n', "environment.radius: not used by shape = 'plane'"),
+    ('[environment]\nshape = "sphere"\nradius = 0.3\naxis = [0.0, 1.0, 0.0]\n', "environment.axis: not used"),
+    ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [1.0, 0.0, 0.0]\n', "environment.axis: must be perpendicular"),
+    ('[environment]\nshape = "sphere"\nradius = 0.05\n', "trajectory.radius: the path leaves the sphere's domain"),
+    ('[environment]\nshape = "cone"\nradius = 0.3\n', "environment.shape"),
+])
+def test_bad_surface_input_is_one_line_exit_2_nothing_written(tmp_path, content, needle):
+    path = tmp_path / "s.toml"
+    path.write_text(content)
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(path), "--out", str(out), "--no-plots"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    assert not out.exists()
+
+
+# -- the exported C controller on curved parts (software in the loop) -------------------------------
+
+def _sil_equals_built_in(sc, folder):
+    from tmtcontrol.export.generate import export_controller
+    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
+    from tmtcontrol.simulation.simulator import Simulator
+
+    export_controller(sc, folder, True)
+    meta = (folder / "export.json").read_text()
+    assert f'"surface": "{sc.environment.shape}"' in meta
+    sil = simulate_with_controller(sc, CompiledController(folder, scenario=sc))
+    ref = Simulator(sc, compile=False).run()
+    # the same expressions compiled as C and run in CasADi's VM: rounding only (tests/test_export.py's RTOL)
+    for name in ("contact_force", "q", "dq", "tau", "command_task", "position"):
+        a, b = getattr(sil, name), getattr(ref, name)
+        assert np.abs(a - b).max() / max(np.abs(b).max(), 1e-300) < 1e-9, name
+    return folder
+
+
+def test_exported_c_on_a_sphere_equals_the_built_in_loop(tmp_path):
+    """The sphere's radius and side are fields of the parameter struct; 400
+    periods (first contact included) of the PUMA on a bowl with the exported C
+    in the loop equal the built-in run."""
+    sc = apply_overrides(_sphere_scenario(side="inside"), ["trajectory.cycles=0.1"])
+    folder = _sil_equals_built_in(sc, tmp_path / "c")
+    header = (folder / "tmt_controller.h").read_text()
+    assert "double radius;" in header and "double side;" in header
+
+
+def test_exported_c_refuses_a_scenario_on_another_shape(tmp_path):
+    from tmtcontrol.export.generate import ExportError, export_controller
+    from tmtcontrol.export.sil import check_export_matches
+    import json
+
+    sc = apply_overrides(_sphere_scenario(), ["trajectory.cycles=0.1"])
+    export_controller(sc, tmp_path, True)
+    meta = json.loads((tmp_path / "export.json").read_text())
+    with pytest.raises(ExportError, match="surface = 'sphere', the scenario has 'plane'"):
+        check_export_matches(meta, tmp_path, paper_scenario())
+
+
+@pytest.mark.heavy
+def test_exported_c_on_the_pipe_equals_the_built_in_loop(tmp_path):
+    """The UR5 on the pipe (the tool's orientation turning with the normal in
+    the C code too): 160 periods with the exported C equal the built-in run."""
+    _sil_equals_built_in(apply_overrides(arm_scenario("ur5-pipe"), ["trajectory.cycles=0.04"]), tmp_path / "c")

@@ -1,0 +1,230 @@
+"""Curved surfaces: the sphere and the cylinder, each on a chart whose origin is the path's centre.
+
+A curved part (a pipe, a tank, a bowl) is given by its tangent plane at the
+path's centre ``c`` (the same inward normal ``e_n`` and task frame ``R =
+[e_n, t_1, t_2]`` as a :class:`.plane.Plane` there), its radius ``r`` (m)
+and the side the tool works on: ``outside`` (a convex part: the centre of
+curvature lies inside the material, ``c + r e_n``) or ``inside`` (a bowl or
+the bore of a pipe: the centre lies above the surface, ``c - r e_n``).
+
+Task coordinates ``X = (X_0, s_1, s_2)``: ``X_0`` the penetration depth
+along the local inward normal (``r - |p - centre|`` outside, ``|p - centre|
+- r`` inside: the signed distance to the closest surface point, so the
+contact law of section III, eq. (13), ``f_e = k_e (X_0 - x_e)``, holds at the
+closest point exactly); ``s_1``, ``s_2`` arc lengths on the surface from the
+path's centre:
+
+* sphere: ``s_1 = r theta`` (longitude about ``t_2``), ``s_2 = r phi``
+  (latitude towards ``t_2``); the chart is regular for ``|phi| < pi/2``;
+* cylinder (axis along ``t_2``): ``s_1 = r theta`` round the axis, ``s_2``
+  the distance along the axis.
+
+The task frame at a point is ``[e_n, e_1, e_2]``, e_n the local inward
+normal and e_1, e_2 the unit tangents of the coordinate lines; at the path's
+centre it is the tangent plane's R. A path given in tangential coordinates
+(the circle of Fig. 2) is therefore wrapped onto the surface: its arc
+lengths are kept along the coordinate lines. The inner loop acts on these
+coordinates; :meth:`.base.Surface.acceleration` adds the curvature terms
+(``d/dt (dp/dX) dX``) so that eq. (6) still gives ``ddX = U`` exactly with
+an exact model, and the 6-D task's commanded orientation turns with the
+frame (:meth:`.base.Surface.turn`), with its angular velocity and
+acceleration fed forward.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from .base import Surface
+
+__all__ = ["Sphere", "Cylinder", "SIDES"]
+
+SIDES = {"outside": 1.0, "inside": -1.0}
+"""The side the tool works on, and its sign in the loop's parameter ``side``."""
+
+
+class _Curved(Surface):
+    """A shape of constant radius on the chart of the module docstring.
+
+    Parameters in the loop: ``R`` (9, column-major, the tangent plane's
+    frame at the path's centre), ``c`` (3, m, the path's centre),
+    ``radius`` (m) and ``side`` (+1 outside, -1 inside).
+    """
+
+    fields = (("R", 9), ("c", 3), ("radius", 1), ("side", 1))
+    turns = True
+
+    def __init__(self, R, c, radius: float, side: str = "outside"):
+        self.R = np.array(R, dtype=float).reshape(3, 3)
+        self.c = np.array(c, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)
+                and np.linalg.det(self.R) > 0):
+            raise ValueError(f"{self.kind}: the task frame must be a finite rotation matrix")
+        if not np.all(np.isfinite(self.c)):
+            raise ValueError(f"{self.kind}: the centre point must be finite")
+        if not (math.isfinite(radius) and radius > 0):
+            raise ValueError(f"radius: must be finite and > 0, got {radius!r}")
+        if side not in SIDES:
+            raise ValueError(f"side: expected 'outside' or 'inside', got {side!r}")
+        self.radius, self.side = float(radius), side
+
+    # -- what a shape states -----------------------------------------------------------------
+    @staticmethod
+    def _axes(par):
+        """``(a, t1, t2, u0, centre, r, sigma)`` from the parameters: the
+        frame's columns, the unit vector from the centre of curvature to the
+        path's centre, the centre of curvature (for a cylinder a point of
+        the axis), the radius and the side's sign."""
+        F0 = ca.reshape(par["R"], 3, 3)
+        a, t1, t2 = F0[:, 0], F0[:, 1], F0[:, 2]
+        r, sigma = par["radius"], par["side"]
+        return a, t1, t2, -sigma * a, par["c"] + sigma * r * a, r, sigma
+
+    @staticmethod
+    def _coords(p, par):
+        """Symbolic task coordinates (3) of the base-frame point ``p``."""
+        raise NotImplementedError
+
+    @staticmethod
+    def _frame(X, par):
+        """Symbolic task frame (3 x 3) at task coordinates ``X``."""
+        raise NotImplementedError
+
+    # -- the interface, derived once -------------------------------------------------------
+    @classmethod
+    def _fn(cls, name: str) -> ca.Function:
+        key = f"_fn_{name}_{cls.__name__}"
+        if key not in cls.__dict__:
+            par = {n: ca.SX.sym(n, k) for n, k in cls.fields}
+            p, v, X, dX, ddX = (ca.SX.sym(k, 3) for k in ("p", "v", "X", "dX", "ddX"))
+            if name == "coordinates":
+                Xp = cls._coords(p, par)
+                f = ca.Function(f"{cls.kind}_coordinates", [p, v, *par.values()],
+                                [cls._frame(Xp, par), Xp, ca.jtimes(Xp, p, v)], ["p", "v", *par], ["R_task", "X", "dX"])
+            elif name == "point":
+                f = ca.Function(f"{cls.kind}_point", [X, *par.values()], [cls.point(X, par)], ["X", *par], ["p"])
+            else:                                           # turn
+                Rt = ca.mtimes(cls._frame(X, par), ca.reshape(par["R"], 3, 3).T)
+                dRt = ca.reshape(ca.jtimes(ca.vec(Rt), X, dX), 3, 3)
+                W = ca.mtimes(dRt, Rt.T)                                      # skew(omega)
+                w = ca.vertcat(W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]) / 2
+                alpha = ca.jtimes(w, X, dX) + ca.jtimes(w, dX, ddX)
+                f = ca.Function(f"{cls.kind}_turn", [X, dX, ddX, *par.values()], [Rt, w, alpha],
+                                ["X", "dX", "ddX", *par], ["R_t", "omega", "alpha"])
+            setattr(cls, key, f)
+        return cls.__dict__[key]
+
+    @classmethod
+    def coordinates(cls, p, v, par: dict):
+        R, X, dX = cls._fn("coordinates")(p, v, *cls._par(par))
+        return R, X, dX
+
+    @classmethod
+    def turn(cls, X, dX, ddX, par: dict):
+        return tuple(cls._fn("turn")(X, dX, ddX, *cls._par(par)))
+
+    # -- numeric -------------------------------------------------------------------------------
+    def values(self) -> dict[str, np.ndarray]:
+        return {"R": self.R.ravel(order="F"), "c": self.c.copy(), "radius": np.array([self.radius]),
+                "side": np.array([SIDES[self.side]])}
+
+    def _vals(self) -> list:
+        return list(self.values().values())
+
+    def to_base(self, X) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        flat = X.reshape(3, -1)
+        out = np.array(self._fn("point").map(flat.shape[1])(flat, *self._vals()))
+        return out.reshape(X.shape)
+
+    def from_base(self, p) -> np.ndarray:
+        p = np.asarray(p, dtype=float)
+        flat = p.reshape(3, -1)
+        f = self._fn("coordinates").map(flat.shape[1])
+        out = np.array(f(flat, np.zeros_like(flat), *self._vals())[1])
+        return out.reshape(p.shape)
+
+    def frame(self, point=None) -> np.ndarray:
+        if point is None:
+            return self.R.copy()
+        p = np.asarray(point, dtype=float).reshape(3)
+        return np.array(self._fn("coordinates")(p, np.zeros(3), *self._vals())[0])
+
+    def rates(self, X, dX) -> tuple[np.ndarray, np.ndarray]:
+        """Numeric ``(v, omega)``: the base-frame velocity (m/s) and the task
+        frame's angular velocity (rad/s) of coordinates ``X`` moving at ``dX``."""
+        v = self._motion()(X, dX, np.zeros(3), *self._vals())[0]
+        w = self._fn("turn")(X, dX, np.zeros(3), *self._vals())[1]
+        return np.array(v).ravel(), np.array(w).ravel()
+
+    def shifted(self, offset: float):
+        return type(self)(self.R, self.c + offset * self.R[:, 0], self.radius, self.side)
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__name__}(normal={np.round(self.R[:, 0], 6).tolist()}, c={self.c.tolist()}, "
+                f"radius={self.radius!r}, side={self.side!r})")
+
+
+class Sphere(_Curved):
+    """A sphere of radius ``radius`` (m) touching the tangent plane ``(R, c)``
+    at ``c``; the tool on its ``side`` (``outside``: a dome, ``inside``: a bowl)."""
+
+    kind = "sphere"
+
+    @staticmethod
+    def _coords(p, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        w = p - centre
+        x, y, z = ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2)
+        return ca.vertcat(sigma * (r - ca.norm_2(w)), r * ca.atan2(y, x), r * ca.atan2(z, ca.sqrt(x * x + y * y)))
+
+    @staticmethod
+    def _unit(X, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        th, ph = X[1] / r, X[2] / r
+        return ca.cos(ph) * (ca.cos(th) * u0 + ca.sin(th) * t1) + ca.sin(ph) * t2
+
+    @staticmethod
+    def point(X, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        return centre + (r - sigma * X[0]) * Sphere._unit(X, par)
+
+    @staticmethod
+    def _frame(X, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        th, ph = X[1] / r, X[2] / r
+        e_1 = -ca.sin(th) * u0 + ca.cos(th) * t1
+        e_2 = -ca.sin(ph) * (ca.cos(th) * u0 + ca.sin(th) * t1) + ca.cos(ph) * t2
+        return ca.horzcat(-sigma * Sphere._unit(X, par), e_1, e_2)
+
+
+class Cylinder(_Curved):
+    """A cylinder of radius ``radius`` (m) touching the tangent plane ``(R,
+    c)`` along the line through ``c`` in the direction of the frame's third
+    column ``t_2`` (its axis); the tool on its ``side`` (``outside``: a pipe's
+    or shaft's surface, ``inside``: a bore)."""
+
+    kind = "cylinder"
+
+    @staticmethod
+    def _coords(p, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        w = p - centre
+        x, y, z = ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2)
+        return ca.vertcat(sigma * (r - ca.sqrt(x * x + y * y)), r * ca.atan2(y, x), z)
+
+    @staticmethod
+    def point(X, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        th = X[1] / r
+        return centre + (r - sigma * X[0]) * (ca.cos(th) * u0 + ca.sin(th) * t1) + X[2] * t2
+
+    @staticmethod
+    def _frame(X, par):
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        th = X[1] / r
+        u = ca.cos(th) * u0 + ca.sin(th) * t1
+        return ca.horzcat(-sigma * u, -ca.sin(th) * u0 + ca.cos(th) * t1, t2)
