@@ -72,8 +72,8 @@ def test_curvature_feed_forward_is_the_second_derivative_of_the_path(cls, side):
     h = 1e-4
     fd_v = (s.to_base(X(h)) - s.to_base(X(-h))) / (2 * h)
     fd_a = (s.to_base(X(h)) - 2 * s.to_base(X(0.0)) + s.to_base(X(-h))) / h ** 2
-    v = np.array(type(s).velocity(ca.DM(X0), ca.DM(V), par)).ravel()
-    a = np.array(type(s).acceleration(ca.DM(X0), ca.DM(V), ca.DM(A), par)).ravel()
+    v = np.array(s.velocity(ca.DM(X0), ca.DM(V), par)).ravel()
+    a = np.array(s.acceleration(ca.DM(X0), ca.DM(V), ca.DM(A), par)).ravel()
     assert np.abs(v - fd_v).max() < 1e-8
     assert np.abs(a - fd_a).max() < 1e-5          # rounding of the second difference: 1e-16/h^2 = 1e-8
 
@@ -88,11 +88,11 @@ def test_sphere_equator_motion_is_the_centripetal_closed_form():
     s = Sphere(R0, C0, r, "outside")
     par = {k: ca.DM(val) for k, val in s.values().items()}
     X, dX = ca.DM([d, 0.05, 0.0]), ca.DM([0.0, v, 0.0])
-    a = np.array(Sphere.acceleration(X, dX, ca.DM.zeros(3), par)).ravel()
+    a = np.array(s.acceleration(X, dX, ca.DM.zeros(3), par)).ravel()
     p = s.to_base(np.array(X).ravel())
     towards_centre = (_centre(r, "outside") - p) / np.linalg.norm(_centre(r, "outside") - p)
     assert np.abs(a - (r - d) * (v / r) ** 2 * towards_centre).max() < 1e-14
-    R_t, w, _ = (np.array(m) for m in Sphere.turn(X, dX, ca.DM.zeros(3), par))
+    R_t, w, _ = (np.array(m) for m in s.turn(X, dX, ca.DM.zeros(3), par))
     assert np.abs(np.abs(w.ravel()) - np.abs(v / r * R0[:, 2])).max() < 1e-14
     assert np.abs(R_t @ R0 - s.frame(p)).max() < 1e-14
 
@@ -239,3 +239,122 @@ def test_exported_c_on_the_pipe_equals_the_built_in_loop(tmp_path):
     """The UR5 on the pipe (the tool's orientation turning with the normal in
     the C code too): 160 periods with the exported C equal the built-in run."""
     _sil_equals_built_in(apply_overrides(arm_scenario("ur5-pipe"), ["trajectory.cycles=0.04"]), tmp_path / "c")
+
+
+# -- measured height maps --------------------------------------------------------------------------
+
+def _grid(f, n=41, spacing=0.01):
+    u = (np.arange(n) - (n - 1) / 2) * spacing
+    U, V = np.meshgrid(u, u, indexing="ij")
+    return f(U, V)
+
+
+def test_a_height_map_of_a_tilted_plane_is_that_plane_exactly():
+    """A cubic B-spline reproduces a linear function: the map of h = a u + b v
+    is the plane through c with inward normal (e_n + a t1 + b t2)/|.|, and the
+    depth is the distance to it (no approximation on a plane)."""
+    from tmtcontrol.surface import HeightMap
+
+    a, b = 0.3, -0.2
+    s = HeightMap(R0, C0, _grid(lambda U, V: a * U + b * V), 0.01)
+    n = (R0[:, 0] + a * R0[:, 1] + b * R0[:, 2]) / np.sqrt(1 + a * a + b * b)
+    for _ in range(10):
+        p = C0 + RNG.uniform(-0.1, 0.1, 3)
+        assert abs(s.from_base(p)[0] - (p - C0) @ n) < 1e-12
+        assert np.abs(s.frame(p)[:, 0] - n).max() < 1e-12
+        assert np.abs(s.to_base(s.from_base(p)) - p).max() < 1e-14
+
+
+def test_a_height_map_of_a_cylinder_is_the_cylinder_to_interpolation_accuracy():
+    """A pipe of radius 0.3 m sampled every 1 cm: depth within the spline's
+    interpolation error plus the first-order depth approximation (X_0^2 / r ~
+    3e-6 m at 1 mm); the normal on the surface within 1e-4, converging as the
+    grid is refined (at least 3x smaller at half the spacing: a cubic
+    spline's slope is O(dx^2) or better)."""
+    from tmtcontrol.surface import HeightMap
+
+    r = 0.3
+    pipe = lambda U, V: -(r - np.sqrt(r * r - U * U))          # noqa: E731
+    pts = [np.r_[RNG.uniform(-1e-3, 1e-3), RNG.uniform(-0.1, 0.1, 2)] for _ in range(10)]
+    errors = []
+    for n, spacing in ((41, 0.01), (81, 0.005)):
+        s = HeightMap(R0, C0, _grid(pipe, n, spacing), spacing)
+        worst = 0.0
+        for X in pts:
+            p = s.to_base(X)
+            assert abs(X[0] - _depth_np("cylinder", p, r, "outside")) < 5e-6
+            on = s.to_base(np.r_[0.0, X[1:]])     # the normal on the surface (below it, the frame is the
+            w = on - _centre(r, "outside")         # vertical foot's: the documented first-order approximation)
+            w -= (w @ R0[:, 2]) * R0[:, 2]
+            worst = max(worst, np.abs(s.frame(on)[:, 0] + w / np.linalg.norm(w)).max())
+        errors.append(worst)
+    assert errors[0] < 1e-4 and errors[1] < errors[0] / 3, errors
+
+
+def _heightmap_scenario(tmp_path, heights, spacing=0.01, fmt="csv", extra=()):
+    path = tmp_path / f"part.{fmt}"
+    if fmt == "npy":
+        np.save(path, heights)
+    else:
+        np.savetxt(path, heights, delimiter=",", fmt="%.12g")
+    return apply_overrides(paper_scenario(), ['environment.shape="heightmap"', f'environment.heightmap="{path}"',
+                                              f"environment.grid_spacing={spacing!r}", *extra])
+
+
+def test_puma_follows_a_measured_wavy_part_at_f_d(tmp_path):
+    """A 1 cm wave measured on a 1 cm grid: the tool keeps f_d and rides the
+    wave: its height over the tangent plane is the analytic height at its
+    (u, v) (NumPy, not the spline) minus the spring depth, within the
+    interpolation error."""
+    from tmtcontrol.simulation.simulator import Simulator
+
+    wave = lambda U, V: 0.01 * np.sin(2 * np.pi * U / 0.4) * np.cos(2 * np.pi * V / 0.4)   # noqa: E731
+    sc = _heightmap_scenario(tmp_path, _grid(wave), fmt="npy", extra=["trajectory.cycles=0.5"])
+    res = Simulator(sc, compile=False).run()
+    late = res.time > 1.0
+    assert np.abs(res.contact_force[late] - 10.0).max() < 5e-3
+    w = res.position[:, late] - C0[:, None]
+    u, v, z = R0[:, 1] @ w, R0[:, 2] @ w, R0[:, 0] @ w
+    h = wave(u, v)
+    assert np.ptp(h) > 0.005                       # the path really crosses the wave
+    # z = -h + depth / cos(slope): depth f_d/k_e = 2 mm, cos(slope) >= 0.98 here
+    assert np.abs(z + h - 10.0 / 5e3).max() < 1e-4
+
+
+def test_two_height_maps_are_two_loop_structures(tmp_path):
+    """The heights are baked into the compiled step: another map must not reuse it."""
+    from tmtcontrol.simulation.simulator import structure
+
+    a = _heightmap_scenario(tmp_path, _grid(lambda U, V: 0.01 * U))
+    (tmp_path / "b").mkdir()
+    b = _heightmap_scenario(tmp_path / "b", _grid(lambda U, V: 0.02 * U))
+    assert structure(a) != structure(b)
+    assert structure(a) == structure(apply_overrides(a, ["controller.f_d=5.0"]))
+
+
+def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
+    """The B-spline is generated as C with the controller: SIL equal."""
+    sc = _heightmap_scenario(tmp_path, _grid(lambda U, V: 0.01 * np.sin(10 * U) * np.cos(8 * V)),
+                             extra=["trajectory.cycles=0.1"])
+    _sil_equals_built_in(sc, tmp_path / "c")
+
+
+@pytest.mark.parametrize("grid, extra, needle", [
+    (np.full((5, 5), np.nan), [], "not finite"),
+    (np.zeros((3, 9)), [], "must have 4 to 256 points along each axis, got 3 x 9"),
+    (np.zeros((9, 9)), [], "trajectory.radius: the path leaves the height map"),
+    (np.zeros((41, 41)), ["environment.radius=0.3"], "environment.radius: not used by shape = 'heightmap'"),
+    (np.zeros((41, 41)), ["environment.grid_spacing=0.0"], "environment.grid_spacing: must be > 0"),
+])
+def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
+    path = tmp_path / "part.csv"
+    np.savetxt(path, grid, delimiter=",")
+    toml = tmp_path / "s.toml"
+    toml.write_text('[environment]\nshape = "heightmap"\nheightmap = "part.csv"\ngrid_spacing = 0.01\n')
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(toml), "--out", str(out), "--no-plots",
+                        *[a for e in extra for a in ("--set", e)]], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    assert not out.exists()

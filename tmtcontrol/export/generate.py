@@ -222,7 +222,7 @@ class Interface:
     delay: int
     torque: bool
     model: object
-    surface: type
+    surface: object
     state: Layout
     param: Layout
     measurement: Layout
@@ -263,7 +263,7 @@ def interface(scenario: Scenario, torque: bool) -> Interface:
     delay = scenario.controller.delay_samples
     model = robot_of(scenario, controller=True)
     task = model.task
-    surface = type(surface_of(scenario))
+    surface = surface_of(scenario)
     return Interface(task, law, delay, torque, model, surface, controller_state_layout(task, law, delay, torque),
                      controller_param_layout(task, law, surface), measurement_layout(task),
                      command_layout(task, torque),

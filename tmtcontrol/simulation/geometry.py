@@ -40,7 +40,13 @@ def surface_of(scenario) -> Surface:
     cylinder of ``environment.radius`` touching that plane there (a
     cylinder's axis along ``environment.axis``, default task axis 2)."""
     env = scenario.environment
-    return make_surface(env.shape, surface_frame(env), scenario.trajectory.center, env.radius, env.side, env.axis)
+    heights = None
+    if env.heightmap is not None:
+        from .scenario.environment import read_height_grid
+
+        heights = read_height_grid(env.heightmap)
+    return make_surface(env.shape, surface_frame(env), scenario.trajectory.center, env.radius, env.side, env.axis,
+                        heights, env.grid_spacing)
 
 
 def surface_frame(environment) -> np.ndarray:

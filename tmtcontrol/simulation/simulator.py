@@ -152,7 +152,7 @@ def structure(scenario: Scenario):
     r, s = scenario.robot, scenario.simulation
     return (r.model, r.tip, r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
-            scenario.controller.law.kind, scenario.controller.delay_samples, surface_of(scenario).kind)
+            scenario.controller.law.kind, scenario.controller.delay_samples, surface_of(scenario).key)
 
 
 @functools.lru_cache(maxsize=1)

@@ -190,9 +190,8 @@ class PeriodicModel:
         s = self.frozen.at(k_e, 0.0).s_eq.copy()
         from ..simulation.geometry import surface_of
 
-        R = surface_of(sc).frame(sc.trajectory.center)
-        vel = self.U[2:4, 0]
-        s[L["dq"]] = loop.joint_rates(s[L["q"]], R @ np.r_[0.0, vel])
+        X = np.r_[0.0, self.U[0:2, 0]]                    # the path's start, moving along it
+        s[L["dq"]] = loop.joint_rates(s[L["q"]], *surface_of(sc).rates(X, np.r_[0.0, self.U[2:4, 0]]))
         return s
 
     def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:

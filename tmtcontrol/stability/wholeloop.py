@@ -175,13 +175,14 @@ class WholeLoopModel:
         from ..simulation.geometry import surface_of
 
         surface = surface_of(sc)
-        n = surface.normal(sc.trajectory.center)
         # the tangential point and its joint angles on the surface (near the checked path's pose there)
         from ..simulation.trajectory import circle_reference
 
         ref = circle_reference(np.array([self.t[i]]), sc.trajectory.radius, period)
         near = self.path.q[:, int(round((self.t[i] % period) / period * self.path.q.shape[1])) % self.path.q.shape[1]]
-        q_surface = loop.joints_at(surface.to_base(np.r_[0.0, ref.pos[:, 0]]), near, sc)
+        on_surface = surface.to_base(np.r_[0.0, ref.pos[:, 0]])
+        n = surface.normal(on_surface)                            # the inward normal there
+        q_surface = loop.joints_at(on_surface, near, sc)
         m_p = loop.normal_mass(q_surface, n)
         L = self.layout
 

@@ -56,18 +56,16 @@ class Surface(abc.ABC):
     def values(self) -> dict[str, np.ndarray]:
         """The numeric value of each of :attr:`fields`."""
 
-    @staticmethod
     @abc.abstractmethod
-    def coordinates(p, v, par: dict):
+    def coordinates(self, p, v, par: dict):
         """Symbolic (CasADi): ``(R, X, dX)`` at the tool point ``p`` (m, base
         frame) moving at ``v`` (m/s): the task frame R (3 x 3, columns inward
         normal, tangent 1, tangent 2), the task coordinates X (m; X[0] the
         penetration depth) and their rates dX (m/s). ``par`` maps each of
         :attr:`fields` to its symbols."""
 
-    @staticmethod
     @abc.abstractmethod
-    def point(X, par: dict):
+    def point(self, X, par: dict):
         """Symbolic (CasADi): the base-frame point (m) of task coordinates
         ``X`` near the path (the commanded tool point of eq. 4)."""
 
@@ -97,24 +95,27 @@ class Surface(abc.ABC):
         """The same shape moved ``offset`` (m) along its inward normal (the
         surface the controller believes in with a location error)."""
 
+    @property
+    def key(self) -> str:
+        """What identifies the shape's compiled expressions: its kind, and
+        for a shape with data baked into them (a height map) the data."""
+        return self.kind
+
     # -- the chart's motion (symbolic): what the inner loop and the command need ------------
-    @classmethod
-    def velocity(cls, X, dX, par: dict):
+    def velocity(self, X, dX, par: dict):
         """Symbolic: the base-frame velocity (m/s) of task coordinates ``X``
         moving at ``dX``: ``(d point / d X) dX``."""
-        return cls._motion()(X, dX, ca.DM.zeros(3), *cls._par(par))[0]
+        return self._motion()(X, dX, ca.DM.zeros(3), *self._par(par))[0]
 
-    @classmethod
-    def acceleration(cls, X, dX, ddX, par: dict):
+    def acceleration(self, X, dX, ddX, par: dict):
         """Symbolic: the base-frame acceleration (m/s^2) of task coordinates
         ``X`` moving at ``dX`` and accelerating at ``ddX``: ``(d point / d X)
         ddX + d/dt(d point / d X) dX`` (the curvature feed-forward; 0 on a
         plane). The inner loop (eq. 6) acts on the task coordinates and this
         maps its output to the Cartesian acceleration of eq. (5)."""
-        return cls._motion()(X, dX, ddX, *cls._par(par))[1]
+        return self._motion()(X, dX, ddX, *self._par(par))[1]
 
-    @classmethod
-    def turn(cls, X, dX, ddX, par: dict):
+    def turn(self, X, dX, ddX, par: dict):
         """Symbolic: ``(R_t, omega, alpha)``: the rotation taking the task
         frame at the chart's origin (X = 0) to the task frame at ``X``, and
         its angular velocity (rad/s) and acceleration (rad/s^2) in the base
@@ -122,21 +123,31 @@ class Surface(abc.ABC):
         does not turn (a plane)."""
         return None
 
-    @classmethod
-    def _par(cls, par: dict) -> list:
-        return [par[name] for name, _ in cls.fields]
+    def _par(self, par: dict) -> list:
+        return [par[name] for name, _ in self.fields]
 
-    @classmethod
-    def _motion(cls) -> ca.Function:
+    def _cached(self, name: str, build) -> ca.Function:
+        """The shape's Function ``name``, built once per :attr:`key`."""
+        k = (self.key, name)
+        if k not in _FUNCTIONS:
+            if len(_FUNCTIONS) > 64:
+                _FUNCTIONS.clear()
+            _FUNCTIONS[k] = build()
+        return _FUNCTIONS[k]
+
+    def _motion(self) -> ca.Function:
         """``(X, dX, ddX, *fields) -> (v, a)`` by automatic differentiation of
-        :meth:`point` (built once per shape)."""
-        key = "_motion_fn_" + cls.__name__
-        if key not in cls.__dict__:
+        :meth:`point`."""
+        def build():
             X, dX, ddX = (ca.SX.sym(k, 3) for k in ("X", "dX", "ddX"))
-            par = {name: ca.SX.sym(name, n) for name, n in cls.fields}
-            p = cls.point(X, par)
+            par = {name: ca.SX.sym(name, n) for name, n in self.fields}
+            p = self.point(X, par)
             v = ca.jtimes(p, X, dX)
             a = ca.jtimes(p, X, ddX) + ca.jtimes(v, X, dX)
-            setattr(cls, key, ca.Function(f"{cls.kind}_motion", [X, dX, ddX, *par.values()], [v, a],
-                                          ["X", "dX", "ddX", *par], ["v", "a"]))
-        return cls.__dict__[key]
+            return ca.Function(f"{self.kind}_motion", [X, dX, ddX, *par.values()], [v, a],
+                               ["X", "dX", "ddX", *par], ["v", "a"])
+        return self._cached("motion", build)
+
+
+_FUNCTIONS: dict = {}
+"""The shapes' CasADi Functions by (key, name)."""

@@ -94,37 +94,32 @@ class _Curved(Surface):
         raise NotImplementedError
 
     # -- the interface, derived once -------------------------------------------------------
-    @classmethod
-    def _fn(cls, name: str) -> ca.Function:
-        key = f"_fn_{name}_{cls.__name__}"
-        if key not in cls.__dict__:
-            par = {n: ca.SX.sym(n, k) for n, k in cls.fields}
+    def _fn(self, name: str) -> ca.Function:
+        def build():
+            par = {n: ca.SX.sym(n, k) for n, k in self.fields}
             p, v, X, dX, ddX = (ca.SX.sym(k, 3) for k in ("p", "v", "X", "dX", "ddX"))
             if name == "coordinates":
-                Xp = cls._coords(p, par)
-                f = ca.Function(f"{cls.kind}_coordinates", [p, v, *par.values()],
-                                [cls._frame(Xp, par), Xp, ca.jtimes(Xp, p, v)], ["p", "v", *par], ["R_task", "X", "dX"])
-            elif name == "point":
-                f = ca.Function(f"{cls.kind}_point", [X, *par.values()], [cls.point(X, par)], ["X", *par], ["p"])
-            else:                                           # turn
-                Rt = ca.mtimes(cls._frame(X, par), ca.reshape(par["R"], 3, 3).T)
-                dRt = ca.reshape(ca.jtimes(ca.vec(Rt), X, dX), 3, 3)
-                W = ca.mtimes(dRt, Rt.T)                                      # skew(omega)
-                w = ca.vertcat(W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]) / 2
-                alpha = ca.jtimes(w, X, dX) + ca.jtimes(w, dX, ddX)
-                f = ca.Function(f"{cls.kind}_turn", [X, dX, ddX, *par.values()], [Rt, w, alpha],
-                                ["X", "dX", "ddX", *par], ["R_t", "omega", "alpha"])
-            setattr(cls, key, f)
-        return cls.__dict__[key]
+                Xp = self._coords(p, par)
+                return ca.Function(f"{self.kind}_coordinates", [p, v, *par.values()],
+                                   [self._frame(Xp, par), Xp, ca.jtimes(Xp, p, v)], ["p", "v", *par],
+                                   ["R_task", "X", "dX"])
+            if name == "point":
+                return ca.Function(f"{self.kind}_point", [X, *par.values()], [self.point(X, par)], ["X", *par], ["p"])
+            Rt = ca.mtimes(self._frame(X, par), ca.reshape(par["R"], 3, 3).T)          # turn
+            dRt = ca.reshape(ca.jtimes(ca.vec(Rt), X, dX), 3, 3)
+            W = ca.mtimes(dRt, Rt.T)                                                   # skew(omega)
+            w = ca.vertcat(W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]) / 2
+            alpha = ca.jtimes(w, X, dX) + ca.jtimes(w, dX, ddX)
+            return ca.Function(f"{self.kind}_turn", [X, dX, ddX, *par.values()], [Rt, w, alpha],
+                               ["X", "dX", "ddX", *par], ["R_t", "omega", "alpha"])
+        return self._cached(name, build)
 
-    @classmethod
-    def coordinates(cls, p, v, par: dict):
-        R, X, dX = cls._fn("coordinates")(p, v, *cls._par(par))
+    def coordinates(self, p, v, par: dict):
+        R, X, dX = self._fn("coordinates")(p, v, *self._par(par))
         return R, X, dX
 
-    @classmethod
-    def turn(cls, X, dX, ddX, par: dict):
-        return tuple(cls._fn("turn")(X, dX, ddX, *cls._par(par)))
+    def turn(self, X, dX, ddX, par: dict):
+        return tuple(self._fn("turn")(X, dX, ddX, *self._par(par)))
 
     # -- numeric -------------------------------------------------------------------------------
     def values(self) -> dict[str, np.ndarray]:

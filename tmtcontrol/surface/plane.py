@@ -91,6 +91,10 @@ class Plane(Surface):
     def acceleration(X, dX, ddX, par: dict):
         return ca.mtimes(ca.reshape(par["R"], 3, 3), ddX)
 
+    @staticmethod
+    def turn(X, dX, ddX, par: dict):
+        return None                         # a plane's frame does not turn
+
     def rates(self, X, dX) -> tuple[np.ndarray, np.ndarray]:
         """Numeric ``(v, omega)``: base-frame velocity (m/s) of coordinates
         moving at ``dX``; the frame does not turn (omega = 0)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import math
 import pathlib
@@ -13,7 +14,7 @@ from pydantic import Field, model_serializer, model_validator
 from .fields import MAX_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
 from .textfiles import InputFileError, read_text_file
 
-__all__ = ["SHAPES", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
+__all__ = ["SHAPES", "read_height_grid", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
            "StiffnessProfile", "read_stiffness_table", "EnvironmentSettings"]
 
 
@@ -127,8 +128,85 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
     return arr[:, 0], arr[:, 1]
 
 
-SHAPES = ("plane", "sphere", "cylinder")
+SHAPES = ("plane", "sphere", "cylinder", "heightmap")
 """The surface's shapes (:mod:`tmtcontrol.surface`)."""
+
+
+MAX_GRID = 256
+"""Most points along each axis of a height map (its heights are constants of the compiled loop)."""
+
+
+def read_height_grid(path: str | pathlib.Path):
+    """Read and validate a height map: a CSV of rows of numbers (a first row
+    with no number in it is a header) or a NumPy ``.npy`` file, a 2-D grid of
+    at least 4 x 4 and at most :data:`MAX_GRID` points along each axis, every
+    height finite (m). Cached by the file's path, size and modification time."""
+    import os
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise ValueError(f"heightmap: no such file {str(path)!r}") from None
+    return _read_height_grid(str(path), st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=8)
+def _read_height_grid(path: str, size: int, mtime_ns: int):
+    import numpy as np
+
+    from .textfiles import MAX_INPUT_BYTES
+
+    if path.lower().endswith(".npy"):
+        import os
+        import stat
+
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"heightmap: {path!r} is not a regular file")
+        if st.st_size > MAX_INPUT_BYTES:
+            raise ValueError(f"heightmap: {path!r} is larger than the {MAX_INPUT_BYTES / 2**20:g} MiB limit")
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise ValueError(f"heightmap: {path!r} is not a NumPy .npy array ({str(exc)[:80]})") from None
+        if arr.dtype.kind not in "fiu":
+            raise ValueError(f"heightmap: {path!r} holds {arr.dtype}, expected numbers")
+        arr = arr.astype(float)
+    else:
+        try:
+            text = read_text_file(path)
+        except InputFileError as exc:
+            raise ValueError(f"heightmap: {path!r}: {exc}") from None
+        rows = [r for r in csv.reader(io.StringIO(text, newline=""))
+                if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
+        data = []
+        for i, row in enumerate(rows):
+            try:
+                data.append([float(c) for c in row])
+            except ValueError:
+                if i == 0 and not any(_is_number(c) for c in row):
+                    continue          # header
+                raise ValueError(f"heightmap: row {i + 1} of {path!r} is not numbers") from None
+        if not data or len({len(r) for r in data}) != 1:
+            raise ValueError(f"heightmap: {path!r} must be rows of the same number of heights")
+        arr = np.array(data)
+    if arr.ndim != 2:
+        raise ValueError(f"heightmap: {path!r} must be a 2-D grid, got {arr.ndim} dimension(s)")
+    if min(arr.shape) < 4 or max(arr.shape) > MAX_GRID:
+        raise ValueError(f"heightmap: {path!r} must have 4 to {MAX_GRID} points along each axis, "
+                         f"got {arr.shape[0]} x {arr.shape[1]}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"heightmap: {path!r} holds a height that is not finite (NaN or inf)")
+    arr.setflags(write=False)
+    return arr
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+        return True
+    except ValueError:
+        return False
 
 
 class EnvironmentSettings(Section):
@@ -139,8 +217,8 @@ class EnvironmentSettings(Section):
     ``radius`` touches that plane at ``trajectory.center`` (the plane is its
     tangent plane there), the tool on its ``side``; a cylinder's axis lies
     along ``axis`` (default task axis 2)."""
-    shape: Literal["plane", "sphere", "cylinder"] = Field("plane", description=(
-        "the surface's shape: plane, sphere or cylinder (touching the plane of tilt_deg/normal at "
+    shape: Literal["plane", "sphere", "cylinder", "heightmap"] = Field("plane", description=(
+        "the surface's shape: plane, sphere, cylinder or heightmap (touching the plane of tilt_deg/normal at "
         "trajectory.center)"))
     radius: float | None = Field(None, description="sphere's or cylinder's radius [m]", allow_inf_nan=False,
                                  strict=True, gt=0, json_schema_extra={"unit": "m"})
@@ -150,6 +228,11 @@ class EnvironmentSettings(Section):
     axis: tuple[F, F, F] | None = Field(None, description=(
         "cylinder: direction of its axis, base frame, perpendicular to the normal; default task axis 2"),
         json_schema_extra={"unit": "1"})
+    heightmap: str | None = Field(None, min_length=1, description=(
+        "heightmap: a CSV (rows of numbers) or .npy file of heights [m] along the outward normal, rows along "
+        "task axis 1, columns along task axis 2, the grid centred on trajectory.center"))
+    grid_spacing: float | None = Field(None, description="heightmap: the grid's spacing [m]", allow_inf_nan=False,
+                                       strict=True, gt=0, json_schema_extra={"unit": "m"})
     tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
                           "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
     normal: tuple[F, F, F] | None = Field(None, description=(
@@ -174,12 +257,17 @@ class EnvironmentSettings(Section):
     @model_validator(mode="after")
     def _shape_keys(self):
         curved = self.shape != "plane"
-        if curved and self.radius is None:
-            raise ValueError(f"radius: a {self.shape} needs its radius (m)")
-        for key in ("radius", "side", "axis"):
-            if getattr(self, key) is not None and (not curved or (key == "axis" and self.shape != "cylinder")):
+        uses = {"radius": ("sphere", "cylinder"), "side": ("sphere", "cylinder"), "axis": ("cylinder",),
+                "heightmap": ("heightmap",), "grid_spacing": ("heightmap",)}
+        for key, shapes in uses.items():
+            if self.shape in shapes and getattr(self, key) is None and key in ("radius", "heightmap", "grid_spacing"):
+                raise ValueError(f"{key}: a {self.shape} needs its {key.replace('_', ' ')}"
+                                 + (" (m)" if key != "heightmap" else " (a file of heights)"))
+            if getattr(self, key) is not None and self.shape not in shapes:
                 raise ValueError(f"{key}: not used by shape = {self.shape!r}"
-                                 + ("; set shape = 'sphere' or 'cylinder'" if not curved else ""))
+                                 + (f"; set shape = {' or '.join(repr(s) for s in shapes)}" if not curved else ""))
+        if self.heightmap is not None:
+            read_height_grid(self.heightmap)
         if curved and self.point is not None:
             raise ValueError(f"point: a {self.shape} touches its tangent plane at trajectory.center; "
                              "leave point unset")

@@ -43,6 +43,8 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.environment.shape != "plane"
     if key == "environment.axis":
         return sc.environment.shape == "cylinder"
+    if key in ("environment.heightmap", "environment.grid_spacing"):
+        return sc.environment.shape == "heightmap"
     if key in ("simulation.substeps", "simulation.contact_refine"):
         return sc.simulation.integrator == "fixed"
     if key == "simulation.tol":

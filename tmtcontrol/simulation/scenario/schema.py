@@ -86,7 +86,8 @@ TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller
 
 SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
                 "robot.model", "environment.normal", "environment.point", "trajectory.center",
-                "environment.radius", "trajectory.radius", "environment.axis")
+                "environment.radius", "trajectory.radius", "environment.axis", "environment.heightmap",
+                "environment.grid_spacing")
 """The keys :func:`sampling_problem` relates (the only check across sections)."""
 
 
@@ -97,7 +98,16 @@ def _plane_problem(sc: Scenario) -> str | None:
     if env.normal is not None and sc.robot.model.lower() == "puma560":
         return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
                 "(its analyses and export use it); leave normal unset")
-    if env.shape != "plane":
+    if env.heightmap is not None:
+        from .environment import read_height_grid
+
+        rows, cols = read_height_grid(env.heightmap).shape
+        half = min(rows - 1, cols - 1) / 2 * env.grid_spacing
+        if sc.trajectory.radius > half - 2 * env.grid_spacing:
+            return (f"trajectory.radius: the path leaves the height map: {sc.trajectory.radius:g} m from its centre, "
+                    f"the grid ({rows} x {cols} at {env.grid_spacing:g} m) reaches {half:g} m (two spacings kept "
+                    "as margin)")
+    elif env.shape != "plane":
         # the chart of a curved surface is regular within these angles from the path's centre
         # (a sphere's latitude below pi/2, a cylinder's turn below pi): the path must stay in it
         reach, limit = sc.trajectory.radius / env.radius, (1.2 if env.shape == "sphere" else 2.5)

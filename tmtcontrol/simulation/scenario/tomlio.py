@@ -71,8 +71,8 @@ def toml_document(d: dict) -> str:
 
 def load_scenario(path: str | pathlib.Path) -> Scenario:
     """Read and validate a scenario TOML file; the string ``"paper"`` gives
-    :func:`paper_scenario`. A relative stiffness ``table`` file is resolved
-    against the scenario file's folder. An empty file is refused."""
+    :func:`paper_scenario`. A relative stiffness ``table`` file, height map
+    or URDF is resolved against the scenario file's folder. An empty file is refused."""
     if str(path) == "paper":
         return paper_scenario()
     if str(path) in BUILTIN_ARMS:
@@ -86,6 +86,10 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
     if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
             and not pathlib.Path(stiff["file"]).is_absolute():
         stiff["file"] = str(path.parent / stiff["file"])
+    env = data.get("environment")
+    if isinstance(env, dict) and isinstance(env.get("heightmap"), str) and env["heightmap"] \
+            and not pathlib.Path(env["heightmap"]).is_absolute():
+        env["heightmap"] = str(path.parent / env["heightmap"])
     robot = data.get("robot")
     if isinstance(robot, dict) and isinstance(robot.get("model"), str) and robot["model"].lower().endswith(".urdf") \
             and not pathlib.Path(robot["model"]).is_absolute():

@@ -1,0 +1,134 @@
+"""A measured free-form surface: a grid of heights over the tangent plane, smoothed by a cubic B-spline.
+
+The part is given by heights ``h[i, j]`` (m) measured along the outward
+normal over a rectangular grid in the tangent plane at the path's centre
+``c`` (task frame ``R = [e_n, t_1, t_2]``): rows along ``t_1``, columns
+along ``t_2``, spacing ``du``, ``dv`` (m), the grid centred on ``c``. The
+surface is ``S(u, v) = c + u t_1 + v t_2 - h(u, v) e_n`` with ``h`` CasADi's
+cubic B-spline ``interpolant`` through the grid, shifted so that ``h(0, 0)
+= 0`` (the surface passes through the path's centre). The spline is part of
+the closed loop's expressions (symbolic and compiled; the heights are baked
+into the compiled step and the exported C, so another map is another
+structure).
+
+Task coordinates ``X = (X_0, u, v)``: ``u``, ``v`` the tool point's
+coordinates in the tangent plane (the path is given in them: the circle is
+projected onto the part along e_n), and the depth
+
+    X_0 = ((p - c) . e_n + h(u, v)) / sqrt(1 + h_u^2 + h_v^2),
+
+the height of the point below the surface, along e_n, times the cosine of
+the surface's slope: the distance along the local normal to first order.
+**Approximation:** it is exact on a plane and where the surface is flat over
+the depth; the error is of order ``X_0^2 kappa`` (kappa the surface's
+curvature), 1e-9 m at a millimetre's depth on a 1 m radius. The contact
+force is ``k_e X_0`` along the local inward normal ``n = (e_n + h_u t_1 +
+h_v t_2) / sqrt(1 + h_u^2 + h_v^2)``. The task frame is ``[n, e_1, n x
+e_1]``, e_1 the unit tangent ``S_u / |S_u|``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import casadi as ca
+import numpy as np
+
+from .curved import _Curved
+
+__all__ = ["HeightMap", "MIN_POINTS", "MAX_POINTS"]
+
+MIN_POINTS = 4
+"""Fewest grid points along each axis (a cubic B-spline needs four)."""
+
+MAX_POINTS = 256
+"""Most grid points along each axis (the heights are constants of the compiled loop)."""
+
+
+class HeightMap(_Curved):
+    """Heights ``heights`` (m, rows along t_1, columns along t_2) on a grid
+    of ``spacing`` (m; one number or (du, dv)) centred on ``c`` in the
+    tangent plane of frame ``R``."""
+
+    kind = "heightmap"
+    fields = (("R", 9), ("c", 3))
+
+    def __init__(self, R, c, heights, spacing):
+        self.R = np.array(R, dtype=float).reshape(3, 3)
+        self.c = np.array(c, dtype=float).reshape(3)
+        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
+            raise ValueError("heightmap: the task frame must be a finite rotation matrix")
+        H = np.array(heights, dtype=float)
+        if H.ndim != 2:
+            raise ValueError(f"heightmap: expected a 2-D grid of heights, got {H.ndim} dimension(s)")
+        if min(H.shape) < MIN_POINTS or max(H.shape) > MAX_POINTS:
+            raise ValueError(f"heightmap: the grid must have {MIN_POINTS} to {MAX_POINTS} points along each axis, "
+                             f"got {H.shape[0]} x {H.shape[1]}")
+        if not np.all(np.isfinite(H)):
+            raise ValueError("heightmap: a height is not finite (NaN or inf)")
+        du, dv = np.broadcast_to(np.asarray(spacing, dtype=float), (2,))
+        if not (np.isfinite(du) and np.isfinite(dv) and du > 0 and dv > 0):
+            raise ValueError(f"grid_spacing: must be finite and > 0, got {spacing!r}")
+        self.u = (np.arange(H.shape[0]) - (H.shape[0] - 1) / 2) * du
+        self.v = (np.arange(H.shape[1]) - (H.shape[1] - 1) / 2) * dv
+        spline = ca.interpolant("height", "bspline", [self.u, self.v], H.ravel(order="F"))
+        self.heights = H - float(spline([0.0, 0.0]))          # through the path's centre
+        self._h = ca.interpolant("height", "bspline", [self.u, self.v], self.heights.ravel(order="F"))
+        x = ca.SX.sym("x", 2)
+        h = self._h(x)
+        self._hfn = ca.Function("height_slope", [x], [h, ca.jacobian(h, x)], ["uv"], ["h", "dh"])
+        digest = hashlib.sha256(np.ascontiguousarray(self.heights).tobytes()
+                                + np.array([du, dv, *H.shape], float).tobytes()).hexdigest()[:16]
+        self._key = f"heightmap-{digest}"
+        self.spacing = (float(du), float(dv))
+
+    @property
+    def key(self) -> str:
+        return self._key
+
+    @property
+    def half_extent(self) -> tuple[float, float]:
+        """Half the grid's size along t_1 and t_2 (m)."""
+        return float(self.u[-1]), float(self.v[-1])
+
+    # -- the shape ----------------------------------------------------------------------------
+    def _slope(self, u, v):
+        """``(h, h_u, h_v)`` at (u, v), symbolic."""
+        h, g = self._hfn(ca.vertcat(u, v))
+        return h, g[0], g[1]
+
+    def _coords(self, p, par):
+        F0 = ca.reshape(par["R"], 3, 3)
+        w = p - par["c"]
+        u, v = ca.dot(w, F0[:, 1]), ca.dot(w, F0[:, 2])
+        h, hu, hv = self._slope(u, v)
+        return ca.vertcat((ca.dot(w, F0[:, 0]) + h) / ca.sqrt(1 + hu * hu + hv * hv), u, v)
+
+    def point(self, X, par):
+        F0 = ca.reshape(par["R"], 3, 3)
+        h, hu, hv = self._slope(X[1], X[2])
+        g = ca.sqrt(1 + hu * hu + hv * hv)
+        return par["c"] + X[1] * F0[:, 1] + X[2] * F0[:, 2] + (X[0] * g - h) * F0[:, 0]
+
+    def _frame(self, X, par):
+        F0 = ca.reshape(par["R"], 3, 3)
+        e_n, t1, t2 = F0[:, 0], F0[:, 1], F0[:, 2]
+        _, hu, hv = self._slope(X[1], X[2])
+        n = (e_n + hu * t1 + hv * t2) / ca.sqrt(1 + hu * hu + hv * hv)
+        e_1 = (t1 - hu * e_n) / ca.sqrt(1 + hu * hu)
+        return ca.horzcat(n, e_1, ca.cross(n, e_1))
+
+    # -- numeric ------------------------------------------------------------------------------
+    def values(self) -> dict[str, np.ndarray]:
+        return {"R": self.R.ravel(order="F"), "c": self.c.copy()}
+
+    def height(self, u, v) -> float:
+        """The surface's height (m, along the outward normal) at (u, v) of the tangent plane."""
+        return float(self._h([u, v]))
+
+    def shifted(self, offset: float):
+        return HeightMap(self.R, self.c + offset * self.R[:, 0], self.heights, self.spacing)
+
+    def __repr__(self) -> str:
+        return (f"HeightMap(normal={np.round(self.R[:, 0], 6).tolist()}, c={self.c.tolist()}, "
+                f"grid={self.heights.shape[0]}x{self.heights.shape[1]}, spacing={list(self.spacing)}, {self._key})")
