@@ -144,6 +144,8 @@ def desired_path(res: SimulationResult | SimulationTraces) -> np.ndarray:
     the TMT's modification, eq. 18; X_d is the circle on the surface that
     the paper's Fig. 5 plots the path against)."""
     tr = _traces(res)
+    if tr.desired_position is not None:
+        return tr.desired_position
     n = tr.surface_frame[:, 0]
     depth = n @ (tr.reference_position - tr.center[:, None])
     return tr.reference_position - np.outer(n, depth)
@@ -173,14 +175,17 @@ def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     res = _traces(res)
     fig = Figure(figsize=(6, 5.5))
     ax = fig.add_subplot(projection="3d")
-    R, c, r = res.surface_frame, res.center, 1.4 * res.radius
-    u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
-    plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
-    ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
+    if res.surface_mesh is not None:
+        ax.plot_surface(*res.surface_mesh, alpha=0.2, color="tab:gray")
+    else:
+        R, c, r = res.surface_frame, res.center, 1.4 * res.radius
+        u, v = np.meshgrid(np.linspace(-r, r, 2), np.linspace(-r, r, 2))
+        plane = c[:, None, None] + R[:, 1, None, None] * u + R[:, 2, None, None] * v
+        ax.plot_surface(*plane, alpha=0.2, color="tab:gray")
     stride = max(1, res.time.size // (2 * DRAW_POINTS))     # a smooth curve: every stride-th sample
     ax.plot(*res.position[:, ::stride], lw=1.5, label=f"X, {res.tool}")
     ax.plot(*desired_path(res)[:, ::stride], "k--", lw=0.8, label="desired path X_d (on the surface)")
-    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="Path on the tilted plane")
+    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title=f"Path on the {res.surface_name}")
     ax.legend()
     return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
 

@@ -303,12 +303,21 @@ class SimulationResult:
         the scenario (the arrays are shared, not copied)."""
         sc = self.scenario
         oriented = self.orientation_error is not None
+        surface = surface_of(sc)
+        # X_d: the reference's tangential coordinates on the surface (depth 0); the surface around the path
+        desired = surface.to_base(np.vstack([np.zeros(self.time.size), self.reference_task[1:]]))
+        r = 1.4 * max(float(sc.trajectory.radius), 1e-3)
+        u = np.linspace(-r, r, 25 if surface.turns else 2)
+        U, V = np.meshgrid(u, u, indexing="ij")
+        mesh = surface.to_base(np.stack([np.zeros_like(U), U, V]))
         return SimulationTraces(
             time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
             reference_position=self.reference_position, surface_frame=surface_of(sc).frame(sc.trajectory.center),
             center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius),
-            orientation_error=self.orientation_error_norm if oriented else None, tool=self.tool)
+            orientation_error=self.orientation_error_norm if oriented else None, tool=self.tool,
+            desired_position=desired, surface_mesh=mesh,
+            surface_name=surface.noun)
 
 
 class Simulator:

@@ -33,3 +33,6 @@ class SimulationTraces:
     radius: float                    # radius of the circle, m
     orientation_error: np.ndarray | None = None   # (N,) angle between tool and command, rad (6-D arms only)
     tool: str = "tool point"         # what X is, for the labels: "<robot> <tip frame> origin"
+    desired_position: np.ndarray | None = None    # (3, N) X_d: the reference's point on the surface, m
+    surface_mesh: np.ndarray | None = None        # (3, a, b) points of the surface around the path, m
+    surface_name: str = "tilted plane"            # the surface, for the figure's title

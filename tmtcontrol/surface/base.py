@@ -51,6 +51,8 @@ class Surface(abc.ABC):
     fields: tuple[tuple[str, int], ...] = ()
     turns: bool = False
     """Whether the task frame turns along the surface (a curved shape)."""
+    noun: str = "surface"
+    """What the shape is called in figures and reports."""
 
     @abc.abstractmethod
     def values(self) -> dict[str, np.ndarray]:

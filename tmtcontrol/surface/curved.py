@@ -168,6 +168,7 @@ class Sphere(_Curved):
     at ``c``; the tool on its ``side`` (``outside``: a dome, ``inside``: a bowl)."""
 
     kind = "sphere"
+    noun = "sphere"
 
     @staticmethod
     def _coords(p, par):
@@ -203,6 +204,7 @@ class Cylinder(_Curved):
     or shaft's surface, ``inside``: a bore)."""
 
     kind = "cylinder"
+    noun = "cylinder"
 
     @staticmethod
     def _coords(p, par):

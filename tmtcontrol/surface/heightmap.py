@@ -51,6 +51,7 @@ class HeightMap(_Curved):
     tangent plane of frame ``R``."""
 
     kind = "heightmap"
+    noun = "measured part"
     fields = (("R", 9), ("c", 3))
 
     def __init__(self, R, c, heights, spacing):

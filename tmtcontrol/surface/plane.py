@@ -53,6 +53,7 @@ class Plane(Surface):
     """
 
     kind = "plane"
+    noun = "tilted plane"
     fields = (("R", 9), ("c", 3))
 
     def __init__(self, R, c):
@@ -105,6 +106,8 @@ class Plane(Surface):
 
     def to_base(self, X) -> np.ndarray:
         X = np.asarray(X, dtype=float)
+        if X.ndim > 2:                      # a grid of points (3, a, b, ...)
+            return self.to_base(X.reshape(3, -1)).reshape(X.shape)
         return (self.c[:, None] if X.ndim == 2 else self.c) + self.R @ X
 
     def from_base(self, p) -> np.ndarray:
