@@ -312,7 +312,7 @@ def test_tilt_deg_that_disagrees_with_the_normal_is_refused_and_not_printed():
     plane was silently ignored (a sweep over it claimed robustness over planes never simulated).
     Refused, naming tilt_deg; the same plane (45 deg) is accepted; the printed scenario has no
     tilt_deg beside a normal, and reads back."""
-    from tmtcontrol.simulation.scenario import dump_scenario, load_scenario as load
+    from tmtcontrol.simulation.scenario import dump_scenario
 
     ur5 = load_scenario("ur5")
     with pytest.raises(ScenarioError, match=r"^environment\.tilt_deg: 30 deg is not the plane of normal"):

@@ -10,12 +10,13 @@ is projected back on the normal (R[:,0].R[:,0] = 1 to one ulp), and the
 controller's expressions are compiled apart from the plant's. Measured: about
 1e-13 over the paper run.
 """
-import ctypes
 import json
+import re
 import os
 import pathlib
 import shutil
 import subprocess
+import sys
 
 import casadi as ca
 import numpy as np
@@ -411,3 +412,121 @@ def test_tmt_step_calls_no_malloc_free_or_realloc(tmp_path, inner):
     undefined = {line.split()[-1] for line in syms.splitlines() if line.split()[-2:-1] == ["U"]}
     assert undefined <= {"sin", "cos", "sincos", "tan", "sqrt", "fmax", "fmin", "fabs", "atan2", "exp", "log", "pow",
                          "tanh", "asin", "acos", "atan", "floor", "ceil", "erf", "sinh", "cosh"}, undefined
+
+
+# -- a tampered export.json (issue 43): every field checked, one line, before anything is compiled ----
+
+@pytest.mark.parametrize("tamper, needle", [
+    (lambda m: m["robot"].__setitem__("joints", "3"), "robot.joints: Input should be a valid integer"),
+    (lambda m: m.pop("law"), "law: Field required"),
+    (lambda m: m.pop("sizes"), "sizes: Field required"),
+    (lambda m: m.__setitem__("law", "nope"), "law: Input should be 'tmt'"),
+    (lambda m: m["sizes"].__setitem__("state", 99), "sizes.state is 99, but law 'tmt' on 3 joints has"),
+    (lambda m: m["sizes"].__setitem__("param", 7), "sizes.param is 7"),
+    (lambda m: m.__setitem__("surface", "torus"), "surface: Input should be 'plane'"),
+    (lambda m: m.__setitem__("delay", -1), "delay: Input should be greater than or equal to 0"),
+    (lambda m: m.__setitem__("inner_loop", "yes"), "inner_loop: Input should be a valid boolean"),
+    (lambda m: m.__setitem__("extra", 1), "extra: Extra inputs are not permitted"),
+])
+def test_a_tampered_export_json_is_refused_naming_the_field(exported_inner, tmp_path, tamper, needle):
+    import shutil
+
+    folder, _ = exported_inner
+    copy = tmp_path / "c"
+    shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("*.so", "build*"))
+    meta = json.loads((copy / "export.json").read_text())
+    tamper(meta)
+    (copy / "export.json").write_text(json.dumps(meta))
+    before = sorted(p.name for p in copy.iterdir())
+    with pytest.raises(ExportError, match=re.escape(needle)) as err:
+        CompiledController(copy)
+    assert "\n" not in str(err.value)
+    assert sorted(p.name for p in copy.iterdir()) == before          # nothing built, nothing left
+
+
+# -- the user's C contained (issue 43): a crash, an exit, a hang in tmt_step is one line, exit 2 ---------
+
+FAULTS = {
+    "segfault": ("{ volatile int *z = 0; *z = 1; }", "crashed (SIGSEGV) in tmt_step"),
+    "abort": ("abort();", "crashed (SIGABRT) in tmt_step"),
+    "exit": ("exit(0);", "ended (exit status 0) in tmt_step"),
+    "hang": ("{ volatile int spin = 1; while (spin) { } }", "tmt_step did not return within 1 s"),
+}
+
+
+def _faulty_export(folder, tmp_path, fault):
+    """A copy of the export whose tmt_step runs ``fault`` at its 5th call."""
+    import shutil
+
+    copy = tmp_path / "faulty"
+    shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("*.so", "build*"))
+    c = (copy / "tmt_controller.c").read_text()
+    head = "int i, rc, bad = 0;"
+    assert head in c
+    c = "#include <stdlib.h>\n" + c.replace(head, head + "\n    static int calls_;\n    if (++calls_ == 5) "
+                                             + FAULTS[fault][0], 1)
+    (copy / "tmt_controller.c").write_text(c)
+    return copy
+
+
+@pytest.mark.parametrize("fault", sorted(FAULTS))
+def test_a_crash_exit_or_hang_in_the_users_c_is_one_line_exit_2(exported_inner, tmp_path, fault):
+
+    folder, _ = exported_inner
+    copy = _faulty_export(folder, tmp_path, fault)
+    out = tmp_path / "out"
+    env = {**os.environ, "TMTCONTROL_STEP_BUDGET": "1"}
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "paper", "--controller", str(copy),
+                        "--out", str(out), "--no-plots", "--set", "trajectory.cycles=0.01"],
+                       capture_output=True, text=True, env=env)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and FAULTS[fault][1] in lines[0] and "at period 4" in lines[0], r.stderr
+    assert not out.exists() and r.stdout == ""
+
+
+def test_the_isolated_controller_gives_the_in_process_run(exported_inner):
+    """The child process changes where the C runs, not what it computes: bit for bit."""
+    folder, ctl = exported_inner
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.05"])
+    here = simulate_with_controller(sc, ctl)
+    there = simulate_with_controller(sc, CompiledController(folder, library=ctl.library, isolated=True))
+    for name in ("contact_force", "q", "dq", "tau", "command_task"):
+        np.testing.assert_array_equal(getattr(here, name), getattr(there, name), err_msg=name)
+
+
+def test_ctrl_c_stops_a_hanging_controller(exported_inner, tmp_path):
+    """While the user's C spins in tmt_step, Ctrl-C to tmtcontrol ends the run
+    (exit 130) and the controller's process: synchronised on the controller's
+    process appearing, not on time."""
+    import signal
+    import time
+
+    folder, _ = exported_inner
+    copy = _faulty_export(folder, tmp_path, "hang")
+    proc = subprocess.Popen([sys.executable, "-m", "tmtcontrol.cli", "simulate", "paper", "--controller", str(copy),
+                             "--out", str(tmp_path / "out"), "--no-plots", "--set", "trajectory.cycles=0.01"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def hosts():
+        found = []
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                cmd = open(f"/proc/{pid}/cmdline", "rb").read().split(b"\0")
+                ppid = int(open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            if ppid == proc.pid and any(a.endswith(b"export/host.py") for a in cmd):
+                found.append(int(pid))
+        return found
+
+    deadline = time.monotonic() + 120            # a guard against a broken test, not a speed assumption
+    while not hosts():
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.05)
+    child = hosts()[0]
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted (Ctrl-C)" in err and "Traceback" not in err
+    assert not os.path.exists(f"/proc/{child}") or open(f"/proc/{child}/stat").read().split()[2] == "Z"

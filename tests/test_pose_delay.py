@@ -11,7 +11,6 @@ one meaning of ``controller.delay_samples``."""
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 import pytest
 

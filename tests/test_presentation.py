@@ -4,7 +4,6 @@ identical curves stay visible and legends cover no data, the analysis chart
 at the worst-case mass, the damping design's figures, one number format per
 table column, the PDF's running header, continuation notes, tags and alt
 text, and the figures of the paper's Figs. 1, 2, 4 and 5."""
-import math
 import re
 import subprocess
 import sys

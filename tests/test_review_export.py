@@ -14,7 +14,6 @@ the simulation.
 Tolerance of the equality checks: 1e-9 relative to each signal's largest
 magnitude (the issue's acceptance; measured about 1e-15).
 """
-import ctypes
 import shutil
 import subprocess
 
@@ -74,6 +73,34 @@ def test_replay_refuses_a_malformed_csv_in_one_line(built, name, text, says):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "bad.csv" in lines[0] and says in lines[0], (name, r.stderr)
     assert not out.exists()                      # nothing written
+
+
+def test_replay_on_a_full_disk_exits_3_and_leaves_no_partial_file(built):
+    """A write that fails (here the file size limit RLIMIT_FSIZE = 4 KiB, SIGXFSZ
+    ignored, so write() fails with EFBIG as on a full disk) ends replay with
+    one line and exit 3, the partial output removed (issue 43: it exited 0
+    having written 21 of 1,000 rows)."""
+    import resource
+    import signal
+
+    folder, _ = built
+    (folder / "many.csv").write_text(HEADER + "\n" + (ROW + "\n") * 1000, newline="")
+    out = folder / "many_out.csv"
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+    r = subprocess.run(["./replay", "many.csv", "many_out.csv"], cwd=folder, capture_output=True, text=True,
+                       preexec_fn=limit)
+    assert r.returncode == 3, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "writing many_out.csv failed" in lines[0] and "removed" in lines[0], r.stderr
+    assert not out.exists()
+    # the same run without the limit writes every row
+    ok = subprocess.run(["./replay", "many.csv", "many_out.csv"], cwd=folder, capture_output=True, text=True)
+    assert ok.returncode == 0 and len(out.read_text().splitlines()) == 1001
+    out.unlink()
 
 
 def test_replay_reads_crlf_and_a_missing_final_newline_as_lf(built):

@@ -265,7 +265,7 @@ def _simulate_with(args, workers) -> int:
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
 
-        controller = CompiledController(args.controller, flag="--controller", scenario=sc)
+        controller = CompiledController(args.controller, flag="--controller", scenario=sc, isolated=True)
         import os
 
         here, ctl = os.path.realpath(args.out), os.path.realpath(args.controller)

@@ -34,8 +34,8 @@ import numpy as np
 from ..cache import new_build_folder
 from ..model.robot import task_of
 from ..processes import run_compiler
-from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, param_layout,
-                                     plant_inputs_layout)
+from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, controller_state_layout,
+                                     param_layout, plant_inputs_layout)
 from ..simulation.rollout import compiler
 from ..surface import SHAPES, Plane, contact_force
 from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
@@ -75,21 +75,74 @@ def compile_export(folder: str | os.PathLike, flag: str = "--controller") -> pat
     return lib
 
 
+def _metadata_schema():
+    """The pydantic model of ``export.json`` (every field typed and bounded;
+    unknown fields refused)."""
+    from typing import Literal
+
+    from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr
+
+    from ..control.laws import laws
+
+    class _Strict(BaseModel):
+        model_config = ConfigDict(extra="forbid", strict=True)
+
+    class Sizes(_Strict):
+        state: int = Field(ge=0)
+        param: int = Field(ge=1)
+        arg: int = Field(ge=0)
+        res: int = Field(ge=0)
+        iw: int = Field(ge=0)
+        w: int = Field(ge=0)
+
+    class Robot(_Strict):
+        model: StrictStr
+        tip: StrictStr | None
+        joints: int = Field(ge=1, le=64)
+        armature: StrictBool | StrictFloat | StrictInt | list[StrictFloat | StrictInt] | None
+        key: StrictStr
+
+    class Metadata(_Strict):
+        written_by: Literal["tmtcontrol export"]
+        version: StrictStr
+        casadi: StrictStr
+        scenario: StrictStr
+        law: Literal[tuple(laws())]                      # a registered law
+        surface: Literal[tuple(SHAPES)] = Plane.kind     # an export older than curved surfaces: a plane
+        inner_loop: StrictBool
+        delay: int = Field(ge=0, le=1000)
+        model_mass_scale: StrictFloat | StrictInt
+        compensate_friction: StrictBool
+        sizes: Sizes
+        instructions: int = Field(ge=0)
+        robot: Robot
+
+    return Metadata
+
+
 def _read_metadata(folder: pathlib.Path, flag: str) -> dict:
+    """``export.json`` of ``folder``, every field checked (:func:`_metadata_schema`):
+    one line naming the field otherwise."""
+    from pydantic import ValidationError
+
     try:
         meta = json.loads((folder / METADATA).read_text(encoding="utf-8"))
-        if meta.get("written_by") != "tmtcontrol export" or not (folder / "tmt_controller.c").is_file():
+        if not isinstance(meta, dict) or meta.get("written_by") != "tmtcontrol export" \
+                or not (folder / "tmt_controller.c").is_file():
             raise ValueError
     except (OSError, ValueError, AttributeError):
         raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
                           f"(no tmt_controller.c and {METADATA})") from None
     try:
-        robot = meta["robot"]
-        if not (isinstance(robot, dict) and isinstance(robot.get("joints"), int) and "key" in robot):
-            raise KeyError
-    except (KeyError, TypeError):
-        raise ExportError(f"{flag}: {folder}/{METADATA} has no robot entry (an export of an earlier version); "
-                          "export the scenario again (tmtcontrol export)") from None
+        _metadata_schema().model_validate(meta)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(x) for x in err["loc"]) or "(top level)"
+        if err["loc"] and err["loc"][0] == "robot" and err["type"] == "missing":
+            raise ExportError(f"{flag}: {folder}/{METADATA} has no robot entry (an export of an earlier "
+                              "version); export the scenario again (tmtcontrol export)") from None
+        raise ExportError(f"{flag}: {folder}/{METADATA}: {where}: {err['msg']}; export the scenario again "
+                          "(tmtcontrol export)") from None
     return meta
 
 
@@ -102,6 +155,12 @@ class CompiledController:
         A folder written by ``tmtcontrol export``.
     library : path, optional
         An already compiled library (default: :func:`compile_export`).
+    isolated : bool
+        Load the library only in a child process (:mod:`.host`): its crash,
+        exit or hang is reported in one line (:class:`ExportError`) instead
+        of ending this process; the command line's ``--controller`` uses it.
+        Then the in-process C API (:meth:`step`, :meth:`new_state`) is not
+        available; :func:`simulate_with_controller` talks to the child.
 
     Attributes
     ----------
@@ -110,7 +169,7 @@ class CompiledController:
     """
 
     def __init__(self, folder: str | os.PathLike, library: str | os.PathLike | None = None,
-                 flag: str = "--controller", scenario=None):
+                 flag: str = "--controller", scenario=None, isolated: bool = False):
         from ..control.laws import get_law
 
         self.folder = pathlib.Path(folder)
@@ -121,11 +180,14 @@ class CompiledController:
         self.robot = self.meta["robot"]
         self.n = self.robot["joints"]
         self.task = task_of(self.n)
-        kind = self.meta.get("surface", Plane.kind)
-        if kind not in SHAPES:
-            raise ExportError(f"{flag}: {self.folder / METADATA} names surface {kind!r}, not one of "
-                              f"{', '.join(SHAPES)}; export the scenario again (tmtcontrol export)")
-        self.surface = SHAPES[kind]
+        self.surface = SHAPES[self.meta.get("surface", Plane.kind)]
+        sizes = {"state": controller_state_layout(self.task, self.law, self.meta["delay"], self.torque).size,
+                 "param": controller_param_layout(self.task, self.law, self.surface).size}
+        for key, size in sizes.items():     # the structs the C code was written with
+            if self.meta["sizes"][key] != size:
+                raise ExportError(f"{flag}: {self.folder}/{METADATA}: sizes.{key} is {self.meta['sizes'][key]}, "
+                                  f"but law {self.law.name!r} on {self.n} joints has {size}; export the scenario "
+                                  "again (tmtcontrol export)")
         if scenario is not None:            # refused before compiling
             self.check_matches(scenario)
         self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
@@ -144,6 +206,11 @@ class CompiledController:
             ("out", ctypes.c_double * n_out), ("arg", ctypes.c_void_p * alloc(sz["arg"])),
             ("res", ctypes.c_void_p * alloc(sz["res"])), ("iw", ctypes.c_longlong * alloc(sz["iw"])),
             ("w", ctypes.c_double * alloc(sz["w"]))]})
+        self.isolated = isolated
+        self.host_sizes = {"param": sz["param"], "state": sz["state"], "meas": n_y, "out": n_out,
+                           "arg": sz["arg"], "res": sz["res"], "iw": sz["iw"], "w": sz["w"]}
+        if isolated:                       # the user's code runs in the child only (.host)
+            return
         dll = ctypes.CDLL(str(self.library))
         for name, cls in (("params", self.Params), ("state", self.State), ("measurement", self.Measurement),
                           ("command", self.Command)):
@@ -243,24 +310,53 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     _, P, s0, _ = sim.inputs(scenario)
     plant = BuiltinPlant(sim, P)
     params = controller.params_from(P)
-    state = controller.new_state(params)
     n, n_s = sim.task.n, controller.meta["sizes"]["state"]
-    ctypes.memmove(state.s, np.ascontiguousarray(s0[2 * n:2 * n + n_s]).ctypes.data, 8 * n_s)
+    s_start = np.ascontiguousarray(s0[2 * n:2 * n + n_s])
+    sc = scenario.simulation
+    info = {"integrator": sc.integrator, "code": "exported C (SIL)", "controller": str(controller.folder)}
+    n_cmd = sum(f.size for f in controller.cmd_fields)
+    flag, Ts = controller.flag, scenario.controller.Ts
+    calls = [0]
+
+    def failed(rc):
+        raise ExportError(f"{flag}: tmt_step returned {rc} at period {calls[0]} (t = {calls[0] * Ts:.3f} s)"
+                          + (" (a non-finite result: TMT_E_NONFINITE)" if rc == -1 else ""))
+
+    if controller.isolated:
+        from .host import ControllerHost, HostFault
+
+        try:
+            with ControllerHost(controller.library, controller.host_sizes) as host:
+                host.init(bytes(params))
+                host.set_state(s_start.tobytes())
+                info["build_time_s"] = time.perf_counter() - t0
+
+                def control(y):
+                    rc, out = host.step(np.ascontiguousarray(y, dtype=float).tobytes())
+                    if rc != 0:
+                        failed(rc)
+                    calls[0] += 1
+                    return np.frombuffer(out, dtype=float).copy()
+
+                return run_split(sim, scenario, control, plant, info, n_cmd)
+        except HostFault as exc:
+            raise ExportError(f"{flag}: {controller.folder}: {exc} at period {calls[0]} "
+                              f"(t = {calls[0] * Ts:.3f} s)") from None
+    state = controller.new_state(params)
+    ctypes.memmove(state.s, s_start.ctypes.data, 8 * n_s)
     meas, cmd = controller.Measurement(), controller.Command()
     y_c, out = np.frombuffer(meas, dtype=float), np.frombuffer(cmd, dtype=float)
-    build_time = time.perf_counter() - t0
+    info["build_time_s"] = time.perf_counter() - t0
 
     def control(y):
         y_c[:] = y
-        if controller.step(params, state, meas, cmd) != 0:
-            raise RuntimeError("tmt_step failed")
+        rc = controller.step(params, state, meas, cmd)
+        if rc != 0:
+            failed(rc)
+        calls[0] += 1
         return out.copy()
 
-    sc = scenario.simulation
-    return run_split(sim, scenario, control, plant, {"integrator": sc.integrator, "code": "exported C (SIL)",
-                                                     "controller": str(controller.folder),
-                                                     "build_time_s": build_time},
-                     sum(f.size for f in controller.cmd_fields))
+    return run_split(sim, scenario, control, plant, info, n_cmd)
 
 
 class BuiltinPlant:

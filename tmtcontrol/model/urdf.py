@@ -19,8 +19,10 @@ joints (a closed loop) or several root links; ``floating`` or ``planar``
 joints (a floating base); a revolute or prismatic chain joint without
 ``<limit lower upper effort velocity>``, a continuous chain joint without
 ``<limit effort velocity>``; limits or masses the URDF spec does not allow
-(non-finite, lower > upper, effort or velocity <= 0, negative mass, a zero
-axis); a moving link without ``<inertial>``, with zero mass, or with an inertia
+(lower > upper, effort or velocity <= 0, negative mass, a zero axis); any
+number that is not finite (``nan``, ``inf``) in an origin, axis, mimic,
+limit, dynamics, mass or inertia, before CasADi, Pinocchio or MuJoCo see the
+file; a moving link without ``<inertial>``, with zero mass, or with an inertia
 tensor that is not positive definite (massless frames attached by fixed joints
 may omit ``<inertial>``; any inertia present must be positive semi-definite);
 a mimic joint on the actuated chain or mimicking an actuated joint (off the
@@ -200,6 +202,7 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
     robot = _parse(text, where)
     if not robot.links:
         raise URDFError(f"{where}: no <link>")
+    _check_numbers(robot, where)
     for kind, items in (("link", robot.links), ("joint", robot.joints)):
         names = [x.name for x in items]
         twice = sorted({x for x in names if names.count(x) > 1})
@@ -321,6 +324,52 @@ def _parse(text: str, where: str):
         raise URDFError(f"{where}: not a valid URDF ({message})") from None
     finally:
         core.on_error = saved
+
+
+def _check_numbers(robot, where) -> None:
+    """Every number of the kinematics finite (``nan`` and ``inf`` parse as
+    floats): joint and inertial origins, axes, mimic multipliers and
+    offsets, limits, dynamics, masses and inertias; refused here, before any
+    other library (CasADi, Pinocchio, MuJoCo) sees the file."""
+    def check(values, what):
+        if values is None:
+            return
+        vals = values if isinstance(values, (list, tuple)) else [values]
+        for v in vals:
+            try:
+                ok = v is None or math.isfinite(float(v))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise URDFError(f"{where}: {what} must be finite, got {v!r}")
+
+    for j in robot.joints:
+        name = f"joint {j.name!r}"
+        if j.origin is not None:
+            check(j.origin.xyz, f"{name} <origin xyz>")
+            check(j.origin.rpy, f"{name} <origin rpy>")
+        check(j.axis, f"{name} <axis xyz>")
+        if j.mimic is not None:
+            check(j.mimic.multiplier, f"{name} <mimic multiplier>")
+            check(j.mimic.offset, f"{name} <mimic offset>")
+        if j.limit is not None:
+            for key in ("lower", "upper", "effort", "velocity"):
+                check(getattr(j.limit, key, None), f"{name} <limit {key}>")
+        if j.dynamics is not None:
+            check(j.dynamics.damping, f"{name} <dynamics damping>")
+            check(j.dynamics.friction, f"{name} <dynamics friction>")
+    for link in robot.links:
+        ine = link.inertial
+        if ine is None:
+            continue
+        name = f"link {link.name!r}"
+        check(ine.mass, f"{name} <mass>")
+        if ine.origin is not None:
+            check(ine.origin.xyz, f"{name} <inertial origin xyz>")
+            check(ine.origin.rpy, f"{name} <inertial origin rpy>")
+        if ine.inertia is not None:
+            t = ine.inertia
+            check([t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz], f"{name} <inertia>")
 
 
 def _no_cycle(root, children, count, where):

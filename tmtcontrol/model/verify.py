@@ -111,10 +111,18 @@ def check_robot(robot, samples: int = 20, seed: int = 0, pinocchio: bool = True)
     n = robot.n
     q, dq = ca.SX.sym("q", n), ca.SX.sym("dq", n)
     M = f.mass_matrix(q)
-    Cdq = f.bias(q, dq) - f.gravity(q)
-    Mdot_quad = ca.dot(dq, ca.jtimes(M, q, dq) @ dq)
-    energy = ca.Function("energy_identity", [q, dq], [Mdot_quad - 2 * ca.dot(dq, Cdq),
-                                                     ca.fabs(Mdot_quad) + 2 * ca.fabs(ca.dot(dq, Cdq))],
+    bias, grav = f.bias(q, dq), f.gravity(q)
+    Cdq = bias - grav
+    Mdot = ca.jtimes(M, q, dq)
+    Mdot_quad = ca.dot(dq, Mdot @ dq)
+    # the residual's scale is that of the quantities it is computed from (C dq is the difference of
+    # the bias and the gravity torque, each of which may be far larger than their difference): the
+    # rounding of the terms, not their sum, which the identity makes small or zero; and a floor of the
+    # arm's own size (|M| |dq|^3, the order of dq^T Mdot dq), where every term vanishes (a mass on its axis)
+    adq = ca.fabs(dq)
+    scale = (ca.dot(adq, ca.fabs(Mdot) @ adq) + 2 * ca.dot(adq, ca.fabs(bias) + ca.fabs(grav))
+             + ca.norm_fro(M) * ca.norm_2(dq) ** 3)
+    energy = ca.Function("energy_identity", [q, dq], [Mdot_quad - 2 * ca.dot(dq, Cdq), scale],
                          ["q", "dq"], ["residual", "scale"])
     p = f.fk(q)[:3, 3]
     dpdq = ca.Function("dpdq", [q], [ca.jacobian(p, q)], ["q"], ["dp_dq"])

@@ -68,11 +68,26 @@ static void set_measurement(tmt_measurement *meas, const double *v)
 @READ_MEAS@
 }
 
-static void write_command(FILE *out, double t, const tmt_command *cmd)
+/* Writes one row; 0, or -1 if the stream has failed (a full disk, a file size limit). */
+static int write_command(FILE *out, double t, const tmt_command *cmd)
 {
     fprintf(out, "%.17g", t);
 @WRITE_CMD@
     fputc('\n', out);
+    return ferror(out) ? -1 : 0;
+}
+
+/* A write that failed: one line, the partial file removed (never left as if complete). */
+static int write_failed(FILE *out, const char *path, long rows, double *data, double *times)
+{
+    int err = errno;
+    fclose(out);
+    remove(path);
+    free(data);
+    free(times);
+    fprintf(stderr, "replay: writing %s failed after %ld row(s) (%s); the partial file was removed\n", path,
+            rows, err ? strerror(err) : "write error");
+    return 3;
 }
 
 /* Reads the rows of path into *rows and *times; returns their number, or -1
@@ -230,7 +245,11 @@ int main(int argc, char **argv)
         free(times);
         return 2;
     }
+    errno = 0;
     fprintf(out, "t,@CMD_COLUMNS@\n");
+    if (ferror(out)) {
+        return write_failed(out, argv[2], 0, rows, times);
+    }
     tmt_default_params(&params);
     tmt_init(&params, &state);
     for (k = 0; k < n; ++k) {
@@ -243,9 +262,21 @@ int main(int argc, char **argv)
             free(times);
             return 1;
         }
-        write_command(out, times[k], &cmd);
+        if (write_command(out, times[k], &cmd) != 0) {
+            return write_failed(out, argv[2], k, rows, times);
+        }
     }
-    fclose(out);
+    if (fflush(out) != 0 || ferror(out)) {
+        return write_failed(out, argv[2], n, rows, times);
+    }
+    if (fclose(out) != 0) {
+        int err = errno;
+        remove(argv[2]);
+        free(rows);
+        free(times);
+        fprintf(stderr, "replay: closing %s failed (%s); the partial file was removed\n", argv[2], strerror(err));
+        return 3;
+    }
     free(rows);
     free(times);
     return 0;
