@@ -358,3 +358,105 @@ def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr
     assert not out.exists()
+
+
+# -- paths: line and raster ------------------------------------------------------------------------
+
+def _traj(**kw):
+    from tmtcontrol.simulation.scenario import scenario_from_dict
+
+    return scenario_from_dict({"trajectory": kw}).trajectory
+
+
+@pytest.mark.parametrize("kw", [{"path": "circle"}, {"path": "line", "direction_deg": 30.0},
+                                {"path": "raster", "lanes": 6, "direction_deg": -45.0}])
+def test_path_velocity_and_acceleration_are_the_derivatives_of_its_position(kw):
+    """Central differences of the position (h = 1e-5 s: truncation ~ h^2 r w^3 ~ 1e-9)."""
+    from tmtcontrol.simulation.trajectory import path_reference
+
+    tr = _traj(**kw)
+    t, h = np.linspace(0.0, tr.period, 37), 1e-5
+    ref = path_reference(t, tr)
+    fd_v = (path_reference(t + h, tr).pos - path_reference(t - h, tr).pos) / (2 * h)
+    fd_a = (path_reference(t + h, tr).vel - path_reference(t - h, tr).vel) / (2 * h)
+    assert np.abs(ref.vel - fd_v).max() < 1e-7 and np.abs(ref.acc - fd_a).max() < 1e-6
+    # periodic, and within radius along each tangential axis of the path's own frame
+    end = path_reference(np.array([0.0, tr.period]), tr)
+    assert np.abs(end.pos[:, 0] - end.pos[:, 1]).max() < 1e-12
+    assert np.abs(ref.pos).max() <= tr.radius * (1 + 1e-12) * (np.sqrt(2) if kw["path"] == "raster" else 1)
+
+
+def test_line_stays_on_its_direction_and_raster_makes_its_passes():
+    from tmtcontrol.simulation.trajectory import path_reference
+
+    line = _traj(path="line", direction_deg=30.0)
+    t = np.linspace(0.0, line.period, 4001)
+    p = path_reference(t, line).pos
+    d = np.array([np.cos(np.radians(30.0)), np.sin(np.radians(30.0))])
+    assert np.abs(d[0] * p[1] - d[1] * p[0]).max() < 1e-15 and np.isclose(np.ptp(d @ p), 2 * line.radius)
+    raster = _traj(path="raster", lanes=6)
+    ref = path_reference(t, raster)
+    along = ref.vel[0]
+    passes = np.count_nonzero(np.diff(np.sign(along[np.abs(along) > 1e-9])) != 0)
+    assert passes == 6                                # a pass ends where the motion along the lanes reverses
+    assert np.isclose(np.ptp(ref.pos[1]), 2 * raster.radius)   # across the whole patch and back
+
+
+def test_puma_polishes_a_raster_on_the_plane_at_f_d():
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(paper_scenario(), ['trajectory.path="raster"', "trajectory.cycles=0.75"])
+    res = Simulator(sc, compile=False).run()
+    late = res.time > 1.0
+    assert np.abs(res.contact_force[late] - 10.0).max() < 10e-3
+    assert np.abs(res.position_task[1:, late] - res.reference_task[1:, late]).max() < 1e-3
+
+
+@pytest.mark.parametrize("content, needle", [
+    ('[trajectory]\nlanes = 4\n', "trajectory.lanes: not used by path = 'circle'"),
+    ('[trajectory]\ndirection_deg = 10.0\n', "trajectory.direction_deg: not used by path = 'circle'"),
+    ('[trajectory]\npath = "raster"\nlanes = 100\nperiod = 0.5\n', "trajectory.lanes: each of the 100 passes"),
+    ('[trajectory]\npath = "spiral"\n', "trajectory.path"),
+])
+def test_bad_path_input_is_one_line_exit_2(tmp_path, content, needle):
+    path = tmp_path / "s.toml"
+    path.write_text(content)
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(path), "--out", str(tmp_path / "o"),
+                        "--no-plots"], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and needle in r.stderr, r.stderr
+
+
+def test_pipe_contact_force_is_k_e_times_the_depth_from_pinocchio():
+    """Acceptance of issue 40: the logged contact force equals k_e times the
+    penetration computed independently: Pinocchio's forward kinematics of
+    the logged joints, then the textbook distance of the tool point to the
+    pipe's axis (NumPy), r minus it (rounding of two kinematics: 1e-9 N)."""
+    from tmtcontrol.model import load_robot
+    from tmtcontrol.model.verify import pinocchio_model
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(arm_scenario("ur5-pipe"), ["trajectory.cycles=0.25"])
+    res = Simulator(sc, compile=False).run()
+    pin = pinocchio_model(load_robot("ur5"))
+    axis_pt, axis, r = np.array([0.4, 0.2, 0.1]), np.array([0.0, 1.0, 0.0]), 0.1
+    n = res.q.shape[0]
+    worst = 0.0
+    for k in range(0, res.time.size, 25):
+        p = np.asarray(pin(res.q[:, k], np.zeros(n), np.zeros(n))["fk"])[:3, 3]
+        w = p - axis_pt
+        depth = r - np.linalg.norm(w - (w @ axis) * axis)
+        expected = sc.environment.stiffness.values[0] * max(depth, 0.0)
+        worst = max(worst, abs(res.contact_force[k] - expected))
+    assert worst < 1e-9, worst
+
+
+def test_a_flat_height_map_reproduces_the_plane_scenario(tmp_path):
+    """Acceptance of issue 40: the plane given as a (flat) height map gives the
+    plane's run to 1e-6 N (the same loop on another chart: rounding only)."""
+    from tmtcontrol.simulation.simulator import Simulator
+
+    flat = _heightmap_scenario(tmp_path, np.zeros((31, 31)), extra=["trajectory.cycles=0.25"])
+    plane = apply_overrides(paper_scenario(), ["trajectory.cycles=0.25"])
+    a, b = Simulator(flat, compile=False).run(), Simulator(plane, compile=False).run()
+    assert np.abs(a.contact_force - b.contact_force).max() < 1e-6
+    assert np.abs(a.q - b.q).max() < 1e-9

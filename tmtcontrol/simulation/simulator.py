@@ -41,7 +41,7 @@ from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError, paper_scenario
 from .traces import SimulationTraces
-from .trajectory import circle_reference
+from .trajectory import path_reference
 
 __all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS",
            "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "structure",
@@ -217,11 +217,12 @@ def path_of(robot, sc: Scenario) -> PosePath:
     finite = np.isfinite(robot.q_min) & np.isfinite(robot.q_max)
     seed = np.asarray(r.q0, float) if r.q0 is not None else np.where(
         finite, (np.where(finite, robot.q_min, 0.0) + np.where(finite, robot.q_max, 0.0)) / 2, 0.0)
-    key = (robot.key, repr(surface), tr.radius, tr.period, R_d.tobytes(), seed.tobytes())
+    key = (robot.key, repr(surface), tr.path, tr.radius, tr.period, tr.lanes, tr.direction_deg, R_d.tobytes(),
+           seed.tobytes())
     if key not in _PATHS:
         _task(robot)
         t = np.arange(PATH_SAMPLES) * tr.period / PATH_SAMPLES
-        ref = circle_reference(t, tr.radius, tr.period)
+        ref = path_reference(t, tr)
         pts = surface.to_base(np.vstack([np.zeros(t.size), ref.pos]))
         if len(_PATHS) > 16:
             _PATHS.clear()
@@ -511,7 +512,7 @@ class Simulator:
                                 f"than one control period (1/controller.rate = {Ts:g} s)")
         t = np.arange(N) * Ts
         surface, R_d = _frames(sc)
-        ref = circle_reference(t, sc.trajectory.radius, sc.trajectory.period)
+        ref = path_reference(t, sc.trajectory)
         k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
         if not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):
             raise ScenarioError("environment.stiffness: profile must stay finite and > 0")

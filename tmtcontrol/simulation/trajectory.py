@@ -1,8 +1,24 @@
-"""Reference paths: the circle on the tilted plane of Fig. 2.
+"""Reference paths in the surface's tangential coordinates: the circle of Fig. 2, a line, a raster.
 
-The circle lies in the plane (task axes 1 and 2), centred at the task-frame
-origin, traversed once per ``period`` at constant angular rate. Positions in m,
-velocities in m/s, accelerations in m/s^2.
+Every path is given on task axes 1 and 2 (the surface's tangential
+coordinates, :mod:`tmtcontrol.surface`), centred at the task-frame origin
+(``trajectory.center``) and periodic with ``period``; ``radius`` is its
+half-size (m). Positions in m, velocities in m/s, accelerations in m/s^2,
+each analytic (no finite differences), so the feed-forward of eq. (4) is
+exact:
+
+* ``circle`` (section V): ``radius (cos wt, sin wt)``, ``w = 2 pi / period``;
+* ``line``: back and forth along the direction ``direction_deg`` (from task
+  axis 1): ``radius sin(wt) d``, at rest at both ends, fastest at the centre;
+* ``raster``: a smooth lawn-mower pattern over the square of half-side
+  ``radius`` turned by ``direction_deg``: ``lanes`` passes across along d
+  (``radius sin(lanes w t / 2) d``) while the pattern advances across the
+  lanes and back once per period (``-radius cos(wt) d_perp``): the sweep of a
+  polishing or sanding tool, without corners (an infinite acceleration at a
+  corner would be no reference for eq. 4).
+
+A path may reach ``radius`` along each tangential axis (a raster's corners
+``radius sqrt 2`` from the centre); the scenario's domain checks use that.
 """
 
 from __future__ import annotations
@@ -11,11 +27,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CircleReference", "circle_reference"]
+__all__ = ["CircleReference", "PathReference", "circle_reference", "path_reference", "PATHS"]
+
+PATHS = ("circle", "line", "raster")
+"""The path kinds (``trajectory.path``)."""
 
 
 @dataclass(frozen=True)
-class CircleReference:
+class PathReference:
     """Tangential reference samples, each of shape (2, N): task axes 1 and 2."""
     t: np.ndarray
     pos: np.ndarray
@@ -23,7 +42,11 @@ class CircleReference:
     acc: np.ndarray
 
 
-def circle_reference(t, radius: float, period: float) -> CircleReference:
+CircleReference = PathReference
+"""The circle's reference (the name of earlier versions)."""
+
+
+def circle_reference(t, radius: float, period: float) -> PathReference:
     """Circle ``radius (cos wt, sin wt)`` with ``w = 2 pi / period``."""
     t = np.asarray(t, dtype=float)
     w = 2 * np.pi / period
@@ -31,4 +54,34 @@ def circle_reference(t, radius: float, period: float) -> CircleReference:
     pos = radius * np.vstack([c, s])
     vel = radius * w * np.vstack([-s, c])
     acc = -radius * w ** 2 * np.vstack([c, s])
-    return CircleReference(t, pos, vel, acc)
+    return PathReference(t, pos, vel, acc)
+
+
+def _harmonic(t, amplitude: float, w: float, phase: float = 0.0):
+    """``amplitude sin(w t + phase)`` and its first two derivatives."""
+    a = w * t + phase
+    return amplitude * np.sin(a), amplitude * w * np.cos(a), -amplitude * w * w * np.sin(a)
+
+
+def path_reference(t, trajectory) -> PathReference:
+    """The reference of ``trajectory`` (the scenario's ``[trajectory]``
+    section: ``path``, ``radius``, ``period``, ``lanes``, ``direction_deg``)
+    at times ``t`` (s)."""
+    kind = getattr(trajectory, "path", "circle")
+    if kind == "circle":
+        return circle_reference(t, trajectory.radius, trajectory.period)
+    t = np.asarray(t, dtype=float)
+    w = 2 * np.pi / trajectory.period
+    r = trajectory.radius
+    th = np.radians(trajectory.direction_deg)
+    d, d_perp = np.array([np.cos(th), np.sin(th)]), np.array([-np.sin(th), np.cos(th)])
+    if kind == "line":
+        along = _harmonic(t, r, w)
+        across = (np.zeros_like(t),) * 3
+    elif kind == "raster":
+        along = _harmonic(t, r, trajectory.lanes * w / 2)
+        across = _harmonic(t, -r, w, np.pi / 2)                 # -r cos(wt): from one edge across and back
+    else:
+        raise ValueError(f"trajectory.path: expected one of {', '.join(PATHS)}, got {kind!r}")
+    pos, vel, acc = (np.outer(d, a) + np.outer(d_perp, b) for a, b in zip(along, across))
+    return PathReference(t, pos, vel, acc)

@@ -159,11 +159,11 @@ class PeriodicModel:
 
     def _one_period(self) -> np.ndarray:
         """Inputs over one period when the scenario is shorter than one."""
-        from ..simulation.trajectory import circle_reference
+        from ..simulation.trajectory import path_reference
 
         sc, N = self.scenario, self.samples
         t = np.arange(N) * sc.controller.Ts
-        ref = circle_reference(t, sc.trajectory.radius, sc.trajectory.period)
+        ref = path_reference(t, sc.trajectory)
         return np.vstack([ref.pos, ref.vel, ref.acc, np.zeros((2, N))])
 
     def _inputs(self, k_e: float) -> np.ndarray:

@@ -176,9 +176,9 @@ class WholeLoopModel:
 
         surface = surface_of(sc)
         # the tangential point and its joint angles on the surface (near the checked path's pose there)
-        from ..simulation.trajectory import circle_reference
+        from ..simulation.trajectory import path_reference
 
-        ref = circle_reference(np.array([self.t[i]]), sc.trajectory.radius, period)
+        ref = path_reference(np.array([self.t[i]]), sc.trajectory)
         near = self.path.q[:, int(round((self.t[i] % period) / period * self.path.q.shape[1])) % self.path.q.shape[1]]
         on_surface = surface.to_base(np.r_[0.0, ref.pos[:, 0]])
         n = surface.normal(on_surface)                            # the inward normal there

@@ -43,6 +43,10 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.environment.shape != "plane"
     if key == "environment.axis":
         return sc.environment.shape == "cylinder"
+    if key == "trajectory.lanes":
+        return sc.trajectory.path == "raster"
+    if key == "trajectory.direction_deg":
+        return sc.trajectory.path != "circle"
     if key in ("environment.heightmap", "environment.grid_spacing"):
         return sc.environment.shape == "heightmap"
     if key in ("simulation.substeps", "simulation.contact_refine"):

@@ -84,7 +84,7 @@ TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller
 """The kind of a tagged table that does not say."""
 
 
-SAMPLED_KEYS = ("trajectory.period", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
+SAMPLED_KEYS = ("trajectory.period", "trajectory.lanes", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
                 "robot.model", "environment.normal", "environment.point", "trajectory.center",
                 "environment.radius", "trajectory.radius", "environment.axis", "environment.heightmap",
                 "environment.grid_spacing")
@@ -148,6 +148,9 @@ def sampling_problem(sc: Scenario) -> str | None:
     why = f"at least {MIN_PERIODS} control periods ({least:g} s at controller.rate = {rate:g} Hz)"
     if sc.trajectory.period < least:
         return f"trajectory.period: must be {why}, got {sc.trajectory.period!r}"
+    if sc.trajectory.path == "raster" and sc.trajectory.period / sc.trajectory.lanes < least:
+        return (f"trajectory.lanes: each of the {sc.trajectory.lanes} passes must take {why}: "
+                f"trajectory.period / lanes = {sc.trajectory.period / sc.trajectory.lanes:g} s")
     st = sc.environment.stiffness
     if st.kind == "piecewise_constant" and st.segment != 0 and st.segment < least:
         return f"environment.stiffness.segment: must be 0 (the path period) or {why}, got {st.segment!r}"
