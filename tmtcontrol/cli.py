@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plant", choices=["builtin", "mujoco"], default="builtin",
                    help="the arm's dynamics: tmtcontrol's (default) or MuJoCo's model of the same URDF with the "
                         "ideal spring contact (an independent check of eq. 1 in the loop; needs the mujoco extra)")
+    p.add_argument("--animate", action="store_true",
+                   help="also write animation.gif: the arm doing the task on the surface, the force beside it "
+                        "(10 frames per simulated second, real time)")
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("compare", help="run one scenario with several force-tracking laws, side by side",
@@ -287,6 +290,10 @@ def _simulate_with(args, workers) -> int:
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
                         csv_processes=2 if args.no_plots else 1)
+        if args.animate:
+            from .simulation.animation import write_animation
+
+            write_animation(res, out.path / "animation.gif")
         out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           + (f"plant {res.info['plant']}, {res.info['integrator']} ({res.info['code']}), " if "plant" in res.info

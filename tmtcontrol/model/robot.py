@@ -232,6 +232,37 @@ class Robot:
         """4 x 4 pose of the tip in the base frame at ``q``."""
         return np.array(self.functions.fk(_vec(q, self.n, "q")))
 
+    def joint_origins(self, q) -> np.ndarray:
+        """The arm's skeleton at ``q`` (what an animation draws): the base
+        origin, the origin of every actuated joint's frame and the tip (3 x
+        (n + 2), m, base frame). From the URDF chain's placements (the PUMA:
+        its DH frames), numerically, the tip equal to :meth:`fk`'s."""
+        q = _vec(q, self.n, "q")
+        pts = [np.zeros(3)]
+        if self.chain is not None:
+            R, p = np.eye(3), np.zeros(3)
+            frames = []
+            for j, qi in zip(self.chain.joints, q):
+                p = R @ j.p + p                           # the joint's origin (its frame before it moves)
+                R = R @ j.R
+                if j.type == "prismatic":
+                    p = p + R @ (np.asarray(j.axis) * qi)
+                else:
+                    a = np.asarray(j.axis, dtype=float)
+                    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+                    R = R @ (np.eye(3) + np.sin(qi) * K + (1 - np.cos(qi)) * K @ K)
+                pts.append(p.copy())
+                frames.append((R.copy(), p.copy()))
+        else:
+            from .puma560 import _dh
+
+            T = np.eye(4)
+            for qi, link in zip(q, self.links):
+                T = T @ np.array(ca.DM(_dh(float(qi), link)))
+                pts.append(T[:3, 3].copy())
+        pts.append(self.fk(q)[:3, 3])
+        return np.column_stack(pts)
+
     def jacobian(self, q) -> np.ndarray:
         """6 x n geometric Jacobian of the tip origin (linear rows first, base axes)."""
         return np.array(self.functions.jacobian(_vec(q, self.n, "q")))

@@ -1,0 +1,78 @@
+"""Watching the arm (issue 41): the skeleton an animation draws against
+Pinocchio's joint placements and the DH geometry, and `simulate --animate`'s
+GIF (its frames, their timing, nothing else changed)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tmtcontrol import load_robot
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_skeleton_is_pinocchios_joint_placements(name):
+    """Every actuated joint's origin equals Pinocchio's oMi translation (an
+    independent forward kinematics of the same URDF), the last point the tip."""
+    import pinocchio as pin
+
+    robot = load_robot(name)
+    model = pin.buildModelFromXML(robot.urdf)
+    data = model.createData()
+    rng = np.random.default_rng(41)
+    for _ in range(5):
+        q = rng.uniform(np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi))
+        full = pin.neutral(model)
+        for i, joint in enumerate(robot.joint_names):
+            full[model.joints[model.getJointId(joint)].idx_q] = q[i]
+        for joint, value in robot.held.items():
+            full[model.joints[model.getJointId(joint)].idx_q] = value
+        pin.forwardKinematics(model, data, full)
+        ref = np.column_stack([data.oMi[model.getJointId(j)].translation for j in robot.joint_names])
+        pts = robot.joint_origins(q)
+        assert pts.shape == (3, robot.n + 2)
+        assert np.abs(pts[:, 1:-1] - ref).max() < 1e-12
+        assert np.abs(pts[:, -1] - robot.fk(q)[:3, 3]).max() < 1e-12 and not pts[:, 0].any()
+
+
+def test_puma_skeleton_keeps_its_dh_link_lengths():
+    """Consecutive DH frame origins are sqrt(a^2 + d^2) apart at every posture."""
+    robot = load_robot("puma560")
+    lengths = [np.hypot(link.a, link.d) for link in robot.links]
+    for q in np.random.default_rng(3).uniform(-2, 2, (5, 3)):
+        pts = robot.joint_origins(q)
+        assert np.allclose(np.linalg.norm(np.diff(pts[:, :4], axis=1), axis=0), lengths, atol=1e-12)
+
+
+def test_frame_times_play_in_real_time_and_are_capped():
+    from tmtcontrol.simulation.animation import MAX_FRAMES, frame_times
+
+    assert np.allclose(frame_times(1.0, 10.0), np.arange(11) / 10)
+    long = frame_times(1000.0, 10.0)
+    assert long.size == MAX_FRAMES and long[0] == 0 and long[-1] == 1000.0
+
+
+def test_simulate_animate_writes_the_gif(tmp_path):
+    from PIL import Image
+
+    from tmtcontrol.simulation.animation import frame_times
+
+    runs = {}
+    for flag in ([], ["--animate"]):
+        out = tmp_path / ("with" if flag else "without")
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "paper", "--set",
+                            "trajectory.cycles=0.25", "--no-plots", *flag, "--out", str(out)],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        runs[bool(flag)] = {p.name for p in out.iterdir()}
+    assert runs[True] == runs[False] | {"animation.gif"}                  # the GIF, and nothing else changed
+    with Image.open(tmp_path / "with" / "animation.gif") as gif:
+        # the run's last sample is at 0.999 s: frames at 0, 0.1, ..., 0.9 s, played at 100 ms each
+        assert gif.n_frames == frame_times(0.999).size == 10 and gif.info["duration"] == 100
+        first = np.asarray(gif.convert("RGB"))
+        gif.seek(gif.n_frames - 1)
+        last = np.asarray(gif.convert("RGB"))
+    assert (first != last).any()                                          # the arm moved, the force rose
