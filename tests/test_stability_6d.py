@@ -143,8 +143,8 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
 # -- heavy: the UR5 scenario against bisection in the 6-D simulator -------------------------------------------------
 
 @pytest.mark.heavy      # compiles the arm's augmented monodromy step (~220,000 operations on the UR5, ~360,000
-@pytest.mark.parametrize("arm", ["ur5", "panda"])      # on the Panda: 0.5-3 min) once
-def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):
+@pytest.mark.parametrize("arm", ["ur5", "panda", "ur5-pipe"])   # on the Panda: 0.5-3 min) once; the pipe:
+def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):   # the normal turning (issue 40)
     """The built-in scenario (1 kHz, 4 s circle): the periodic limit against the simulated
     6-D loop's own limit (first_contact.simulated_limit: runs at constant k_e started near
     the orbit, converged if the difference between successive periods shrinks; bisection

@@ -460,3 +460,15 @@ def test_a_flat_height_map_reproduces_the_plane_scenario(tmp_path):
     a, b = Simulator(flat, compile=False).run(), Simulator(plane, compile=False).run()
     assert np.abs(a.contact_force - b.contact_force).max() < 1e-6
     assert np.abs(a.q - b.q).max() < 1e-9
+
+
+def test_numpy_chart_equals_the_symbolic_one():
+    """to_base of many points (the logs) runs in NumPy; it must be the chart the loop uses."""
+    from tmtcontrol.surface import HeightMap
+
+    X = np.vstack([RNG.uniform(-1e-3, 1e-3, 40), RNG.uniform(-0.1, 0.1, (2, 40))])
+    shapes = [cls(R0, C0, 0.3, side) for cls, side in SHAPES]
+    shapes.append(HeightMap(R0, C0, _grid(lambda U, V: 0.01 * np.sin(5 * U) * np.cos(3 * V)), 0.01))
+    for s in shapes:
+        symbolic = np.array(s._fn("point").map(X.shape[1])(X, *s._vals()))
+        assert np.abs(s.to_base(X) - symbolic).max() < 1e-15, s

@@ -93,6 +93,12 @@ class _Curved(Surface):
         """Symbolic task frame (3 x 3) at task coordinates ``X``."""
         raise NotImplementedError
 
+    def _frame_at(self, p, X, par):
+        """Symbolic task frame at the point ``p`` (coordinates ``X``): by
+        default :meth:`_frame` of X; a shape may state it from p directly
+        (fewer operations in the plant, which needs only the normal)."""
+        return self._frame(X, par)
+
     # -- the interface, derived once -------------------------------------------------------
     def _fn(self, name: str) -> ca.Function:
         def build():
@@ -101,7 +107,7 @@ class _Curved(Surface):
             if name == "coordinates":
                 Xp = self._coords(p, par)
                 return ca.Function(f"{self.kind}_coordinates", [p, v, *par.values()],
-                                   [self._frame(Xp, par), Xp, ca.jtimes(Xp, p, v)], ["p", "v", *par],
+                                   [self._frame_at(p, Xp, par), Xp, ca.jtimes(Xp, p, v)], ["p", "v", *par],
                                    ["R_task", "X", "dX"])
             if name == "point":
                 return ca.Function(f"{self.kind}_point", [X, *par.values()], [self.point(X, par)], ["X", *par], ["p"])
@@ -132,8 +138,20 @@ class _Curved(Surface):
     def to_base(self, X) -> np.ndarray:
         X = np.asarray(X, dtype=float)
         flat = X.reshape(3, -1)
+        if type(self)._point_np is not _Curved._point_np:        # the shape's NumPy form (many points: the logs)
+            return self._point_np(flat).reshape(X.shape)
         out = np.array(self._fn("point").map(flat.shape[1])(flat, *self._vals()))
         return out.reshape(X.shape)
+
+    def _point_np(self, X):
+        """:meth:`point` in NumPy for 3 x k coordinates (a shape may state it;
+        tests/test_surfaces.py checks it against the symbolic chart)."""
+        raise NotImplementedError
+
+    def _axes_np(self):
+        a, t1, t2 = self.R[:, 0], self.R[:, 1], self.R[:, 2]
+        sigma = SIDES[self.side]
+        return t1, t2, -sigma * a, self.c + sigma * self.radius * a, self.radius, sigma
 
     def from_base(self, p) -> np.ndarray:
         p = np.asarray(p, dtype=float)
@@ -188,6 +206,23 @@ class Sphere(_Curved):
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
         return centre + (r - sigma * X[0]) * Sphere._unit(X, par)
 
+    def _point_np(self, X):
+        t1, t2, u0, centre, r, sigma = self._axes_np()
+        th, ph = X[1] / r, X[2] / r
+        u = np.cos(ph) * (np.cos(th) * u0[:, None] + np.sin(th) * t1[:, None]) + np.sin(ph) * t2[:, None]
+        return centre[:, None] + (r - sigma * X[0]) * u
+
+    def _frame_at(self, p, X, par):
+        # the same frame as _frame(X), from the radial direction u without trigonometry:
+        # e_1 = -sigma (t2 x u)/|t2 x u| (the longitude's tangent), e_2 = e_n x e_1
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        w = p - centre
+        u = w / ca.norm_2(w)
+        e_n = -sigma * u
+        c = ca.cross(t2, u)
+        e_1 = -sigma * c / ca.norm_2(c)
+        return ca.horzcat(e_n, e_1, ca.cross(e_n, e_1))
+
     @staticmethod
     def _frame(X, par):
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
@@ -218,6 +253,20 @@ class Cylinder(_Curved):
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
         th = X[1] / r
         return centre + (r - sigma * X[0]) * (ca.cos(th) * u0 + ca.sin(th) * t1) + X[2] * t2
+
+    def _point_np(self, X):
+        t1, t2, u0, centre, r, sigma = self._axes_np()
+        th = X[1] / r
+        u = np.cos(th) * u0[:, None] + np.sin(th) * t1[:, None]
+        return centre[:, None] + (r - sigma * X[0]) * u + X[2] * t2[:, None]
+
+    def _frame_at(self, p, X, par):
+        # from the radial direction u without trigonometry: e_1 = -sigma t2 x u, e_2 = t2
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        w = p - centre
+        w_r = w - ca.dot(w, t2) * t2
+        u = w_r / ca.norm_2(w_r)
+        return ca.horzcat(-sigma * u, -sigma * ca.cross(t2, u), t2)
 
     @staticmethod
     def _frame(X, par):

@@ -123,6 +123,13 @@ class HeightMap(_Curved):
     def values(self) -> dict[str, np.ndarray]:
         return {"R": self.R.ravel(order="F"), "c": self.c.copy()}
 
+    def _point_np(self, X):
+        h, g = (np.array(m) for m in self._hfn(X[1:3]))     # every column at once: h (1 x k), dh (1 x 2k)
+        h, hu, hv = h.ravel(), g.ravel()[0::2], g.ravel()[1::2]
+        e_n, t1, t2 = self.R[:, 0], self.R[:, 1], self.R[:, 2]
+        s = X[0] * np.sqrt(1 + hu * hu + hv * hv) - h
+        return self.c[:, None] + np.outer(t1, X[1]) + np.outer(t2, X[2]) + np.outer(e_n, s)
+
     def height(self, u, v) -> float:
         """The surface's height (m, along the outward normal) at (u, v) of the tangent plane."""
         return float(self._h([u, v]))
