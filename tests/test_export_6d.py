@@ -419,3 +419,18 @@ def test_the_arm_an_export_was_made_for_is_checked_by_its_content(exported_ur5, 
         check_export_matches(meta, exported_ur5, edited)
     with pytest.raises(ExportError, match=r"was exported for robot.model = 'ur5'.*'puma560'"):
         check_export_matches(meta, exported_ur5, paper_scenario())
+
+
+def test_exported_c_runs_against_mujoco_as_the_built_in_controller_does(exported_ur5):
+    """Issue 41: the exported C against MuJoCo's dynamics of the same URDF
+    (`simulate --controller DIR --plant mujoco`): the same plant, the
+    controller compiled as C instead of run in CasADi's VM, so the same run
+    to rounding (1e-9, the SIL tolerance)."""
+    from tmtcontrol.export.sil import CompiledController, simulate_with_controller
+    from tmtcontrol.simulation.mujoco_plant import simulate_on_mujoco
+
+    sc = apply_overrides(load_scenario("ur5"), SHORT)
+    c = simulate_with_controller(sc, CompiledController(exported_ur5, scenario=sc, isolated=True), plant="mujoco")
+    ref = simulate_on_mujoco(sc)
+    assert c.info["plant"] == ref.info["plant"] == "mujoco (spring contact)" and c.info["code"] == "exported C (SIL)"
+    _assert_same_signals(c, ref, ("contact_force", "q", "dq", "tau", "command_task", "position"))

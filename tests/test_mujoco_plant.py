@@ -51,13 +51,15 @@ def test_the_logged_force_is_k_e_times_the_penetration_pinocchio_gives(ur5_short
     np.testing.assert_allclose(mj.contact_force[k], expected, rtol=1e-9, atol=1e-9)
 
 
-def test_the_puma_and_a_c_controller_are_refused_in_one_line(tmp_path, capsys):
+def test_the_puma_and_a_folder_that_is_no_export_are_refused_in_one_line(tmp_path, capsys):
+    """The PUMA has no URDF for MuJoCo; the exported C runs against MuJoCo (tests/test_export_6d.py), a
+    folder that is not an export is refused before anything runs."""
     assert main(["simulate", "paper", "--plant", "mujoco", "--out", str(tmp_path / "a")]) == 2
     assert "puma560 has no URDF" in capsys.readouterr().err
     assert main(["simulate", "ur5", "--plant", "mujoco", "--controller", str(tmp_path), "--out",
                  str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and err.startswith("error: --plant mujoco:")
+    assert "\n" not in err and err.startswith("error: --controller:") and "tmtcontrol export" in err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 

@@ -261,9 +261,6 @@ def _simulate_with(args, workers) -> int:
     check_run_size(sc, args.max_steps)
     controller = None
     if args.plant == "mujoco":
-        if args.controller is not None:
-            raise UsageError("--plant mujoco: runs the built-in controller; the exported C (--controller) runs "
-                             "against the built-in plant")
         _mujoco_ready(sc, "--plant mujoco")
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
@@ -276,16 +273,16 @@ def _simulate_with(args, workers) -> int:
             raise UsageError(f"--out: {args.out} holds the --controller folder {args.controller}; the run would "
                              "replace the exported controller: choose another folder (nothing was written)")
     with OutputFolder(args.out, "--out") as out:
-        if args.plant == "mujoco":
+        if controller is not None:              # the exported C, against the built-in plant or MuJoCo's
+            from .export.sil import simulate_with_controller
+
+            res = simulate_with_controller(sc, controller, max_steps=args.max_steps, plant=args.plant)
+        elif args.plant == "mujoco":
             from .simulation.mujoco_plant import simulate_on_mujoco
 
             res = simulate_on_mujoco(sc, max_steps=args.max_steps)
-        elif controller is None:
-            res = simulator_for(sc).run(max_steps=args.max_steps)
         else:
-            from .export.sil import simulate_with_controller
-
-            res = simulate_with_controller(sc, controller, max_steps=args.max_steps)
+            res = simulator_for(sc).run(max_steps=args.max_steps)
         res = with_stiffness_limit(res)           # a segment beyond the predicted limit is not stable
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,

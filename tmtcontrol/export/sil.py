@@ -290,14 +290,17 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
                           "joint torques for the simulated (torque-driven) robot; export with --inner-loop")
 
 
-def simulate_with_controller(scenario, controller: CompiledController, max_steps: int | None = None):
+def simulate_with_controller(scenario, controller: CompiledController, max_steps: int | None = None,
+                             plant: str = "builtin"):
     """Run ``scenario`` with the C ``controller`` in place of the built-in one
-    (software in the loop): each period the plant of
+    (software in the loop): each period the plant is advanced with the torque
+    the C code returned: ``plant="builtin"``, the plant of
     :func:`~tmtcontrol.simulation.closedloop.build_plant` (the simulator's
-    integrator) is advanced with the torque the C code returned; the
-    simulator's inputs and result packing. Returns a
-    :class:`~tmtcontrol.SimulationResult` with ``info["code"] == "exported
-    C (SIL)"``."""
+    integrator); ``"mujoco"``, MuJoCo's dynamics of the same URDF
+    (:class:`~tmtcontrol.simulation.mujoco_plant.MujocoPlant`: the exported C
+    against a plant nobody here wrote). The simulator's inputs and result
+    packing. Returns a :class:`~tmtcontrol.SimulationResult` with
+    ``info["code"] == "exported C (SIL)"``."""
     import time
 
     from ..simulation.cosim import run_split
@@ -308,12 +311,20 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     t0 = time.perf_counter()
     sim = Simulator(scenario, compile=False)      # its inputs and result packing; its step is never built
     _, P, s0, _ = sim.inputs(scenario)
-    plant = BuiltinPlant(sim, P)
+    extra = {}
+    if plant == "mujoco":
+        from ..simulation.mujoco_plant import mujoco_plant_for
+
+        plant, extra = mujoco_plant_for(sim, scenario)
+    elif plant == "builtin":
+        plant = BuiltinPlant(sim, P)
+    else:
+        raise ValueError(f"plant: expected 'builtin' or 'mujoco', got {plant!r}")
     params = controller.params_from(P)
     n, n_s = sim.task.n, controller.meta["sizes"]["state"]
     s_start = np.ascontiguousarray(s0[2 * n:2 * n + n_s])
     sc = scenario.simulation
-    info = {"integrator": sc.integrator, "code": "exported C (SIL)", "controller": str(controller.folder)}
+    info = {"integrator": sc.integrator, **extra, "code": "exported C (SIL)", "controller": str(controller.folder)}
     n_cmd = sum(f.size for f in controller.cmd_fields)
     flag, Ts = controller.flag, scenario.controller.Ts
     calls = [0]

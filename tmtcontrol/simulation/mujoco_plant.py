@@ -90,25 +90,33 @@ class MujocoPlant:
         return np.r_[d.qpos[self.qadr], d.qvel[self.act]]
 
 
-def simulate_on_mujoco(scenario, max_steps: int | None = None):
-    """The scenario's controller against :class:`MujocoPlant`; a
-    :class:`~.simulator.SimulationResult` with ``info["plant"] == "mujoco
-    (spring contact)"``, judged by the same rules as the built-in run."""
-    from .simulator import Simulator, check_run_size
-
-    check_run_size(scenario, max_steps)
+def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:
+    """The :class:`MujocoPlant` of ``scenario`` (its Simulator ``sim``) and the
+    run's ``info`` entries; a scenario MuJoCo cannot run is refused in one
+    line (:class:`ScenarioError`)."""
     if scenario.robot.friction:
         raise ScenarioError("robot.friction: the MuJoCo plant has no model of eq. (1)'s joint friction; "
                             "set robot.friction = false to run on MuJoCo")
-    t0 = time.perf_counter()
-    sim = Simulator(scenario, compile=False)
     try:
         plant = MujocoPlant(sim.plant, sim.surface, scenario.controller.Ts, scenario.environment.damping)
     except NotImplementedError as exc:
         raise ScenarioError(f"robot.model: {exc}") from None
+    return plant, {"integrator": f"MuJoCo RK4, {SUBSTEPS} steps per period", "plant": "mujoco (spring contact)",
+                   "mujoco": getattr(plant.mujoco, "__version__", "?")}
+
+
+def simulate_on_mujoco(scenario, max_steps: int | None = None):
+    """The scenario's controller against :class:`MujocoPlant`; a
+    :class:`~.simulator.SimulationResult` with ``info["plant"] == "mujoco
+    (spring contact)"``, judged by the same rules as the built-in run (the
+    exported C against MuJoCo: :func:`tmtcontrol.export.sil.simulate_with_controller`
+    with ``plant="mujoco"``)."""
+    from .simulator import Simulator, check_run_size
+
+    check_run_size(scenario, max_steps)
+    t0 = time.perf_counter()
+    sim = Simulator(scenario, compile=False)
+    plant, info = mujoco_plant_for(sim, scenario)
     control, n_cmd = builtin_controller(sim, scenario)
-    mj = plant.mujoco
     return run_split(sim, scenario, control, plant,
-                     {"integrator": f"MuJoCo RK4, {SUBSTEPS} steps per period", "plant": "mujoco (spring contact)",
-                      "code": f"mujoco {getattr(mj, '__version__', '?')}",
-                      "build_time_s": time.perf_counter() - t0}, n_cmd)
+                     {**info, "code": f"mujoco {info['mujoco']}", "build_time_s": time.perf_counter() - t0}, n_cmd)
