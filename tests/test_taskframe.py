@@ -371,3 +371,16 @@ def test_square_jacobian_shortcut_equals_the_lambda_form_of_eq_5():
         ref = J.T @ (np.linalg.inv(J @ np.linalg.solve(M, J.T)) @ (U - jd) + F_e) + nb
         got = _numeric_torque(robot, q, dq, U, F_e, None)
         assert np.allclose(got, ref, rtol=0, atol=1e-9 * np.abs(ref).max()), (got, ref)
+
+
+def test_a_seed_the_pumas_closed_form_does_not_use_is_refused(tmp_path):
+    """Issue 43: robot.q0 on the PUMA was accepted and silently ignored (its path
+    is solved in closed form, one configuration): now one line, exit 2."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "paper", "--set", "robot.q0=[0.1, 0.2, 0.3]",
+                        "--out", str(out), "--no-plots"], capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "robot.q0: not used" in r.stderr and not out.exists()

@@ -211,6 +211,9 @@ def path_of(robot, sc: Scenario) -> PosePath:
     surface, R_d = _frames(sc)
     if r.q0 is not None and len(r.q0) != robot.n:
         raise ScenarioError(f"robot.q0: expected {robot.n} values (one per joint of {robot.name}), got {len(r.q0)}")
+    if r.q0 is not None and robot.position_ik is not None and not robot.task.rotational:
+        raise ScenarioError(f"robot.q0: not used: {robot.name}'s path is solved by its closed-form inverse "
+                            "kinematics (one configuration), not from a seed; leave q0 unset")
     for i, (v, lo, hi) in enumerate(zip(r.q0 or (), robot.q_min, robot.q_max)):
         if not lo <= v <= hi:          # the seed itself: not the path's fault
             raise ScenarioError(f"robot.q0[{i}]: {v:g} is outside {robot.joint_names[i]}'s limits [{lo:.4g}, {hi:.4g}]")
