@@ -488,3 +488,21 @@ def test_a_sweep_over_the_parts_radius_and_path(tmp_path):
     assert r.returncode == 0, r.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert "4 cases" in r.stdout and "4 converged" in r.stdout, (r.stdout, summary.keys())
+
+
+def test_an_export_for_one_height_map_refuses_another(tmp_path):
+    """The heights are constants of the generated C: SIL with another map would
+    run other heights than the scenario's."""
+    import json
+
+    from tmtcontrol.export.generate import ExportError, export_controller
+    from tmtcontrol.export.sil import check_export_matches
+
+    a = _heightmap_scenario(tmp_path, _grid(lambda U, V: 0.01 * U), extra=["trajectory.cycles=0.1"])
+    export_controller(a, tmp_path / "c", True)
+    meta = json.loads((tmp_path / "c" / "export.json").read_text())
+    check_export_matches(meta, tmp_path / "c", a)                     # its own map: accepted
+    (tmp_path / "b").mkdir()
+    b = _heightmap_scenario(tmp_path / "b", _grid(lambda U, V: 0.02 * U), extra=["trajectory.cycles=0.1"])
+    with pytest.raises(ExportError, match="exported for another heightmap"):
+        check_export_matches(meta, tmp_path / "c", b)

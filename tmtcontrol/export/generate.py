@@ -469,7 +469,8 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         text = _fill((_TEMPLATES / name).read_text(encoding="utf-8"), values)
         (folder / name).write_text(text, encoding="utf-8")
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
-            "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind, "inner_loop": inner_loop,
+            "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind,
+            "surface_key": iface.surface.key, "inner_loop": inner_loop,
             "delay": scenario.controller.delay_samples, "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},

@@ -109,6 +109,7 @@ def _metadata_schema():
         scenario: StrictStr
         law: Literal[tuple(laws())]                      # a registered law
         surface: Literal[tuple(SHAPES)] = Plane.kind     # an export older than curved surfaces: a plane
+        surface_key: StrictStr | None = None              # a height map's heights are in the C code
         inner_loop: StrictBool
         delay: int = Field(ge=0, le=1000)
         model_mass_scale: StrictFloat | StrictInt
@@ -283,6 +284,10 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
         if have != value:
             raise ExportError(f"{flag}: {folder} was exported with {key} = {have!r}, "
                               f"the scenario has {value!r}; export this scenario (tmtcontrol export)")
+    key = surface_of(scenario).key
+    if meta.get("surface_key", key) != key:             # a height map's heights are baked into the C code
+        raise ExportError(f"{flag}: {folder} was exported for another {meta['surface']} (its heights are part of "
+                          "the C code); export this scenario (tmtcontrol export)")
     if robot_of(scenario, controller=True).key != robot["key"]:      # URDF content, chain and model options
         raise other_arm()
     if not meta["inner_loop"]:
