@@ -454,8 +454,9 @@ FAULTS = {
 }
 
 
-def _faulty_export(folder, tmp_path, fault):
-    """A copy of the export whose tmt_step runs ``fault`` at its 5th call."""
+def _faulty_export(folder, tmp_path, fault, every_call: str = ""):
+    """A copy of the export whose tmt_step runs ``fault`` at its 5th call (and
+    ``every_call`` at every call)."""
     import shutil
 
     copy = tmp_path / "faulty"
@@ -463,8 +464,9 @@ def _faulty_export(folder, tmp_path, fault):
     c = (copy / "tmt_controller.c").read_text()
     head = "int i, rc, bad = 0;"
     assert head in c
-    c = "#include <stdlib.h>\n" + c.replace(head, head + "\n    static int calls_;\n    if (++calls_ == 5) "
-                                             + FAULTS[fault][0], 1)
+    c = "#include <stdio.h>\n#include <stdlib.h>\n" + c.replace(
+        head, head + "\n    static int calls_;\n    " + every_call + "\n    if (++calls_ == 5) "
+        + (FAULTS[fault][0] if fault else "{ }"), 1)
     (copy / "tmt_controller.c").write_text(c)
     return copy
 
@@ -530,3 +532,17 @@ def test_ctrl_c_stops_a_hanging_controller(exported_inner, tmp_path):
     assert proc.returncode == 130, err
     assert "interrupted (Ctrl-C)" in err and "Traceback" not in err
     assert not os.path.exists(f"/proc/{child}") or open(f"/proc/{child}/stat").read().split()[2] == "Z"
+
+
+def test_a_controller_that_prints_runs_as_a_quiet_one(exported_inner, tmp_path):
+    """What the user's C prints, 1 KiB to stdout and 1 KiB to stderr every period
+    (80 KiB over the run, more than a pipe holds), neither enters the command
+    stream nor blocks the controller: the run equals the quiet export's."""
+    folder, ctl = exported_inner
+    noisy = _faulty_export(folder, tmp_path, None, every_call=(
+        'for (i = 0; i < 16; ++i) { printf("%063d\\n", i); fprintf(stderr, "%063d\\n", i); } i = 0;'))
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.01"])
+    loud = simulate_with_controller(sc, CompiledController(noisy, isolated=True))
+    quiet = simulate_with_controller(sc, ctl)
+    for name in ("contact_force", "q", "tau", "command_task"):
+        np.testing.assert_array_equal(getattr(loud, name), getattr(quiet, name), err_msg=name)

@@ -506,3 +506,33 @@ def test_an_export_for_one_height_map_refuses_another(tmp_path):
     b = _heightmap_scenario(tmp_path / "b", _grid(lambda U, V: 0.02 * U), extra=["trajectory.cycles=0.1"])
     with pytest.raises(ExportError, match="exported for another heightmap"):
         check_export_matches(meta, tmp_path / "c", b)
+
+
+def test_a_sloped_height_maps_command_turns_from_its_own_frame_at_the_centre():
+    """A map sloped at the path's centre (h = 0.1 u) has a tilted frame there;
+    the 6-D command must be the tool orientation on the frame at X (what the
+    start pose and the path check use), not tilted twice (review finding)."""
+    import casadi as ca
+
+    from tmtcontrol.simulation.geometry import tool_orientation
+    from tmtcontrol.surface import HeightMap
+
+    s = HeightMap(R0, C0, _grid(lambda U, V: 0.1 * U + 0.02 * np.sin(8 * V)), 0.01)
+    par = {k: ca.DM(v) for k, v in s.values().items()}
+    R_d0 = tool_orientation(s.frame(C0), 30.0)
+    for X in (np.zeros(3), np.array([0.0, 0.05, 0.03]), np.array([0.0, -0.08, 0.06])):
+        R_t = np.array(s.turn(ca.DM(X), ca.DM.zeros(3), ca.DM.zeros(3), par)[0])
+        expected = tool_orientation(s.frame(s.to_base(X)), 30.0)
+        assert np.abs(R_t @ R_d0 - expected).max() < 1e-12
+
+
+def test_beyond_its_grid_a_height_map_continues_flat_at_its_edge():
+    """CasADi's B-spline is 0 beyond its grid: a cliff a plant excursion would
+    fall off. The part continues at its edge height instead (review finding)."""
+    from tmtcontrol.surface import HeightMap
+
+    s = HeightMap(R0, C0, _grid(lambda U, V: 0.1 * U, n=9, spacing=0.05), 0.05)
+    edge = s.height(0.2, 0.0)
+    assert abs(edge - 0.02) < 1e-12 and s.height(0.25, 0.0) == edge and abs(s.height(0.2, 0.5) - edge) < 1e-15
+    inside = s.to_base(np.array([0.0, 0.25, 0.0]))
+    assert abs(R0[:, 0] @ (inside - C0) + edge) < 1e-12          # the point beyond the edge: at the edge height

@@ -10,8 +10,11 @@ tmtcontrol talks to it over a pipe (:class:`ControllerHost`): the parameters
 and the start state once, then one measurement in and one command out per
 period (all little-endian doubles). tmtcontrol waits for each answer at
 most :data:`STEP_BUDGET` seconds, sees the child's end (its signal or exit
-status) as end of file, and kills it when it is interrupted or done. The
-child starts a session of its own (a terminal's Ctrl-C reaches tmtcontrol,
+status) as end of file, and kills it when it is interrupted or done. What
+the C prints (stdout and stderr) never enters the protocol: the child moves
+the protocol to a descriptor of its own and sends the library's stdout to
+stderr, which tmtcontrol drains as it comes (the last lines are quoted in
+an error message). The child starts a session of its own (a terminal's Ctrl-C reaches tmtcontrol,
 which stops it) and asks the kernel to kill it when tmtcontrol dies.
 
 Requests (one opcode byte, then the payload): ``I`` + parameters: ``tmt_init``;
@@ -22,12 +25,14 @@ command and diagnostics; ``Q``: exit. Any other request ends the child.
 
 from __future__ import annotations
 
+import collections
 import os
 import select
 import signal
 import struct
 import subprocess
 import sys
+import threading
 
 STEP_BUDGET = float(os.environ.get("TMTCONTROL_STEP_BUDGET", "10"))
 """Seconds tmtcontrol waits for one answer of the controller (``tmt_init`` or
@@ -52,7 +57,16 @@ class ControllerHost:
         args = [sys.executable, "-I", "-S", os.path.abspath(__file__), str(lib), *(str(int(sizes[k])) for k in SIZES)]
         self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      start_new_session=True, close_fds=True)
-        self._read(1, "starting")                      # b"r": loaded and sized
+        # what the C prints (its stdout is sent there too) is drained as it comes, the last lines kept for the
+        # message: a chatty controller never blocks on a full pipe
+        self._said: collections.deque = collections.deque(maxlen=16)
+        self._drain = threading.Thread(target=self._read_stderr, daemon=True)
+        self._drain.start()
+        try:
+            self._read(1, "starting")                  # b"r": loaded and sized
+        except BaseException:
+            self.close()
+            raise
 
     def __enter__(self):
         return self
@@ -67,11 +81,20 @@ class ControllerHost:
             except (ProcessLookupError, PermissionError):
                 pass
         self.proc.wait()
+        self._drain.join(timeout=1.0)
         for f in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
             try:
                 f.close()
             except OSError:
                 pass
+
+    def _read_stderr(self) -> None:
+        fd = self.proc.stderr.fileno()
+        try:
+            while chunk := os.read(fd, 65536):
+                self._said.append(chunk)
+        except OSError:
+            pass
 
     # -- requests -------------------------------------------------------------------------
     def init(self, params: bytes) -> None:
@@ -115,12 +138,9 @@ class ControllerHost:
         except subprocess.TimeoutExpired:
             self.close()
             rc = self.proc.returncode
-        said = b""
-        try:
-            said = self.proc.stderr.read(4000) or b""
-        except (OSError, ValueError):
-            pass
-        said = " ".join(said.decode("utf-8", "replace").split())[:200]
+        self._drain.join(timeout=1.0)
+        said = b"".join(self._said)[-4000:]
+        said = " ".join(said.decode("utf-8", "replace").split())[-200:]
         if rc is not None and rc < 0:
             try:
                 name = signal.Signals(-rc).name
@@ -148,6 +168,11 @@ def _die_with_parent() -> None:
 def _serve(lib: str, sizes: list[int]) -> int:
     import ctypes
 
+    # the protocol gets a descriptor of its own; the C library's stdout (printf) goes to stderr, so
+    # nothing the user's code prints can enter the command stream
+    proto = os.dup(1)
+    os.dup2(2, 1)
+
     n_p, n_s, n_y, n_out, n_arg, n_res, n_iw, n_w = sizes
     alloc = lambda n: max(int(n), 1)                                        # noqa: E731
     Params = ctypes.c_double * n_p
@@ -168,7 +193,7 @@ def _serve(lib: str, sizes: list[int]) -> int:
     step.argtypes, step.restype = [ctypes.c_void_p] * 4, ctypes.c_int
     init.argtypes = [ctypes.c_void_p] * 2
     params, state, meas, out = Params(), State(), Meas(), Out()
-    rd, wr = sys.stdin.buffer, sys.stdout.buffer
+    rd, wr = sys.stdin.buffer, os.fdopen(proto, "wb")
     wr.write(b"r")
     wr.flush()
     while True:

@@ -111,7 +111,8 @@ class _Curved(Surface):
                                    ["R_task", "X", "dX"])
             if name == "point":
                 return ca.Function(f"{self.kind}_point", [X, *par.values()], [self.point(X, par)], ["X", *par], ["p"])
-            Rt = ca.mtimes(self._frame(X, par), ca.reshape(par["R"], 3, 3).T)          # turn
+            # turn: from the frame at the chart's origin (a height map's is tilted by its slope there)
+            Rt = ca.mtimes(self._frame(X, par), self._frame(ca.DM.zeros(3), par).T)
             dRt = ca.reshape(ca.jtimes(ca.vec(Rt), X, dX), 3, 3)
             W = ca.mtimes(dRt, Rt.T)                                                   # skew(omega)
             w = ca.vertcat(W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]) / 2

@@ -18,7 +18,9 @@ projected onto the part along e_n), and the depth
     X_0 = ((p - c) . e_n + h(u, v)) / sqrt(1 + h_u^2 + h_v^2),
 
 the height of the point below the surface, along e_n, times the cosine of
-the surface's slope: the distance along the local normal to first order.
+the surface's slope: the distance along the local normal to first order
+(beyond the grid the part continues flat at its edge height: a plant
+excursion past the edge meets no cliff).
 **Approximation:** it is exact on a plane and where the surface is flat over
 the depth; the error is of order ``X_0^2 kappa`` (kappa the surface's
 curvature), 1e-9 m at a millimetre's depth on a 1 m radius. The contact
@@ -95,8 +97,13 @@ class HeightMap(_Curved):
     # -- the shape ----------------------------------------------------------------------------
     def _slope(self, u, v):
         """``(h, h_u, h_v)`` at (u, v), symbolic."""
-        h, g = self._hfn(ca.vertcat(u, v))
-        return h, g[0], g[1]
+        # beyond the grid the part continues flat at its edge height (the spline itself drops to 0 there)
+        uc = ca.fmin(ca.fmax(u, float(self.u[0])), float(self.u[-1]))
+        vc = ca.fmin(ca.fmax(v, float(self.v[0])), float(self.v[-1]))
+        h, g = self._hfn(ca.vertcat(uc, vc))
+        inside_u = ca.logic_and(u >= float(self.u[0]), u <= float(self.u[-1]))
+        inside_v = ca.logic_and(v >= float(self.v[0]), v <= float(self.v[-1]))
+        return h, ca.if_else(inside_u, g[0], 0), ca.if_else(inside_v, g[1], 0)
 
     def _coords(self, p, par):
         F0 = ca.reshape(par["R"], 3, 3)
@@ -124,15 +131,19 @@ class HeightMap(_Curved):
         return {"R": self.R.ravel(order="F"), "c": self.c.copy()}
 
     def _point_np(self, X):
-        h, g = (np.array(m) for m in self._hfn(X[1:3]))     # every column at once: h (1 x k), dh (1 x 2k)
+        uv = np.vstack([np.clip(X[1], self.u[0], self.u[-1]), np.clip(X[2], self.v[0], self.v[-1])])
+        h, g = (np.array(m) for m in self._hfn(uv))         # every column at once: h (1 x k), dh (1 x 2k)
         h, hu, hv = h.ravel(), g.ravel()[0::2], g.ravel()[1::2]
+        hu = np.where((X[1] >= self.u[0]) & (X[1] <= self.u[-1]), hu, 0.0)
+        hv = np.where((X[2] >= self.v[0]) & (X[2] <= self.v[-1]), hv, 0.0)
         e_n, t1, t2 = self.R[:, 0], self.R[:, 1], self.R[:, 2]
         s = X[0] * np.sqrt(1 + hu * hu + hv * hv) - h
         return self.c[:, None] + np.outer(t1, X[1]) + np.outer(t2, X[2]) + np.outer(e_n, s)
 
     def height(self, u, v) -> float:
-        """The surface's height (m, along the outward normal) at (u, v) of the tangent plane."""
-        return float(self._h([u, v]))
+        """The surface's height (m, along the outward normal) at (u, v) of the
+        tangent plane (beyond the grid: its edge height, the part continuing flat)."""
+        return float(self._h([np.clip(u, self.u[0], self.u[-1]), np.clip(v, self.v[0], self.v[-1])]))
 
     def shifted(self, offset: float):
         return HeightMap(self.R, self.c + offset * self.R[:, 0], self.heights, self.spacing)
