@@ -117,7 +117,8 @@ def command_fields(torque: bool, task=3) -> tuple[Field, ...]:
     out = (Field("x_c", 3, "m", "task", "commanded position X_c = X_r - X_a, eq. (4)"),
            Field("dx_c", 3, "m/s", "task", "commanded velocity, eq. (4)"),
            Field("ddx_c", 3, "m/s^2", "task", "commanded acceleration, eq. (4)"),
-           Field("p_c", 3, "m", "base", "commanded tool-point position R X_c + c", suffixes=_XYZ),
+           Field("p_c", 3, "m", "base", "commanded tool-point position: the surface's point of X_c "
+                 "(R X_c + c on a plane)", suffixes=_XYZ),
            Field("q_c", n, "rad", "joint", f"joint position command: {pose} ({ik_steps(task)} Newton steps "
                  "from q" + ("" if task.square else ", least-norm") + ")", j),
            Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ R dX_c"

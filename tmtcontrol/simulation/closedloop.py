@@ -20,13 +20,20 @@ task axes also runs a null-space posture task. On each axis:
 * tangential axes: the impedance adjustment is zero (no tangential force)
   and the command is the path;
 * rotational axes (6-D task): the command is the tool orientation R_d of
-  :func:`.geometry.tool_orientation`. The rotational impedance filter's
+  :func:`.geometry.tool_orientation`, on a curved surface turned with the
+  surface's frame at the command's point (``surface.turn``), its angular
+  velocity and acceleration fed forward. The rotational impedance filter's
   input is the contact moment about the tool point, zero for the point
   contact modelled here, so its adjustment stays 0 and eq. (4) gives X_c =
   R_d; they track it with the inner-loop gains of eq. (9), K_D = B_rot/M_rot,
   K_P = K_rot/M_rot. The orientation error is the rotation vector
   e_o = log(R_d R^T)^vee (base frame, rad) on the task axes; the angular
   velocity omega = J_w dq.
+
+On a curved surface the task coordinates are the surface's chart (depth
+along the local normal, arc lengths): eq. (6) acts on them and its output
+is mapped to a Cartesian acceleration through the chart
+(``surface.acceleration``: the curvature feed-forward; a plane's is R U).
 
 Inner loop, eqs. (5)-(6), as the operational-space computed torque with the
 controller's model (M^, n^ = C^ dq + g^, the task Jacobian J: the linear rows
@@ -489,11 +496,14 @@ def ik_steps(task) -> int:
 def command_layout(task, torque: bool = True) -> Layout:
     """The controller's outputs: the command of eq. (4) on the translational
     axes X_c, dX_c, ddX_c (task frame: m, m/s, m/s^2), the commanded tool
-    position p_c = R X_c + c (base frame, m), the joint position command q_c
-    (n, rad) with the tool at p_c (and, on a 6-D task, in the commanded
+    position p_c (the surface's point of X_c, R X_c + c on a plane; base
+    frame, m), the joint position command q_c (n, rad) with the tool at p_c
+    (and, on a 6-D task, in the commanded
     orientation R_d) by :func:`ik_steps` Newton steps from the measured
-    joints, the joint velocity command dq_c = J(q_c)^+ [R dX_c; 0] (n,
-    rad/s), and with ``torque`` the joint torques of eqs. (5)-(6) (n, N m)."""
+    joints, the joint velocity command dq_c = J(q_c)^+ [v_c; w_c] (n, rad/s;
+    v_c the chart's velocity of dX_c, R dX_c on a plane, w_c the command's
+    angular velocity, 0 on a plane), and with ``torque`` the joint torques of
+    eqs. (5)-(6) (n, N m)."""
     n = task.n
     return Layout(("X_c", 3), ("dX_c", 3), ("ddX_c", 3), ("p_c", 3), ("q_c", n), ("dq_c", n),
                   ("tau", n if torque else 0))
