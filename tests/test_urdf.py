@@ -552,3 +552,22 @@ def test_energy_identity_tolerance_follows_the_scale_of_its_terms(tmp_path, a1, 
     bad = check_robot(Wrong(robot), seed=seed, pinocchio=False)
     energy = [i for i in bad.identities if i.name.startswith("energy")][0]
     assert not energy.ok and energy.worst > 1e-5
+
+
+def test_a_chain_longer_than_the_documented_limit_is_refused_at_once(tmp_path):
+    """Issue 43: a 30-joint chain built for 400 s with no output. Beyond
+    MAX_JOINTS actuated joints the URDF is refused in one line, before any
+    expression is built; a subset of the joints is still accepted."""
+    from tmtcontrol.model.urdf import MAX_JOINTS
+
+    n = MAX_JOINTS + 1
+    links = "".join(f'<link name="l{i}"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" '
+                    f'iyy="0.01" iyz="0" izz="0.01"/></inertial></link>' for i in range(1, n + 1))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+                     f'<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="10" '
+                     f'velocity="1"/></joint>' for i in range(1, n + 1))
+    path = write(tmp_path, f'<robot name="snake"><link name="l0"/>{links}{joints}</robot>')
+    with pytest.raises(URDFError, match=f"{n} actuated joints .* more than {MAX_JOINTS}"):
+        load_robot(str(path))
+    robot = load_robot(str(path), joints=[f"j{i}" for i in range(1, 4)])
+    assert robot.n == 3

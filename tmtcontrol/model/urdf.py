@@ -27,7 +27,7 @@ tensor that is not positive definite (massless frames attached by fixed joints
 may omit ``<inertial>``; any inertia present must be positive semi-definite);
 a mimic joint on the actuated chain or mimicking an actuated joint (off the
 chain, a mimic joint is held at ``multiplier * value + offset`` of the held
-joint it follows).
+joint it follows); more than :data:`MAX_JOINTS` actuated joints.
 
 Conventions: SI units (m, rad, kg, kg m^2, N, N m, s) as the URDF spec fixes
 them; a joint's child frame is its ``<origin>`` frame moved by the joint; held
@@ -176,6 +176,12 @@ def read_urdf(path) -> str:
         raise URDFError(f"{path}: not XML (not UTF-8 text)") from None
 
 
+MAX_JOINTS = 12
+"""The most actuated joints of a chain (industrial arms have 6 or 7, a dual arm
+on a torso about 15 as two chains): the CasADi expressions of eq. (1) grow as
+n^3, so a longer chain is refused at once instead of building for minutes."""
+
+
 def parse_chain(text: str, tip: str | None = None, base: str | None = None,
                 joints=None, where: str = "URDF") -> Chain:
     """Parse and check a URDF's text; the serial chain from ``base`` to ``tip``.
@@ -266,6 +272,10 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         actuated = [n for n in on_path if n in actuated]          # base-to-tip order
     if not actuated:
         raise URDFError(f"{where}: no revolute, continuous or prismatic joint between {base!r} and {tip!r}")
+    if len(actuated) > MAX_JOINTS:
+        raise URDFError(f"{where}: {len(actuated)} actuated joints between {base!r} and {tip!r}, more than "
+                        f"{MAX_JOINTS} (the symbolic dynamics grow as n^3: a 30-joint chain takes minutes to build); "
+                        "name the arm's joints (joints=...) or a nearer tip")
     held = _held_values(robot, below, by_child, set(actuated), where)
 
     # walk the tree: every link's body (index of its actuated joint, -1 = base) and placement in it
