@@ -182,11 +182,18 @@ def test_builtin_curved_scenarios_print_and_load():
     ('[environment]\nshape = "cone"\nradius = 0.3\n', "environment.shape"),
 ])
 def test_bad_surface_input_is_one_line_exit_2_nothing_written(tmp_path, content, needle):
+    _refused(tmp_path, content, needle)
+
+
+def _refused(tmp_path, content, needle, sets=()):
+    """``simulate`` of the scenario ``content`` (TOML, with ``--set`` each of
+    ``sets``): exit 2, one line holding ``needle``, nothing on stdout, no
+    output folder."""
     path = tmp_path / "s.toml"
     path.write_text(content)
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(path), "--out", str(out), "--no-plots"],
-                       capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(path), "--out", str(out), "--no-plots",
+                        *[a for s in sets for a in ("--set", s)]], capture_output=True, text=True)
     assert r.returncode == 2 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], r.stderr
@@ -347,17 +354,9 @@ def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     (np.zeros((41, 41)), ["environment.grid_spacing=0.0"], "environment.grid_spacing: must be > 0"),
 ])
 def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
-    path = tmp_path / "part.csv"
-    np.savetxt(path, grid, delimiter=",")
-    toml = tmp_path / "s.toml"
-    toml.write_text('[environment]\nshape = "heightmap"\nheightmap = "part.csv"\ngrid_spacing = 0.01\n')
-    out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(toml), "--out", str(out), "--no-plots",
-                        *[a for e in extra for a in ("--set", e)]], capture_output=True, text=True)
-    assert r.returncode == 2 and r.stdout == ""
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and needle in lines[0], r.stderr
-    assert not out.exists()
+    np.savetxt(tmp_path / "part.csv", grid, delimiter=",")
+    _refused(tmp_path, '[environment]\nshape = "heightmap"\nheightmap = "part.csv"\ngrid_spacing = 0.01\n',
+             needle, extra)
 
 
 # -- paths: line and raster ------------------------------------------------------------------------
@@ -419,11 +418,7 @@ def test_puma_polishes_a_raster_on_the_plane_at_f_d():
     ('[trajectory]\npath = "spiral"\n', "trajectory.path"),
 ])
 def test_bad_path_input_is_one_line_exit_2(tmp_path, content, needle):
-    path = tmp_path / "s.toml"
-    path.write_text(content)
-    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(path), "--out", str(tmp_path / "o"),
-                        "--no-plots"], capture_output=True, text=True)
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and needle in r.stderr, r.stderr
+    _refused(tmp_path, content, needle)
 
 
 def test_pipe_contact_force_is_k_e_times_the_depth_from_pinocchio():

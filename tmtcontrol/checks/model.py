@@ -141,12 +141,12 @@ def orientation_error_check(scenario, seed: int = 2024) -> CheckResult | None:
     R_d = P[param_layout(sim.task, sim.law, sim.surface)["R_d"]].reshape(3, 3, order="F")
     rng = np.random.default_rng(seed)
     worst = 0.0
+    surface = surface_of(scenario)
     for _ in range(8):
         s = s0.copy()
         s[L["q"]] += rng.uniform(-0.15, 0.15, sim.plant.n)
         q = s[L["q"]]
         T = sim.plant.fk(q)
-        surface = surface_of(scenario)
         R_task = surface.frame(T[:3, 3])
         _, log = step(s, U[:, 0], P)
         log = np.asarray(log).ravel()

@@ -26,6 +26,7 @@ command and diagnostics; ``Q``: exit. Any other request ends the child.
 from __future__ import annotations
 
 import collections
+import ctypes
 import os
 import select
 import signal
@@ -41,6 +42,31 @@ The environment variable ``TMTCONTROL_STEP_BUDGET`` sets it."""
 
 SIZES = ("param", "state", "meas", "out", "arg", "res", "iw", "w")
 """The sizes (doubles or pointers) the child builds its structs with, in argv order after the library."""
+
+
+def state_struct(sizes: dict):
+    """The C ``tmt_state`` as a ctypes Structure for ``sizes`` (the keys of
+    :data:`SIZES`): the one description of its layout, used here and by
+    :class:`tmtcontrol.export.sil.CompiledController`."""
+    alloc = lambda n: max(int(n), 1)                                        # noqa: E731
+    return type("tmt_state", (ctypes.Structure,), {"_fields_": [
+        ("s", ctypes.c_double * alloc(sizes["state"])), ("s_next", ctypes.c_double * alloc(sizes["state"])),
+        ("y", ctypes.c_double * int(sizes["meas"])), ("p", ctypes.c_double * int(sizes["param"])),
+        ("out", ctypes.c_double * int(sizes["out"])), ("arg", ctypes.c_void_p * alloc(sizes["arg"])),
+        ("res", ctypes.c_void_p * alloc(sizes["res"])), ("iw", ctypes.c_longlong * alloc(sizes["iw"])),
+        ("w", ctypes.c_double * alloc(sizes["w"]))]})
+
+
+def size_mismatch(dll, structs: dict) -> str | None:
+    """The first of ``structs`` (C name without ``tmt_`` -> ctypes type) whose
+    size differs in the loaded library ``dll`` (its ``tmt_sizeof_*``), said
+    in one line; None when all agree."""
+    for name, cls in structs.items():
+        fn = getattr(dll, f"tmt_sizeof_{name}")
+        fn.restype = ctypes.c_size_t
+        if fn() != ctypes.sizeof(cls):
+            return f"tmt_{name} has {fn()} bytes in the library, {ctypes.sizeof(cls)} in export.json"
+    return None
 
 
 class HostFault(RuntimeError):
@@ -166,29 +192,20 @@ def _die_with_parent() -> None:
 
 
 def _serve(lib: str, sizes: list[int]) -> int:
-    import ctypes
-
     # the protocol gets a descriptor of its own; the C library's stdout (printf) goes to stderr, so
     # nothing the user's code prints can enter the command stream
     proto = os.dup(1)
     os.dup2(2, 1)
 
-    n_p, n_s, n_y, n_out, n_arg, n_res, n_iw, n_w = sizes
-    alloc = lambda n: max(int(n), 1)                                        # noqa: E731
-    Params = ctypes.c_double * n_p
-    State = type("tmt_state", (ctypes.Structure,), {"_fields_": [
-        ("s", ctypes.c_double * alloc(n_s)), ("s_next", ctypes.c_double * alloc(n_s)),
-        ("y", ctypes.c_double * n_y), ("p", ctypes.c_double * n_p), ("out", ctypes.c_double * n_out),
-        ("arg", ctypes.c_void_p * alloc(n_arg)), ("res", ctypes.c_void_p * alloc(n_res)),
-        ("iw", ctypes.c_longlong * alloc(n_iw)), ("w", ctypes.c_double * alloc(n_w))]})
-    Meas, Out = ctypes.c_double * n_y, ctypes.c_double * n_out
+    size = dict(zip(SIZES, sizes))
+    n_p, n_s, n_y = size["param"], size["state"], size["meas"]
+    Params, State = ctypes.c_double * n_p, state_struct(size)
+    Meas, Out = ctypes.c_double * n_y, ctypes.c_double * size["out"]
     dll = ctypes.CDLL(lib)
-    for name, cls in (("params", Params), ("state", State), ("measurement", Meas), ("command", Out)):
-        fn = getattr(dll, f"tmt_sizeof_{name}")
-        fn.restype = ctypes.c_size_t
-        if fn() != ctypes.sizeof(cls):
-            print(f"tmt_{name} has {fn()} bytes in the library, {ctypes.sizeof(cls)} in export.json", file=sys.stderr)
-            return 4
+    wrong = size_mismatch(dll, {"params": Params, "state": State, "measurement": Meas, "command": Out})
+    if wrong:
+        print(wrong, file=sys.stderr)
+        return 4
     step, init = dll.tmt_step, dll.tmt_init
     step.argtypes, step.restype = [ctypes.c_void_p] * 4, ctypes.c_int
     init.argtypes = [ctypes.c_void_p] * 2

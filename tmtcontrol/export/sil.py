@@ -40,6 +40,7 @@ from ..simulation.rollout import compiler
 from ..surface import SHAPES, Plane, contact_force
 from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
                        param_fields)
+from .host import size_mismatch, state_struct
 
 __all__ = ["CompiledController", "compile_export", "check_export_matches", "simulate_with_controller",
            "measurement_table", "write_measurements", "read_commands", "SIL_FLAGS"]
@@ -198,28 +199,19 @@ class CompiledController:
         self.Measurement = _struct("tmt_measurement", measurement_fields(self.task))
         self.Command = _struct("tmt_command", (*self.cmd_fields, *self.diag_fields))
         sz = self.meta["sizes"]
-        alloc = lambda n: max(int(n), 1)
-        n_out = sum(f.size for f in (*self.cmd_fields, *self.diag_fields))
-        n_y = sum(f.size for f in measurement_fields(self.task))
-        self.State = type("tmt_state", (ctypes.Structure,), {"_fields_": [
-            ("s", ctypes.c_double * alloc(sz["state"])), ("s_next", ctypes.c_double * alloc(sz["state"])),
-            ("y", ctypes.c_double * n_y), ("p", ctypes.c_double * sz["param"]),
-            ("out", ctypes.c_double * n_out), ("arg", ctypes.c_void_p * alloc(sz["arg"])),
-            ("res", ctypes.c_void_p * alloc(sz["res"])), ("iw", ctypes.c_longlong * alloc(sz["iw"])),
-            ("w", ctypes.c_double * alloc(sz["w"]))]})
-        self.isolated = isolated
-        self.host_sizes = {"param": sz["param"], "state": sz["state"], "meas": n_y, "out": n_out,
+        self.host_sizes = {"param": sz["param"], "state": sz["state"],
+                           "meas": sum(f.size for f in measurement_fields(self.task)),
+                           "out": sum(f.size for f in (*self.cmd_fields, *self.diag_fields)),
                            "arg": sz["arg"], "res": sz["res"], "iw": sz["iw"], "w": sz["w"]}
+        self.State = state_struct(self.host_sizes)
+        self.isolated = isolated
         if isolated:                       # the user's code runs in the child only (.host)
             return
         dll = ctypes.CDLL(str(self.library))
-        for name, cls in (("params", self.Params), ("state", self.State), ("measurement", self.Measurement),
-                          ("command", self.Command)):
-            fn = getattr(dll, f"tmt_sizeof_{name}")
-            fn.restype = ctypes.c_size_t
-            if fn() != ctypes.sizeof(cls):
-                raise ExportError(f"{flag}: {self.folder}: tmt_{name} has {fn()} bytes in the library, "
-                                  f"{ctypes.sizeof(cls)} in {METADATA}; export it again")
+        wrong = size_mismatch(dll, {"params": self.Params, "state": self.State, "measurement": self.Measurement,
+                                    "command": self.Command})
+        if wrong:
+            raise ExportError(f"{flag}: {self.folder}: {wrong}; export it again")
         self._step = dll.tmt_step
         self._step.argtypes = [ctypes.c_void_p] * 4
         self._step.restype = ctypes.c_int

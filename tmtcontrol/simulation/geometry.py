@@ -39,14 +39,24 @@ def surface_of(scenario) -> Surface:
     through ``trajectory.center``, the task frame's origin; or the sphere or
     cylinder of ``environment.radius`` touching that plane there (a
     cylinder's axis along ``environment.axis``, default task axis 2)."""
-    env = scenario.environment
+    env, center = scenario.environment, scenario.trajectory.center
     heights = None
     if env.heightmap is not None:
         from .scenario.environment import read_height_grid
 
-        heights = read_height_grid(env.heightmap)
-    return make_surface(env.shape, surface_frame(env), scenario.trajectory.center, env.radius, env.side, env.axis,
-                        heights, env.grid_spacing)
+        heights = read_height_grid(env.heightmap)      # cached by the file's size and time: the same array
+    # built once per surface (a height map's spline takes ~20 ms, and the loop, the analyses and the
+    # figures each ask); the entry holds the heights, so their id is not reused while it lives
+    key = (env, tuple(center), id(heights))
+    if key not in _SURFACES:
+        if len(_SURFACES) > 32:
+            _SURFACES.clear()
+        _SURFACES[key] = (heights, make_surface(env.shape, surface_frame(env), center, env.radius, env.side,
+                                                env.axis, heights, env.grid_spacing))
+    return _SURFACES[key][1]
+
+
+_SURFACES: dict = {}
 
 
 def surface_frame(environment) -> np.ndarray:

@@ -317,7 +317,7 @@ class SimulationResult:
         return SimulationTraces(
             time=self.time, contact_force=self.contact_force, desired_force=self.desired_force,
             stiffness=self.stiffness, stiffness_estimate=self.stiffness_estimate, position=self.position,
-            reference_position=self.reference_position, surface_frame=surface_of(sc).frame(sc.trajectory.center),
+            reference_position=self.reference_position, surface_frame=surface.frame(sc.trajectory.center),
             center=np.asarray(sc.trajectory.center, dtype=float), radius=float(sc.trajectory.radius),
             orientation_error=self.orientation_error_norm if oriented else None, tool=self.tool,
             desired_position=desired, surface_mesh=mesh,

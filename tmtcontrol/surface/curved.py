@@ -70,6 +70,8 @@ class _Curved(Surface):
         if side not in SIDES:
             raise ValueError(f"side: expected 'outside' or 'inside', got {side!r}")
         self.radius, self.side = float(radius), side
+        for arr in (self.R, self.c):        # a surface is shared (geometry.surface_of builds each once)
+            arr.setflags(write=False)
 
     # -- what a shape states -----------------------------------------------------------------
     @staticmethod
@@ -87,6 +89,14 @@ class _Curved(Surface):
     def _coords(p, par):
         """Symbolic task coordinates (3) of the base-frame point ``p``."""
         raise NotImplementedError
+
+    @staticmethod
+    def _local(p, par):
+        """``(x, y, z, r, sigma)``: ``p`` from the centre of curvature along
+        ``u0``, ``t1`` and ``t2``, the radius and the side's sign."""
+        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
+        w = p - centre
+        return ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2), r, sigma
 
     @staticmethod
     def _frame(X, par):
@@ -191,10 +201,9 @@ class Sphere(_Curved):
 
     @staticmethod
     def _coords(p, par):
-        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
-        w = p - centre
-        x, y, z = ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2)
-        return ca.vertcat(sigma * (r - ca.norm_2(w)), r * ca.atan2(y, x), r * ca.atan2(z, ca.sqrt(x * x + y * y)))
+        x, y, z, r, sigma = _Curved._local(p, par)
+        rho = ca.sqrt(x * x + y * y)
+        return ca.vertcat(sigma * (r - ca.sqrt(rho * rho + z * z)), r * ca.atan2(y, x), r * ca.atan2(z, rho))
 
     @staticmethod
     def _unit(X, par):
@@ -244,9 +253,7 @@ class Cylinder(_Curved):
 
     @staticmethod
     def _coords(p, par):
-        a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
-        w = p - centre
-        x, y, z = ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2)
+        x, y, z, r, sigma = _Curved._local(p, par)
         return ca.vertcat(sigma * (r - ca.sqrt(x * x + y * y)), r * ca.atan2(y, x), z)
 
     @staticmethod

@@ -61,6 +61,8 @@ class HeightMap(_Curved):
         self.c = np.array(c, dtype=float).reshape(3)
         if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
             raise ValueError("heightmap: the task frame must be a finite rotation matrix")
+        for arr in (self.R, self.c):        # a surface is shared (geometry.surface_of builds each once)
+            arr.setflags(write=False)
         H = np.array(heights, dtype=float)
         if H.ndim != 2:
             raise ValueError(f"heightmap: expected a 2-D grid of heights, got {H.ndim} dimension(s)")

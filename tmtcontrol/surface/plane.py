@@ -61,6 +61,8 @@ class Plane(Surface):
         self.c = np.array(c, dtype=float).reshape(3)
         if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
             raise ValueError("plane: the task frame must be a finite rotation matrix")
+        for a in (self.R, self.c):          # a surface is shared (geometry.surface_of builds each once)
+            a.setflags(write=False)
 
     @classmethod
     def from_tilt(cls, tilt_deg: float, c) -> "Plane":
