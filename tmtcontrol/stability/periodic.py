@@ -251,11 +251,15 @@ def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[
 
     mdl = model or PeriodicModel(scenario)
 
-    def g(log_k):
-        try:
-            return math.log(mdl.at(math.exp(log_k)).spectral_radius)
-        except AnalysisError:
-            return 1.0
+    seen: dict = {}
+
+    def g(log_k):       # remembered: brentq evaluates the bracket's ends again (the orbit's Newton is warm-started)
+        if log_k not in seen:
+            try:
+                seen[log_k] = math.log(mdl.at(math.exp(log_k)).spectral_radius)
+            except AnalysisError:
+                seen[log_k] = 1.0
+        return seen[log_k]
 
     if bracket is None:
         from .onedim import scenario_stiffness_limit

@@ -218,7 +218,7 @@ class WholeLoopModel:
         s_eq = None
         for guess in guesses:
             try:
-                start = guess()
+                start = self._held(guess(), u)
             except ValueError:       # scaled from a far stiffness, the guess left the workspace
                 continue
             s_eq, residual = self._newton(start, u)
@@ -242,6 +242,18 @@ class WholeLoopModel:
             names = names[:-len(self.law.states)] + tuple(self.law.states)
         f_eq = float(self._f(s_eq, u)[1])
         return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p)
+
+    def _held(self, s, u):
+        """``s`` with the mid-period hold's state (if the loop has one) at its
+        value there: the last torque is the one computed at ``s`` (the
+        extrapolation is bilinear in it and the flag; Newton from a flag of 0
+        found a fixed point off the surface)."""
+        L = self.layout
+        if L["held"].stop > L["held"].start:
+            s = s.copy()
+            s[L["held"]] = 1.0
+            s[L["tau_prev"]] = np.ravel(np.array(self._f(s, u)[0]))[L["tau_prev"]]
+        return s
 
     def _newton(self, s, u, iters=30, tol=1e-11):
         d = self.dynamic
@@ -287,7 +299,14 @@ def whole_loop_limit(scenario, points: int = 8, rtol: float = 1e-4, model: Whole
                 and not stable(guess * 1.25):
             lo, hi = guess / 1.25, guess * 1.25
         else:
-            limits.append((tp, largest_stable(stable, k_lo, k_hi, rtol, points=19, within=within)))
+            try:
+                limits.append((tp, largest_stable(stable, k_lo, k_hi, rtol, points=19, within=within)))
+            except AnalysisError:
+                if within is None or k_lo >= within:
+                    raise
+                # a soft surface below the scenario's smallest stiffness put the equilibrium beyond the
+                # workspace or a curved part's axis: the band is searched from that stiffness up
+                limits.append((tp, largest_stable(stable, within, k_hi, rtol, points=19, within=within)))
             continue
         while hi / lo > 1 + rtol:
             mid = math.sqrt(lo * hi)
