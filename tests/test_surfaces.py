@@ -531,3 +531,28 @@ def test_beyond_its_grid_a_height_map_continues_flat_at_its_edge():
     assert abs(edge - 0.02) < 1e-12 and s.height(0.25, 0.0) == edge and abs(s.height(0.2, 0.5) - edge) < 1e-15
     inside = s.to_base(np.array([0.0, 0.25, 0.0]))
     assert abs(R0[:, 0] @ (inside - C0) + edge) < 1e-12          # the point beyond the edge: at the edge height
+
+
+def test_a_line_on_the_pipe_is_a_helix():
+    """``trajectory.path = "line"`` at ``direction_deg`` on a cylinder wraps to
+    a helical segment: every commanded point on the surface (the chart at
+    depth 0) at the pipe's radius from its axis, its axial position linear in
+    its angle about the axis with the pitch r tan(direction) per radian
+    (task axis 1 round the pipe, axis 2 along it), checked in NumPy from the
+    axis (closed form), to 1e-12 m."""
+    from tmtcontrol.simulation.geometry import surface_of
+    from tmtcontrol.simulation.trajectory import path_reference
+
+    sc = apply_overrides(arm_scenario("ur5-pipe"), ['trajectory.path="line"', "trajectory.direction_deg=30.0"])
+    surface = surface_of(sc)
+    ref = path_reference(np.linspace(0.0, sc.trajectory.period, 41), sc.trajectory)
+    pts = np.array([surface.to_base(np.r_[0.0, uv]) for uv in ref.pos.T])
+    axis_pt, axis = np.array([0.4, 0.2, 0.2 - 0.1]), np.array([0.0, 1.0, 0.0])
+    w = pts - axis_pt
+    z = w @ axis
+    radial = w - np.outer(z, axis)
+    assert np.abs(np.linalg.norm(radial, axis=1) - 0.1).max() < 1e-12
+    theta = np.arctan2(radial[:, 0], radial[:, 2])           # 0 at the top line, where the path is centred
+    assert np.ptp(theta) > 0.15                                 # it goes round the pipe
+    pitch = 0.1 * np.tan(np.radians(30.0))
+    assert np.abs(z - np.sign(np.polyfit(theta, z, 1)[0]) * pitch * theta).max() < 1e-12
