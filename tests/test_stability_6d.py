@@ -143,8 +143,9 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
 # -- heavy: the UR5 scenario against bisection in the 6-D simulator -------------------------------------------------
 
 @pytest.mark.heavy      # compiles the arm's augmented monodromy step (~220,000 operations on the UR5, ~360,000
-@pytest.mark.parametrize("arm", ["ur5", "panda", "ur5-pipe"])   # on the Panda: 0.5-3 min) once; the pipe:
-def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):   # the normal turning (issue 40)
+@pytest.mark.parametrize("arm, guess", [("ur5", 1.4e5), ("panda", 1.4e5),   # on the Panda: 0.5-3 min) once;
+                                         ("ur5-pipe", 6e5)])      # the pipe: the normal turning (issue 40), the
+def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm, guess):   # mid-period hold's limit
     """The built-in scenario (1 kHz, 4 s circle): the periodic limit against the simulated
     6-D loop's own limit (first_contact.simulated_limit: runs at constant k_e started near
     the orbit, converged if the difference between successive periods shrinks; bisection
@@ -160,13 +161,16 @@ def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):   # t
 
     sc = arm_scenario(arm)
     mdl = PeriodicModel(sc)
-    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=1.4e5)
+    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=guess)
     frozen_max = max(l for _, l in points)
     for t, _ in points[::3]:
         w = mdl.frozen.at(frozen_min / 1.1, t)
         assert w.residual < 1e-8 and w.f_eq == pytest.approx(sc.controller.f_d, abs=1e-7)
     predicted = periodic_limit(sc, model=mdl, bracket=(frozen_min / 1.02, frozen_max * 1.02))
-    assert frozen_min <= predicted * 1.001 and predicted <= frozen_max * 1.001
+    # the frozen loop's range brackets the orbit's limit, to 0.1 %; with the pipe's mid-period hold (whose
+    # extrapolation sees the path's motion) the orbit's limit lies up to 3 % below the frozen minimum
+    assert frozen_min <= predicted * (1.03 if sc.controller.hold == "mid_period" else 1.001)
+    assert predicted <= frozen_max * 1.001
     simulated = simulated_limit(sc, predicted / 1.05, predicted * 1.05, rtol=1e-3, runner=LoopRunner(sc))
     assert predicted == pytest.approx(simulated, rel=0.01)
 

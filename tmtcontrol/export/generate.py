@@ -217,7 +217,8 @@ def param_fields(law: Law, task=3, surface=Plane) -> tuple[Field, ...]:
 class Interface:
     """The exported controller's structure for one scenario: the robot's task
     (``n`` joints), the law, delay and inner loop, the controller's model, the
-    layouts of its vectors and the field tables of its structs."""
+    layouts of its vectors and the field tables of its structs; ``hold``: the
+    mid-period hold (``controller.hold``)."""
     task: object
     law: Law
     delay: int
@@ -229,6 +230,7 @@ class Interface:
     measurement: Layout
     command: Layout
     diagnostics: Layout
+    hold: bool = False
 
     @property
     def n(self) -> int:
@@ -265,10 +267,11 @@ def interface(scenario: Scenario, torque: bool) -> Interface:
     model = robot_of(scenario, controller=True)
     task = model.task
     surface = surface_of(scenario)
-    return Interface(task, law, delay, torque, model, surface, controller_state_layout(task, law, delay, torque),
+    hold = torque and scenario.controller.hold == "mid_period"
+    return Interface(task, law, delay, torque, model, surface,
+                     controller_state_layout(task, law, delay, torque, hold),
                      controller_param_layout(task, law, surface), measurement_layout(task),
-                     command_layout(task, torque),
-                     diagnostics_layout(task))
+                     command_layout(task, torque), diagnostics_layout(task), hold)
 
 
 def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, Law]:
@@ -278,7 +281,8 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
     iface = interface(scenario, torque)
     law = iface.law
     try:
-        fn = build_controller(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION, surface=iface.surface)
+        fn = build_controller(iface.model, law, iface.delay, torque, name=GENERATED_FUNCTION, surface=iface.surface,
+                              hold=iface.hold)
     except Exception as exc:       # a law whose update cannot be expanded to SX
         raise ExportError(f"controller.law: law {law.name!r} cannot be exported to C: its update does not "
                           f"expand to CasADi SX ({str(exc).splitlines()[0][:160]})") from None
@@ -326,7 +330,7 @@ def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.nd
     law, delay = iface.law, iface.delay
     P, s0 = _start(scenario)
     full_p = param_layout(iface.task, law, iface.surface).split(P)
-    full_s = state_layout(iface.task, law, delay).split(s0)
+    full_s = state_layout(iface.task, law, delay, scenario.controller.hold == "mid_period").split(s0)
     p = iface.param.pack(**full_p)
     cs = iface.state
     s = cs.pack(**{n: full_s[n][:cs[n].stop - cs[n].start] for n in cs.slices})
@@ -472,7 +476,8 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
             "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind,
             "surface_key": iface.surface.key, "inner_loop": inner_loop,
-            "delay": scenario.controller.delay_samples, "model_mass_scale": scenario.robot.model_mass_scale,
+            "delay": scenario.controller.delay_samples, "hold": scenario.controller.hold,
+            "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},
             "instructions": fn.n_instructions()}

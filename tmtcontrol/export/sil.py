@@ -113,6 +113,7 @@ def _metadata_schema():
         surface_key: StrictStr | None = None              # a height map's heights are in the C code
         inner_loop: StrictBool
         delay: int = Field(ge=0, le=1000)
+        hold: Literal["zero_order", "mid_period"] = "zero_order"    # an export older than the mid-period hold
         model_mass_scale: StrictFloat | StrictInt
         compensate_friction: StrictBool
         sizes: Sizes
@@ -183,7 +184,8 @@ class CompiledController:
         self.n = self.robot["joints"]
         self.task = task_of(self.n)
         self.surface = SHAPES[self.meta.get("surface", Plane.kind)]
-        sizes = {"state": controller_state_layout(self.task, self.law, self.meta["delay"], self.torque).size,
+        hold = self.meta.get("hold") == "mid_period"
+        sizes = {"state": controller_state_layout(self.task, self.law, self.meta["delay"], self.torque, hold).size,
                  "param": controller_param_layout(self.task, self.law, self.surface).size}
         for key, size in sizes.items():     # the structs the C code was written with
             if self.meta["sizes"][key] != size:
@@ -268,11 +270,11 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
     from ..simulation.geometry import surface_of
 
     want = {"law": scenario.controller.law.kind, "surface": surface_of(scenario).kind,
-            "delay": scenario.controller.delay_samples,
+            "delay": scenario.controller.delay_samples, "hold": scenario.controller.hold,
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction}
     for key, value in want.items():
-        have = meta.get(key, Plane.kind if key == "surface" else None)    # an export older than curved surfaces
+        have = meta.get(key, {"surface": Plane.kind, "hold": "zero_order"}.get(key))  # an older export
         if have != value:
             raise ExportError(f"{flag}: {folder} was exported with {key} = {have!r}, "
                               f"the scenario has {value!r}; export this scenario (tmtcontrol export)")

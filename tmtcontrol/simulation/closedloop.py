@@ -53,6 +53,18 @@ Two things real controllers have are part of the loop (beyond the paper):
 * a computation delay of N samples (``delay``, structural): the torque
   computed at t_k is applied over [t_(k+N), t_(k+N+1)); the state carries
   the N torques computed but not yet applied;
+* a mid-period hold (``hold``, structural; ``controller.hold =
+  "mid_period"``): the torque held over [t_k, t_k+1) is extrapolated to the
+  period's middle from the last two computed, tau_k + (tau_k - tau_k-1)/2.
+  The zero-order hold applies the torque computed at t_k for the whole
+  period, a lag of Ts/2 that leaves a force ripple proportional to Ts where
+  the task's feed-forward changes (a curved part's turning normal, a
+  circle's centripetal acceleration); the extrapolation cancels its first
+  order (the ripple falls with Ts^2; docs/surfaces.md). A jump
+  of the computed torque (the impedance filter's answer to a stiffness
+  step) is overshot by half for one period, which the torque-limit verdicts
+  see. It adds a lead to the loop that the whole-loop and periodic analyses
+  see (they run this step); the 1-D sampled model does not;
 * a guarded approach (first contact from a gap above the surface): while
   ``approach`` is 1 the normal command advances toward the surface at the
   approach speed, x_c = x_app, dx_c = v, ddx_c = 0, and the law's state is
@@ -85,7 +97,8 @@ from .geometry import rotation_vector
 __all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "damping_schedule",
            "operational_space_torque", "build_step", "step_name", "build_plant", "build_controller",
            "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
-           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics"]
+           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics",
+           "MID_PERIOD"]
 
 
 class Layout:
@@ -122,21 +135,28 @@ class Layout:
         return out
 
 
-def state_layout(task, law: Law, delay: int = 0) -> Layout:
+def state_layout(task, law: Law, delay: int = 0, hold: bool = False) -> Layout:
     """Closed-loop state: joints (n rad, n rad/s), force-sensor filter state
     (N), scheduled normal damping (N s/m), approach phase (1 while
     approaching, else 0), approach command x_app (m, task normal), progress
     of the f_d ramp (0..1), the controller's surface estimate x_e_hat (m),
     the ``delay`` torques of n joints waiting to be applied (N m, oldest
-    first), then the law's own state."""
-    n = task.n
+    first), with the mid-period ``hold`` the last period's computed torque
+    (n, N m) and whether there was one (0/1), then the law's own state."""
+    n, h = task.n, int(bool(hold))
     return Layout(("q", n), ("dq", n), ("f_filt", 1), ("b_n", 1), ("approach", 1), ("x_app", 1),
-                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", n * delay), ("law", len(law.states)))
+                  ("ramp", 1), ("x_e_hat", 1), ("tau_wait", n * delay), ("tau_prev", n * h), ("held", h),
+                  ("law", len(law.states)))
 
 
 INPUT = Layout(("pos_t", 2), ("vel_t", 2), ("acc_t", 2), ("k_e", 1), ("noise", 1))
 """Per-sample inputs: tangential reference (task axes 1, 2), true stiffness
 k_e (N/m), force-sensor noise sample (N)."""
+
+MID_PERIOD = 0.5
+"""With the mid-period hold, the held torque is tau_k + MID_PERIOD (tau_k -
+tau_k-1): the linear extrapolation of the computed torque to t_k + Ts/2, the
+time the zero-order hold's torque acts on average."""
 
 
 def param_layout(task, law: Law, surface=Plane) -> Layout:
@@ -295,14 +315,16 @@ def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, cont
 
 
 def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, f_sensor, delay: int,
-             torque: bool = True) -> dict:
+             torque: bool = True, hold: bool = False) -> dict:
     """The controller at t_k from the sampled measurements, as MX expressions:
     the normal force through the sensor filter, the guarded approach, the
     (scheduled) damping, the law's command of eq. (4), the orientation error
     on a 6-D task, and (``torque``) the inner loop (eq. 6) and control force
     (eq. 5) as joint torques, with the computation delay's queue (``tau``,
     N m, the one applied over [t_k, t_k+1); ``tau_wait`` the queue after
-    this period, oldest first). ``S``/``P`` are the state and parameter
+    this period, oldest first) and, with ``hold``, the torque extrapolated
+    to the middle of the period (:data:`MID_PERIOD`; ``tau_prev``/``held``
+    the state it keeps). ``S``/``P`` are the state and parameter
     slices by name, ``ref`` the tangential reference (pos_t, vel_t, acc_t),
     ``kin`` :func:`kinematics` of the encoders and ``f_sensor`` the normal
     force read this period (N, before the filter). Used by :func:`build_step`
@@ -345,7 +367,7 @@ def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, 
     e_o = ca.mtimes(R.T, rotation_vector(ca.mtimes(R_d, R_tool.T))) if task.rotational else ca.MX(0, 1)
     out = {"f_m": f_m, "engaged": engaged, "x_e_hat": x_e_hat, "f_d": f_d, "b_n": b_n, "law_next": law_next,
            "X_r": X_r, "X_c": X_c, "dX_c": dX_c, "ddX_c": ddX_c, "ramp": ramp, "x_app": x_app, "e_o": e_o,
-           "R_d": R_d, "w_d": w_d, "tau": None, "tau_wait": None}
+           "R_d": R_d, "w_d": w_d, "tau": None, "tau_wait": None, "tau_prev": ca.MX(0, 1), "held": ca.MX(0, 1)}
     if not torque:
         return out
     U = surface.acceleration(X, dX, inner_loop(ddX_c, dX_c, X_c, dX, X, kd_vec, P["kp"]), P)   # eq. (6)
@@ -362,6 +384,9 @@ def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, 
              if task.posture else None)
     tau = operational_space_torque(M, model.functions.bias(q, dq), J, Jdot_dq, U, F_e, tau_0) \
         + model.functions.friction(dq)                                                # eq. (5)
+    if hold:            # the torque at t_k + Ts/2, extrapolated from the last two (the first period: as computed)
+        out.update(tau_prev=tau, held=ca.MX(1))
+        tau = tau + MID_PERIOD * S["held"] * (tau - S["tau_prev"])
     tau = ca.fmin(ca.fmax(tau, -P["tau_max"]), P["tau_max"])      # the drive's clip (robot.saturate; inf: none)
     if delay:           # apply the oldest waiting torque; queue this one
         queue = ca.vertcat(S["tau_wait"], tau)
@@ -372,9 +397,9 @@ def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, 
     return out
 
 
-def step_name(law: Law, delay: int = 0) -> str:
+def step_name(law: Law, delay: int = 0, hold: bool = False) -> str:
     """The name of :func:`build_step`'s Function (and of its compiled library)."""
-    return f"step_{law.name}" + (f"_delay{delay}" if delay else "")
+    return f"step_{law.name}" + (f"_delay{delay}" if delay else "") + ("_mid" if hold else "")
 
 
 def _surface_parameters(P: dict, surface) -> list:
@@ -382,7 +407,7 @@ def _surface_parameters(P: dict, surface) -> list:
 
 
 def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
-               delay: int = 0, contact_refine: int = 4, surface=Plane) -> ca.Function:
+               delay: int = 0, contact_refine: int = 4, surface=Plane, hold: bool = False) -> ca.Function:
     """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
     and a computation delay of ``delay`` samples. ``plant`` and ``model``
     are robots (``load_robot``) with the same joints (the model may be
@@ -395,27 +420,29 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
     the refined steps run only in those periods). The controller is expanded
     to SX, fused with the coarse plant step, and the step can be compiled.
     ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
-    compilable; the accuracy reference).
+    compilable; the accuracy reference). ``hold``: the held torque
+    extrapolated to the middle of the period (``controller.hold =
+    "mid_period"``, :data:`MID_PERIOD`).
     """
     task = plant.task
     if model.n != task.n:
         raise ValueError(f"plant and model must have the same joints, got {task.n} and {model.n}")
     coarse, choose, flow = _plant_step(plant, surface, integrator, substeps, tol, contact_refine)
-    STATE, PARAM = state_layout(task, law, delay), param_layout(task, law, surface)
+    STATE, PARAM = state_layout(task, law, delay, hold), param_layout(task, law, surface)
     s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", INPUT.size), ca.MX.sym("p", PARAM.size)
     S, U_in, P = STATE.split(s), INPUT.split(u), PARAM.split(p)
     q, dq = S["q"], S["dq"]
     kin = kinematics(model, surface, q, dq, P)                    # encoders through fk
     pos, _, _, _, X, dX = kin
     f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    c = _control(model, law, surface, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay)
+    c = _control(model, law, surface, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay, hold=hold)
     pz = ca.vertcat(c["tau"], U_in["k_e"], P["d_e"], *_surface_parameters(P, surface), P["Ts"])
     z0 = ca.vertcat(q, dq)
     rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
-                      c["tau_wait"], c["law_next"])
+                      c["tau_wait"], c["tau_prev"], c["held"], c["law_next"])
     log = ca.vertcat(q, dq, c["tau"], pos, X, c["X_r"], c["X_c"], f_true, c["f_m"], c["b_n"], c["f_d"],
                      c["x_e_hat"], c["e_o"])
-    name = step_name(law, delay)
+    name = step_name(law, delay, hold)
     if flow is not None:
         zf = flow(x0=z0, p=pz)["xf"]
         return ca.Function(name, [s, u, p], [ca.vertcat(zf, rest), log], ["s", "u", "p"], ["s_next", "log"])
@@ -456,10 +483,10 @@ def build_plant(plant, integrator: str = "fixed", substeps: int = 1, tol: float 
     return ca.Function("plant", [z, pz], [zf], ["z", "pz"], ["zf"])
 
 
-def controller_state_layout(task, law: Law, delay: int = 0, torque: bool = True) -> Layout:
+def controller_state_layout(task, law: Law, delay: int = 0, torque: bool = True, hold: bool = False) -> Layout:
     """The controller's own state: :func:`state_layout` without the joints
-    (the delay queue only with ``torque``)."""
-    full = state_layout(task, law, delay if torque else 0)
+    (the delay queue and the mid-period hold's torque only with ``torque``)."""
+    full = state_layout(task, law, delay if torque else 0, hold and torque)
     return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k not in ("q", "dq")))
 
 
@@ -547,7 +574,7 @@ def _newton(model, J, pos, R_tool, q, p_c, R_d):
 
 
 def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name: str = "tmt_controller",
-                     surface=Plane) -> ca.Function:
+                     surface=Plane, hold: bool = False) -> ca.Function:
     """The controller of :func:`build_step` alone (the same expressions,
     :func:`_control`), expanded to SX: ``name: ["s","y","p"] ->
     ["s_next","cmd","diag"]`` with the state :func:`controller_state_layout`,
@@ -555,9 +582,11 @@ def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name:
     :func:`controller_param_layout`, the command :func:`command_layout` and
     :func:`diagnostics_layout`. ``torque=False`` leaves out the inner loop
     (eqs. 5-6) and the delay queue: the command for a position-controlled
-    robot."""
+    robot. ``hold``: the torque extrapolated to the middle of the period
+    (:data:`MID_PERIOD`)."""
     task = model.task
-    STATE, PARAM = controller_state_layout(task, law, delay, torque), controller_param_layout(task, law, surface)
+    hold = hold and torque
+    STATE, PARAM = controller_state_layout(task, law, delay, torque, hold), controller_param_layout(task, law, surface)
     MEAS = measurement_layout(task)
     s, y, p = ca.MX.sym("s", STATE.size), ca.MX.sym("y", MEAS.size), ca.MX.sym("p", PARAM.size)
     S, Y, P = STATE.split(s), MEAS.split(y), PARAM.split(p)
@@ -565,7 +594,7 @@ def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name:
     kin = kinematics(model, surface, q, dq, P)
     pos, R_tool, J, R, X, dX = kin
     f_sensor = -ca.dot(R[:, 0], Y["force"])                 # normal force pushing on the surface
-    c = _control(model, law, surface, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque)
+    c = _control(model, law, surface, S, P, Y, q, dq, kin, f_sensor, delay if torque else 0, torque, hold)
     p_c = surface.point(c["X_c"], P)
     q_c, J_c = _newton(model, J, pos, R_tool, q, p_c, c["R_d"])
     v_c = surface.velocity(c["X_c"], c["dX_c"], P)
@@ -574,7 +603,7 @@ def build_controller(model, law: Law, delay: int = 0, torque: bool = True, name:
     dq_c = _least_norm(J_c, v_c)
     queue = c["tau_wait"] if torque else ca.MX(0, 1)
     s_next = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"],
-                        c["x_e_hat"], queue, c["law_next"])
+                        c["x_e_hat"], queue, c["tau_prev"], c["held"], c["law_next"])
     cmd = ca.vertcat(c["X_c"], c["dX_c"], c["ddX_c"], p_c, q_c, dq_c, c["tau"] if torque else ca.MX(0, 1))
     diag = ca.vertcat(X, dX, c["X_r"], pos, c["f_m"], c["b_n"], c["f_d"], c["x_e_hat"], c["e_o"])
     return ca.Function(name, [s, y, p], [s_next, cmd, diag], ["s", "y", "p"],

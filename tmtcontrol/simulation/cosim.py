@@ -76,10 +76,10 @@ def builtin_controller(sim, scenario) -> tuple[Callable, int]:
     virtual machine) as a :func:`run_split` controller, started in the
     simulator's start state."""
     task, law, delay = sim.task, sim.law, sim.delay
-    fn = build_controller(sim.model, law, delay, True, surface=sim.surface)
+    fn = build_controller(sim.model, law, delay, True, surface=sim.surface, hold=sim.hold)
     _, P, s0, _ = sim.inputs(scenario)
     p = controller_param_layout(task, law, sim.surface).pack(**param_layout(task, law, sim.surface).split(P))
-    n_s = controller_state_layout(task, law, delay).size
+    n_s = controller_state_layout(task, law, delay, hold=sim.hold).size
     state = {"s": s0[2 * task.n:2 * task.n + n_s].copy()}
 
     def control(y):

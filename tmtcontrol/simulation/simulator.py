@@ -152,7 +152,8 @@ def structure(scenario: Scenario):
     r, s = scenario.robot, scenario.simulation
     return (r.model, r.tip, r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
-            scenario.controller.law.kind, scenario.controller.delay_samples, surface_of(scenario).key)
+            scenario.controller.law.kind, scenario.controller.delay_samples, scenario.controller.hold,
+            surface_of(scenario).key)
 
 
 @functools.lru_cache(maxsize=1)
@@ -356,6 +357,7 @@ class Simulator:
         self.surface = surface_of(sc)
         self.law = get_law(sc.controller.law.kind)
         self.delay = sc.controller.delay_samples
+        self.hold = sc.controller.hold == "mid_period"
         # CVODES cannot be code-generated: that reference runs on the virtual machine
         compile = compile if sc.simulation.integrator == "fixed" else False
         key = structure_key(sc, self.law)
@@ -363,14 +365,14 @@ class Simulator:
             self.rollout = Rollout(self._build_step(), compile=compile)
         else:           # a cached library is found without building the step
             self.rollout = Rollout(self._build_step, compile=compile,
-                                   structure=(step_name(self.law, self.delay), key))
+                                   structure=(step_name(self.law, self.delay, self.hold), key))
         self.build_time = time.perf_counter() - t0
         self._structure = structure(sc)
-        self.layout = state_layout(self.task, self.law, self.delay)
+        self.layout = state_layout(self.task, self.law, self.delay, self.hold)
         """The closed-loop state's layout."""
         self.log = log_layout(self.task)
         """The step's log layout (``log["f_e"]``: the true contact force's row)."""
-        self.name = f"{self.task.label}_{self.law.name}_d{self.delay}"
+        self.name = f"{self.task.label}_{self.law.name}_d{self.delay}" + ("_mid" if self.hold else "")
         """A short name of the loop's structure (for compiled libraries)."""
         self.cache_tag = f"|{self.plant.key}|{self.model.key}"
         """What identifies the arm beyond the scenario's structure, for cache keys."""
@@ -389,14 +391,14 @@ class Simulator:
     def _build_step(self, contact_refine: int | None = None):
         s = self.scenario.simulation
         return build_step(self.plant, self.model, self.law, s.integrator, s.substeps, s.tol, self.delay,
-                          s.contact_refine if contact_refine is None else contact_refine, self.surface)
+                          s.contact_refine if contact_refine is None else contact_refine, self.surface, self.hold)
 
     def build_step(self, contact_refine: int):
         """The scenario's step with the fixed-step integrator and
         ``contact_refine`` (1: no refinement), for the analyses."""
         s = self.scenario.simulation
         return build_step(self.plant, self.model, self.law, "fixed", s.substeps, s.tol, self.delay,
-                          contact_refine, self.surface)
+                          contact_refine, self.surface, self.hold)
 
     def run(self, scenario: Scenario | None = None, max_steps: int | None = None) -> SimulationResult:
         """Simulate ``scenario`` (default: the one given at construction). It
@@ -557,9 +559,10 @@ class Simulator:
         dq0 = self.joint_rates(q0, *surface.rates(np.r_[-gap, ref.pos[:, 0]], np.r_[0.0, ref.vel[:, 0]]))
         b0 = min(max(imp.b[0], sch.b_min), sch.b_max) if on else imp.b[0]
         guarded = gap > 0 and ctl.approach_speed > 0
-        s0 = state_layout(task, law, self.delay).pack(
+        s0 = state_layout(task, law, self.delay, self.hold).pack(
             q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=-gap,
             ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(task.n * self.delay),
+            tau_prev=np.zeros(task.n * self.hold), held=np.zeros(int(self.hold)),
             law=law.initial_state(ctl.law))
         return U, P, s0, t
 

@@ -280,8 +280,10 @@ def format_analysis(d: dict) -> str:
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (the frozen-point minimum; "
                      "no periodic analysis)", f"note                 {d['periodic_note']}"]
         elif "periodic_limit" in d:
+            below = d["periodic_limit"] < d["whole_loop_limit"]
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (periodic orbit: monodromy "
-                     "over one period; the frozen-point minimum above is the conservative bound)"]
+                     "over one period; " + ("below the frozen-point minimum: the moving path lowers it)" if below
+                                            else "the frozen-point minimum above is the conservative bound)")]
         if "periodic_limit" in d:
             rows += [f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
                      "settles below it, else a contact limit cycle)",

@@ -33,7 +33,10 @@ def arm_scenario(name: str) -> Scenario:
     ``"ur5-pipe"``: the outside of a horizontal pipe of radius 0.1 m (axis
     along base y) from above, the circle's centre on its top line at (0.4,
     0.2, 0.2) m; ``"panda-bowl"``: the inside of a spherical bowl of radius
-    0.25 m whose lowest point is (0.5, 0, 0.3) m."""
+    0.25 m whose lowest point is (0.5, 0, 0.3) m. The curved parts hold the
+    torque to the middle of each period (``controller.hold = "mid_period"``):
+    with the zero-order hold the turning normal leaves a force ripple above
+    1e-3 N on the pipe at 1 kHz (docs/surfaces.md)."""
     arms = {   # model, start-posture seed (rad), centre (m), inward normal, tool spin (deg), the shape
         "ur5": ("ur5", (0.0, -1.9, 1.9, -1.57, -1.57, 3.14), (0.4, 0.2, 0.2), _tilted(45.0), 0.0, {}),
         "panda": ("panda", (0.0, 0.1, 0.0, -2.0, 0.0, 2.1, 0.785), (0.5, 0.0, 0.3), _tilted(30.0), 180.0, {}),
@@ -45,8 +48,9 @@ def arm_scenario(name: str) -> Scenario:
     if name not in arms:
         raise ScenarioError(f"scenario: expected 'paper' or one of {', '.join(BUILTIN_ARMS)}, got {name!r}")
     model, q0, center, normal, spin, shape = arms[name]
+    controller = {"hold": "mid_period"} if shape else {}
     return scenario_from_dict({"name": name, "robot": {"model": model, "q0": list(q0)},
-                               "environment": {"normal": normal, **shape},
+                               "environment": {"normal": normal, **shape}, "controller": controller,
                                "trajectory": {"center": list(center), "tool_spin_deg": spin}})
 
 

@@ -98,6 +98,10 @@ class ControllerSettings(Section):
                            "(positive: believed deeper than it is)")
     delay_samples: StrictInt = Field(0, ge=0, le=20, description="computation delay: the torque computed "
                                      "at t_k is applied from t_(k+N) [samples]")
+    hold: Literal["zero_order", "mid_period"] = Field("zero_order", description=(
+        "how the torque is held over a period: zero_order (the paper's: the torque computed at t_k) or "
+        "mid_period (extrapolated to t_k + Ts/2 from the last two, tau_k + (tau_k - tau_k-1)/2; removes the "
+        "zero-order hold's force ripple on a turning path)"))
     approach_speed: float = num(0.01, "m/s", "guarded approach from trajectory.approach_gap: the command "
                                 "advances toward the surface at this speed until contact is detected; "
                                 "0 = the law acts from the start", ge=0, le=1.0)
