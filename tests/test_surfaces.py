@@ -219,11 +219,16 @@ def _sil_equals_built_in(sc, folder):
     return folder
 
 
-def test_exported_c_on_a_sphere_equals_the_built_in_loop(tmp_path):
+@pytest.mark.parametrize("sets", [[], ['controller.hold="mid_period"', "controller.part_offset=[0.001, 0.004, -0.002]"]],
+                         ids=["paper", "hold+part_offset"])
+def test_exported_c_on_a_sphere_equals_the_built_in_loop(tmp_path, sets):
     """The sphere's radius and side are fields of the parameter struct; 400
     periods (first contact included) of the PUMA on a bowl with the exported C
-    in the loop equal the built-in run."""
-    sc = apply_overrides(_sphere_scenario(side="inside"), ["trajectory.cycles=0.1"])
+    in the loop equal the built-in run; also with the mid-period hold (the
+    last torque in the C state) and the part believed displaced (the C's
+    ``c`` is the believed part; the force sensor's vector, along the true
+    normal, read along the believed one)."""
+    sc = apply_overrides(_sphere_scenario(side="inside"), ["trajectory.cycles=0.1", *sets])
     folder = _sil_equals_built_in(sc, tmp_path / "c")
     header = (folder / "tmt_controller.h").read_text()
     assert "double radius;" in header and "double side;" in header
@@ -556,3 +561,65 @@ def test_a_line_on_the_pipe_is_a_helix():
     assert np.ptp(theta) > 0.15                                 # it goes round the pipe
     pitch = 0.1 * np.tan(np.radians(30.0))
     assert np.abs(z - np.sign(np.polyfit(theta, z, 1)[0]) * pitch * theta).max() < 1e-12
+
+
+# -- the controller's error in the part's position (controller.part_offset) -----------------------
+
+def _offset(v) -> str:
+    return "controller.part_offset=[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+
+def test_a_plane_believed_displaced_along_its_normal_is_an_x_e_error():
+    """On a plane, the part believed displaced by s n (n the inward normal)
+    is the surface believed s deeper: the run equals the one with
+    ``controller.x_e_error = s``, to 1e-12 relative (rounding of two
+    different expressions of the same loop; measured 1e-13). A tangential
+    offset moves the path (the circle is drawn where the part is believed),
+    so the same offset with a tangential part differs."""
+    from tmtcontrol.simulation.simulator import Simulator
+
+    s, n = 0.003, R0[:, 0]
+    base = apply_overrides(paper_scenario(), ["trajectory.cycles=0.25"])
+    shifted = Simulator(apply_overrides(base, [_offset(s * n)]), compile=False).run()
+    error = Simulator(apply_overrides(base, [f"controller.x_e_error={s!r}"]), compile=False).run()
+    plain = Simulator(base, compile=False).run()
+    for name in ("contact_force", "q", "tau"):
+        a, b = getattr(shifted, name), getattr(error, name)
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max(), name
+    assert np.abs(plain.tau - error.tau).max() > 1e-3           # the error changed the run
+    sideways = Simulator(apply_overrides(base, ["controller.part_offset=[0.0, 0.003, 0.0]"]), compile=False).run()
+    assert np.abs(sideways.q - plain.q).max() > 1e-4
+
+
+def test_a_sphere_believed_displaced_gives_the_local_normal_error_along_the_path():
+    """The PUMA on a dome (r = 0.3 m) with the known-stiffness law (eqs.
+    11-12, whose steady force is f_d + k_eff delta for a location error
+    delta) and the part believed 5 mm along the inward normal at the path's
+    centre: along the circle the error along the *local* normal is
+    |p - C_b| - |p - C_t| (the believed and the true centre, NumPy from the
+    logged tool point), 5 mm cos(1/3) by symmetry, not the 5 mm a plane
+    would give. After the law's slow inner-loop mode has settled (8 s run,
+    judged after 4 s) the force follows f_d + k_eff times that error within
+    8 mN: the controller presses along the believed normal, 5 s/r ~ 8 mrad
+    from the true one at the circle, a first-order effect the closed form
+    leaves out (measured 1.4-6.9 mN, flipping sign with the offset, 0.2 mN on
+    r = 3 m). The plane's answer lies 27 mN higher."""
+    from tmtcontrol.simulation.simulator import Simulator
+
+    r, s, k, k_e = 0.3, 0.005, 100.0, 5000.0
+    n0 = R0[:, 0]
+    sc = apply_overrides(paper_scenario(), [
+        'environment.shape="sphere"', f"environment.radius={r!r}", f"environment.stiffness.values=[{k_e!r}]",
+        f'controller.law={{kind="known", assumed_stiffness={k_e!r}}}', "trajectory.cycles=2.0",
+        _offset(s * n0)])
+    res = Simulator(sc, compile=False).run()
+    C_t = np.array(sc.trajectory.center) + r * n0
+    C_b = C_t + s * n0
+    p = res.position
+    local = np.linalg.norm(p - C_b[:, None], axis=0) - np.linalg.norm(p - C_t[:, None], axis=0)
+    k_eff = k * k_e / (k + k_e)
+    late = res.time > 4.0
+    f = res.contact_force[late]
+    assert np.abs(f - (10.0 + k_eff * local[late])).max() < 8e-3
+    assert abs(np.mean(local[late]) - s * np.cos(0.1 / r)) < 2e-5          # the symmetry's closed form
+    assert np.mean(f) - (10.0 + k_eff * s) < -0.015                          # not the plane's answer

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..control.laws import Law, get_law
 from ..model.robot import task_of
-from ..simulation.closedloop import (Layout, build_controller, command_layout, controller_param_layout,
+from ..simulation.closedloop import (Layout, believed, build_controller, command_layout, controller_param_layout,
                                      controller_state_layout, diagnostics_layout, ik_steps, measurement_layout,
                                      param_layout, state_layout)
 from ..simulation.scenario import Scenario
@@ -329,7 +329,7 @@ def scenario_values(scenario: Scenario, torque: bool) -> tuple[np.ndarray, np.nd
     iface = interface(scenario, torque)
     law, delay = iface.law, iface.delay
     P, s0 = _start(scenario)
-    full_p = param_layout(iface.task, law, iface.surface).split(P)
+    full_p = believed(param_layout(iface.task, law, iface.surface).split(P))     # the controller's part
     full_s = state_layout(iface.task, law, delay, scenario.controller.hold == "mid_period").split(s0)
     p = iface.param.pack(**full_p)
     cs = iface.state

@@ -34,7 +34,7 @@ import numpy as np
 from ..cache import new_build_folder
 from ..model.robot import task_of
 from ..processes import run_compiler
-from ..simulation.closedloop import (INPUT, build_plant, controller_param_layout, controller_state_layout,
+from ..simulation.closedloop import (INPUT, believed, build_plant, controller_param_layout, controller_state_layout,
                                      param_layout, plant_inputs_layout)
 from ..simulation.rollout import compiler
 from ..surface import SHAPES, Plane, contact_force
@@ -246,7 +246,7 @@ class CompiledController:
     def params_from(self, P_full: np.ndarray):
         """The C parameter struct from the simulator's parameter vector."""
         vec = controller_param_layout(self.task, self.law, self.surface).pack(
-            **param_layout(self.task, self.law, self.surface).split(P_full))
+            **believed(param_layout(self.task, self.law, self.surface).split(P_full)))
         return self.Params.from_buffer_copy(np.ascontiguousarray(vec).tobytes())
 
 

@@ -98,7 +98,7 @@ __all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "dam
            "operational_space_torque", "build_step", "step_name", "build_plant", "build_controller",
            "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
            "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics",
-           "MID_PERIOD"]
+           "MID_PERIOD", "believed"]
 
 
 class Layout:
@@ -163,7 +163,9 @@ def param_layout(task, law: Law, surface=Plane) -> Layout:
     """Constant parameters: impedance M, B, K and gains K_D, K_P (translational
     task axes); f_d (N); controller's x_e (m); force filter pole alpha;
     environment damping (N s/m); the surface's parameters (a plane: task
-    frame R, column-major, and origin c, m); control period Ts (s); damping
+    frame R, column-major, and origin c, m: the true part's); the error of
+    the controller's part position (m, base frame: it believes the origin at
+    c + part_offset); control period Ts (s); damping
     schedule on/off, target ratio, bounds on b (N s/m), rate limit (N s/m
     per s), largest and smallest stiffness estimate (N/m) and force
     threshold (N); approach speed (m/s), contact threshold (N) and f_d ramp
@@ -174,7 +176,8 @@ def param_layout(task, law: Law, surface=Plane) -> Layout:
     tau_max (n, N m; inf: no clip, ``robot.saturate`` off)."""
     r, post = task.rotational, task.posture
     return Layout(("m", 3), ("b", 3), ("k", 3), ("kd", 3), ("kp", 3), ("f_d", 1), ("x_e_hat", 1),
-                  ("alpha", 1), ("d_e", 1), *surface.fields, ("Ts", 1), ("sched", 1), ("zeta", 1),
+                  ("alpha", 1), ("d_e", 1), *surface.fields, ("part_offset", 3), ("Ts", 1), ("sched", 1),
+                  ("zeta", 1),
                   ("b_min", 1), ("b_max", 1), ("b_rate", 1), ("k_hat_max", 1), ("k_hat_min", 1),
                   ("sched_f_th", 1), ("v_app", 1), ("f_contact", 1), ("ramp_rate", 1),
                   ("law", len(law.parameter_names)),
@@ -432,10 +435,15 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
     s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", INPUT.size), ca.MX.sym("p", PARAM.size)
     S, U_in, P = STATE.split(s), INPUT.split(u), PARAM.split(p)
     q, dq = S["q"], S["dq"]
-    kin = kinematics(model, surface, q, dq, P)                    # encoders through fk
-    pos, _, _, _, X, dX = kin
-    f_true = contact_force(X[0], dX[0], U_in["k_e"], P["d_e"])
-    c = _control(model, law, surface, S, P, U_in, q, dq, kin, f_true + U_in["noise"], delay, hold=hold)
+    P_c = believed(P)                                             # the controller's part
+    kin = kinematics(model, surface, q, dq, P_c)                  # encoders through fk
+    pos, _, J, _, X, dX = kin
+    R_t, X_t, dX_t = surface.coordinates(pos, ca.mtimes(J[:3, :], dq), P)    # on the true part
+    f_true = contact_force(X_t[0], dX_t[0], U_in["k_e"], P["d_e"])
+    f_sensor = f_true + U_in["noise"]
+    if surface.turns:   # the force along the true normal, read along the believed one (a plane's are the same)
+        f_sensor = f_sensor * ca.dot(R_t[:, 0], kin[3][:, 0])
+    c = _control(model, law, surface, S, P_c, U_in, q, dq, kin, f_sensor, delay, hold=hold)
     pz = ca.vertcat(c["tau"], U_in["k_e"], P["d_e"], *_surface_parameters(P, surface), P["Ts"])
     z0 = ca.vertcat(q, dq)
     rest = ca.vertcat(c["f_m"], c["b_n"], ca.if_else(c["engaged"], 0, 1), c["x_app"], c["ramp"], c["x_e_hat"],
@@ -492,9 +500,18 @@ def controller_state_layout(task, law: Law, delay: int = 0, torque: bool = True,
 
 def controller_param_layout(task, law: Law, surface=Plane) -> Layout:
     """The controller's parameters: :func:`param_layout` without the
-    environment's damping ``d_e`` (a property of the simulated surface)."""
+    environment's damping ``d_e`` (a property of the simulated surface) and
+    the part's position error (the controller's ``c`` is where it believes
+    the part: :func:`believed`)."""
     full = param_layout(task, law, surface)
-    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k != "d_e"))
+    return Layout(*((k, s.stop - s.start) for k, s in full.slices.items() if k not in ("d_e", "part_offset")))
+
+
+def believed(P: dict) -> dict:
+    """The parameters ``P`` (split by :func:`param_layout`, symbolic or
+    numeric) as the controller sees them: the part's origin ``c`` where it
+    believes it, ``c + part_offset`` (``controller.part_offset``)."""
+    return {**P, "c": P["c"] + P["part_offset"]}
 
 
 def measurement_layout(task) -> Layout:

@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 
 from ..files import check_interrupt
-from .closedloop import INPUT, build_controller, controller_param_layout, controller_state_layout, param_layout
+from .closedloop import INPUT, believed, build_controller, controller_param_layout, controller_state_layout, param_layout
 
 __all__ = ["run_split", "builtin_controller"]
 
@@ -78,7 +78,7 @@ def builtin_controller(sim, scenario) -> tuple[Callable, int]:
     task, law, delay = sim.task, sim.law, sim.delay
     fn = build_controller(sim.model, law, delay, True, surface=sim.surface, hold=sim.hold)
     _, P, s0, _ = sim.inputs(scenario)
-    p = controller_param_layout(task, law, sim.surface).pack(**param_layout(task, law, sim.surface).split(P))
+    p = controller_param_layout(task, law, sim.surface).pack(**believed(param_layout(task, law, sim.surface).split(P)))
     n_s = controller_state_layout(task, law, delay, hold=sim.hold).size
     state = {"s": s0[2 * task.n:2 * task.n + n_s].copy()}
 

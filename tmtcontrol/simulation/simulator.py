@@ -544,7 +544,7 @@ class Simulator:
                                     + " within the joint limits")
         P = param_layout(task, law, surface).pack(
             m=imp.m, b=imp.b, k=imp.k, kd=kd, kp=kp, f_d=ctl.f_d, x_e_hat=ctl.x_e_error, alpha=alpha,
-            d_e=sc.environment.damping, **surface.values(), Ts=Ts,
+            d_e=sc.environment.damping, **surface.values(), part_offset=ctl.part_offset, Ts=Ts,
             sched=1.0 if on else 0.0, zeta=sch.zeta if on else 1.0, b_min=sch.b_min if on else 0.0,
             b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
             k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,

@@ -21,8 +21,13 @@ __all__ = ["scenario_parameters", "normal_masses", "scenario_stiffness_limit", "
 def scenario_parameters(scenario) -> dict:
     """Normal-axis parameters of a scenario for the analysis: m, b, k, f_d, the
     stiffness range of its profile, Ts, the inner-loop gains, the force filter
-    pole, and the robot's effective normal mass along the path (min and max)."""
+    pole, the robot's effective normal mass along the path (min and max),
+    and the controller's surface-location error at the path's centre
+    (``x_e_error``, m: ``controller.x_e_error`` plus the part position
+    error's component along the inward normal there, ``part_offset . n``;
+    exact on a plane, the centre's value on a curved part)."""
     from ..simulation.environment import stiffness_samples
+    from ..simulation.geometry import surface_error
 
     sc = scenario
     masses = normal_masses(sc)
@@ -36,7 +41,8 @@ def scenario_parameters(scenario) -> dict:
             "alpha": sc.sensor.pole(sc.controller.Ts),
             "d_e": sc.environment.damping, "m_p_min": min(masses), "m_p_max": max(masses),
             "law": sc.controller.law.kind, "delay": sc.controller.delay_samples,
-            "x_e_error": sc.controller.x_e_error}
+            "x_e_error": surface_error(sc)}
+
 
 
 def normal_masses(sc) -> list:
@@ -73,7 +79,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
         return None
     ctl = scenario.controller
     bk = scheduled_damping(scenario, p["m"])
-    if closed_form_applies(law.name, ctl.delay_samples, ctl.x_e_error, p["k_e_min"], ctl.law):
+    if closed_form_applies(law.name, ctl.delay_samples, p["x_e_error"], p["k_e_min"], ctl.law):
         # the same loop in closed form (stability.sampled; equal to the law loop, tested), ~15x faster
         kw = dict(kd=p["kd"], kp=p["kp"], alpha=p["alpha"], d_e=p["d_e"], law=law.name)
         if bk is None:
@@ -83,7 +89,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
                                                      **{**kw, **bk(ke)}) < 1.0, within=p["k_e_min"])
                    for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
-              d_e=p["d_e"], delta=scenario.controller.x_e_error, delay=scenario.controller.delay_samples)
+              d_e=p["d_e"], delta=p["x_e_error"], delay=scenario.controller.delay_samples)
     if bk is None:
         return min(law_stiffness_limit(law, scenario.controller.law, m_p=mp, within=p["k_e_min"], **kw)
                    for mp in (p["m_p_min"], p["m_p_max"]))

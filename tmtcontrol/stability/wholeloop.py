@@ -35,6 +35,7 @@ from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import largest_stable
+from ..simulation.geometry import surface_error
 
 __all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -91,9 +92,10 @@ def equilibrium_damping(scenario, k_e: float) -> float:
         return b0
     ctl, m, k = sc.controller, float(sc.impedance.m[0]), float(sc.impedance.k[0])
     law = get_law(ctl.law.kind)
-    f = law.steady_force(ctl.law, ctl.f_d, k, k_e, ctl.x_e_error) if law.steady_force else ctl.f_d
+    delta = surface_error(sc)
+    f = law.steady_force(ctl.law, ctl.f_d, k, k_e, delta) if law.steady_force else ctl.f_d
     start = min(max(b0, sch.b_min), sch.b_max)
-    depth = f / k_e - ctl.x_e_error
+    depth = f / k_e - delta
     if not (f > 2 * sch.force_threshold and depth > 0):
         return start
     k_hat = min(max(f / depth, sch.min_stiffness), sch.k_max)
@@ -203,7 +205,7 @@ class WholeLoopModel:
             if sc.controller.damping_schedule.kind == "zeta":      # the closed loop's K_D = b/m then
                 kd = (b / sc.impedance.m[0],)
             one_d = law_loop(self.law, ctl.law, m=sc.impedance.m[0], b=b, k=sc.impedance.k[0],
-                             k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=ctl.x_e_error, kd=kd[0],
+                             k_e=k_e, Ts=ctl.Ts, m_p=m_p, f_d=ctl.f_d, delta=surface_error(sc), kd=kd[0],
                              kp=kp[0], alpha=alpha, d_e=sc.environment.damping, delay=ctl.delay_samples,
                              settle=0.5)
             s = self.s0.copy()

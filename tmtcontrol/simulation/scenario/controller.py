@@ -20,6 +20,7 @@ Vec3NonNeg = tuple[NonNeg, NonNeg, NonNeg]
 # analysis can compute: m = 1e-300 or b = 1e12 N s/m left python-control's step_info an empty response)
 _Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=1e4)]
 _Damping = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=1e6)]
+_Offset = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-1.0, le=1.0)]
 _Stiffness = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=1e8)]
 
 
@@ -96,6 +97,11 @@ class ControllerSettings(Section):
     f_d: float = num(10.0, "N", "desired normal force", gt=0)
     x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
                            "(positive: believed deeper than it is)")
+    part_offset: tuple[_Offset, _Offset, _Offset] = Field((0.0, 0.0, 0.0), description=(
+        "error of the controller's part position: it believes the part (plane, sphere, cylinder or height "
+        "map) displaced by this vector from where it is, in the base frame (on a plane the same as x_e_error "
+        "= part_offset . normal; on a curved part the error along the local normal varies along the path) [m]"),
+        json_schema_extra={"unit": "m"})
     delay_samples: StrictInt = Field(0, ge=0, le=20, description="computation delay: the torque computed "
                                      "at t_k is applied from t_(k+N) [samples]")
     hold: Literal["zero_order", "mid_period"] = Field("zero_order", description=(
