@@ -33,6 +33,24 @@ def test_compiled_rollout_matches_closed_form(n):
     np.testing.assert_array_equal(L[2], U[0])
 
 
+def test_a_structurally_zero_output_entry_is_a_zero_in_the_compiled_rollout():
+    """Regression (the mid-period hold's periodic analysis): a step whose
+    output has a structurally zero entry (here s_next[1], like a monodromy
+    row of a state that is a constant) compiled into the chunk's C wrote only
+    the stored entries, so every column after the first was shifted: the
+    states of the second chunk were garbage. The compiled run equals the
+    closed form exactly, across a chunk boundary."""
+    s, u, p = ca.SX.sym("s", 3), ca.SX.sym("u", 1), ca.SX.sym("p", 1)
+    s_next = ca.vertcat(s[0] + u, ca.SX(1, 1), s[2] * p)
+    assert not ca.Function("f", [s, u, p], [s_next]).sparsity_out(0).is_dense()
+    step = ca.Function("toy_sparse", [s, u, p], [s_next, ca.vertcat(s, u)], ["s", "u", "p"], ["s_next", "log"])
+    U, S_ref = reference(25)
+    r = Rollout(step, chunk=10)
+    assert r.how in ("compiled", "cached")
+    S, _ = r.run([0.0, 5.0, 1.0], U, [P])
+    np.testing.assert_array_equal(S, np.vstack([S_ref[0], np.zeros(25), S_ref[1]]))
+
+
 def test_second_build_uses_the_cache():
     Rollout(toy_step())
     assert Rollout(toy_step()).how == "cached"

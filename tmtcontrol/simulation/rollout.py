@@ -64,6 +64,11 @@ COMPILE_AFTER = 10_000
 step is compiled (~0.18 ms per step there; compiling costs ~2.5 s, about
 13,000 steps). A library already in the cache is always used."""
 
+_WRAPPER = "dense-outputs"
+"""How the chunk's C is wrapped (in the cache key): a library built before
+the outputs were made dense (a structurally zero entry shifted the columns)
+is not reused."""
+
 
 def _cpu_id() -> str:
     """Machine and CPU model: -march=native code must not be reused on another CPU."""
@@ -162,7 +167,7 @@ class Rollout:
             h = hashlib.sha256(b"structure:" + self._structure.encode())
         else:
             h = hashlib.sha256(self.step.mapaccum(self._chunk_name, self.chunk).serialize().encode())
-        for part in (" ".join(_FLAGS), ca.__version__, _cpu_id(), str(self.chunk)):
+        for part in (" ".join(_FLAGS), ca.__version__, _cpu_id(), str(self.chunk), _WRAPPER):
             h.update(part.encode())
         return h.hexdigest()[:20]
 
@@ -188,7 +193,9 @@ class Rollout:
         acc = self.step.mapaccum(name, self.chunk)
         # named as the library is (mapaccum names its Function after the chunk's factors)
         args = acc.mx_in()
-        fn = ca.Function(name, args, acc.call(args), acc.name_in(), acc.name_out())
+        # dense outputs: the buffers are dense, and a structurally zero entry (a monodromy row of a state
+        # that is a constant, the mid-period hold's flag) would otherwise be left out of the C output
+        fn = ca.Function(name, args, [ca.densify(o) for o in acc.call(args)], acc.name_in(), acc.name_out())
         # a private build folder under the cache, removed however this ends; the compiler is killed
         # with its children if this is interrupted, and its temporaries are in the folder's tmp/
         with cache.build_folder("cg") as build:
