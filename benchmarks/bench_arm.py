@@ -55,7 +55,7 @@ def arm_row(name: str) -> dict:
     import pinocchio as pin
     from pinocchio_loop import PinocchioLoop
 
-    from tmtcontrol import Simulator, Simulator, apply_overrides, load_scenario
+    from tmtcontrol import Simulator, apply_overrides, load_scenario
     from tmtcontrol.simulation.simulator import robot_of
 
     sc = load_scenario(name)

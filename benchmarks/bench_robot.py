@@ -22,7 +22,6 @@ them from the cache.
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 

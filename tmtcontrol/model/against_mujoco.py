@@ -44,11 +44,13 @@ def _import():
     return mujoco
 
 
-def mujoco_model(robot, lock_held: bool = False):
+def mujoco_model(robot, lock_held: bool = False, edit=None):
     """``(mujoco, MjModel, MjData)`` of the robot's URDF, every link a body,
     the rotor inertia as armature on the actuated joints; ``lock_held``: the
     held joints made fixed (at their held value, which must be 0: the
-    joint's zero is its URDF origin), so a simulation moves none of them."""
+    joint's zero is its URDF origin), so a simulation moves none of them;
+    ``edit(spec)``: called on MuJoCo's ``MjSpec`` of the URDF before it is
+    compiled (geoms added for a contact model)."""
     mujoco = _import()
     if robot.urdf is None:
         raise NotImplementedError(f"{robot.name} has no URDF (its model is a parameter set): MuJoCo loads URDF files")
@@ -62,7 +64,12 @@ def mujoco_model(robot, lock_held: bool = False):
     text = re.sub(r"(<robot\b[^>]*>)", r'\1<mujoco><compiler fusestatic="false" discardvisual="true" '
                   r'balanceinertia="false" strippath="true"/></mujoco>', text, count=1)
     text = re.sub(r"<(visual|collision)\b.*?</\1>", "", text, flags=re.S)     # meshes are not dynamics
-    model = mujoco.MjModel.from_xml_string(text)
+    if edit is None:
+        model = mujoco.MjModel.from_xml_string(text)
+    else:
+        spec = mujoco.MjSpec.from_string(text)
+        edit(spec)
+        model = spec.compile()
     model.opt.gravity[:] = (0.0, 0.0, -9.81)
     for j, name in enumerate(robot.joint_names):
         model.dof_armature[model.jnt_dofadr[model.joint(name).id]] = robot.armature[j]

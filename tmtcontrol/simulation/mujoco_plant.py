@@ -1,17 +1,38 @@
-"""The closed loop against MuJoCo's rigid-body dynamics: a plant nobody here wrote.
+"""The closed loop against MuJoCo's rigid-body dynamics, and optionally its contact: a plant nobody here wrote.
 
 :func:`simulate_on_mujoco` runs a scenario's own controller (the expressions
 the built-in step runs, :func:`.cosim.builtin_controller`) at the scenario's
 rate with zero-order hold against MuJoCo's model of the same URDF
 (:func:`tmtcontrol.model.against_mujoco.mujoco_model`), integrated by MuJoCo
-(RK4) at :data:`SUBSTEPS` steps per control period. The contact is the
-``spring`` model: the ideal contact law of eq. (13), ``f_e = k_e x + d_e
-dx`` along the surface's inward normal at the tool point while the tool is
-inside, computed from MuJoCo's own kinematics of the tool frame and applied
-as the generalised force ``-J_v^T n f_e`` each MuJoCo step. What differs
-from the built-in run is then the rigid-body dynamics and their
-integration, not the contact: a check of eq. (1) in the loop. (MuJoCo's
-own soft contact, calibrated to k_e, is not modelled here.)
+(RK4) at :data:`SUBSTEPS` steps per control period. Two contact models,
+``simulation.mujoco_contact``:
+
+``spring`` (default): the ideal contact law of eq. (13), ``f_e = k_e x +
+d_e dx`` along the surface's inward normal at the tool point while the
+tool is inside, computed from MuJoCo's own kinematics of the tool frame
+and applied as the generalised force ``-J_v^T n f_e`` each MuJoCo step.
+What differs from the built-in run is then the rigid-body dynamics and
+their integration, not the contact: a check of eq. (1) in the loop.
+
+``contact``: MuJoCo's own soft contact between the part, a MuJoCo geom (a
+plane, or a sphere or cylinder worked from outside), and a sphere of
+:data:`TOOL_RADIUS` on the tool frame whose lowest point along the tool's
+z axis is the tool point. MuJoCo's contact is a soft constraint: with
+``solref = (-K, -B)`` and a constant impedance ``d`` (``solimp = (d, d,
+...)``, :data:`CONTACT_IMPEDANCE`) the constraint force at rest is
+``K r / ((1 - d) A^)`` for a penetration r, where ``A^`` is MuJoCo's fixed
+approximation of the contact's inverse inertia (``efc_diagApprox``: the
+translational ``body_invweight0`` of the two bodies). :func:`contact_solref`
+sets ``K = k_e (1 - d) A^`` and ``B = d_e (1 - d) A^``, updated each period
+as k_e steps, so the resting force is k_e r (the static calibration is a
+test, 0.1 %). In motion the force also follows the applied push by a
+fraction of order ``A / R`` (R = (1-d)/d A^, the constraint's
+regulariser), which the small d keeps small: the transients differ from
+the built-in spring's, the steady force does not. Friction:
+``simulation.mujoco_friction`` (Coulomb coefficient, 0: a frictionless
+point contact, MuJoCo's ``condim`` 1; > 0: ``condim`` 3, elliptic cones).
+A concave part (``side = "inside"``) and a height map have no MuJoCo
+primitive: refused in one line (the ``spring`` model runs them).
 
 Held joints (a gripper's fingers) are made fixed joints in the URDF MuJoCo
 loads (at their held value 0; another value is refused); joint
@@ -29,7 +50,8 @@ from ..surface import contact_force
 from .cosim import builtin_controller, run_split
 from .scenario import ScenarioError
 
-__all__ = ["SUBSTEPS", "MujocoPlant", "simulate_on_mujoco"]
+__all__ = ["SUBSTEPS", "MujocoPlant", "simulate_on_mujoco", "check_contact", "CONTACT_IMPEDANCE", "TOOL_RADIUS", "contact_solref",
+           "contact_inverse_inertia", "add_part", "add_tool"]
 
 SUBSTEPS = 10
 """MuJoCo steps per control period (0.1 ms at 1 kHz): the spring of the
@@ -37,13 +59,114 @@ stiffest built-in surface (1e5 N/m on about 3 kg) oscillates at 30 Hz, so the
 RK4 step resolves it to far below the force tolerance."""
 
 
+CONTACT_IMPEDANCE = 0.01
+"""MuJoCo's constraint impedance d of the ``contact`` model (``solimp`` d0 =
+dwidth = d: constant with the penetration). Small, so the regulariser R =
+(1-d)/d A^ is large against the true inverse inertia and the force follows
+the spring k_e r rather than the applied push (module docstring)."""
+
+TOOL_RADIUS = 1e-3
+"""Radius (m) of the tool's sphere in the ``contact`` model: its lowest
+point along the tool's z axis is the tool point."""
+
+
+def contact_solref(k_e: float, d_e: float, A_hat: float, d: float = CONTACT_IMPEDANCE) -> tuple[float, float]:
+    """MuJoCo's ``solref = (-K, -B)`` (direct stiffness and damping) whose
+    resting contact force on a penetration r at speed v is ``k_e r + d_e
+    v``: ``K = k_e (1 - d) A^``, ``B = d_e (1 - d) A^`` with ``A^`` the
+    contact's ``efc_diagApprox`` (module docstring)."""
+    return -k_e * (1.0 - d) * A_hat, -d_e * (1.0 - d) * A_hat
+
+
+def contact_inverse_inertia(model, geoms) -> float:
+    """MuJoCo's approximation A^ (1/kg) of the inverse inertia of a contact
+    between ``geoms`` (two geom ids): the two bodies' translational
+    ``body_invweight0`` (computed at the model's reference posture, so not
+    the posture's true value), the ``efc_diagApprox`` of its normal row."""
+    return float(sum(model.body_invweight0[model.geom_bodyid[g], 0] for g in geoms))
+
+
+def _contact_geom(geom, friction: float) -> None:
+    geom.condim = 3 if friction > 0 else 1
+    geom.friction = [friction, 0.0, 0.0]
+    geom.solimp = [CONTACT_IMPEDANCE, CONTACT_IMPEDANCE, 0.001, 0.5, 2.0]
+    geom.margin = 0.0
+
+
+def _quat(R) -> list:
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).ravel())
+    return q.tolist()
+
+
+def add_part(mujoco, body, surface, friction: float = 0.0):
+    """Add ``surface`` (a plane, or a sphere or cylinder with the tool
+    outside) to the MjSpec ``body`` (its frame: the surface's base frame)
+    as a contact geom colliding only with the tool; a shape MuJoCo has no
+    primitive for raises :class:`ValueError` saying so."""
+    g = body.add_geom()
+    if surface.kind == "plane":
+        n, t1 = surface.normal(), surface.frame()[:, 1]
+        g.type = mujoco.mjtGeom.mjGEOM_PLANE
+        g.size = [0.0, 0.0, 1.0]                            # infinite
+        g.pos = surface.c.tolist()
+        g.quat = _quat(np.column_stack([t1, np.cross(-n, t1), -n]))   # its z out of the material
+    elif surface.kind in ("sphere", "cylinder") and surface.side == "outside":
+        R = surface.R
+        centre = surface.c + surface.radius * R[:, 0]
+        g.pos = centre.tolist()
+        if surface.kind == "sphere":
+            g.type, g.size = mujoco.mjtGeom.mjGEOM_SPHERE, [surface.radius, 0.0, 0.0]
+        else:                                                 # axis along t_2 (the geom's z), 2 m long
+            g.type, g.size = mujoco.mjtGeom.mjGEOM_CYLINDER, [surface.radius, 1.0, 0.0]
+            g.quat = _quat(np.column_stack([R[:, 0], R[:, 1], R[:, 2]]))
+    else:
+        what = "a height map" if surface.kind == "heightmap" else f"the inside of a {surface.kind}"
+        raise ValueError(f"MuJoCo has no primitive for {what} (a concave or measured part); "
+                         "use simulation.mujoco_contact = \"spring\"")
+    g.name = "tmt_part"
+    g.contype, g.conaffinity = 0, 1
+    _contact_geom(g, friction)
+    return g
+
+
+def add_tool(body, friction: float = 0.0):
+    """Add the tool's sphere (:data:`TOOL_RADIUS`) to the MjSpec ``body``:
+    its point furthest along the body's z axis (the tool's, along the inward
+    normal: into the part) at the body's origin, the tool point."""
+    import mujoco
+
+    g = body.add_geom()
+    g.name = "tmt_tool"
+    g.type, g.size = mujoco.mjtGeom.mjGEOM_SPHERE, [TOOL_RADIUS, 0.0, 0.0]
+    g.pos = [0.0, 0.0, -TOOL_RADIUS]
+    g.density = 0.0                                   # massless: the arm's inertia stays the URDF's
+    g.contype, g.conaffinity = 1, 0
+    _contact_geom(g, friction)
+    return g
+
+
 class MujocoPlant:
     """MuJoCo's arm as a :func:`.cosim.run_split` plant (module docstring)."""
 
-    def __init__(self, robot, surface, Ts: float, d_e: float, substeps: int = SUBSTEPS):
-        from ..model.against_mujoco import mujoco_model
+    def __init__(self, robot, surface, Ts: float, d_e: float, substeps: int = SUBSTEPS, contact: str = "spring",
+                 friction: float = 0.0):
+        from ..model.against_mujoco import _import, mujoco_model
 
-        self.mujoco, self.model, self.data = mj, m, d = mujoco_model(robot, lock_held=True)
+        edit = None
+        if contact == "contact":
+            mujoco = _import()
+
+            def edit(spec):
+                names = {b.name for b in spec.bodies}
+                add_part(mujoco, spec.body(robot.base) if robot.base in names else spec.worldbody, surface, friction)
+                add_tool(spec.body(robot.tip), friction)
+        elif contact != "spring":
+            raise ValueError(f"contact: expected 'spring' or 'contact', got {contact!r}")
+        self.contact = contact
+        self.mujoco, self.model, self.data = mj, m, d = mujoco_model(robot, lock_held=True, edit=edit)
         m.opt.timestep = Ts / substeps
         m.opt.integrator = mj.mjtIntegrator.mjINT_RK4
         m.dof_damping[:] = 0.0
@@ -56,6 +179,12 @@ class MujocoPlant:
         self.base = m.body(robot.base).id if robot.base in names else 0
         self.n = robot.n
         self._jp, self._jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        if contact == "contact":
+            if friction > 0:
+                m.opt.cone = mj.mjtCone.mjCONE_ELLIPTIC
+            self.geoms = np.array([m.geom("tmt_part").id, m.geom("tmt_tool").id])
+            self.A_hat = contact_inverse_inertia(m, self.geoms)
+            self._k_e, self._f6 = None, np.zeros(6)
 
     def _set(self, z):
         self.data.qpos[self.qadr], self.data.qvel[self.act] = z[:self.n], z[self.n:]
@@ -74,20 +203,62 @@ class MujocoPlant:
         depth = float(self.surface.signed_distance(p[:, None])[0])
         return float(contact_force(depth, float(normal @ v), k_e, self.d_e)), normal, Jv
 
+    def _stiffness(self, k_e):
+        if k_e != self._k_e:                          # the calibrated solref of this stiffness, on both geoms
+            self.model.geom_solref[self.geoms] = contact_solref(k_e, self.d_e, self.A_hat)
+            self._k_e = k_e
+
+    def _mujoco_force(self):
+        """MuJoCo's normal contact force (N, pushing apart) between the part and the tool, 0 without contact."""
+        mj, m, d = self.mujoco, self.model, self.data
+        for i in range(d.ncon):
+            if {d.contact[i].geom1, d.contact[i].geom2} == set(self.geoms.tolist()):
+                mj.mj_contactForce(m, d, i, self._f6)
+                return float(self._f6[0])
+        return 0.0
+
     def sense(self, z, k_e):
         self._set(z)
-        f, normal, _ = self._contact(k_e)
-        return f, normal
+        if self.contact == "spring":
+            f, normal, _ = self._contact(k_e)
+            return f, normal
+        # MuJoCo's force at this state under the torque held now (the soft constraint's force depends on it)
+        self._stiffness(k_e)
+        self.mujoco.mj_forward(self.model, self.data)
+        _, normal, _ = self._contact(k_e)
+        return self._mujoco_force(), normal
 
     def advance(self, z, tau, k_e):
         mj, m, d = self.mujoco, self.model, self.data
         self._set(z)
+        if self.contact == "contact":
+            self._stiffness(k_e)
+            d.qfrc_applied[:] = 0.0
+            d.qfrc_applied[self.act] = tau
+            for _ in range(self.substeps):
+                mj.mj_step(m, d)
+            return np.r_[d.qpos[self.qadr], d.qvel[self.act]]
         for _ in range(self.substeps):
             f, normal, Jv = self._contact(k_e)
             d.qfrc_applied[:] = 0.0
             d.qfrc_applied[self.act] = tau - Jv.T @ (normal * f)      # the surface pushes back along -n
             mj.mj_step(m, d)
         return np.r_[d.qpos[self.qadr], d.qvel[self.act]]
+
+
+def check_contact(scenario, surface) -> None:
+    """Refuse in one line (:class:`ScenarioError` naming the key) a contact
+    model the scenario cannot have on MuJoCo: friction on the spring, or
+    MuJoCo's contact on a part it has no primitive for."""
+    s = scenario.simulation
+    if s.mujoco_friction > 0 and s.mujoco_contact != "contact":
+        raise ScenarioError("simulation.mujoco_friction: only MuJoCo's own contact has friction; set "
+                            "simulation.mujoco_contact = \"contact\" (the spring is frictionless)")
+    if s.mujoco_contact == "contact" and not (surface.kind == "plane" or (
+            surface.kind in ("sphere", "cylinder") and surface.side == "outside")):
+        what = "a height map" if surface.kind == "heightmap" else f"the inside of a {surface.kind}"
+        raise ScenarioError(f"simulation.mujoco_contact: MuJoCo has no primitive for {what} (a concave or "
+                            "measured part); use simulation.mujoco_contact = \"spring\"")
 
 
 def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:
@@ -97,11 +268,17 @@ def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:
     if scenario.robot.friction:
         raise ScenarioError("robot.friction: the MuJoCo plant has no model of eq. (1)'s joint friction; "
                             "set robot.friction = false to run on MuJoCo")
+    s = scenario.simulation
+    check_contact(scenario, sim.surface)
     try:
-        plant = MujocoPlant(sim.plant, sim.surface, scenario.controller.Ts, scenario.environment.damping)
+        plant = MujocoPlant(sim.plant, sim.surface, scenario.controller.Ts, scenario.environment.damping,
+                            contact=s.mujoco_contact, friction=s.mujoco_friction)
     except NotImplementedError as exc:
         raise ScenarioError(f"robot.model: {exc}") from None
-    return plant, {"integrator": f"MuJoCo RK4, {SUBSTEPS} steps per period", "plant": "mujoco (spring contact)",
+    what = ("spring contact" if s.mujoco_contact == "spring" else
+            f"MuJoCo contact, d = {CONTACT_IMPEDANCE:g}" + (f", friction {s.mujoco_friction:g}" if s.mujoco_friction
+                                                            else ""))
+    return plant, {"integrator": f"MuJoCo RK4, {SUBSTEPS} steps per period", "plant": f"mujoco ({what})",
                    "mujoco": getattr(plant.mujoco, "__version__", "?")}
 
 

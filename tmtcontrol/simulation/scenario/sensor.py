@@ -40,3 +40,8 @@ class SimulationSettings(Section):
     contact_refine: StrictInt = Field(4, ge=1, le=64, description=(
         "RK4 steps per substep in a period where the contact force switches on or off (fixed; 1: off)"))
     tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", gt=0, le=1e-2)
+    mujoco_contact: Literal["spring", "contact"] = Field("spring", description=(
+        "with --plant mujoco: the ideal k_e spring along the normal (spring) or MuJoCo's own soft contact "
+        "calibrated to k_e (contact; docs/mujoco.md)"))
+    mujoco_friction: float = num(0.0, "1", "with --plant mujoco and mujoco_contact = contact: the Coulomb "
+                                 "friction coefficient of MuJoCo's contact (0: frictionless)", ge=0, le=2.0)
