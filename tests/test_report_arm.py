@@ -44,6 +44,39 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     assert "at k_e = 5,000 N/m" in first.caption and "1-D sampled loop" in first.caption
 
 
+def test_the_independent_plant_section_compares_mujoco_with_the_builtin_plant(monkeypatch):
+    """``report --plant mujoco``'s section (issue 41): one table row per
+    segment with both plants' steady-state errors and verdicts, the figure
+    of both traces, and a computed verdict: the plants agree on the UR5's
+    first 2 s (spring contact); a MuJoCo run made to miss the force by
+    twice the tolerance fails it."""
+    from tmtcontrol.report.document import Report, _independent_plant
+
+    sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.5"])
+    rep = Report(sc, "test")
+    sec = _independent_plant(rep, sc)
+    assert sec.key == "mujoco"
+    (table_,) = [b for b in sec.blocks if getattr(b, "caption", "") == "Segments on both plants"]
+    assert len(table_.rows) == 1 and table_.rows[0][-1] == "PASS" and table_.rows[0][5] == table_.rows[0][6]
+    assert any(getattr(b, "caption", "").startswith("Contact force on the built-in plant") for b in sec.blocks)
+    (v,) = rep.verdicts
+    assert v.passed is True and "largest force difference" in v.value
+    assert rep.data["crosscheck"]["agree"] is True
+    # a MuJoCo run whose force is off by twice the tolerance (a planted plant error): the verdict fails
+    import dataclasses
+
+    import tmtcontrol.simulation.mujoco_plant as mp
+
+    mj = mp.simulate_on_mujoco(sc)
+    off = dataclasses.replace(mj, contact_force=mj.contact_force + 2 * sc.controller.force_tolerance)
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: off)
+    bad = Report(sc, "test")
+    sec = _independent_plant(bad, sc)
+    (v,) = bad.verdicts
+    assert v.passed is False
+    assert next(b for b in sec.blocks if getattr(b, "caption", "") == "Segments on both plants").rows[0][-1] == "FAIL"
+
+
 def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
     from tmtcontrol.report.document import Report, _simulation
     from tmtcontrol.stability import scenario_parameters
@@ -65,11 +98,12 @@ def test_the_pumas_report_has_no_orientation_figure(run_once):
 @pytest.mark.heavy
 def test_report_ur5_html(tmp_path):
     out = tmp_path / "rep"
-    r = make_report(out, "ur5", "--format", "html")
+    r = make_report(out, "ur5", "--format", "html", "--plant", "mujoco")
     assert not (out / "report.pdf").exists()
     html = (out / "report.html").read_text()
-    for key in SECTIONS:
+    for key in (*SECTIONS, "mujoco"):
         assert f'<section id="{key}">' in html, key
+    assert "[10/" in r.stderr and "independent plant" in r.stderr       # its own stage in the progress
     # the verdicts decide the exit code: 1 if any is FAIL, else 0
     _, _, rows = table(section(html, "summary"), "Verdicts")
     failed = [row[0] for row in rows if "FAIL" in row[1]]

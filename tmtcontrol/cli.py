@@ -59,7 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "to DIR (tmtcontrol export --inner-loop) and run it in place of the built-in one")
     p.add_argument("--plant", choices=["builtin", "mujoco"], default="builtin",
                    help="the arm's dynamics: tmtcontrol's (default) or MuJoCo's model of the same URDF with the "
-                        "ideal spring contact (an independent check of eq. 1 in the loop; needs the mujoco extra)")
+                        "ideal spring contact (an independent check of eq. 1 in the loop) or, with "
+                        "--set simulation.mujoco_contact=\"contact\", MuJoCo's own contact calibrated to k_e "
+                        "(needs the mujoco extra)")
     p.add_argument("--animate", action="store_true",
                    help="also write animation.gif: the arm doing the task on the surface, the force beside it "
                         "(10 frames per simulated second, real time)")
@@ -186,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario_args(p, "tmt-report")
     p.add_argument("--format", default="html,pdf", metavar="html,pdf",
                    help="which files to write: html, pdf or both (default: html,pdf)")
+    p.add_argument("--plant", choices=["builtin", "mujoco"], default="builtin",
+                   help="mujoco: add a section with the scenario on MuJoCo's dynamics against the built-in plant "
+                        "(its contact model: simulation.mujoco_contact; needs the mujoco extra)")
     p.set_defaults(func=_report)
 
     p = sub.add_parser("robot", help="load an arm (puma560, ur5, panda or a URDF file), print its chain and "
@@ -368,6 +373,10 @@ def _mujoco_ready(sc, flag: str) -> None:
         mujoco_model(robot_of(sc))
     except (MujocoMissing, NotImplementedError) as exc:
         raise UsageError(f"{flag}: {exc}") from None
+    from .simulation.geometry import surface_of
+    from .simulation.mujoco_plant import check_contact
+
+    check_contact(sc, surface_of(sc))          # ScenarioError: one line naming the key
 
 
 def _crosscheck(args) -> int:
@@ -382,7 +391,8 @@ def _crosscheck(args) -> int:
         c = crosscheck(sc, max_steps=args.max_steps)
         save_crosscheck(c, out.path, plots=not args.no_plots)
         out.commit()
-    print(f"scenario {sc.name!r}: the built-in plant and MuJoCo ({c.mujoco.info['code']}, spring contact)")
+    print(f"scenario {sc.name!r}: the built-in plant and MuJoCo ({c.mujoco.info['code']}, "
+          f"{c.mujoco.info['plant'][len('mujoco ('):-1]})")
     print(format_crosscheck(c))
     print(f"wrote {out.out}/")
     return 0 if c.agree else 1
@@ -630,6 +640,8 @@ def _report(args) -> int:
     formats = _formats(args.format)
     sc = _load(args)
     check_run_size(sc, args.max_steps)
+    if args.plant == "mujoco":
+        _mujoco_ready(sc, "--plant mujoco")
     no_pdf = None
     if "pdf" in formats:            # the PDF engine is loaded first: its absence is known before anything is computed
         try:
@@ -641,7 +653,8 @@ def _report(args) -> int:
             formats = tuple(f for f in formats if f != "pdf")
             print(f"warning: {no_pdf}; writing report.html only", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
-    n = len(STAGES) + writing_stages(formats)
+    computing = len(STAGES) + (args.plant == "mujoco")
+    n = computing + writing_stages(formats)
 
     def stage(i, name, seconds):
         print(f"[{i}/{n}] {name}: {seconds:.1f} s", file=sys.stderr, flush=True)
@@ -649,8 +662,8 @@ def _report(args) -> int:
     with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
         rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
                            progress=lambda i, _n, name, s: stage(i, name, s),
-                           prepare=lambda: prepare_writing(formats))
-        done = iter(range(len(STAGES) + 1, n + 1))
+                           prepare=lambda: prepare_writing(formats), plant=args.plant)
+        done = iter(range(computing + 1, n + 1))
         files = write_report(rep, out.path, formats, progress=lambda name, s: stage(next(done), name, s))
         out.commit()
     for v in rep.verdicts:

@@ -560,6 +560,37 @@ def _comparison(rep: Report, sc: Scenario):
         figure("Force error of every law (log scale).", simf.comparison_error_figure, cmp)])
 
 
+def _independent_plant(rep: Report, sc: Scenario):
+    """The scenario on MuJoCo's dynamics of the same URDF against the
+    built-in plant (``simulation.crosscheck``): per segment each plant's
+    steady-state error and verdict, both force traces, the largest
+    difference; the verdict "the plants agree" (issue 41's report section,
+    ``report --plant mujoco``)."""
+    from ..simulation.crosscheck import crosscheck
+    from ..simulation.figures import crosscheck_figure
+
+    c = crosscheck(sc)
+    info = c.mujoco.info
+    rows = [[str(i), f"{fmt.num(r['start'])}–{fmt.num(r['end'])}", fmt.num(r["stiffness"], 4),
+             fmt.qty(r["steady_state_error_builtin"], "N"), fmt.qty(r["steady_state_error_mujoco"], "N"),
+             r["verdict_builtin"], r["verdict_mujoco"], "PASS" if r["agree"] else "FAIL"]
+            for i, r in enumerate(c.segments, 1)]
+    value = f"largest force difference {fmt.qty(c.max_force_difference, 'N')} at {c.time_of_max:.3f} s"
+    rep.verdicts.append(Verdict("The built-in and MuJoCo plants agree", c.agree, value,
+                                "simulation.crosscheck (same verdicts, steady-state errors within "
+                                f"{fmt.qty(sc.controller.force_tolerance, 'N')})"))
+    rep.data["crosscheck"] = c.as_dict()
+    return Section("mujoco", "Independent plant: MuJoCo", [
+        Paragraph(f"The scenario's controller against MuJoCo {info.get('mujoco', '')}'s dynamics of the same URDF "
+                  f"({info['plant'][len('mujoco ('):-1]}; {info['integrator']}), judged by the same rules as the "
+                  "built-in run. The plants agree when every segment has the same verdict on both and their "
+                  "steady-state errors differ by at most the force tolerance (docs/mujoco.md). " + value + "."),
+        Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
+                                          "steady-state error, MuJoCo", "verdict, built-in", "verdict, MuJoCo",
+                                          "agree"], rows, verdict_column=7),
+        figure("Contact force on the built-in plant and on MuJoCo's.", crosscheck_figure, c)])
+
+
 def _round2(v: float) -> float:
     """``v`` to two significant digits (axis values a reader can quote)."""
     return float(f"{v:.2g}")
@@ -956,19 +987,22 @@ def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts:
 
 
 _VERDICT_ORDER = ("derivation checks", "continuous-time analysis", "sampled-data analysis", "simulation", "design",
-                  "law comparison", "robustness sweep")
+                  "law comparison", "robustness sweep", "independent plant")
 """The order of the verdict summary: by stage, whichever process ran it."""
 
 
 def build_report(scenario: Scenario, command_line: str = "", progress: Callable | None = None,
-                 prepare: Callable | None = None) -> Report:
+                 prepare: Callable | None = None, plant: str = "builtin") -> Report:
     """Run every stage for ``scenario`` and collect the document.
 
     ``progress(i, n, name, seconds)`` is called as each stage ends, with the
     stage's own time. ``prepare()`` (optional) is called once, when this
     process has run its own stages and before it takes its share of the
     second one's tasks: the caller's preparation for writing (such as
-    importing the PDF renderer), done while the other process computes."""
+    importing the PDF renderer), done while the other process computes.
+    ``plant="mujoco"``: one more stage, "independent plant", the scenario
+    on MuJoCo's dynamics against the built-in plant (a section and a
+    verdict; the MuJoCo extra must be installed)."""
     from ..stability import scenario_parameters
 
     rep = Report(scenario, command_line or " ".join(sys.argv))
@@ -980,13 +1014,23 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     verdicts: dict = {}
     with _background(scenario) as background, _one_blas_thread():
         _stages(rep, scenario, p, background, out, verdicts, say, prepare)
+    extra = []
+    if plant == "mujoco":
+        t0 = time.perf_counter()
+        section, verdicts["independent plant"], data = _on_own(scenario, _independent_plant, scenario)
+        rep.data.update(data)
+        extra = [section]
+        rep.timings["independent plant"] = time.perf_counter() - t0
+        say(len(STAGES) + 1, len(STAGES) + 1, "independent plant", rep.timings["independent plant"])
+    elif plant != "builtin":
+        raise ValueError(f"plant: expected 'builtin' or 'mujoco', got {plant!r}")
     rep.verdicts = [v for stage in sorted(verdicts, key=_VERDICT_ORDER.index) for v in verdicts[stage]]
     summary = Section("summary", "Verdict summary", [Table(
         "Verdicts", ["verdict", "result", "number", "computed by"],
         [[v.name, _mark(v.passed), v.value, v.check] for v in rep.verdicts], verdict_column=1)])
     rep.sections = [summary, _scenario_section(scenario), out["derivation checks"], out["continuous-time analysis"],
                     out["sampled-data analysis"], out["simulation"], out["law comparison"], out["robustness sweep"],
-                    out["design"]]
+                    out["design"], *extra]
     return rep
 
 
