@@ -4,6 +4,7 @@ GIF (its frames, their timing, nothing else changed)."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -76,3 +77,47 @@ def test_simulate_animate_writes_the_gif(tmp_path):
         gif.seek(gif.n_frames - 1)
         last = np.asarray(gif.convert("RGB"))
     assert (first != last).any()                                          # the arm moved, the force rose
+
+
+def _mujoco_renders() -> bool:
+    """Whether MuJoCo's offscreen renderer starts here with MUJOCO_GL=egl (probed in a fresh process:
+    MuJoCo reads the variable on its first import)."""
+    probe = ("import mujoco; m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\"0.1\"/>"
+             "</worldbody></mujoco>'); mujoco.Renderer(m, 8, 8).close()")
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True).returncode == 0
+
+
+def test_simulate_animate_draws_with_mujoco_where_it_renders(tmp_path):
+    """``simulate ur5 --animate`` with MUJOCO_GL=egl: where MuJoCo's renderer
+    starts (probed independently), the GIF's frames are MuJoCo's (480 x 360,
+    the command says so) and show the force arrow (red pixels) once the tool
+    presses, not at t = 0 before contact; elsewhere the command says why it
+    drew with matplotlib. The PUMA (no URDF) is drawn by matplotlib, saying
+    why."""
+    from PIL import Image
+
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    out = tmp_path / "ur5"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "ur5", "--set", "trajectory.cycles=0.25",
+                        "--no-plots", "--animate", "--out", str(out)], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    if not _mujoco_renders():
+        assert "animation.gif drawn by matplotlib (MuJoCo's renderer did not start" in r.stdout
+        return
+    assert "animation.gif drawn by MuJoCo's renderer" in r.stdout
+    with Image.open(out / "animation.gif") as gif:
+        assert gif.size == (480, 360) and gif.n_frames == 10
+        first = np.asarray(gif.convert("RGB")).astype(int)
+        gif.seek(gif.n_frames - 1)
+        last = np.asarray(gif.convert("RGB")).astype(int)
+
+    def red(img):
+        return int(np.count_nonzero((img[..., 0] > 170) & (img[..., 1] < 70) & (img[..., 2] < 70)))
+
+    assert red(first) == 0 and red(last) > 20          # f_e = 0 at t = 0 (the tool on the surface), 10 N at 0.9 s
+    assert (first != last).any()
+    puma = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "paper", "--set",
+                           "trajectory.cycles=0.1", "--no-plots", "--animate", "--out", str(tmp_path / "puma")],
+                          capture_output=True, text=True, env=env)
+    assert puma.returncode == 0 and "drawn by matplotlib (puma560 has no URDF for MuJoCo to load)" in puma.stdout

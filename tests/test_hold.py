@@ -114,3 +114,34 @@ def test_mid_period_hold_raises_the_stiffness_limit_in_the_simulator():
         sc = _pipe("trajectory.cycles=1.0", f'controller.hold="{hold}"', "environment.stiffness.values=[300000.0]")
         verdicts[hold] = segment_metrics(Simulator(sc, compile=False).run())[-1].verdict
     assert verdicts == {"zero_order": "limit_cycle", "mid_period": "converged"}
+
+
+def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
+    """The 1-D model has no hold: with the mid-period hold its limit (about
+    130 kN/m on the pipe) is far below the loop's, so the verdicts must not
+    take it as the loop's limit. At a constant 300 kN/m the simulate
+    command's verdict (with_stiffness_limit attached) is the run's own,
+    converged; with the zero-order hold the same run is beyond the loop's
+    limit and not converged."""
+    from tmtcontrol.stability.onedim import scenario_stiffness_limit, with_stiffness_limit
+
+    sc = _pipe("trajectory.cycles=1.0", "environment.stiffness.values=[300000.0]")
+    assert scenario_stiffness_limit(sc) < 2e5
+    res = with_stiffness_limit(Simulator(sc, compile=False).run())
+    assert "stiffness_limit" not in res.info
+    assert segment_metrics(res)[0].verdict == "converged"
+    zoh = apply_overrides(sc, ['controller.hold="zero_order"'])
+    assert segment_metrics(with_stiffness_limit(Simulator(zoh, compile=False).run()))[0].verdict != "converged"
+
+
+def test_a_sweep_case_with_the_hold_has_no_1d_predicted_limit():
+    """The sweep's per-case predicted limit is the 1-D model's (and the
+    first-contact search up to it): with the mid-period hold the row says
+    it does not apply instead of a limit 4x too low."""
+    import math
+
+    from tmtcontrol.sweep.run import case_limits
+
+    row = case_limits(_pipe("trajectory.cycles=0.25"))
+    assert math.isnan(row["predicted_limit"]) and row["predicted_stable"] is None
+    assert "no mid-period hold" in row["limits_error"]

@@ -221,7 +221,7 @@ def test_mujoco_contact_converges_to_f_d_and_to_the_builtin_force(ur5_contact_sh
 
 def test_mujoco_contact_refuses_a_concave_part_and_friction_on_the_spring(tmp_path, capsys):
     for sets, needle in ((['simulation.mujoco_contact="contact"'], "simulation.mujoco_contact: MuJoCo has no "
-                                                                    "primitive for the inside of a sphere"),
+                                                                    "primitive for this sphere (worked from inside"),
                          (["simulation.mujoco_friction=0.3"], "simulation.mujoco_friction: only MuJoCo's own")):
         out = tmp_path / "o"
         args = ["simulate", "panda-bowl", "--plant", "mujoco", "--out", str(out), "--no-plots"]

@@ -164,9 +164,9 @@ def test_reproducibility_lists_each_item_once(paper_report):
 def test_every_figure_is_numbered_with_a_caption_and_inline_svg(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     figures = re.findall(r"<figure[^>]*>(.*?)</figure>", html, flags=re.S)
-    # continuous 3, sampled 2 (the arm's normal mass, the limit against Ts), simulation 5, law comparison 2,
-    # sweep 1, design 1 (the PUMA states no limits: no limits figure)
-    assert len(figures) == 14
+    # continuous 3, sampled 2 (the arm's normal mass, the limit against Ts), simulation 6 (the arm's still
+    # included), law comparison 2, sweep 1, design 1 (the PUMA states no limits: no limits figure)
+    assert len(figures) == 15
     assert len(re.findall(r"<img ", html)) == len(figures)          # no image outside a figure
     for i, f in enumerate(figures, 1):
         assert 'src="data:image/svg+xml;base64,' in f

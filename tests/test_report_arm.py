@@ -39,6 +39,7 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     seg_table = next(b for b in sec.blocks if getattr(b, "caption", "") == "Per-segment metrics")
     assert "orientation error" in seg_table.head
     assert any(c.startswith("Joint torques and rates as fractions of their limits") for c in captions)
+    assert any(c.startswith("The arm (ur5) at the end of the run on the") for c in captions)   # issue 41
     # the simulated first contact says where and how it was computed (not the design's 1-D overshoot)
     first = next(b for b in sec.blocks if getattr(b, "caption", "").startswith("First contact in the simulation"))
     assert "at k_e = 5,000 N/m" in first.caption and "1-D sampled loop" in first.caption

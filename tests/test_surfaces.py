@@ -623,3 +623,36 @@ def test_a_sphere_believed_displaced_gives_the_local_normal_error_along_the_path
     assert np.abs(f - (10.0 + k_eff * local[late])).max() < 8e-3
     assert abs(np.mean(local[late]) - s * np.cos(0.1 / r)) < 2e-5          # the symmetry's closed form
     assert np.mean(f) - (10.0 + k_eff * s) < -0.015                          # not the plane's answer
+
+
+@pytest.mark.parametrize("name", ["ur5-pipe", "panda-bowl"])
+def test_guarded_first_contact_on_a_curved_part(name):
+    """The guarded approach on a curved part: from 5 mm above the pipe or
+    the bowl along the local normal at 10 mm/s, the tool touches at 0.5 s
+    (gap / approach speed, closed form; the first sample with a force), with
+    no bounce and an overshoot within 5 % of f_d, and converges."""
+    from tmtcontrol.simulation.metrics import first_contact, segment_metrics
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(arm_scenario(name), ["trajectory.approach_gap=0.005", "trajectory.cycles=1.0"])
+    res = Simulator(sc, compile=False).run()
+    fc = first_contact(res)
+    assert 0.005 / sc.controller.approach_speed <= fc.time <= 0.5 + 0.01
+    assert fc.bounces == 0 and fc.peak_ratio < 1.05
+    assert segment_metrics(res)[0].verdict == "converged"
+
+
+def test_the_primitive_of_each_part_against_its_closed_form():
+    """``Surface.primitive`` (MuJoCo's contact geom and its pictures): a
+    plane through c; a sphere or cylinder worked from outside centred r
+    along the inward normal from c (the cylinder's axis R[:, 2]); no solid
+    for the inside of a sphere or cylinder or for a measured height map."""
+    from tmtcontrol.surface import HeightMap
+
+    assert Plane(R0, C0).primitive()[0] == "plane" and np.array_equal(Plane(R0, C0).primitive()[1], C0)
+    for cls in (Sphere, Cylinder):
+        kind, centre, R, r = cls(R0, C0, 0.2, "outside").primitive()
+        assert kind == cls.kind and r == 0.2 and np.allclose(centre, _centre(0.2, "outside"), atol=1e-15)
+        assert np.array_equal(R, R0)
+        assert cls(R0, C0, 0.2, "inside").primitive() is None
+    assert HeightMap(R0, C0, np.zeros((5, 5)), 0.01).primitive() is None

@@ -63,8 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "--set simulation.mujoco_contact=\"contact\", MuJoCo's own contact calibrated to k_e "
                         "(needs the mujoco extra)")
     p.add_argument("--animate", action="store_true",
-                   help="also write animation.gif: the arm doing the task on the surface, the force beside it "
-                        "(10 frames per simulated second, real time)")
+                   help="also write animation.gif: the arm doing the task on the surface, the force on it "
+                        "(10 frames per simulated second, real time); drawn by MuJoCo's renderer where it can "
+                        "render (MUJOCO_GL=egl or osmesa, an arm with a URDF), else by matplotlib")
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("compare", help="run one scenario with several force-tracking laws, side by side",
@@ -249,6 +250,11 @@ def _simulate(args) -> int:
     from .drawing import FigureWorkers
     from .simulation.output import FIGURE_MODULE
 
+    if args.animate:        # before anything imports MuJoCo: its offscreen renderer without a window
+        from .simulation.mujoco_render import prefer_headless_gl
+
+        prefer_headless_gl()
+
     # matplotlib is imported by the figure processes while this one loads CasADi and simulates
     with FigureWorkers(FIGURE_MODULE, processes=0 if args.no_plots else 2) as workers:
         return _simulate_with(args, workers)
@@ -292,15 +298,19 @@ def _simulate_with(args, workers) -> int:
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
                         csv_processes=2 if args.no_plots else 1)
+        drawn = None
         if args.animate:
             from .simulation.animation import write_animation
 
-            write_animation(res, out.path / "animation.gif")
+            drawn = write_animation(res, out.path / "animation.gif")
         out.commit()
     print(f"scenario {sc.name!r}: {res.time.size} steps of {sc.controller.Ts * 1e3:g} ms, "
           + (f"plant {res.info['plant']}, {res.info['integrator']} ({res.info['code']}), " if "plant" in res.info
              else f"{sc.simulation.integrator} integrator ({res.info['code']}), ")
           + f"path cond(J) {res.path.condition_number.min():.2f}-{res.path.max_condition:.2f}")
+    if drawn is not None:
+        print("animation.gif drawn by " + ("MuJoCo's renderer" if drawn.renderer == "mujoco" else
+                                            f"matplotlib ({drawn.why})"))
     segs = segment_metrics(res)
     print(format_table(segs))
     fc = first_contact(res)
@@ -632,6 +642,10 @@ def _sweep(args) -> int:
 
 def _report(args) -> int:
     import time
+
+    from .simulation.mujoco_render import prefer_headless_gl
+
+    prefer_headless_gl()            # the simulation section's still of the arm, by MuJoCo where it can render
 
     from .files import OutputFolder
     from .report import STAGES, RendererUnavailable, build_report, prepare_writing, write_report, writing_stages

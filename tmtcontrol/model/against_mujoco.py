@@ -28,14 +28,14 @@ import numpy as np
 
 from .verify import TOLERANCE, Identity, RobotCheck, _rel, random_states
 
-__all__ = ["mujoco_model", "check_against_mujoco", "MujocoMissing"]
+__all__ = ["mujoco_model", "check_against_mujoco", "MujocoMissing", "import_mujoco"]
 
 
 class MujocoMissing(ImportError):
     """MuJoCo is not installed; the message says what to install."""
 
 
-def _import():
+def import_mujoco():
     try:
         import mujoco
     except ImportError:
@@ -51,7 +51,7 @@ def mujoco_model(robot, lock_held: bool = False, edit=None):
     joint's zero is its URDF origin), so a simulation moves none of them;
     ``edit(spec)``: called on MuJoCo's ``MjSpec`` of the URDF before it is
     compiled (geoms added for a contact model)."""
-    mujoco = _import()
+    mujoco = import_mujoco()
     if robot.urdf is None:
         raise NotImplementedError(f"{robot.name} has no URDF (its model is a parameter set): MuJoCo loads URDF files")
     text = robot.urdf

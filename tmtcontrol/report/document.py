@@ -466,6 +466,12 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
             f"holds the remaining freedom near the start pose. The path returns to its start every period, so "
             f"the joints would too; how far each has drifted after whole periods (joint: largest |q(kT) − q(0)|): "
             f"{drift}."))
+    from ..simulation.animation import still_figure
+
+    blocks.append(figure(f"The arm ({res.scenario.robot.model}) at the end of the run on the "
+                         f"{res.traces.surface_name}, the contact force as an arrow: the last frame of simulate "
+                         "--animate (drawn by MuJoCo's renderer where it can render, else by matplotlib).",
+                         still_figure, res))
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
     return Section("simulation", "Simulation", blocks), sim, res
 

@@ -11,15 +11,24 @@ instant, and the time, k_e and the segment's stiffness. Frames are sampled
 every ``1 / fps`` s of simulated time (at most :data:`MAX_FRAMES`); the GIF
 plays in real time. Written by Pillow, matplotlib's own writer: no ffmpeg
 and no OpenGL needed.
+
+Where MuJoCo can render (the ``mujoco`` extra, an arm with a URDF, an
+OpenGL backend without a window: ``MUJOCO_GL=egl`` or ``osmesa``),
+``renderer="auto"`` draws the frames with MuJoCo's offscreen renderer
+instead (:mod:`.mujoco_render`: the arm's links as capsules, the part, the
+force as an arrow, the time, force and stiffness written on each frame);
+elsewhere matplotlib, as above. :func:`write_animation` returns which, and
+why not MuJoCo. :func:`still` is one such frame (the report shows the last).
 """
 
 from __future__ import annotations
 
 import pathlib
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["write_animation", "MAX_FRAMES", "DEFAULT_FPS"]
+__all__ = ["write_animation", "still", "still_figure", "Drawn", "MAX_FRAMES", "DEFAULT_FPS"]
 
 MAX_FRAMES = 400
 """Most frames of one animation (a 16 s run at 10 frames per second is 160)."""
@@ -37,28 +46,111 @@ def frame_times(duration: float, fps: float = DEFAULT_FPS) -> np.ndarray:
     return np.arange(n) / fps
 
 
-def write_animation(result, path, robot=None, fps: float = DEFAULT_FPS, dpi: int = 90) -> pathlib.Path:
-    """Write the GIF of ``result`` (a :class:`.simulator.SimulationResult`) to
-    ``path``; ``robot`` the arm whose joints were logged (default: the
-    scenario's). Returns the path."""
-    import matplotlib
+@dataclass(frozen=True)
+class Drawn:
+    """What :func:`write_animation` wrote: ``path``, ``renderer``
+    (``"mujoco"`` or ``"matplotlib"``) and, for matplotlib, why not MuJoCo
+    (``why``, one line; empty when matplotlib was asked for)."""
+    path: pathlib.Path
+    renderer: str
+    why: str = ""
 
-    matplotlib.use("Agg", force=False)
-    from matplotlib.animation import FuncAnimation, PillowWriter
-    from matplotlib.figure import Figure
 
-    from .figures import desired_path
+def _mujoco_frames(result, indices, robot, renderer: str):
+    """MuJoCo's frames, or ``(None, why)`` where it cannot render and ``renderer`` allows matplotlib."""
+    if renderer == "matplotlib":
+        return None, ""
+    from .mujoco_render import RenderUnavailable, render_frames
+
+    try:
+        return render_frames(result, indices, robot=robot), ""
+    except RenderUnavailable as exc:
+        if renderer == "mujoco":
+            raise
+        return None, str(exc)
+
+
+def still(result, robot=None, renderer: str = "auto") -> tuple[np.ndarray, str]:
+    """``(rgb, renderer)``: the last instant of ``result`` as an image
+    (height x width x 3, uint8), drawn by MuJoCo where it can render (module
+    docstring), else by matplotlib (the animation's first panel)."""
     from .simulator import robot_of
 
     robot = robot if robot is not None else robot_of(result.scenario)
-    tr = result.traces
+    k = result.time.size - 1
+    frames, _ = _mujoco_frames(result, [k], robot, renderer)
+    if frames is not None:
+        return frames[0], "mujoco"
+    fig, draw, _ = _matplotlib_frames(result, robot, np.array([k]))
+    draw(0)
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy(), "matplotlib"
+
+
+def still_figure(result):
+    """A matplotlib figure of :func:`still` (for the report)."""
+    from matplotlib.figure import Figure
+
+    rgb, how = still(result)
+    h, w = rgb.shape[:2]
+    fig = Figure(figsize=(6.0, 6.0 * h / w))
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.imshow(rgb)
+    ax.set_axis_off()
+    ax.set_title(f"drawn by {'MuJoCo' if how == 'mujoco' else 'matplotlib'}", fontsize=7, y=0.0, pad=-10)
+    return fig
+
+
+def write_animation(result, path, robot=None, fps: float = DEFAULT_FPS, dpi: int = 90,
+                    renderer: str = "auto") -> Drawn:
+    """Write the GIF of ``result`` (a :class:`.simulator.SimulationResult`) to
+    ``path``; ``robot`` the arm whose joints were logged (default: the
+    scenario's); ``renderer``: ``"auto"`` (MuJoCo where it can render, else
+    matplotlib), ``"mujoco"`` (raises
+    :class:`.mujoco_render.RenderUnavailable` where it cannot) or
+    ``"matplotlib"``."""
+    from .simulator import robot_of
+
+    if renderer not in ("auto", "mujoco", "matplotlib"):
+        raise ValueError(f"renderer: expected 'auto', 'mujoco' or 'matplotlib', got {renderer!r}")
+    robot = robot if robot is not None else robot_of(result.scenario)
     t = result.time
     times = frame_times(float(t[-1]), fps)
     idx = np.minimum(np.searchsorted(t, times), t.size - 1)
+    path = pathlib.Path(path)
+    frames, why = _mujoco_frames(result, idx, robot, renderer)
+    if frames is not None:
+        from PIL import Image
+
+        images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE) for f in frames]
+        images[0].save(path, save_all=True, append_images=images[1:], duration=int(round(1000 / fps)), loop=0)
+        return Drawn(path, "mujoco")
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    fig, draw, _ = _matplotlib_frames(result, robot, idx)
+    anim = FuncAnimation(fig, draw, frames=len(idx), blit=False)
+    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
+    return Drawn(path, "matplotlib", why)
+
+
+def _matplotlib_frames(result, robot, idx):
+    """``(figure, draw(i), idx)``: the matplotlib figure of the animation
+    and the function that draws its frame i (sample ``idx[i]``)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .figures import desired_path
+
+    tr = result.traces
+    t = result.time
     skeletons = np.stack([robot.joint_origins(result.q[:, k]) for k in idx])      # frames x 3 x points
     xd = desired_path(tr)
 
     fig = Figure(figsize=(8.0, 4.2))
+    FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     axf = fig.add_subplot(1, 2, 2)
     if tr.surface_mesh is not None:
@@ -95,7 +187,4 @@ def write_animation(result, path, robot=None, fps: float = DEFAULT_FPS, dpi: int
                        f"k_e = {result.stiffness[k]:,.0f} N/m")
         return arm, trace, force, label
 
-    path = pathlib.Path(path)
-    anim = FuncAnimation(fig, draw, frames=len(idx), blit=False)
-    anim.save(path, writer=PillowWriter(fps=fps), dpi=dpi)
-    return path
+    return fig, draw, idx

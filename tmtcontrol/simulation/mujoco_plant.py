@@ -86,6 +86,11 @@ def contact_inverse_inertia(model, geoms) -> float:
     return float(sum(model.body_invweight0[model.geom_bodyid[g], 0] for g in geoms))
 
 
+def _no_primitive(surface) -> str:
+    return (f"MuJoCo has no primitive for this {surface.noun} (worked from inside, or measured); use "
+            "simulation.mujoco_contact = \"spring\"")
+
+
 def _contact_geom(geom, friction: float) -> None:
     geom.condim = 3 if friction > 0 else 1
     geom.friction = [friction, 0.0, 0.0]
@@ -102,30 +107,24 @@ def _quat(R) -> list:
 
 
 def add_part(mujoco, body, surface, friction: float = 0.0):
-    """Add ``surface`` (a plane, or a sphere or cylinder with the tool
-    outside) to the MjSpec ``body`` (its frame: the surface's base frame)
-    as a contact geom colliding only with the tool; a shape MuJoCo has no
-    primitive for raises :class:`ValueError` saying so."""
+    """Add ``surface`` (its :meth:`~tmtcontrol.surface.Surface.primitive`: a
+    plane, or a sphere or cylinder with the tool outside) to the MjSpec
+    ``body`` (its frame: the surface's base frame) as a contact geom
+    colliding only with the tool; a part that is no primitive raises
+    :class:`ValueError` saying so."""
+    shape = surface.primitive()
+    if shape is None:
+        raise ValueError(_no_primitive(surface))
+    kind, centre, R, radius = shape
     g = body.add_geom()
-    if surface.kind == "plane":
-        n, t1 = surface.normal(), surface.frame()[:, 1]
-        g.type = mujoco.mjtGeom.mjGEOM_PLANE
-        g.size = [0.0, 0.0, 1.0]                            # infinite
-        g.pos = surface.c.tolist()
-        g.quat = _quat(np.column_stack([t1, np.cross(-n, t1), -n]))   # its z out of the material
-    elif surface.kind in ("sphere", "cylinder") and surface.side == "outside":
-        R = surface.R
-        centre = surface.c + surface.radius * R[:, 0]
-        g.pos = centre.tolist()
-        if surface.kind == "sphere":
-            g.type, g.size = mujoco.mjtGeom.mjGEOM_SPHERE, [surface.radius, 0.0, 0.0]
-        else:                                                 # axis along t_2 (the geom's z), 2 m long
-            g.type, g.size = mujoco.mjtGeom.mjGEOM_CYLINDER, [surface.radius, 1.0, 0.0]
-            g.quat = _quat(np.column_stack([R[:, 0], R[:, 1], R[:, 2]]))
-    else:
-        what = "a height map" if surface.kind == "heightmap" else f"the inside of a {surface.kind}"
-        raise ValueError(f"MuJoCo has no primitive for {what} (a concave or measured part); "
-                         "use simulation.mujoco_contact = \"spring\"")
+    g.pos = np.asarray(centre, dtype=float).tolist()
+    n, t1 = R[:, 0], R[:, 1]
+    geom, size, frame = {          # MuJoCo's geom of each primitive (a cylinder's axis, R[:, 2], is the geom's z)
+        "plane": ("mjGEOM_PLANE", [0.0, 0.0, 1.0], np.column_stack([t1, np.cross(-n, t1), -n])),  # z: out, infinite
+        "sphere": ("mjGEOM_SPHERE", [radius, 0.0, 0.0], R),
+        "cylinder": ("mjGEOM_CYLINDER", [radius, 1.0, 0.0], R),                                     # 2 m long
+    }[kind]
+    g.type, g.size, g.quat = getattr(mujoco.mjtGeom, geom), size, _quat(frame)
     g.name = "tmt_part"
     g.contype, g.conaffinity = 0, 1
     _contact_geom(g, friction)
@@ -153,11 +152,11 @@ class MujocoPlant:
 
     def __init__(self, robot, surface, Ts: float, d_e: float, substeps: int = SUBSTEPS, contact: str = "spring",
                  friction: float = 0.0):
-        from ..model.against_mujoco import _import, mujoco_model
+        from ..model.against_mujoco import import_mujoco, mujoco_model
 
         edit = None
         if contact == "contact":
-            mujoco = _import()
+            mujoco = import_mujoco()
 
             def edit(spec):
                 names = {b.name for b in spec.bodies}
@@ -254,11 +253,8 @@ def check_contact(scenario, surface) -> None:
     if s.mujoco_friction > 0 and s.mujoco_contact != "contact":
         raise ScenarioError("simulation.mujoco_friction: only MuJoCo's own contact has friction; set "
                             "simulation.mujoco_contact = \"contact\" (the spring is frictionless)")
-    if s.mujoco_contact == "contact" and not (surface.kind == "plane" or (
-            surface.kind in ("sphere", "cylinder") and surface.side == "outside")):
-        what = "a height map" if surface.kind == "heightmap" else f"the inside of a {surface.kind}"
-        raise ScenarioError(f"simulation.mujoco_contact: MuJoCo has no primitive for {what} (a concave or "
-                            "measured part); use simulation.mujoco_contact = \"spring\"")
+    if s.mujoco_contact == "contact" and surface.primitive() is None:
+        raise ScenarioError(f"simulation.mujoco_contact: {_no_primitive(surface)}")
 
 
 def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:

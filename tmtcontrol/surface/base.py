@@ -125,6 +125,17 @@ class Surface(abc.ABC):
         does not turn (a plane)."""
         return None
 
+    def primitive(self):
+        """The part as a solid primitive, for a physics engine or a renderer
+        (MuJoCo's contact, its pictures): ``(kind, centre, R, radius)`` with
+        ``kind`` ``"plane"`` (``centre`` a point on it), ``"sphere"`` or
+        ``"cylinder"`` (``centre`` its centre, on the axis ``R[:, 2]``;
+        ``radius`` m), ``R`` the task frame there (base frame), the material
+        on the side the inward normal ``R[:, 0]`` points into; None for a part
+        that no primitive is (the inside of a sphere or a cylinder, a measured
+        height map)."""
+        return None
+
     def _par(self, par: dict) -> list:
         return [par[name] for name, _ in self.fields]
 

@@ -199,6 +199,12 @@ class Sphere(_Curved):
     kind = "sphere"
     noun = "sphere"
 
+    def primitive(self):
+        """:meth:`Surface.primitive`: the solid when the tool works on its outside, else None (no solid)."""
+        if self.side != "outside":
+            return None
+        return self.kind, self.c + self.radius * self.R[:, 0], self.R, self.radius
+
     @staticmethod
     def _coords(p, par):
         x, y, z, r, sigma = _Curved._local(p, par)
@@ -250,6 +256,12 @@ class Cylinder(_Curved):
 
     kind = "cylinder"
     noun = "cylinder"
+
+    def primitive(self):
+        """:meth:`Surface.primitive`: the solid when the tool works on its outside, else None (no solid)."""
+        if self.side != "outside":
+            return None
+        return self.kind, self.c + self.radius * self.R[:, 0], self.R, self.radius
 
     @staticmethod
     def _coords(p, par):

@@ -56,6 +56,10 @@ class Plane(Surface):
     noun = "tilted plane"
     fields = (("R", 9), ("c", 3))
 
+    def primitive(self):
+        """``("plane", c, R, None)``: :meth:`Surface.primitive`."""
+        return "plane", self.c, self.R, None
+
     def __init__(self, R, c):
         self.R = np.array(R, dtype=float).reshape(3, 3)
         self.c = np.array(c, dtype=float).reshape(3)

@@ -148,6 +148,10 @@ def case_limits(sc, sim=None) -> dict:
     nan = math.nan
     out = {"small_signal_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
            "predicted_stable": None, "limits_error": ""}
+    if sc.controller.hold == "mid_period":     # the 1-D model has no hold: its limit is not this loop's
+        out["limits_error"] = ("the 1-D model has no mid-period hold (controller.hold); analyze --scenario gives "
+                               "the loop's own limits")
+        return out
     try:
         ctl, p = sc.controller, scenario_parameters(sc)
         k_max = p["k_e_max"]

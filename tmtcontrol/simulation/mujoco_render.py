@@ -1,0 +1,151 @@
+"""Frames of a run drawn by MuJoCo's offscreen renderer: the arm, the part and the contact force (issue 41).
+
+:func:`render_frames` draws a :class:`.simulator.SimulationResult` of an arm
+with a URDF at given times: MuJoCo's model of the same URDF
+(:func:`tmtcontrol.model.against_mujoco.mujoco_model`) posed at the logged
+joints, its links drawn as capsules between consecutive body origins (the
+bundled URDFs have no meshes), the part as a MuJoCo geom
+(:func:`.mujoco_plant.add_part`: a plane, or a sphere or cylinder worked from
+outside; a concave part or a height map is drawn as its tangent plane at the
+path's centre), the tool as a small sphere, and the contact force on the
+tool as a red arrow (1 cm per N, along the surface's outward normal), with
+the time, force and stiffness written on the image.
+
+MuJoCo renders through OpenGL without a window: ``MUJOCO_GL=egl`` (a GPU or
+a headless EGL driver) or ``MUJOCO_GL=osmesa`` (software), read when MuJoCo
+is first imported. :func:`prefer_headless_gl` sets ``egl`` where nothing is
+set and there is no display; the command line calls it before anything
+imports MuJoCo. Where no backend works (or MuJoCo is not installed, or the
+arm has no URDF: the PUMA), :class:`RenderUnavailable` says why and
+:mod:`.animation` draws with matplotlib instead.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+__all__ = ["RenderUnavailable", "prefer_headless_gl", "render_frames", "FORCE_SCALE"]
+
+FORCE_SCALE = 0.01
+"""Length of the force arrow per newton (m/N): f_d = 10 N is 0.1 m."""
+
+
+class RenderUnavailable(RuntimeError):
+    """MuJoCo cannot render this run here; the message says why."""
+
+
+def prefer_headless_gl() -> None:
+    """``MUJOCO_GL=egl`` when no backend is chosen and there is no display
+    (MuJoCo reads it on its first import)."""
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"
+
+
+def _scene_model(robot, surface):
+    from ..model.against_mujoco import MujocoMissing, import_mujoco, mujoco_model
+    from ..surface import Plane
+    from .mujoco_plant import TOOL_RADIUS, add_part
+
+    try:
+        mujoco = import_mujoco()
+    except MujocoMissing as exc:
+        raise RenderUnavailable(str(exc)) from None
+    if robot.urdf is None:
+        raise RenderUnavailable(f"{robot.name} has no URDF for MuJoCo to load")
+
+    def edit(spec):
+        spec.compiler.discardvisual = False           # the geoms added here are visual only
+        for body in list(spec.bodies):
+            parent = body.parent
+            if parent is None or parent.name == body.name:
+                continue
+            tip = np.asarray(body.pos, dtype=float)
+            if np.linalg.norm(tip) > 1e-4:                     # a link: a capsule from the parent's origin
+                g = parent.add_geom()
+                g.type, g.size = mujoco.mjtGeom.mjGEOM_CAPSULE, [0.025, 0.0, 0.0]
+                g.fromto = [0.0, 0.0, 0.0, *tip.tolist()]
+                g.rgba, g.contype, g.conaffinity, g.density = [0.25, 0.45, 0.8, 1.0], 0, 0, 0.0
+        names = {b.name for b in spec.bodies}
+        base = spec.body(robot.base) if robot.base in names else spec.worldbody
+        shown = surface
+        if surface.primitive() is None:                      # a bowl, a bore, a height map: its tangent plane
+            shown = Plane(surface.frame(surface.c), surface.c)
+        part = add_part(mujoco, base, shown)
+        part.contype = part.conaffinity = 0
+        part.rgba = [0.7, 0.7, 0.7, 0.6]
+        if part.type == mujoco.mjtGeom.mjGEOM_PLANE:          # drawn as a 0.6 m square around the path's centre
+            part.size = [0.3, 0.3, 0.01]
+        light = spec.worldbody.add_light()
+        light.pos, light.dir = [0.0, 0.0, 3.0], [0.0, 0.0, -1.0]
+        tool = spec.body(robot.tip).add_geom()
+        tool.type, tool.size = mujoco.mjtGeom.mjGEOM_SPHERE, [max(4 * TOOL_RADIUS, 0.01), 0.0, 0.0]
+        tool.rgba, tool.contype, tool.conaffinity, tool.density = [0.9, 0.6, 0.1, 1.0], 0, 0, 0.0
+
+    return mujoco, *mujoco_model(robot, lock_held=True, edit=edit)[1:]
+
+
+def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=None) -> list[np.ndarray]:
+    """RGB frames (height x width x 3, uint8) of ``result`` at the samples
+    ``indices``; ``robot``: the arm whose joints were logged (default: the
+    scenario's). Raises :class:`RenderUnavailable` (module docstring)."""
+    from PIL import Image, ImageDraw
+
+    from .geometry import surface_of
+    from .simulator import robot_of
+
+    import sys
+    import warnings
+
+    robot = robot if robot is not None else robot_of(result.scenario)
+    surface = surface_of(result.scenario)
+    if "mujoco" not in sys.modules:            # the backend is chosen on MuJoCo's first import
+        prefer_headless_gl()
+    mujoco, m, d = _scene_model(robot, surface)
+    width, height = size
+    m.vis.headlight.ambient[:], m.vis.headlight.diffuse[:] = 0.45, 0.5
+    m.vis.global_.offwidth, m.vis.global_.offheight = max(width, 640), max(height, 480)
+    try:
+        with warnings.catch_warnings():        # GLFW's own warnings where there is no display: said below instead
+            warnings.simplefilter("ignore")
+            renderer = mujoco.Renderer(m, height, width)
+    except Exception as exc:                 # no OpenGL backend: MuJoCo says which
+        raise RenderUnavailable(f"MuJoCo's renderer did not start (MUJOCO_GL="
+                                f"{os.environ.get('MUJOCO_GL', 'unset')}): {str(exc).splitlines()[0]}") from None
+    qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
+    names = [m.body(i).name for i in range(m.nbody)]
+    base = m.body(robot.base).id if robot.base in names else 0
+    cam = mujoco.MjvCamera()
+    mujoco.mj_forward(m, d)
+    Rb, pb = d.xmat[base].reshape(3, 3), d.xpos[base].copy()
+    centre = pb + Rb @ np.asarray(result.scenario.trajectory.center, dtype=float)
+    reach = max(float(np.linalg.norm(centre - pb)), 0.3)
+    cam.lookat[:] = (centre + pb) / 2 + [0.0, 0.0, 0.25 * reach]
+    cam.distance = 3.2 * reach
+    cam.azimuth, cam.elevation = 135.0, -20.0
+    frames = []
+    try:
+        for k in indices:
+            d.qpos[qadr] = result.q[:, k]
+            mujoco.mj_kinematics(m, d)
+            renderer.update_scene(d, camera=cam)
+            f = float(result.contact_force[k])
+            if f > 0 and renderer.scene.ngeom < renderer.scene.maxgeom:
+                p = pb + Rb @ result.position[:, k]
+                n_out = -(Rb @ surface.normal(result.position[:, k]))      # the force on the tool: out of the part
+                z = n_out / np.linalg.norm(n_out)
+                x = np.cross(z, [0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0])
+                x /= np.linalg.norm(x)
+                mat = np.column_stack([x, np.cross(z, x), z])
+                g = renderer.scene.geoms[renderer.scene.ngeom]
+                mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_ARROW, np.array([0.035, 0.035, FORCE_SCALE * f]), p,
+                                    mat.ravel(), np.array([0.85, 0.1, 0.1, 1.0], dtype=np.float32))
+                renderer.scene.ngeom += 1
+            img = Image.fromarray(renderer.render())
+            ImageDraw.Draw(img).text((8, 6), f"t = {result.time[k]:5.2f} s   f_e = {f:6.2f} N   "
+                                     f"k_e = {result.stiffness[k]:,.0f} N/m", fill=(255, 255, 255))
+            frames.append(np.asarray(img))
+    finally:
+        renderer.close()
+    return frames
