@@ -540,8 +540,10 @@ def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, l
 
     from tmtcontrol.stability import onedim
 
+    from tmtcontrol.simulation.scenario import paper_scenario
+
     monkeypatch.setattr(onedim, "scenario_stiffness_limit", lambda scenario: limit)
-    run = dataclasses.make_dataclass("Run", ["scenario", "info"], frozen=True)(None, {"kept": 1})
+    run = dataclasses.make_dataclass("Run", ["scenario", "info"], frozen=True)(paper_scenario(), {"kept": 1})
     out = onedim.with_stiffness_limit(run)
     assert out.info == ({"kept": 1, "stiffness_limit": limit} if attached else {"kept": 1})
 
