@@ -109,6 +109,12 @@ class PinocchioLoop:
             raise ValueError("controller.delay_samples: the computation delay is not written here; set 0")
         if sc.trajectory.approach_gap > 0:
             raise ValueError("trajectory.approach_gap: the guarded approach is not written here; set 0")
+        if ctl.hold != "zero_order":
+            raise ValueError("controller.hold: only the zero-order hold is written here")
+        if any(ctl.part_offset):
+            raise ValueError("controller.part_offset: the part position error is not written here; set 0")
+        if sc.environment.shape != "plane":
+            raise ValueError("environment.shape: only the plane is written here")
         if r.model_mass_scale != 1.0 or r.friction or r.compensate_friction:
             raise ValueError("robot: the controller's model must equal the plant (no mass scale, no friction)")
         if sc.simulation.integrator != "fixed":

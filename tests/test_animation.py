@@ -121,3 +121,32 @@ def test_simulate_animate_draws_with_mujoco_where_it_renders(tmp_path):
                            "trajectory.cycles=0.1", "--no-plots", "--animate", "--out", str(tmp_path / "puma")],
                           capture_output=True, text=True, env=env)
     assert puma.returncode == 0 and "drawn by matplotlib (puma560 has no URDF for MuJoCo to load)" in puma.stdout
+
+
+_NO_GL = '''import ctypes
+_orig = ctypes.CDLL.__init__
+def _init(self, name, *a, **k):
+    if name and any(s in str(name) for s in ("libGL", "libOpenGL", "libEGL", "libGLES", "libOSMesa")):
+        raise OSError(f"{name}: cannot open shared object file (simulated)")
+    return _orig(self, name, *a, **k)
+ctypes.CDLL.__init__ = _init
+'''
+
+
+def test_without_opengl_libraries_the_animation_falls_back_to_matplotlib(tmp_path):
+    """Regression (review): on a headless machine whose OpenGL libraries do
+    not load (simulated by a sitecustomize that refuses them), MuJoCo fails
+    to import with MUJOCO_GL=egl, raising AttributeError, not ImportError;
+    ``simulate ur5 --animate`` must still write the GIF with matplotlib and
+    say why, not crash after simulating."""
+    site = tmp_path / "nogl"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(_NO_GL)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL")}
+    env["PYTHONPATH"] = str(site) + os.pathsep + env.get("PYTHONPATH", "")
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "ur5", "--set", "trajectory.cycles=0.1",
+                        "--no-plots", "--animate", "--out", str(out)], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "animation.gif drawn by matplotlib (MuJoCo did not load with MUJOCO_GL=" in r.stdout
+    assert (out / "animation.gif").is_file()

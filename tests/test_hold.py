@@ -118,19 +118,21 @@ def test_mid_period_hold_raises_the_stiffness_limit_in_the_simulator():
 
 def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
     """The 1-D model has no hold: with the mid-period hold its limit (about
-    130 kN/m on the pipe) is far below the loop's, so the verdicts must not
-    take it as the loop's limit. At a constant 300 kN/m the simulate
+    130 kN/m on the pipe) is far below the loop's, so it gives none
+    (scenario_stiffness_limit: None) and the verdicts do not take it as the
+    loop's limit. At a constant 300 kN/m the simulate
     command's verdict (with_stiffness_limit attached) is the run's own,
     converged; with the zero-order hold the same run is beyond the loop's
     limit and not converged."""
     from tmtcontrol.stability.onedim import scenario_stiffness_limit, with_stiffness_limit
 
     sc = _pipe("trajectory.cycles=1.0", "environment.stiffness.values=[300000.0]")
-    assert scenario_stiffness_limit(sc) < 2e5
+    zoh = apply_overrides(sc, ['controller.hold="zero_order"'])
+    assert scenario_stiffness_limit(zoh) < 2e5                 # the 1-D model (no hold): about 130 kN/m
+    assert scenario_stiffness_limit(sc) is None                 # not this loop's: no 1-D prediction
     res = with_stiffness_limit(Simulator(sc, compile=False).run())
     assert "stiffness_limit" not in res.info
     assert segment_metrics(res)[0].verdict == "converged"
-    zoh = apply_overrides(sc, ['controller.hold="zero_order"'])
     assert segment_metrics(with_stiffness_limit(Simulator(zoh, compile=False).run()))[0].verdict != "converged"
 
 
@@ -145,3 +147,21 @@ def test_a_sweep_case_with_the_hold_has_no_1d_predicted_limit():
     row = case_limits(_pipe("trajectory.cycles=0.25"))
     assert math.isnan(row["predicted_limit"]) and row["predicted_stable"] is None
     assert "no mid-period hold" in row["limits_error"]
+
+
+def test_a_position_export_has_no_hold_and_still_matches_its_scenario(tmp_path):
+    """The hold acts on the torque: an export without the inner loop (the
+    position command) has no hold state and says so in export.json, and it
+    still matches its own scenario; the torque export records the hold."""
+    import json
+
+    from tmtcontrol.export.generate import export_controller
+    from tmtcontrol.export.sil import check_export_matches
+
+    sc = _pipe("trajectory.cycles=0.01")
+    for torque, hold in ((False, "zero_order"), (True, "mid_period")):
+        folder = tmp_path / str(torque)
+        export_controller(sc, folder, torque)
+        meta = json.loads((folder / "export.json").read_text())
+        assert meta["hold"] == hold
+        check_export_matches(meta, folder, sc)

@@ -656,3 +656,43 @@ def test_the_primitive_of_each_part_against_its_closed_form():
         assert np.array_equal(R, R0)
         assert cls(R0, C0, 0.2, "inside").primitive() is None
     assert HeightMap(R0, C0, np.zeros((5, 5)), 0.01).primitive() is None
+
+
+def test_the_orientation_check_follows_the_believed_part():
+    """Regression (review): ``check``'s e_o row on a curved part with the
+    part believed displaced compares the step with the believed part's
+    frame (the true one's at p - d); it had used the true part's and failed
+    (residual 0.03-0.05) though the loop was right."""
+    from tmtcontrol.checks.model import orientation_error_check
+
+    for off in ([0.0, 0.0, 0.005], [0.005, 0.0, 0.0]):
+        row = orientation_error_check(apply_overrides(arm_scenario("ur5-pipe"), [_offset(off)]))
+        assert row.passed and row.residual < 1e-9, (off, row.residual)
+
+
+@pytest.mark.parametrize("s", [0.005, -0.005])
+def test_a_guarded_approach_finds_a_part_believed_elsewhere(s):
+    """Regression (review): with the part believed s along the normal and a
+    guarded approach from 2 mm at 10 mm/s, the approach starts where the
+    tool is (its command from the tool's believed depth, -gap - s), so it
+    touches at gap / speed = 0.2 s whichever way the belief is off (it had
+    touched at 0.13 s, or backed off first and touched at 0.48 s), and the
+    estimate set at contact removes the error: the steady force is f_d as
+    without an error, and the analyses' error (surface_error) is 0."""
+    from tmtcontrol.simulation.geometry import surface_error
+    from tmtcontrol.simulation.metrics import first_contact
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.approach_gap=0.002", "trajectory.cycles=0.5",
+                                            _offset(s * R0[:, 0])])
+    res = Simulator(sc, compile=False).run()
+    plain = Simulator(apply_overrides(sc, ["controller.part_offset=[0.0, 0.0, 0.0]"]), compile=False).run()
+    assert 0.2 <= first_contact(plain).time <= 0.215                      # gap / speed (+ the force's rise)
+    assert abs(first_contact(res).time - first_contact(plain).time) <= 2e-3
+    assert np.abs(res.contact_force[res.time > 1.5] - 10.0).max() < 1e-3
+    assert surface_error(sc) == 0.0
+    # the base-frame command: X_c in the controller's chart mapped through the controller's part (the true one
+    # moved by the offset) is the same physical command as the plain run's, the approach having found the
+    # surface (mapped through the true part it was off by the offset)
+    late = res.time > 1.5
+    assert np.abs((res.command_position - plain.command_position)[:, late]).max() < 1e-9

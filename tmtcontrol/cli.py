@@ -426,7 +426,9 @@ def _verdict_exit(sc, segs) -> int:
     pred = predicted_limits(sc)
     limit, first = pred["small_signal"], pred["first_contact"]
     lim = (f"predicted limit {limit:,.0f} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
-           + f"from first contact {first:,.0f} N/m" if limit is not None else "no linear prediction for this law")
+           + f"from first contact {first:,.0f} N/m" if limit is not None else
+           "no 1-D prediction (a law without a linear verdict, or the mid-period hold: tmtcontrol analyze "
+           "--scenario gives the loop's own limits)")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m, {lim}; {s.reason}",
               file=sys.stderr)

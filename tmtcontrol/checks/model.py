@@ -142,12 +142,14 @@ def orientation_error_check(scenario, seed: int = 2024) -> CheckResult | None:
     rng = np.random.default_rng(seed)
     worst = 0.0
     surface = surface_of(scenario)
+    # the controller's part: the true one moved by controller.part_offset (its frame at p is the true one's at p - d)
+    d = np.asarray(scenario.controller.part_offset, dtype=float)
     for _ in range(8):
         s = s0.copy()
         s[L["q"]] += rng.uniform(-0.15, 0.15, sim.plant.n)
         q = s[L["q"]]
         T = sim.plant.fk(q)
-        R_task = surface.frame(T[:3, 3])
+        R_task = surface.frame(T[:3, 3] - d)
         _, log = step(s, U[:, 0], P)
         log = np.asarray(log).ravel()
         got = log[G["e_o"]]

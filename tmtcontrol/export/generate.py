@@ -476,7 +476,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
             "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind,
             "surface_key": iface.surface.key, "inner_loop": inner_loop,
-            "delay": scenario.controller.delay_samples, "hold": scenario.controller.hold,
+            "delay": scenario.controller.delay_samples, "hold": "mid_period" if iface.hold else "zero_order",
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},

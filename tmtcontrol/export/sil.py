@@ -270,7 +270,8 @@ def check_export_matches(meta: dict, folder, scenario, flag: str = "--controller
     from ..simulation.geometry import surface_of
 
     want = {"law": scenario.controller.law.kind, "surface": surface_of(scenario).kind,
-            "delay": scenario.controller.delay_samples, "hold": scenario.controller.hold,
+            "delay": scenario.controller.delay_samples,
+            "hold": scenario.controller.hold if meta.get("inner_loop") else "zero_order",   # a position command: none
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction}
     for key, value in want.items():

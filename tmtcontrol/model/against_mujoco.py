@@ -36,11 +36,21 @@ class MujocoMissing(ImportError):
 
 
 def import_mujoco():
+    """The ``mujoco`` module, or :class:`MujocoMissing` saying what to do: not
+    installed, or it failed to load its OpenGL backend (``MUJOCO_GL``, read
+    on its first import: a library missing raises other errors than
+    ImportError)."""
+    import os
+
     try:
         import mujoco
     except ImportError:
         raise MujocoMissing("MuJoCo is not installed: pip install 'tmtcontrol[mujoco]' (or pip install mujoco)") \
             from None
+    except Exception as exc:        # noqa: BLE001 - PyOpenGL raises AttributeError for a missing GL library
+        raise MujocoMissing(f"MuJoCo did not load with MUJOCO_GL={os.environ.get('MUJOCO_GL', 'unset')} "
+                            f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); set MUJOCO_GL to a "
+                            "backend this machine has (egl, osmesa or glfw)") from None
     return mujoco
 
 

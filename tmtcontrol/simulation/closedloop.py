@@ -64,7 +64,9 @@ Two things real controllers have are part of the loop (beyond the paper):
   of the computed torque (the impedance filter's answer to a stiffness
   step) is overshot by half for one period, which the torque-limit verdicts
   see. It adds a lead to the loop that the whole-loop and periodic analyses
-  see (they run this step); the 1-D sampled model does not;
+  see (they run this step); the 1-D sampled model does not. With a
+  computation delay the extrapolation still aims at t_k + Ts/2 (the delay
+  is not predicted);
 * a guarded approach (first contact from a gap above the surface): while
   ``approach`` is 1 the normal command advances toward the surface at the
   approach speed, x_c = x_app, dx_c = v, ddx_c = 0, and the law's state is

@@ -37,9 +37,15 @@ class RenderUnavailable(RuntimeError):
 
 
 def prefer_headless_gl() -> None:
-    """``MUJOCO_GL=egl`` when no backend is chosen and there is no display
-    (MuJoCo reads it on its first import)."""
-    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    """``MUJOCO_GL=egl`` when no backend is chosen, there is no display and
+    the EGL and OpenGL libraries are there (MuJoCo reads it on its first
+    import; without them the variable would stop MuJoCo from loading at
+    all, physics included)."""
+    import ctypes.util
+
+    if "MUJOCO_GL" in os.environ or os.environ.get("DISPLAY"):
+        return
+    if ctypes.util.find_library("EGL") and (ctypes.util.find_library("OpenGL") or ctypes.util.find_library("GL")):
         os.environ["MUJOCO_GL"] = "egl"
 
 
@@ -48,12 +54,12 @@ def _scene_model(robot, surface):
     from ..surface import Plane
     from .mujoco_plant import TOOL_RADIUS, add_part
 
+    if robot.urdf is None:
+        raise RenderUnavailable(f"{robot.name} has no URDF for MuJoCo to load")
     try:
         mujoco = import_mujoco()
     except MujocoMissing as exc:
         raise RenderUnavailable(str(exc)) from None
-    if robot.urdf is None:
-        raise RenderUnavailable(f"{robot.name} has no URDF for MuJoCo to load")
 
     def edit(spec):
         spec.compiler.discardvisual = False           # the geoms added here are visual only
@@ -113,19 +119,19 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
     except Exception as exc:                 # no OpenGL backend: MuJoCo says which
         raise RenderUnavailable(f"MuJoCo's renderer did not start (MUJOCO_GL="
                                 f"{os.environ.get('MUJOCO_GL', 'unset')}): {str(exc).splitlines()[0]}") from None
-    qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
-    names = [m.body(i).name for i in range(m.nbody)]
-    base = m.body(robot.base).id if robot.base in names else 0
-    cam = mujoco.MjvCamera()
-    mujoco.mj_forward(m, d)
-    Rb, pb = d.xmat[base].reshape(3, 3), d.xpos[base].copy()
-    centre = pb + Rb @ np.asarray(result.scenario.trajectory.center, dtype=float)
-    reach = max(float(np.linalg.norm(centre - pb)), 0.3)
-    cam.lookat[:] = (centre + pb) / 2 + [0.0, 0.0, 0.25 * reach]
-    cam.distance = 3.2 * reach
-    cam.azimuth, cam.elevation = 135.0, -20.0
     frames = []
     try:
+        qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
+        names = [m.body(i).name for i in range(m.nbody)]
+        base = m.body(robot.base).id if robot.base in names else 0
+        cam = mujoco.MjvCamera()
+        mujoco.mj_forward(m, d)
+        Rb, pb = d.xmat[base].reshape(3, 3), d.xpos[base].copy()
+        centre = pb + Rb @ np.asarray(result.scenario.trajectory.center, dtype=float)
+        reach = max(float(np.linalg.norm(centre - pb)), 0.3)
+        cam.lookat[:] = (centre + pb) / 2 + [0.0, 0.0, 0.25 * reach]
+        cam.distance = 3.2 * reach
+        cam.azimuth, cam.elevation = 135.0, -20.0
         for k in indices:
             d.qpos[qadr] = result.q[:, k]
             mujoco.mj_kinematics(m, d)

@@ -309,8 +309,10 @@ class SimulationResult:
         sc = self.scenario
         oriented = self.orientation_error is not None
         surface = surface_of(sc)
-        # X_d: the reference's tangential coordinates on the surface (depth 0); the surface around the path
-        desired = surface.to_base(np.vstack([np.zeros(self.time.size), self.reference_task[1:]]))
+        # X_d: the reference's tangential coordinates on the controller's part (depth 0; the true part moved by
+        # controller.part_offset); the true surface around the path
+        desired = (surface.to_base(np.vstack([np.zeros(self.time.size), self.reference_task[1:]]))
+                   + np.asarray(sc.controller.part_offset, dtype=float)[:, None])
         r = 1.4 * max(float(sc.trajectory.radius), 1e-3)
         u = np.linspace(-r, r, 25 if surface.turns else 2)
         U, V = np.meshgrid(u, u, indexing="ij")
@@ -559,8 +561,12 @@ class Simulator:
         dq0 = self.joint_rates(q0, *surface.rates(np.r_[-gap, ref.pos[:, 0]], np.r_[0.0, ref.vel[:, 0]]))
         b0 = min(max(imp.b[0], sch.b_min), sch.b_max) if on else imp.b[0]
         guarded = gap > 0 and ctl.approach_speed > 0
+        # the approach starts where the tool is: gap above the true part, -gap - n.d deep in the controller's chart
+        # (its part moved by controller.part_offset d; first order on a curved part, exact on a plane)
+        start_point = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
+        x_app = -gap - float(surface.normal(start_point) @ np.asarray(ctl.part_offset, dtype=float))
         s0 = state_layout(task, law, self.delay, self.hold).pack(
-            q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=-gap,
+            q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=x_app,
             ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(task.n * self.delay),
             tau_prev=np.zeros(task.n * self.hold), held=np.zeros(int(self.hold)),
             law=law.initial_state(ctl.law))
@@ -589,9 +595,11 @@ class Simulator:
         depth = lg["X"][0] - lg["x_e_hat"][0]
         with np.errstate(divide="ignore", invalid="ignore"):
             k_hat = np.where((f_m > STIFFNESS_ESTIMATE_FORCE) & (depth > 0), f_m / depth, np.nan)
+        # X_r, X_c are in the controller's chart: its part is the true one moved by controller.part_offset
+        d = np.asarray(sc.controller.part_offset, dtype=float)[:, None]
         return SimulationResult(
             scenario=sc, time=t, q=lg["q"], dq=lg["dq"], tau=lg["tau"], position=lg["p"],
-            reference_position=surface.to_base(lg["X_r"]), command_position=surface.to_base(lg["X_c"]),
+            reference_position=surface.to_base(lg["X_r"]) + d, command_position=surface.to_base(lg["X_c"]) + d,
             position_task=lg["X"], reference_task=lg["X_r"], command_task=lg["X_c"],
             contact_force=lg["f_e"][0], measured_force=f_m, desired_force=lg["f_d"][0],
             stiffness=U[INPUT["k_e"]][0], stiffness_estimate=k_hat, damping=lg["b_n"][0], path=path,

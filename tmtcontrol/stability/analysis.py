@@ -190,10 +190,12 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
         limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
                                             guess=out["max_stable_stiffness"], within=p["k_e_min"])
         k_max = out.get("k_e_max", out.get("k_e"))
+        # the 1-D model has no mid-period hold: with it the whole loop's verdict stands alone
+        one_d = scenario.controller.hold != "mid_period"
         out.update({"whole_loop_limit": limit,
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
-                    "sampled_stable": bool(out["sampled_stable"] and k_max < limit)})
-        if limits and not (out["max_stable_stiffness"] > 0 and limit > 0):
+                    "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < limit)})
+        if limits and not ((out["max_stable_stiffness"] > 0 or not one_d) and limit > 0):
             # unstable at the scenario's smallest stiffness: no limit above it to search along the path
             out.update({"limit": 0.0, "limit_from": "unstable at the smallest stiffness", "sampled_stable": False})
         elif limits:

@@ -69,9 +69,17 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     scenario's smallest stiffness (a stiff contact damper makes the loop
     unstable on soft surfaces, below that band), 0 if the loop is unstable
     there (the limit is below the scenario). ``None`` for
-    a law without a linear verdict (``Law.linear_analysis``)."""
+    a law without a linear verdict (``Law.linear_analysis``) and for a loop
+    with the mid-period hold (``controller.hold``): the 1-D model has no
+    hold, whose lead puts the loop's limit about 4x higher on the pipe
+    (``analyze --scenario`` gives that loop's own limits), so every user of
+    this figure (simulate's verdicts and messages, the sweep's line and
+    range) treats it as "no 1-D prediction"."""
     from ..control.laws import get_law
     from .lawloop import law_stiffness_limit
+
+    if scenario.controller.hold == "mid_period":
+        return None
 
     p = scenario_parameters(scenario) if params is None else params
     law = get_law(scenario.controller.law.kind)
@@ -116,8 +124,6 @@ def with_stiffness_limit(result):
     own verdict stands there."""
     import dataclasses
 
-    if result.scenario.controller.hold == "mid_period":
-        return result
     limit = scenario_stiffness_limit(result.scenario)
     if limit is None or not np.isfinite(limit) or limit <= 0:
         return result

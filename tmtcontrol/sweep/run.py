@@ -148,7 +148,7 @@ def case_limits(sc, sim=None) -> dict:
     nan = math.nan
     out = {"small_signal_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
            "predicted_stable": None, "limits_error": ""}
-    if sc.controller.hold == "mid_period":     # the 1-D model has no hold: its limit is not this loop's
+    if sc.controller.hold == "mid_period":     # the 1-D model has no hold (scenario_stiffness_limit: None)
         out["limits_error"] = ("the 1-D model has no mid-period hold (controller.hold); analyze --scenario gives "
                                "the loop's own limits")
         return out

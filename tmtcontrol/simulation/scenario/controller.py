@@ -100,7 +100,8 @@ class ControllerSettings(Section):
     part_offset: tuple[_Offset, _Offset, _Offset] = Field((0.0, 0.0, 0.0), description=(
         "error of the controller's part position: it believes the part (plane, sphere, cylinder or height "
         "map) displaced by this vector from where it is, in the base frame (on a plane the same as x_e_error "
-        "= part_offset . normal; on a curved part the error along the local normal varies along the path) [m]"),
+        "= part_offset . normal; on a curved part the error along the local normal varies along the path; a "
+        "guarded approach finds the surface, leaving the tangential part and the curvature's) [m]"),
         json_schema_extra={"unit": "m"})
     delay_samples: StrictInt = Field(0, ge=0, le=20, description="computation delay: the torque computed "
                                      "at t_k is applied from t_(k+N) [samples]")
