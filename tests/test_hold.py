@@ -149,10 +149,11 @@ def test_a_sweep_case_with_the_hold_has_no_1d_predicted_limit():
     assert "no mid-period hold" in row["limits_error"]
 
 
-def test_a_position_export_has_no_hold_and_still_matches_its_scenario(tmp_path):
+def test_a_position_export_records_no_hold_a_torque_export_its_hold(tmp_path):
     """The hold acts on the torque: an export without the inner loop (the
-    position command) has no hold state and says so in export.json, and it
-    still matches its own scenario; the torque export records the hold."""
+    position command) has no hold state and says so in export.json; the
+    torque export records the hold and matches its own scenario (SIL's
+    check; a position export is refused there for another reason)."""
     import json
 
     from tmtcontrol.export.generate import export_controller
@@ -164,4 +165,5 @@ def test_a_position_export_has_no_hold_and_still_matches_its_scenario(tmp_path):
         export_controller(sc, folder, torque)
         meta = json.loads((folder / "export.json").read_text())
         assert meta["hold"] == hold
-        check_export_matches(meta, folder, sc)
+        if torque:
+            check_export_matches(meta, folder, sc)
