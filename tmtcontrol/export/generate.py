@@ -451,6 +451,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     values = {
         "VERSION": __version__, "CASADI": ca.__version__, "SCENARIO": scenario.name, "LAW": law.name,
         "DELAY": scenario.controller.delay_samples, "INNER": "yes" if inner_loop else "no",
+        "HOLD": "mid-period (extrapolated)" if iface.hold else "zero-order", "HOLD_FLAG": int(iface.hold),
         "INNER_FLAG": int(inner_loop), "NS": state.size, "NP": iface.param.size,
         "NY": iface.measurement.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
         "SZ_IW": work["iw"], "SZ_W": work["w"], "GEN": GENERATED_FUNCTION, "TS": _c_num(scenario.controller.Ts),
