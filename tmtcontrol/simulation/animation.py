@@ -93,7 +93,7 @@ def still_figure(result):
 
     rgb, how = still(result)
     h, w = rgb.shape[:2]
-    fig = Figure(figsize=(6.0, 6.0 * h / w))
+    fig = Figure(figsize=(4.5, 4.5 * h / w))
     ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
     ax.imshow(rgb)
     ax.set_axis_off()

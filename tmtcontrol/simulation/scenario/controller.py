@@ -98,17 +98,13 @@ class ControllerSettings(Section):
     x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
                            "(positive: believed deeper than it is)")
     part_offset: tuple[_Offset, _Offset, _Offset] = Field((0.0, 0.0, 0.0), description=(
-        "error of the controller's part position: it believes the part (plane, sphere, cylinder or height "
-        "map) displaced by this vector from where it is, in the base frame (on a plane the same as x_e_error "
-        "= part_offset . normal; on a curved part the error along the local normal varies along the path; a "
-        "guarded approach finds the surface, leaving the tangential part and the curvature's) [m]"),
-        json_schema_extra={"unit": "m"})
+        "error of the controller's part position: it believes the part displaced by this vector, base frame "
+        "(docs/surfaces.md) [m]"), json_schema_extra={"unit": "m"})
     delay_samples: StrictInt = Field(0, ge=0, le=20, description="computation delay: the torque computed "
                                      "at t_k is applied from t_(k+N) [samples]")
     hold: Literal["zero_order", "mid_period"] = Field("zero_order", description=(
-        "how the torque is held over a period: zero_order (the paper's: the torque computed at t_k) or "
-        "mid_period (extrapolated to t_k + Ts/2 from the last two, tau_k + (tau_k - tau_k-1)/2; removes the "
-        "zero-order hold's force ripple on a turning path)"))
+        "the torque held over a period: zero_order (the paper's) or mid_period (extrapolated to its middle; "
+        "docs/theory.md)"))
     approach_speed: float = num(0.01, "m/s", "guarded approach from trajectory.approach_gap: the command "
                                 "advances toward the surface at this speed until contact is detected; "
                                 "0 = the law acts from the start", ge=0, le=1.0)

@@ -53,6 +53,10 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.simulation.integrator == "fixed"
     if key == "simulation.tol":
         return sc.simulation.integrator == "cvodes"
+    if key == "simulation.mujoco_contact":          # the MuJoCo plant's (--plant mujoco); shown when chosen
+        return sc.simulation.mujoco_contact != "spring"
+    if key == "simulation.mujoco_friction":
+        return sc.simulation.mujoco_contact == "contact"
     return True
 
 
