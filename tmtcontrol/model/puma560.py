@@ -277,7 +277,7 @@ class Puma560:
         d1, a2, d3, a3, d4 = l1.d, l2.a, l3.d, l3.a, WRIST_OFFSET
         r = np.hypot(px, py)
         lw, psi = math.hypot(a3, d4), math.atan2(d4, a3)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):     # far points: refused below
             s = np.arcsin(d3 / r)
             q1 = np.arctan2(py, px) + (s if shoulder > 0 else np.pi - s)
             x = np.cos(q1) * px + np.sin(q1) * py
