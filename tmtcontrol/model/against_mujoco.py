@@ -28,7 +28,7 @@ import numpy as np
 
 from .verify import TOLERANCE, Identity, RobotCheck, _rel, random_states
 
-__all__ = ["mujoco_model", "check_against_mujoco", "MujocoMissing", "import_mujoco"]
+__all__ = ["mujoco_model", "check_against_mujoco", "MujocoMissing", "import_mujoco", "base_id", "base_body"]
 
 
 class MujocoMissing(ImportError):
@@ -52,6 +52,21 @@ def import_mujoco():
                             f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); set MUJOCO_GL to a "
                             "backend this machine has (egl, osmesa or glfw)") from None
     return mujoco
+
+
+def base_id(model, robot) -> int:
+    """The MjModel body id of the robot's base link (0, the world, where
+    MuJoCo merged the base into it)."""
+    names = {model.body(i).name for i in range(model.nbody)}
+    return model.body(robot.base).id if robot.base in names else 0
+
+
+def base_body(spec, robot):
+    """The MjSpec body of the robot's base link (the world body where MuJoCo
+    merged the base into it): where a part is placed in the robot's base
+    frame."""
+    names = {b.name for b in spec.bodies}
+    return spec.body(robot.base) if robot.base in names else spec.worldbody
 
 
 def mujoco_model(robot, lock_held: bool = False, edit=None):
@@ -103,7 +118,7 @@ def check_against_mujoco(robot, samples: int = 20, seed: int = 0) -> RobotCheck:
     for name, value in robot.held.items():
         data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
     tip = model.body(robot.tip).id
-    base = model.body(robot.base).id if robot.base in [model.body(i).name for i in range(model.nbody)] else 0
+    base = base_id(model, robot)
     worst = {k: 0.0 for k in ("M", "bias", "fk", "J")}
     M_full = np.zeros((model.nv, model.nv))
     jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))

@@ -152,15 +152,14 @@ class MujocoPlant:
 
     def __init__(self, robot, surface, Ts: float, d_e: float, substeps: int = SUBSTEPS, contact: str = "spring",
                  friction: float = 0.0):
-        from ..model.against_mujoco import import_mujoco, mujoco_model
+        from ..model.against_mujoco import base_body, base_id, import_mujoco, mujoco_model
 
         edit = None
         if contact == "contact":
             mujoco = import_mujoco()
 
             def edit(spec):
-                names = {b.name for b in spec.bodies}
-                add_part(mujoco, spec.body(robot.base) if robot.base in names else spec.worldbody, surface, friction)
+                add_part(mujoco, base_body(spec, robot), surface, friction)
                 add_tool(spec.body(robot.tip), friction)
         elif contact != "spring":
             raise ValueError(f"contact: expected 'spring' or 'contact', got {contact!r}")
@@ -173,9 +172,8 @@ class MujocoPlant:
         self.robot, self.surface, self.d_e, self.substeps = robot, surface, float(d_e), substeps
         self.act = np.array([m.jnt_dofadr[m.joint(name).id] for name in robot.joint_names])
         self.qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
-        names = [m.body(i).name for i in range(m.nbody)]
         self.tip = m.body(robot.tip).id
-        self.base = m.body(robot.base).id if robot.base in names else 0
+        self.base = base_id(m, robot)
         self.n = robot.n
         self._jp, self._jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         if contact == "contact":

@@ -50,7 +50,7 @@ def prefer_headless_gl() -> None:
 
 
 def _scene_model(robot, surface):
-    from ..model.against_mujoco import MujocoMissing, import_mujoco, mujoco_model
+    from ..model.against_mujoco import MujocoMissing, base_body, import_mujoco, mujoco_model
     from ..surface import Plane
     from .mujoco_plant import TOOL_RADIUS, add_part
 
@@ -73,12 +73,10 @@ def _scene_model(robot, surface):
                 g.type, g.size = mujoco.mjtGeom.mjGEOM_CAPSULE, [0.025, 0.0, 0.0]
                 g.fromto = [0.0, 0.0, 0.0, *tip.tolist()]
                 g.rgba, g.contype, g.conaffinity, g.density = [0.25, 0.45, 0.8, 1.0], 0, 0, 0.0
-        names = {b.name for b in spec.bodies}
-        base = spec.body(robot.base) if robot.base in names else spec.worldbody
         shown = surface
         if surface.primitive() is None:                      # a bowl, a bore, a height map: its tangent plane
             shown = Plane(surface.frame(surface.c), surface.c)
-        part = add_part(mujoco, base, shown)
+        part = add_part(mujoco, base_body(spec, robot), shown)
         part.contype = part.conaffinity = 0
         part.rgba = [0.7, 0.7, 0.7, 0.6]
         if part.type == mujoco.mjtGeom.mjGEOM_PLANE:          # drawn as a 0.6 m square around the path's centre
@@ -98,6 +96,8 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
     scenario's). Raises :class:`RenderUnavailable` (module docstring)."""
     from PIL import Image, ImageDraw
 
+    from ..model.against_mujoco import base_id
+    from ..surface import normal_frame
     from .geometry import surface_of
     from .simulator import robot_of
 
@@ -122,8 +122,7 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
     frames = []
     try:
         qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
-        names = [m.body(i).name for i in range(m.nbody)]
-        base = m.body(robot.base).id if robot.base in names else 0
+        base = base_id(m, robot)
         cam = mujoco.MjvCamera()
         mujoco.mj_forward(m, d)
         Rb, pb = d.xmat[base].reshape(3, 3), d.xpos[base].copy()
@@ -139,11 +138,9 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
             f = float(result.contact_force[k])
             if f > 0 and renderer.scene.ngeom < renderer.scene.maxgeom:
                 p = pb + Rb @ result.position[:, k]
-                n_out = -(Rb @ surface.normal(result.position[:, k]))      # the force on the tool: out of the part
-                z = n_out / np.linalg.norm(n_out)
-                x = np.cross(z, [0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0])
-                x /= np.linalg.norm(x)
-                mat = np.column_stack([x, np.cross(z, x), z])
+                # the arrow's z along the force on the tool, out of the part (its x, y: the frame's tangents)
+                n_out, t1, t2 = normal_frame(-(Rb @ surface.normal(result.position[:, k]))).T
+                mat = np.column_stack([t1, t2, n_out])
                 g = renderer.scene.geoms[renderer.scene.ngeom]
                 mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_ARROW, np.array([0.035, 0.035, FORCE_SCALE * f]), p,
                                     mat.ravel(), np.array([0.85, 0.1, 0.1, 1.0], dtype=np.float32))

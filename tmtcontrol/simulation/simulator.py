@@ -536,8 +536,8 @@ class Simulator:
         # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the path
         gap = sc.trajectory.approach_gap
         q0 = path.q[:, 0]
+        start = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
         if gap > 0:
-            start = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
             q0, ok = solve_pose(self.plant, None if self.plant.position_ik is not None and not task.rotational
                                 else pose_solver(self.plant), start, orientation_at(sc, surface, start, R_d), q0)
             if not ok:
@@ -563,8 +563,7 @@ class Simulator:
         guarded = gap > 0 and ctl.approach_speed > 0
         # the approach starts where the tool is: gap above the true part, -gap - n.d deep in the controller's chart
         # (its part moved by controller.part_offset d; first order on a curved part, exact on a plane)
-        start_point = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
-        x_app = -gap - float(surface.normal(start_point) @ np.asarray(ctl.part_offset, dtype=float))
+        x_app = -gap - float(surface.normal(start) @ np.asarray(ctl.part_offset, dtype=float))
         s0 = state_layout(task, law, self.delay, self.hold).pack(
             q=q0, dq=dq0, f_filt=0.0, b_n=b0, approach=1.0 if guarded else 0.0, x_app=x_app,
             ramp=0.0 if guarded else 1.0, x_e_hat=ctl.x_e_error, tau_wait=np.zeros(task.n * self.delay),
