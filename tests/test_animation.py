@@ -150,3 +150,35 @@ def test_without_opengl_libraries_the_animation_falls_back_to_matplotlib(tmp_pat
     assert r.returncode == 0, r.stderr
     assert "animation.gif drawn by matplotlib (MuJoCo did not load with MUJOCO_GL=" in r.stdout
     assert (out / "animation.gif").is_file()
+
+
+_RENDERER_ABORTS = '''import os
+try:
+    import mujoco
+except Exception:
+    pass
+else:
+    def _abort(self, *a, **k):
+        os.abort()
+    mujoco.Renderer.__init__ = _abort
+'''
+
+
+def test_a_renderer_that_aborts_the_process_falls_back_to_matplotlib(tmp_path):
+    """Regression (CI): on a machine whose OpenGL driver aborts the process
+    when MuJoCo's renderer starts (SIGABRT inside ``mujoco.Renderer``,
+    simulated by a sitecustomize that makes its constructor call
+    ``os.abort``), the report's still and ``simulate --animate`` must not die
+    with it: the renderer is first started in a child process, its crash is
+    named, and matplotlib draws."""
+    site = tmp_path / "abort"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(_RENDERER_ABORTS)
+    env = {**os.environ, "MUJOCO_GL": "egl", "PYTHONPATH": str(site) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "ur5", "--set", "trajectory.cycles=0.1",
+                        "--no-plots", "--animate", "--out", str(out)], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert ("animation.gif drawn by matplotlib (MuJoCo's renderer did not start (MUJOCO_GL=egl): "
+            "starting it killed a test process (SIGABRT))") in r.stdout
+    assert (out / "animation.gif").is_file()

@@ -18,15 +18,41 @@ set and there is no display; the command line calls it before anything
 imports MuJoCo. Where no backend works (or MuJoCo is not installed, or the
 arm has no URDF: the PUMA), :class:`RenderUnavailable` says why and
 :mod:`.animation` draws with matplotlib instead.
+
+Some OpenGL drivers do not fail politely: on a machine with the EGL loader
+but no working driver, creating the renderer aborts the whole process
+(SIGABRT) or hangs. :func:`renderer_problem` therefore starts the renderer
+once in a child process with the same environment (at most
+:data:`PROBE_TIMEOUT` s) before this process tries; a crash or hang there is
+one line of :class:`RenderUnavailable`, and matplotlib draws.
 """
 
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
 
 import numpy as np
 
-__all__ = ["RenderUnavailable", "prefer_headless_gl", "render_frames", "FORCE_SCALE"]
+__all__ = ["RenderUnavailable", "prefer_headless_gl", "render_frames", "renderer_problem", "FORCE_SCALE",
+           "PROBE_TIMEOUT"]
+
+PROBE_TIMEOUT = 60.0
+"""Seconds the child process of :func:`renderer_problem` may take to start
+MuJoCo's renderer and draw one frame (it takes about 1 s)."""
+
+_PROBE = ("import mujoco\n"
+          "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><light pos=\"0 0 1\"/><geom size=\"0.1\"/>"
+          "</worldbody></mujoco>')\n"
+          "r = mujoco.Renderer(m, 8, 8)\n"
+          "d = mujoco.MjData(m)\n"
+          "mujoco.mj_forward(m, d)\n"
+          "r.update_scene(d)\n"
+          "r.render()\n"
+          "r.close()\n")
+_probed: dict[str, str | None] = {}
 
 FORCE_SCALE = 0.01
 """Length of the force arrow per newton (m/N): f_d = 10 N is 0.1 m."""
@@ -47,6 +73,34 @@ def prefer_headless_gl() -> None:
         return
     if ctypes.util.find_library("EGL") and (ctypes.util.find_library("OpenGL") or ctypes.util.find_library("GL")):
         os.environ["MUJOCO_GL"] = "egl"
+
+
+def renderer_problem() -> str | None:
+    """``None`` where MuJoCo's offscreen renderer starts and draws a frame in
+    a child process with this process's environment (``MUJOCO_GL``
+    included); otherwise one line saying why (its error, the signal that
+    killed it, or a hang beyond :data:`PROBE_TIMEOUT` s). Asked once per
+    process and backend."""
+    gl = os.environ.get("MUJOCO_GL", "unset")
+    if gl not in _probed:
+        why = None
+        try:
+            r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
+                               timeout=PROBE_TIMEOUT, stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            why = f"it did not start within {PROBE_TIMEOUT:g} s"
+        else:
+            if r.returncode < 0:
+                try:
+                    name = signal.Signals(-r.returncode).name
+                except ValueError:
+                    name = f"signal {-r.returncode}"
+                why = f"starting it killed a test process ({name})"
+            elif r.returncode > 0:
+                lines = [ln.strip() for ln in r.stderr.splitlines() if ln.strip()]
+                why = lines[-1] if lines else f"a test process exited with status {r.returncode}"
+        _probed[gl] = None if why is None else f"MuJoCo's renderer did not start (MUJOCO_GL={gl}): {why}"
+    return _probed[gl]
 
 
 def _scene_model(robot, surface):
@@ -101,7 +155,6 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
     from .geometry import surface_of
     from .simulator import robot_of
 
-    import sys
     import warnings
 
     robot = robot if robot is not None else robot_of(result.scenario)
@@ -109,6 +162,9 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
     if "mujoco" not in sys.modules:            # the backend is chosen on MuJoCo's first import
         prefer_headless_gl()
     mujoco, m, d = _scene_model(robot, surface)
+    problem = renderer_problem()            # in a child process first: some drivers abort or hang
+    if problem is not None:
+        raise RenderUnavailable(problem)
     width, height = size
     m.vis.headlight.ambient[:], m.vis.headlight.diffuse[:] = 0.45, 0.5
     m.vis.global_.offwidth, m.vis.global_.offheight = max(width, 640), max(height, 480)
