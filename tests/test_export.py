@@ -427,6 +427,8 @@ def test_tmt_step_calls_no_malloc_free_or_realloc(tmp_path, inner):
     (lambda m: m.__setitem__("delay", -1), "delay: Input should be greater than or equal to 0"),
     (lambda m: m.__setitem__("inner_loop", "yes"), "inner_loop: Input should be a valid boolean"),
     (lambda m: m.__setitem__("extra", 1), "extra: Extra inputs are not permitted"),
+    (lambda m: m.__setitem__("prefix", "a;b"), "prefix: String should match pattern"),
+    (lambda m: m.__setitem__("prefix", "other"), "(no other_controller.c beside export.json)"),
 ])
 def test_a_tampered_export_json_is_refused_naming_the_field(exported_inner, tmp_path, tamper, needle):
     import shutil
@@ -546,3 +548,118 @@ def test_a_controller_that_prints_runs_as_a_quiet_one(exported_inner, tmp_path):
     quiet = simulate_with_controller(sc, ctl)
     for name in ("contact_force", "q", "tau", "command_task"):
         np.testing.assert_array_equal(getattr(loud, name), getattr(quiet, name), err_msg=name)
+
+
+# -- a name prefix (issue 43): two exports link into one program -------------------------------------
+
+TWO = r"""
+#include <stdio.h>
+#include "alpha_controller.h"
+#include "beta_controller.h"
+
+int main(void)
+{
+    static alpha_params pa; static alpha_state sa; static alpha_measurement ma; static alpha_command ca;
+    static beta_params pb; static beta_state sb; static beta_measurement mb; static beta_command cb;
+    const double *oa = (const double *)&ca, *ob = (const double *)&cb;
+    double *ya = (double *)&ma, *yb = (double *)&mb;
+    int k, i;
+    alpha_default_params(&pa);
+    beta_default_params(&pb);
+    alpha_init(&pa, &sa);
+    beta_init(&pb, &sb);
+    for (k = 0; k < 50; ++k) {
+        for (i = 0; i < ALPHA_N_MEASUREMENT; ++i) ya[i] = 0.01 * (i + 1) + 1e-3 * k;
+        for (i = 0; i < BETA_N_MEASUREMENT; ++i) yb[i] = 0.01 * (i + 1) + 1e-3 * k;
+        ma.force[2] = mb.force[2] = -0.2 * k;
+        if (alpha_step(&pa, &sa, &ma, &ca) != 0 || beta_step(&pb, &sb, &mb, &cb) != 0) return 1;
+        for (i = 0; i < ALPHA_N_OUT; ++i) printf("a %d %d %.17g\n", k, i, oa[i]);
+        for (i = 0; i < BETA_N_OUT; ++i) printf("b %d %d %.17g\n", k, i, ob[i]);
+    }
+    return 0;
+}
+"""
+
+
+def _steps_in_python(ctl, n_steps):
+    """The same 50 steps through ``ctl`` (the export compiled alone, called by ctypes)."""
+    params = ctl.default_params()
+    state = ctl.new_state(params)
+    meas, cmd = ctl.Measurement(), ctl.Command()
+    y = np.frombuffer(meas, dtype=float)
+    out = []
+    for k in range(n_steps):
+        y[:] = 0.01 * (np.arange(y.size) + 1) + 1e-3 * k
+        meas.force[2] = -0.2 * k
+        assert ctl.step(params, state, meas, cmd) == 0
+        out.append(np.frombuffer(cmd, dtype=float).copy())
+    return np.array(out)
+
+
+def test_two_exports_with_their_own_prefixes_link_into_one_program(tmp_path):
+    """``export --prefix``: the paper's controller (prefix ``alpha``, inner
+    loop) and an RLS one (prefix ``beta``) compile with the strict flags and
+    link into one program (with the default prefix both would define
+    ``tmt_step``, ``tmt_generated``, ... and the link fails, checked too);
+    each computes there what it computes compiled alone (1e-12 relative: the
+    same code, flags and inputs), and no ``tmt_`` name is left in a prefixed
+    export."""
+    from tmtcontrol.export.sil import CompiledController
+
+    cc = shutil.which(os.environ.get("CC", "cc"))
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main(["export", "paper", "--inner-loop", "--prefix", "alpha", "--out", str(a)]) == 0
+    assert main(["export", "paper", "--set", "controller.law=rls", "--prefix", "beta", "--out", str(b)]) == 0
+    for folder, name in ((a, "alpha"), (b, "beta")):
+        assert {f"{name}_controller.h", f"{name}_controller.c", f"{name}_controller_gen.c"} <= \
+            {p.name for p in folder.iterdir()}
+        for p in folder.iterdir():
+            if p.suffix in (".c", ".h") or p.name == "Makefile":
+                assert not re.search(r"\b(lib)?tmt_|\bTMT_", p.read_text()), p.name
+    (tmp_path / "two.c").write_text(TWO)
+    flags = [*STRICT, "-O2", "-ffp-contract=off", "-I", str(a), "-I", str(b)]
+    built = subprocess.run([cc, *flags, "two.c", str(a / "alpha_controller.c"), str(b / "beta_controller.c"),
+                            "-lm", "-o", "two"], cwd=tmp_path, capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr
+    run = subprocess.run(["./two"], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0
+    rows = [line.split() for line in run.stdout.splitlines()]
+    for tag, folder in (("a", a), ("b", b)):
+        ctl = CompiledController(folder)
+        assert ctl.prefix == {"a": "alpha", "b": "beta"}[tag]
+        alone = _steps_in_python(ctl, 50)
+        together = np.zeros_like(alone)
+        for t, k, i, v in rows:
+            if t == tag:
+                together[int(k), int(i)] = float(v)
+        assert rel_err(together, alone) < 1e-12, tag
+    # the same two exports with the default prefix: duplicate symbols, the link fails
+    c, d = tmp_path / "c", tmp_path / "d"
+    assert main(["export", "paper", "--out", str(c)]) == 0
+    assert main(["export", "paper", "--set", "controller.law=rls", "--out", str(d)]) == 0
+    clash = subprocess.run([cc, "-O0", "-c", "-I", str(c), str(c / "tmt_controller.c"), "-o", "c.o"], cwd=tmp_path)
+    clash2 = subprocess.run([cc, "-O0", "-c", "-I", str(d), str(d / "tmt_controller.c"), "-o", "d.o"], cwd=tmp_path)
+    assert clash.returncode == clash2.returncode == 0
+    (tmp_path / "main0.c").write_text("int main(void) { return 0; }\n")
+    linked = subprocess.run([cc, "main0.c", "c.o", "d.o", "-lm", "-o", "clash"], cwd=tmp_path, capture_output=True,
+                            text=True)
+    assert linked.returncode != 0 and "multiple definition of `tmt_step'" in linked.stderr
+
+
+def test_a_prefixed_export_runs_in_the_loop_and_a_bad_prefix_is_one_line(tmp_path, capsys):
+    """``simulate --controller`` on a prefixed export (the isolated child binds
+    ``<prefix>_step``) gives the built-in run; a prefix that cannot name C
+    symbols is refused in one line, exit 2, nothing written."""
+    out = tmp_path / "x"
+    assert main(["export", "paper", "--inner-loop", "--prefix", "arm_left", "--out", str(out)]) == 0
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.05"])
+    sil = simulate_with_controller(sc, CompiledController(out, isolated=True))
+    ref = Simulator(sc).run()
+    assert rel_err(sil.contact_force, ref.contact_force) < RTOL
+    capsys.readouterr()
+    for bad in ("Alpha", "1x", "a-b", "a__b", "x_", "casadi_x", "a" * 25):
+        target = tmp_path / f"bad{len(bad)}"
+        assert main(["export", "paper", "--prefix", bad, "--out", str(target)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("error: --prefix:") and "\n" not in err and repr(bad) in err, err
+        assert not target.exists()

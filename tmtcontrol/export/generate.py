@@ -15,6 +15,11 @@ Every arm exports the same controller for its task (the tool point on a
 posture on a redundant one): n joint positions and velocities in, n joint
 torques (and position commands) out.
 
+Every C name carries a prefix, ``tmt`` by default (``export --prefix NAME``):
+``NAME_controller.h/.c``, ``NAME_step``, ``NAME_params``, ``NAME_N_COMMAND``
+..., and the CasADi-generated symbols ``NAME_generated*``, so two exports
+(two arms, two laws) link into one program (:func:`check_prefix`).
+
 The interface tables (:func:`measurement_fields`, :func:`command_fields`,
 :func:`diagnostic_fields`, :func:`param_fields`, sized by the robot's task)
 give every signal's unit and frame; the C structs, the CSV columns of
@@ -43,7 +48,8 @@ from ..surface import Plane
 __all__ = ["ExportError", "Field", "MEASUREMENT_FIELDS", "COMMAND_FIELDS", "DIAGNOSTIC_FIELDS", "param_fields",
            "command_fields", "measurement_fields", "diagnostic_fields", "Interface", "interface",
            "controller_function", "check_exportable", "scenario_values", "export_controller",
-           "GENERATED_FUNCTION", "CODEGEN_CLASSES", "METADATA", "initial_function"]
+           "GENERATED_FUNCTION", "CODEGEN_CLASSES", "METADATA", "initial_function", "DEFAULT_PREFIX",
+           "check_prefix", "PREFIX_PATTERN"]
 
 METADATA = "export.json"
 """Written beside the code: law, delay, inner loop, the controller's model
@@ -58,9 +64,34 @@ CODEGEN_CLASSES = frozenset({"SXFunction", "MXFunction", "Switch", "Map", "Linea
 
 _TEMPLATES = pathlib.Path(__file__).with_name("templates")
 
+DEFAULT_PREFIX = "tmt"
+"""The prefix of every exported C name (files, functions, types, macros)."""
+
+PREFIX_PATTERN = r"[a-z][a-z0-9_]{0,22}[a-z0-9]|[a-z]"
+"""A prefix: lower-case letters, digits and single underscores, starting with
+a letter, at most 24 characters (the macros use it in upper case)."""
+
 
 class ExportError(ValueError):
     """A controller that cannot be exported; the message names the setting."""
+
+
+def check_prefix(prefix: str, flag: str = "--prefix") -> str:
+    """``prefix`` if it can name C symbols (:data:`PREFIX_PATTERN`, no ``__``,
+    not CasADi's own ``casadi``); else :class:`ExportError` naming ``flag``."""
+    if not isinstance(prefix, str) or not re.fullmatch(PREFIX_PATTERN, prefix) or "__" in prefix \
+            or prefix.startswith("casadi"):
+        raise ExportError(f"{flag}: {prefix!r} is not a C name prefix (lower-case letters, digits and single "
+                          "underscores, starting with a letter, at most 24 characters, not 'casadi...')")
+    return prefix
+
+
+def _renamed(text: str, prefix: str) -> str:
+    """``text`` with the default prefix's names (``tmt_...``, ``TMT_...``) given ``prefix``."""
+    if prefix == DEFAULT_PREFIX:
+        return text
+    text = re.sub(r"(?<![A-Za-z0-9_])(lib)?tmt_", lambda m: (m.group(1) or "") + prefix + "_", text)
+    return re.sub(r"(?<![A-Za-z0-9_])TMT_", prefix.upper() + "_", text)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -423,12 +454,15 @@ def _fill(text: str, values: dict) -> str:
     return text
 
 
-def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool = False) -> dict:
+def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool = False,
+                      prefix: str = DEFAULT_PREFIX) -> dict:
     """Write the exported library of ``scenario``'s controller into ``folder``
     (an existing, empty staging folder). ``inner_loop`` adds the joint torques
-    of eqs. (5)-(6) to the command. Returns a summary (files, sizes)."""
+    of eqs. (5)-(6) to the command; ``prefix`` starts every C name (module
+    docstring). Returns a summary (files, sizes)."""
     from .. import __version__
 
+    check_prefix(prefix)
     folder = pathlib.Path(folder)
     fn, law = controller_function(scenario, inner_loop)
     p0, s0 = scenario_values(scenario, inner_loop)
@@ -474,8 +508,13 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     for name in ("tmt_controller.h", "tmt_controller.c", "Makefile", "example_loop.c", "replay.c", "README.md"):
         text = _fill((_TEMPLATES / name).read_text(encoding="utf-8"), values)
         (folder / name).write_text(text, encoding="utf-8")
+    if prefix != DEFAULT_PREFIX:              # every name given the prefix, the files' names too
+        for path in sorted(folder.iterdir()):
+            path.write_text(_renamed(path.read_text(encoding="utf-8"), prefix), encoding="utf-8")
+            if path.name.startswith("tmt_"):
+                path.rename(folder / _renamed(path.name, prefix))
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
-            "scenario": scenario.name, "law": law.name, "surface": iface.surface.kind,
+            "scenario": scenario.name, "prefix": prefix, "law": law.name, "surface": iface.surface.kind,
             "surface_key": iface.surface.key, "inner_loop": inner_loop,
             "delay": scenario.controller.delay_samples, "hold": "mid_period" if iface.hold else "zero_order",
             "model_mass_scale": scenario.robot.model_mass_scale,

@@ -57,15 +57,15 @@ def state_struct(sizes: dict):
         ("w", ctypes.c_double * alloc(sizes["w"]))]})
 
 
-def size_mismatch(dll, structs: dict) -> str | None:
-    """The first of ``structs`` (C name without ``tmt_`` -> ctypes type) whose
-    size differs in the loaded library ``dll`` (its ``tmt_sizeof_*``), said
-    in one line; None when all agree."""
+def size_mismatch(dll, structs: dict, prefix: str = "tmt") -> str | None:
+    """The first of ``structs`` (C name without ``<prefix>_`` -> ctypes type)
+    whose size differs in the loaded library ``dll`` (its
+    ``<prefix>_sizeof_*``), said in one line; None when all agree."""
     for name, cls in structs.items():
-        fn = getattr(dll, f"tmt_sizeof_{name}")
+        fn = getattr(dll, f"{prefix}_sizeof_{name}")
         fn.restype = ctypes.c_size_t
         if fn() != ctypes.sizeof(cls):
-            return f"tmt_{name} has {fn()} bytes in the library, {ctypes.sizeof(cls)} in export.json"
+            return f"{prefix}_{name} has {fn()} bytes in the library, {ctypes.sizeof(cls)} in export.json"
     return None
 
 
@@ -78,9 +78,10 @@ class ControllerHost:
     ``sizes``, a dict with the keys of :data:`SIZES`). Use as a context
     manager: the child is killed on leaving it."""
 
-    def __init__(self, lib, sizes: dict, budget: float = STEP_BUDGET):
-        self.sizes, self.budget = sizes, budget
-        args = [sys.executable, "-I", "-S", os.path.abspath(__file__), str(lib), *(str(int(sizes[k])) for k in SIZES)]
+    def __init__(self, lib, sizes: dict, budget: float = STEP_BUDGET, prefix: str = "tmt"):
+        self.sizes, self.budget, self.prefix = sizes, budget, prefix
+        args = [sys.executable, "-I", "-S", os.path.abspath(__file__), str(lib), prefix,
+                *(str(int(sizes[k])) for k in SIZES)]
         self.proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      start_new_session=True, close_fds=True)
         # what the C prints (its stdout is sent there too) is drained as it comes, the last lines kept for the
@@ -125,7 +126,7 @@ class ControllerHost:
     # -- requests -------------------------------------------------------------------------
     def init(self, params: bytes) -> None:
         self._send(b"I" + params)
-        self._read(1, "tmt_init")
+        self._read(1, f"{self.prefix}_init")
 
     def set_state(self, s: bytes) -> None:
         self._send(b"S" + s)
@@ -133,7 +134,7 @@ class ControllerHost:
 
     def step(self, meas: bytes) -> tuple[int, bytes]:
         self._send(b"T" + meas)
-        data = self._read(4 + 8 * self.sizes["out"], "tmt_step")
+        data = self._read(4 + 8 * self.sizes["out"], f"{self.prefix}_step")
         return struct.unpack("<i", data[:4])[0], data[4:]
 
     # -- the pipe ---------------------------------------------------------------------------
@@ -142,7 +143,7 @@ class ControllerHost:
             self.proc.stdin.write(data)
             self.proc.stdin.flush()
         except (BrokenPipeError, OSError):
-            raise HostFault(self._ended("tmt_step")) from None
+            raise HostFault(self._ended(f"{self.prefix}_step")) from None
 
     def _read(self, n: int, what: str) -> bytes:
         out, fd = b"", self.proc.stdout.fileno()
@@ -191,7 +192,7 @@ def _die_with_parent() -> None:
             pass
 
 
-def _serve(lib: str, sizes: list[int]) -> int:
+def _serve(lib: str, prefix: str, sizes: list[int]) -> int:
     # the protocol gets a descriptor of its own; the C library's stdout (printf) goes to stderr, so
     # nothing the user's code prints can enter the command stream
     proto = os.dup(1)
@@ -202,11 +203,11 @@ def _serve(lib: str, sizes: list[int]) -> int:
     Params, State = ctypes.c_double * n_p, state_struct(size)
     Meas, Out = ctypes.c_double * n_y, ctypes.c_double * size["out"]
     dll = ctypes.CDLL(lib)
-    wrong = size_mismatch(dll, {"params": Params, "state": State, "measurement": Meas, "command": Out})
+    wrong = size_mismatch(dll, {"params": Params, "state": State, "measurement": Meas, "command": Out}, prefix)
     if wrong:
         print(wrong, file=sys.stderr)
         return 4
-    step, init = dll.tmt_step, dll.tmt_init
+    step, init = getattr(dll, f"{prefix}_step"), getattr(dll, f"{prefix}_init")
     step.argtypes, step.restype = [ctypes.c_void_p] * 4, ctypes.c_int
     init.argtypes = [ctypes.c_void_p] * 2
     params, state, meas, out = Params(), State(), Meas(), Out()
@@ -234,4 +235,4 @@ def _serve(lib: str, sizes: list[int]) -> int:
 if __name__ == "__main__":
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # tmtcontrol handles Ctrl-C and stops this process
     _die_with_parent()
-    sys.exit(_serve(sys.argv[1], [int(a) for a in sys.argv[2:]]))
+    sys.exit(_serve(sys.argv[1], sys.argv[2], [int(a) for a in sys.argv[3:]]))

@@ -38,8 +38,8 @@ from ..simulation.closedloop import (INPUT, believed, build_plant, controller_pa
                                      param_layout, plant_inputs_layout)
 from ..simulation.rollout import compiler
 from ..surface import SHAPES, Plane, contact_force
-from .generate import (METADATA, ExportError, command_fields, diagnostic_fields, measurement_fields,
-                       param_fields)
+from .generate import (DEFAULT_PREFIX, METADATA, PREFIX_PATTERN, ExportError, command_fields, diagnostic_fields,
+                       measurement_fields, param_fields)
 from .host import size_mismatch, state_struct
 
 __all__ = ["CompiledController", "compile_export", "check_export_matches", "simulate_with_controller",
@@ -61,19 +61,24 @@ def compile_export(folder: str | os.PathLike, flag: str = "--controller") -> pat
     (naming ``flag``) for a folder that is not an export or when there is no
     C compiler."""
     folder = pathlib.Path(folder)
-    _read_metadata(folder, flag)
+    source = _source(folder, _read_metadata(folder, flag))
     cc = compiler()
     if cc is None:
         raise ExportError(f"{flag}: no C compiler found; install one (apt-get install gcc) or set CC")
     build = new_build_folder("sil")
-    lib = build / "libtmt_controller.so"
-    result = run_compiler([cc, *SIL_FLAGS, "-I", str(folder), str(folder / "tmt_controller.c"), "-o", str(lib),
+    lib = build / f"lib{source.stem}.so"
+    result = run_compiler([cc, *SIL_FLAGS, "-I", str(folder), str(source), "-o", str(lib),
                            "-lm"], build / "tmp", check=False, text=True)
     if result.returncode != 0:
         shutil.rmtree(build, ignore_errors=True)
         first = (result.stderr.strip().splitlines() or ["no message"])[0]
-        raise ExportError(f"{flag}: compiling {folder / 'tmt_controller.c'} failed: {first}")
+        raise ExportError(f"{flag}: compiling {source} failed: {first}")
     return lib
+
+
+def _source(folder: pathlib.Path, meta: dict) -> pathlib.Path:
+    """The export's wrapper, ``<prefix>_controller.c``."""
+    return folder / f"{meta.get('prefix', DEFAULT_PREFIX)}_controller.c"
 
 
 def _metadata_schema():
@@ -108,6 +113,7 @@ def _metadata_schema():
         version: StrictStr
         casadi: StrictStr
         scenario: StrictStr
+        prefix: str = Field(DEFAULT_PREFIX, pattern=f"^({PREFIX_PATTERN})$")    # older exports: tmt
         law: Literal[tuple(laws())]                      # a registered law
         surface: Literal[tuple(SHAPES)] = Plane.kind     # an export older than curved surfaces: a plane
         surface_key: StrictStr | None = None              # a height map's heights are in the C code
@@ -130,12 +136,11 @@ def _read_metadata(folder: pathlib.Path, flag: str) -> dict:
 
     try:
         meta = json.loads((folder / METADATA).read_text(encoding="utf-8"))
-        if not isinstance(meta, dict) or meta.get("written_by") != "tmtcontrol export" \
-                or not (folder / "tmt_controller.c").is_file():
+        if not isinstance(meta, dict) or meta.get("written_by") != "tmtcontrol export":
             raise ValueError
     except (OSError, ValueError, AttributeError):
         raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
-                          f"(no tmt_controller.c and {METADATA})") from None
+                          f"(no {METADATA} written by it)") from None
     try:
         _metadata_schema().model_validate(meta)
     except ValidationError as exc:
@@ -146,6 +151,9 @@ def _read_metadata(folder: pathlib.Path, flag: str) -> dict:
                               "version); export the scenario again (tmtcontrol export)") from None
         raise ExportError(f"{flag}: {folder}/{METADATA}: {where}: {err['msg']}; export the scenario again "
                           "(tmtcontrol export)") from None
+    if not _source(folder, meta).is_file():
+        raise ExportError(f"{flag}: {folder} is not a folder written by `tmtcontrol export` "
+                          f"(no {_source(folder, meta).name} beside {METADATA})")
     return meta
 
 
@@ -178,6 +186,7 @@ class CompiledController:
         self.folder = pathlib.Path(folder)
         self.flag = flag
         self.meta = _read_metadata(self.folder, flag)
+        self.prefix = self.meta.get("prefix", DEFAULT_PREFIX)
         self.law = get_law(self.meta["law"])
         self.torque = bool(self.meta["inner_loop"])
         self.robot = self.meta["robot"]
@@ -211,15 +220,15 @@ class CompiledController:
             return
         dll = ctypes.CDLL(str(self.library))
         wrong = size_mismatch(dll, {"params": self.Params, "state": self.State, "measurement": self.Measurement,
-                                    "command": self.Command})
+                                    "command": self.Command}, self.prefix)
         if wrong:
             raise ExportError(f"{flag}: {self.folder}: {wrong}; export it again")
-        self._step = dll.tmt_step
+        self._step = getattr(dll, f"{self.prefix}_step")
         self._step.argtypes = [ctypes.c_void_p] * 4
         self._step.restype = ctypes.c_int
-        self._init = dll.tmt_init
+        self._init = getattr(dll, f"{self.prefix}_init")
         self._init.argtypes = [ctypes.c_void_p] * 2
-        self._default = dll.tmt_default_params
+        self._default = getattr(dll, f"{self.prefix}_default_params")
         self._default.argtypes = [ctypes.c_void_p]
         self._dll = dll
 
@@ -330,14 +339,15 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     calls = [0]
 
     def failed(rc):
-        raise ExportError(f"{flag}: tmt_step returned {rc} at period {calls[0]} (t = {calls[0] * Ts:.3f} s)"
-                          + (" (a non-finite result: TMT_E_NONFINITE)" if rc == -1 else ""))
+        raise ExportError(f"{flag}: {controller.prefix}_step returned {rc} at period {calls[0]} "
+                          f"(t = {calls[0] * Ts:.3f} s)"
+                          + (f" (a non-finite result: {controller.prefix.upper()}_E_NONFINITE)" if rc == -1 else ""))
 
     if controller.isolated:
         from .host import ControllerHost, HostFault
 
         try:
-            with ControllerHost(controller.library, controller.host_sizes) as host:
+            with ControllerHost(controller.library, controller.host_sizes, prefix=controller.prefix) as host:
                 host.init(bytes(params))
                 host.set_state(s_start.tobytes())
                 info["build_time_s"] = time.perf_counter() - t0
