@@ -101,6 +101,16 @@ def test_the_smaller_limit_decides_the_scenario_verdict(monkeypatch):
         text = analysis.format_analysis(a)
         assert f"along the path       {1.05e5:.6g} N/m" in text
         assert f"from first contact   {min(first, 1.05e5):.6g} N/m" in text
+        # the 1-D figure (163,417 N/m) is above the deciding limit: labelled small-signal, not a safe limit
+        assert a["max_stable_stiffness"] > a["limit"]
+        assert "max stable k_e" not in text
+        assert f"small-signal k_e     {a['max_stable_stiffness']:.6g} N/m" in text and "not a safe limit" in text
+    # a deciding limit above the 1-D figure: that figure is a safe limit and says so
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **k: (1.9e5, [(0.0, 1.9e5), (1.0, 2e5)]))
+    monkeypatch.setattr(periodic, "periodic_limit", lambda *a, **k: 2e5)
+    a = analysis.analyze_scenario(paper_scenario(), limits=True)
+    assert a["limit"] == 2e5 > a["max_stable_stiffness"]
+    assert f"max stable k_e       {a['max_stable_stiffness']:.6g} N/m" in analysis.format_analysis(a)
 
 
 # -- heavy: the cases against bisection in the simulator -------------------------------------------------

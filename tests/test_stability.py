@@ -325,3 +325,30 @@ def test_contact_damping_limit_agrees_across_the_three_models():
     assert a["max_stable_stiffness"] == pytest.approx(loop, rel=5e-4)           # both bisect to ~1e-4
     assert scenario_stiffness_limit(sc) == pytest.approx(loop, rel=5e-4)
     assert a["whole_loop_limit"] == pytest.approx(loop, rel=2e-3)
+
+
+def test_the_whole_loop_limit_is_a_bracket_checked_at_both_ends():
+    """Issue 43: the whole-loop search started at the 1-D limit and, with a
+    0.1 % bracket, often returned that value itself. Now ``analyze_scenario``
+    reports a bracket 1e-6 wide; checked independently of the search by the
+    linearised loop at both ends: every one of the 8 path points stable at
+    the lower end, at least one unstable at the upper end (the spectral
+    radius crosses 1 there), and the limit is not the 1-D figure (the paper's
+    path varies the effective mass, so they differ by more than the
+    bracket)."""
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.stability import analyze_scenario
+    from tmtcontrol.stability.analysis import format_analysis
+    from tmtcontrol.stability.wholeloop import WholeLoopModel
+
+    sc = paper_scenario()
+    a = analyze_scenario(sc)
+    lo, hi = a["whole_loop_bracket"]
+    assert lo == a["whole_loop_limit"] and hi / lo - 1 == pytest.approx(1e-6, rel=1e-9)
+    mdl = WholeLoopModel(sc)
+    times = [p["path_time"] for p in a["whole_loop_points"]]
+    assert len(times) == 8
+    assert max(mdl.at(lo, t).spectral_radius for t in times) < 1.0
+    assert max(mdl.at(hi, t).spectral_radius for t in times) >= 1.0
+    assert abs(lo / a["max_stable_stiffness"] - 1) > 1e-4
+    assert f"whole loop           {lo:.6g} N/m (stable there, unstable 1e-06 above;" in format_analysis(a)

@@ -163,6 +163,12 @@ def analysis_kwargs(p: dict) -> dict:
     return kw
 
 
+WHOLE_LOOP_RTOL = 1e-6
+"""Relative width of the whole-loop limit's final bracket (stable at its
+lower end, unstable at its upper): the search starts at the 1-D limit, so a
+coarser bracket would often return the 1-D value itself."""
+
+
 def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     """:func:`analyze` for a scenario (its law parameters included), plus
     the whole-loop linearisation (``stability.wholeloop``): the limit at
@@ -187,12 +193,15 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     if get_law(scenario.controller.law.kind).linear_analysis:
         # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
-        limit, per_point = whole_loop_limit(scenario, points=points, rtol=1e-3,
+        limit, per_point = whole_loop_limit(scenario, points=points, rtol=WHOLE_LOOP_RTOL,
                                             guess=out["max_stable_stiffness"], within=p["k_e_min"])
         k_max = out.get("k_e_max", out.get("k_e"))
         # the 1-D model has no mid-period hold: with it the whole loop's verdict stands alone
         one_d = scenario.controller.hold != "mid_period"
         out.update({"whole_loop_limit": limit,
+                    # the bisection ends with a stable and an unstable stiffness at most WHOLE_LOOP_RTOL apart
+                    "whole_loop_bracket": ([limit, limit * (1 + WHOLE_LOOP_RTOL)] if 0 < limit < np.inf
+                                           else [limit, limit]),
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
                     "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < limit)})
         if limits and not ((out["max_stable_stiffness"] > 0 or not one_d) and limit > 0):
@@ -261,7 +270,10 @@ def format_analysis(d: dict) -> str:
     if "Ts" in d:
         rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg, "
                  f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm",
-                 f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']})",
+                 (f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']})"
+                  if not ("limit" in d and d["limit"] < d["max_stable_stiffness"]) else
+                  f"small-signal k_e     {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']}; not a safe "
+                  f"limit: the loop's own limit below is lower)"),
                  f"spectral radius      {d['spectral_radius']:.6f}"]
         band = d.get("stable_band")
         if band is not None and band["unstable_below"]:     # an unstable band of soft surfaces (contact damping)
@@ -276,8 +288,10 @@ def format_analysis(d: dict) -> str:
                             "limit is below it (max stable k_e 0)")
         if "whole_loop_limit" in d:
             pts = d["whole_loop_points"]
-            rows.append(f"whole loop           {d['whole_loop_limit']:.6g} N/m (smallest over {len(pts)} path "
-                        f"points; largest {max(p['limit'] for p in pts):.6g} N/m)")
+            lo, hi = d.get("whole_loop_bracket", (d["whole_loop_limit"], None))
+            rows.append(f"whole loop           {lo:.6g} N/m (" + (f"stable there, unstable {hi / lo - 1:.0e} "
+                                                                   "above; " if hi is not None and hi > lo else "")
+                        + f"smallest over {len(pts)} path points; largest {max(p['limit'] for p in pts):.6g} N/m)")
         if "periodic_note" in d:
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (the frozen-point minimum; "
                      "no periodic analysis)", f"note                 {d['periodic_note']}"]
