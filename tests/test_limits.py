@@ -394,3 +394,47 @@ def test_the_drift_comparison_catches_a_changed_number_and_a_changed_word():
                 doc + "\n| c | 1 | 1 % |"):
         with pytest.raises(AssertionError):
             _assert_same_table(doc, bad, "t")
+
+
+class _SyntheticRunner:
+    """A stand-in for LoopRunner: the force f_d + a(t)/2 sin(2 pi 7 t) with a
+    peak-to-peak swing ``a(t) = a0 rate**t`` (per second), so the verdict of
+    first_contact.settles is known in closed form."""
+
+    def __init__(self, a0, rate):
+        self.scenario = paper_scenario()
+        self.a0, self.rate, self.durations = a0, rate, []
+
+    def run(self, k_e, duration):
+        self.durations.append(duration)
+        t = np.arange(int(round(duration / 1e-3))) * 1e-3
+        return 10.0 + 0.5 * self.a0 * self.rate ** t * np.sin(2 * np.pi * 7 * t + 0.3)
+
+
+@pytest.mark.parametrize("a0, rate, settled", [
+    (20.0, 0.93, True),     # shrinks 7 %/s: a limit cycle to a 3 s watch (ratio 0.93 > 0.8), settled by 3 s more
+    (40.0, 0.97, True),     # 3 %/s: below 0.8 of the first watch's swing after 9 s more (0.97**9 = 0.76)
+    (40.0, 0.995, False),   # 0.5 %/s: still 0.90 after the longest watch (21 s): a limit cycle
+    (20.0, 1.0, False),     # sustained: a limit cycle at once (not shrinking, no longer watch)
+    (1.0, 0.9, True),       # below 0.2 f_d: settled at the first watch
+])
+def test_settles_watches_a_shrinking_swing_longer(a0, rate, settled):
+    """first_contact.settles (issue 43): a swing that still shrinks is
+    watched 3, 9, then 21 s longer and judged against where the first watch
+    ended; closed-form verdicts on a synthetic force of known decay."""
+    from tmtcontrol.stability.first_contact import LONGEST_WATCH, SETTLE_TIME, settles
+
+    r = _SyntheticRunner(a0, rate)
+    run = settles(r, 1e5)
+    assert run.settled is settled
+    first = SETTLE_TIME                      # the paper starts on the surface: full force at once
+    if a0 * rate ** first < 2.0:
+        assert r.durations == [first]
+    elif rate >= 1.0:
+        assert r.durations == [first, first + 3.0]
+    elif not settled:
+        assert r.durations[-1] == first + LONGEST_WATCH
+    else:
+        # settled at the first longer watch at which the swing is below 0.8 of the first watch's
+        extra = next(e for e in (3.0, 9.0, 21.0) if rate ** e < 0.8)
+        assert r.durations == [first, *[x + first for x in (3.0, 9.0, 21.0) if x <= extra]]

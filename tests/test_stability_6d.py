@@ -225,3 +225,39 @@ def test_analyze_scenario_ur5_reports_the_6d_limits(tmp_path):
     text = run().stdout
     assert f"along the path       {d['periodic_limit']:.6g} N/m" in text
     assert f"from first contact   {d['first_contact_limit']:.6g} N/m" in text
+
+
+@pytest.mark.heavy      # about 20 runs of 40 s of the compiled UR5 loop
+@pytest.mark.parametrize("delta, k_hi", [(0.0, 137e3), (-0.01, None)])
+def test_first_contact_limit_equals_a_long_run_bisection_on_the_ur5(delta, k_hi):
+    """Issue 43: the first-contact search watched 3 s, so near the small-signal
+    limit a stable start whose swing decays by a few percent a second was
+    called a limit cycle (on the UR5 without an x_e error the limit came out
+    1.5 % low). Against an independent reference, a bisection on 40 s runs
+    judged by their last second against the second that ends at 20 s
+    (settled: below 0.2 f_d or shrunk below 0.8 of it), the limit is within
+    0.2 % (the issue's goal). Without an x_e error the search runs up to
+    137,000 N/m, above the loop's periodic limit (135,709 N/m, ``analyze
+    --scenario ur5``), where the 40 s run is a limit cycle (checked); at
+    -10 mm up to the 1-D limit, as ``simulate`` searches."""
+    from tmtcontrol.stability.analysis import scenario_stiffness_limit
+    from tmtcontrol.stability.first_contact import LoopRunner, first_contact_limit
+
+    sc = apply_overrides(arm_scenario("ur5"), [f"controller.x_e_error={delta}"])
+    runner = LoopRunner(sc)
+    n, f_d = int(round(1.0 / sc.controller.Ts)), sc.controller.f_d
+    k_hi = k_hi or scenario_stiffness_limit(sc)
+
+    def settles_40s(k):
+        f = runner.run(k, 40.0)
+        last, mid = np.ptp(f[-n:]), np.ptp(f[20 * n - n:20 * n])
+        return bool(last < 0.2 * f_d or last < 0.8 * mid)
+
+    limit = first_contact_limit(sc, k_hi, runner=runner)
+    assert limit < k_hi and not settles_40s(k_hi)
+    lo, hi = limit / 1.01, min(limit * 1.01, k_hi)
+    assert settles_40s(lo) and not settles_40s(hi)           # the reference's bracket
+    while hi / lo > 1 + 2e-4:
+        mid = (lo * hi) ** 0.5
+        lo, hi = (mid, hi) if settles_40s(mid) else (lo, mid)
+    assert limit == pytest.approx((lo * hi) ** 0.5, rel=2e-3)
