@@ -116,6 +116,20 @@ TESTS: dict[str, tuple[str, ...]] = {
                                  "tests/test_edges_wave4.py"),
     "tmtcontrol/export": ("tests/test_export.py", "tests/test_mutation_kills.py", "tests/test_export_6d.py",
                            "tests/test_review_export.py", "tests/test_pose_delay.py", "tests/test_edges_wave4.py"),
+    # issue 43's list of the newest modules: the limits, the one loop, the posture task, processes, arm checks
+    "tmtcontrol/stability/first_contact.py": ("tests/test_limits.py", "tests/test_limits_wiring.py",
+                                              "tests/test_stability_6d.py", "tests/test_verdicts.py",
+                                              "tests/test_mutation_kills.py"),
+    "tmtcontrol/stability/periodic.py": ("tests/test_limits.py", "tests/test_limits_wiring.py",
+                                         "tests/test_stability_6d.py", "tests/test_mutation_kills.py",
+                                         "tests/test_codegen.py"),
+    "tmtcontrol/simulation/closedloop.py": ("tests/test_one_loop.py", "tests/test_taskframe.py", "tests/test_hold.py",
+                                            "tests/test_pose_delay.py", "tests/test_laws.py"),
+    "tmtcontrol/simulation/posture.py": ("tests/test_taskframe.py", "tests/test_one_loop.py",
+                                         "tests/test_joint_limits.py", "tests/test_stability_6d.py"),
+    "tmtcontrol/processes.py": ("tests/test_processes.py", "tests/test_compile_signals.py",
+                                "tests/test_files_safety.py"),
+    "tmtcontrol/checks/arm.py": ("tests/test_arm_checks.py", "tests/test_model_checks.py"),
 }
 
 
