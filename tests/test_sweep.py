@@ -120,7 +120,8 @@ def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, 
     table = pq.read_table(out / "results.parquet").to_pandas()
     assert len(table) == 4 and set(table["verdict"]) == {"converged", "limit_cycle"}
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["verdicts"] == {"converged": 2, "off_target": 0, "over_limit": 0, "limit_cycle": 2, "diverged": 0}
+    assert summary["verdicts"] == {"converged": 2, "off_target": 0, "over_limit": 0, "beyond_limit": 0,
+                                   "limit_cycle": 2, "diverged": 0}
     assert summary["worst"][0]["verdict"] == "limit_cycle"
     # the analysis' limit for the paper loop lies between the converged and the failing stiffness
     (pred,) = summary["predicted_stiffness_limit"]

@@ -30,7 +30,8 @@ class RendererUnavailable(ValueError):
 
 _VERDICT = {"PASS": ("pass", "✔ PASS"), "FAIL": ("fail", "✘ FAIL"), "converged": ("pass", "✔ converged"),
             "off_target": ("warn", "◐ off target"),
-            "over_limit": ("fail", "✘ over a limit"), "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
+            "over_limit": ("fail", "✘ over a limit"), "beyond_limit": ("fail", "✘ beyond the limit"),
+            "limit_cycle": ("warn", "◐ limit cycle"), "diverged": ("fail", "✘ diverged")}
 
 
 def _template_text(name: str) -> str:

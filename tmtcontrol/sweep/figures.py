@@ -11,7 +11,7 @@ from ..plotstyle import fixed_layout, legend_below, legend_margin, margin_colorb
 __all__ = ["sweep_map_figure", "law_distribution_figure", "VERDICT_STYLE"]
 
 VERDICT_STYLE = {"converged": ("o", "#0072B2"), "off_target": ("s", "#CC79A7"), "over_limit": ("D", "#000000"),
-                 "limit_cycle": ("^", "#E69F00"),
+                 "beyond_limit": ("v", "#56B4E9"), "limit_cycle": ("^", "#E69F00"),
                  "diverged": ("X", "#D55E00")}
 """Marker and colour per verdict (Okabe-Ito palette; the marker alone tells them apart in grey)."""
 
