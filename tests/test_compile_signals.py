@@ -484,3 +484,64 @@ def test_simulate_with_an_exported_controller_leaves_nothing_in_the_temporary_fo
     assert sorted(os.listdir(tmp)) == []
     build = cache / "build"
     assert not build.exists() or sorted(os.listdir(build)) == []
+
+
+_REMOTE_HANGS = '''
+import os, sys, time
+import tmtcontrol.report.document as _doc
+
+def _hanging_pull(sc, p):
+    print(f"remote task started {os.getpid()}", file=sys.stderr, flush=True)
+    while True:
+        time.sleep(1.0)
+
+_doc._pull = _hanging_pull
+'''
+
+
+def test_ctrl_c_to_report_alone_does_not_wait_for_its_second_process(tmp_path):
+    """Issue 43: ``report`` runs part of its stages in a second process; a
+    SIGINT to the main process alone (not the terminal's group) waited for
+    the task that process was running, up to a minute on a cold cache. Here
+    its task never ends (a sitecustomize replaces the task runner by one that
+    sleeps forever): the command must still end with the one interruption
+    line and exit 130, the second process gone (SIGTERM, then SIGKILL after
+    STOP_GRACE s), nothing written. Bounded by 60 s against a task that never
+    ends; about 1-2 s expected."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(_REMOTE_HANGS)
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONUNBUFFERED": "1",
+           "PYTHONPATH": str(site) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "tmtcontrol.cli", "report", "paper", "--format", "html",
+                             "--out", str(out)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    child = None
+    try:
+        for line in proc.stderr:
+            if line.startswith("remote task started "):
+                child = int(line.split()[-1])
+                break
+        assert child is not None, "the second process never started its task"
+        os.kill(proc.pid, signal.SIGINT)
+        try:
+            rc = proc.wait(timeout=60.0)
+        except subprocess.TimeoutExpired:
+            pytest.fail("report did not stop within 60 s of SIGINT: it waits for its second process' task")
+        err = proc.stderr.read()
+        assert rc == 130, err
+        assert err.strip().splitlines()[-1] == "interrupted (Ctrl-C): nothing was written", err
+        assert not _alive(child), "the second process outlived the interrupted report"
+        assert not out.exists()
+    finally:
+        for p in {child, *_descendants(proc.pid)} - {None}:
+            try:
+                os.kill(p, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()

@@ -924,8 +924,34 @@ def _background(sc: Scenario | None = None):
             pool = concurrent.futures.ThreadPoolExecutor(1, initializer=_share, initargs=(claims, tasks))
         try:
             yield pool, claims, tasks
+        except BaseException:       # Ctrl-C, SIGTERM, an error: the second process' task is not wanted
+            _stop_workers(pool)
+            raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+STOP_GRACE = 1.0
+"""Seconds the second process is given to end its task after SIGTERM (its
+handler stops the task with KeyboardInterrupt, so a build folder is cleaned
+up and a compiler is killed) before SIGKILL."""
+
+
+def _stop_workers(pool) -> None:
+    """End the second process of ``pool`` now (SIGTERM, then SIGKILL after
+    :data:`STOP_GRACE` s), instead of waiting for its task: a Ctrl-C to
+    ``report``'s own process waited for the task it was running (up to a
+    minute on a cold compile cache). Nothing for a thread pool."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    deadline = time.monotonic() + STOP_GRACE
+    for proc in procs:
+        proc.join(max(0.0, deadline - time.monotonic()))
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
 
 
 def _stages(rep: Report, sc: Scenario, p: dict, background, out: dict, verdicts: dict, say: Callable,
