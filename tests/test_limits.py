@@ -56,6 +56,8 @@ def test_periodic_limit_within_1_percent_of_the_simulator_where_the_frozen_minim
     assert below < 1.0
     assert periodic_decay(runner, 1.01 * limit, 5) > 1.0
     assert below == pytest.approx(cheap_model.at(0.99 * limit).spectral_radius, rel=0.02)
+    # the default model and bracket (the frozen loop's limits over the path, widened 2 %) find the same root
+    assert periodic_limit(sc) == pytest.approx(limit, rel=1e-4)
 
 
 def test_periodic_orbit_refuses_a_period_that_is_not_whole_samples():
@@ -416,6 +418,8 @@ class _SyntheticRunner:
     (40.0, 0.97, True),     # 3 %/s: below 0.8 of the first watch's swing after 9 s more (0.97**9 = 0.76)
     (40.0, 0.995, False),   # 0.5 %/s: still 0.90 after the longest watch (21 s): a limit cycle
     (20.0, 1.0, False),     # sustained: a limit cycle at once (not shrinking, no longer watch)
+    (5.0, 1.0, False),      # sustained at 0.5 f_d peak to peak: above the 0.2 f_d floor, a limit cycle
+    (20.0, 0.85, True),     # 15 %/s: 0.85 of the second before (a limit cycle to the first watch), settled 3 s on
     (1.0, 0.9, True),       # below 0.2 f_d: settled at the first watch
 ])
 def test_settles_watches_a_shrinking_swing_longer(a0, rate, settled):
@@ -438,3 +442,69 @@ def test_settles_watches_a_shrinking_swing_longer(a0, rate, settled):
         # settled at the first longer watch at which the swing is below 0.8 of the first watch's
         extra = next(e for e in (3.0, 9.0, 21.0) if rate ** e < 0.8)
         assert r.durations == [first, *[x + first for x in (3.0, 9.0, 21.0) if x <= extra]]
+
+
+class _PeriodicRunner:
+    """A stand-in for LoopRunner along the path: the force is a smooth orbit
+    (f_d + 0.5 sin, one path period) plus a deviation that changes by the
+    factor ``rate(k_e)`` per path period (37 cycles per period), or, with
+    ``nyquist``, an oscillation at half the sampling rate of constant
+    amplitude that repeats exactly from period to period; ``drop`` pulls the
+    force below zero in the last period. The decay ratio that
+    first_contact.periodic_decay must return is known by construction."""
+
+    def __init__(self, rate, nyquist=0.0, drop=False, waves=37):
+        self.scenario = apply_overrides(paper_scenario(), ["trajectory.period=0.5"])
+        self.rate, self.nyquist, self.drop, self.waves = rate, nyquist, drop, waves
+
+    def run(self, k_e, duration, stiffness=None):
+        Ts, P = 1e-3, self.scenario.trajectory.period
+        k = np.arange(int(round(duration / Ts)))
+        t = k * Ts
+        f = 10.0 + 0.5 * np.sin(2 * np.pi * t / P) + 0.3 * self.rate(k_e) ** (t / P) * np.sin(2 * np.pi * self.waves * t / P)
+        f += self.nyquist * (-1.0) ** k
+        if self.drop:
+            f[-10:] = -1.0
+        return f
+
+
+@pytest.mark.parametrize("r", [0.5, 0.9, 0.97, 1.2])
+def test_periodic_decay_is_the_deviations_ratio_per_period(r):
+    from tmtcontrol.stability.first_contact import periodic_decay
+
+    assert periodic_decay(_PeriodicRunner(lambda k: r), 1e5, cycles=5) == pytest.approx(r, rel=1e-9)
+
+
+def test_periodic_decay_sees_a_saturated_oscillation_and_a_lost_contact():
+    """An oscillation at half the sampling rate that repeats every period
+    cancels in the difference between periods (ratio (a) = 0) but not in the
+    second differences: at least 1 (not decaying); a force that leaves the
+    surface in the last period: inf."""
+    from tmtcontrol.stability.first_contact import periodic_decay
+
+    assert periodic_decay(_PeriodicRunner(lambda k: 0.5, nyquist=0.05), 1e5, cycles=5) >= 1.0
+    assert periodic_decay(_PeriodicRunner(lambda k: 0.5, nyquist=1e-7), 1e5, cycles=5) < 1.0   # below 1e-3 f_d
+    assert periodic_decay(_PeriodicRunner(lambda k: 0.5, drop=True), 1e5, cycles=5) == np.inf
+
+
+def test_simulated_limit_bisects_to_where_the_decay_reaches_one():
+    """The deviation's ratio per period is k_e / 1.23e5: a slow deviation
+    (one wave per period, second differences below 1e-3 f_d) converges below
+    1.23e5 N/m, and simulated_limit finds it to its rtol; a fast one (37
+    waves) is taken as saturated once its in-period swing keeps SATURATED =
+    0.98 of itself per period, so its limit is 0.98 x 1.23e5 (the rule's
+    conservative side). A bracket whose low end does not converge or whose
+    high end does is refused."""
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.first_contact import SATURATED, simulated_limit
+
+    runner = _PeriodicRunner(lambda k: k / 1.23e5, waves=1)
+    limit = simulated_limit(runner.scenario, 5e4, 3e5, rtol=1e-4, cycles=3, runner=runner)
+    assert limit == pytest.approx(1.23e5, rel=1e-4)
+    fast = _PeriodicRunner(lambda k: k / 1.23e5)
+    assert simulated_limit(fast.scenario, 5e4, 3e5, rtol=1e-4, cycles=3, runner=fast) == \
+        pytest.approx(SATURATED * 1.23e5, rel=1e-4)
+    with pytest.raises(AnalysisError, match="k_lo"):
+        simulated_limit(runner.scenario, 1.3e5, 3e5, runner=runner)
+    with pytest.raises(AnalysisError, match="k_hi"):
+        simulated_limit(runner.scenario, 5e4, 1.2e5, runner=runner)
