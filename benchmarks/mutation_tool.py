@@ -127,7 +127,7 @@ TESTS: dict[str, tuple[str, ...]] = {
                                             "tests/test_pose_delay.py", "tests/test_laws.py"),
     "tmtcontrol/simulation/posture.py": ("tests/test_posture_units.py", "tests/test_taskframe.py", "tests/test_one_loop.py",
                                          "tests/test_joint_limits.py", "tests/test_stability_6d.py"),
-    "tmtcontrol/processes.py": ("tests/test_processes.py", "tests/test_compile_signals.py",
+    "tmtcontrol/processes.py": ("tests/test_processes_units.py", "tests/test_processes.py", "tests/test_compile_signals.py",
                                 "tests/test_files_safety.py"),
     "tmtcontrol/checks/arm.py": ("tests/test_arm_checks.py", "tests/test_model_checks.py"),
 }

@@ -127,3 +127,22 @@ def test_cli_check_scenario_with_an_arm_that_cannot_be_loaded_is_exit_2(tmp_path
     assert main(["check", "--scenario", str(tmp_path / "arm.toml")]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and err.startswith("error: robot.model: ") and "missing_arm.urdf" in err
+
+
+def test_the_curved_normal_axis_check_passes_on_the_pipe_and_fails_a_wrong_filter():
+    """On a curved part (ur5-pipe: the UR5 outside a cylinder) the normal
+    axis check follows the depth along the local normal through the
+    surface's chart (eqs. 19-22 at each point, with the ideal inner loop):
+    it passes on the running code, and with the impedance filter's K sign
+    flipped it fails while the inner-loop check (independent of the filter)
+    passes."""
+    impl = arm_implementation(load_scenario("ur5-pipe"))
+    assert impl.surface.kind == "cylinder" and impl.task_dim == 6
+    results = _by_eq(run_arm_checks(impl))
+    curved = results["(19)-(22)"]
+    assert "on the cylinder" in curved.name
+    assert all(r.passed for r in results.values()), [(r.name, r.residual) for r in results.values()]
+    wrong = lambda F_e, x_a, dx_a, m, b, k: (F_e - b * dx_a + k * x_a) / m          # sign of K flipped
+    bad = _by_eq(run_arm_checks(ArmImplementation(impl.plant, impl.model, impedance_acceleration=wrong,
+                                                  surface=impl.surface, path_q=impl.path_q)))
+    assert not bad["(19)-(22)"].passed and bad["(19)-(22)"].residual > 1e-2 and bad["(5)-(6)"].passed

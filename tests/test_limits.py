@@ -508,3 +508,38 @@ def test_simulated_limit_bisects_to_where_the_decay_reaches_one():
         simulated_limit(runner.scenario, 1.3e5, 3e5, runner=runner)
     with pytest.raises(AnalysisError, match="k_hi"):
         simulated_limit(runner.scenario, 5e4, 1.2e5, runner=runner)
+
+
+class _ThresholdRunner:
+    """The start settles below ``k_star`` (a swing that dies out at once) and
+    locks into a sustained 20 N swing above it."""
+
+    def __init__(self, k_star):
+        self.scenario, self.k_star, self.asked = paper_scenario(), k_star, []
+
+    def run(self, k_e, duration):
+        self.asked.append(k_e)
+        t = np.arange(int(round(duration / 1e-3))) * 1e-3
+        swing = 0.0 if k_e < self.k_star else 10.0
+        return 10.0 + swing * np.sin(2 * np.pi * 7 * t)
+
+
+def test_the_first_contact_limit_does_not_depend_on_how_high_the_search_starts():
+    """Issue 43: ``simulate`` searched up to the 1-D limit and ``analyze`` up
+    to the periodic one, and quoted different first-contact limits for the
+    same scenario (100,158 and 100,111 N/m on the UR5 at -10 mm). Bracketed
+    on a fixed grid (powers of 1.25) before the bisection, the answer is the
+    same float for any ``k_hi`` above the grid cell that holds it, and
+    within rtol of the true boundary (1.003e5 N/m here, by construction)."""
+    from tmtcontrol.stability.first_contact import GRID, first_contact_limit
+
+    k_star = 1.003e5
+    answers = {k_hi: first_contact_limit(None, k_hi, rtol=1e-4, runner=_ThresholdRunner(k_star))
+               for k_hi in (1.19753e5, 1.21909e5, 1.4e5, 3e5)}
+    assert len(set(answers.values())) == 1, answers
+    limit = answers[1.4e5]
+    assert k_star / (1 + 1e-4) <= limit < k_star
+    assert GRID ** 51 < k_star < GRID ** 52                       # the bracket: two neighbours of the grid
+    # above the small-signal limit the start settles: k_hi itself; below the floor (k_hi/64): 0
+    assert first_contact_limit(None, 9e4, runner=_ThresholdRunner(k_star)) == 9e4
+    assert first_contact_limit(None, 1.2e5, runner=_ThresholdRunner(1.0)) == 0.0

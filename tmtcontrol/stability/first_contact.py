@@ -161,25 +161,40 @@ def first_contact_run(scenario, k_e: float) -> FirstContactRun:
     return settles(LoopRunner(scenario), k_e)
 
 
+GRID = 1.25
+"""Ratio of the stiffness grid (N/m, the powers of 1.25) on which
+:func:`first_contact_limit` brackets a limit below ``k_hi`` before it
+bisects: the bracket, and so the answer, do not depend on ``k_hi`` (the 1-D
+limit ``simulate`` and a sweep search up to, or the periodic one of
+``analyze``), so every command quotes the same figure."""
+
+
 def first_contact_limit(scenario, k_hi: float, rtol: float = 1e-3, runner: LoopRunner | None = None,
                         k_lo: float | None = None) -> float:
     """The largest constant k_e (N/m) up to ``k_hi`` (the small-signal
     limit) for which the scenario's start settles instead of locking into
-    a limit cycle: bisection in log k_e to ``rtol``. Returns ``k_hi`` when
-    the start settles there (no large-signal limit below the small-signal
-    one) and 0 when it does not settle even at ``k_lo`` (default k_hi/64)."""
+    a limit cycle: bracketed between two neighbours of the :data:`GRID`
+    (searched down from ``k_hi``), then bisection in log k_e to ``rtol``.
+    Returns ``k_hi`` when the start settles there (no large-signal limit
+    below the small-signal one) and 0 when it does not settle even at
+    ``k_lo`` (default k_hi/64)."""
     if not (np.isfinite(k_hi) and k_hi > 0):
         raise AnalysisError(f"k_hi: must be a finite stiffness > 0, got {k_hi!r}")
     r = runner or LoopRunner(scenario)
     if settles(r, k_hi).settled:
         return float(k_hi)
-    lo = k_hi / 1.25 if k_lo is None else k_lo
-    hi = k_hi
     floor = k_hi / 64 if k_lo is None else k_lo
-    while not settles(r, lo).settled:
-        hi, lo = lo, lo / 2
+    i = math.floor(math.log(k_hi) / math.log(GRID))
+    if GRID ** i >= k_hi:
+        i -= 1
+    hi = k_hi
+    while True:
+        lo = GRID ** i
         if lo < floor:
             return 0.0
+        if settles(r, lo).settled:
+            break
+        hi, i = lo, i - 1
     while hi / lo > 1 + rtol:
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if settles(r, mid).settled else (lo, mid)
