@@ -571,3 +571,31 @@ def test_a_chain_longer_than_the_documented_limit_is_refused_at_once(tmp_path):
         load_robot(str(path))
     robot = load_robot(str(path), joints=[f"j{i}" for i in range(1, 4)])
     assert robot.n == 3
+
+
+@pytest.mark.parametrize("axis_xml, axis", [("", (1.0, 0.0, 0.0)), ('<axis xyz="0 2 0"/>', (0.0, 1.0, 0.0))])
+def test_a_joint_without_an_axis_turns_about_x_and_an_axis_is_normalised(tmp_path, axis_xml, axis):
+    """The URDF specification's default axis is (1, 0, 0); an axis given
+    with length 2 is the unit direction. Closed forms of the pendulum: the
+    tip at R(axis, q) (0, 0, -L), gravity torque m g0 l sin q either way."""
+    m, l, I, L = 2.0, 0.3, 0.01, 0.5
+    text = PENDULUM.format(m=m, l=l, I=I, L=L, kind="revolute", axis="0 1 0").replace('<axis xyz="0 1 0"/>', axis_xml)
+    robot = load_robot(write(tmp_path, text))
+    for q in (-1.2, 0.4, 2.5):
+        s, c = math.sin(q), math.cos(q)
+        want = [0.0, L * s, -L * c] if axis[0] == 1.0 else [-L * s, 0.0, -L * c]
+        assert np.allclose(robot.fk([q])[:3, 3], want, rtol=0, atol=1e-12)
+        assert np.allclose(robot.jacobian([q])[3:, 0], axis, rtol=0, atol=1e-12)
+        assert abs(robot.gravity([q])[0] - m * 9.81 * l * s) < 1e-12
+
+
+def test_a_continuous_joint_has_no_position_limits(tmp_path):
+    """A continuous joint turns without end: its position limits are
+    -inf, +inf whatever <limit> says of lower and upper (only its velocity
+    and effort count), while a revolute joint keeps them."""
+    text = PENDULUM.format(m=2.0, l=0.3, I=0.01, L=0.5, kind="continuous", axis="0 1 0")
+    robot = load_robot(write(tmp_path, text))
+    assert (robot.q_min[0], robot.q_max[0]) == (-math.inf, math.inf)
+    assert (robot.dq_max[0], robot.tau_max[0]) == (2.0, 10.0)
+    revolute = load_robot(write(tmp_path, text.replace('type="continuous"', 'type="revolute"'), "r.urdf"))
+    assert (revolute.q_min[0], revolute.q_max[0]) == (-3.0, 3.0)
