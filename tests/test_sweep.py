@@ -188,3 +188,34 @@ def test_predicted_boundary_agrees_with_the_simulated_verdicts(tmp_path):
             assert row["verdict"] != "converged", (row["controller.rate"], ratio)
             checked += 1
     assert checked >= 14 and set(df["verdict"]) >= {"converged", "limit_cycle"}
+
+
+def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
+    """The first-contact limit runs at constant k_e, without noise, for its
+    own durations: cases that differ only in their stiffness profile, sensor
+    noise (and seed) or run length share one search (memoised per worker);
+    a case with another x_e error gets its own. The shared figure is the
+    search's own."""
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.stability import first_contact
+    from tmtcontrol.sweep import run
+
+    calls = []
+    real = first_contact.first_contact_limit
+
+    def counting(sc, k_hi, **kw):
+        calls.append(sc.controller.x_e_error)
+        return real(sc, k_hi, **kw)
+
+    monkeypatch.setattr(first_contact, "first_contact_limit", counting)
+    monkeypatch.setattr(run, "_FIRST", {})
+    base = ["controller.x_e_error=-0.01", "controller.rate=250", "trajectory.period=1.0"]
+    family = [apply_overrides(paper_scenario(), [*base, *extra]) for extra in (
+        [], ["environment.stiffness.values=[3e4, 6e4]"], ["sensor.noise_std=0.05", "sensor.seed=3"],
+        ["trajectory.cycles=0.5"])]
+    rows = [run.case_limits(sc) for sc in family]
+    assert len(calls) == 1
+    assert len({r["first_contact_limit"] for r in rows}) == 1
+    assert rows[0]["first_contact_limit"] == real(family[0], rows[0]["small_signal_limit"])
+    run.case_limits(apply_overrides(paper_scenario(), [*base[1:], "controller.x_e_error=-0.005"]))
+    assert calls == [-0.01, -0.005]

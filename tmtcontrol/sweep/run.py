@@ -107,11 +107,26 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
 
 
 _SMALL: dict = {}     # per worker process: the small-signal limit per distinct set of analysis inputs
+_FIRST: dict = {}     # per worker process: the first-contact limit per case without its ANALYSIS_FREE keys
+
+
+def _first_contact_key(sc, small: float) -> str:
+    """What a case's first-contact limit depends on: the scenario without
+    its stiffness profile, sensor noise and run length (the search runs at
+    constant k_e, without noise, for its own durations), and the small-signal
+    limit it searches up to."""
+    d = sc.model_dump(mode="json")
+    d.pop("name", None)
+    d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
+    d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
+    d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
+    return json.dumps([d, small], sort_keys=True, default=str)
 
 ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
 """Random axes under these keys leave a case's small-signal analysis as it was
 (the limit does not depend on k_e, the noise or the run length), so the
-memoised analysis is reused across their draws."""
+memoised analysis, and the first-contact search, are reused across their
+draws."""
 
 
 def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
@@ -168,8 +183,15 @@ def case_limits(sc, sim=None) -> dict:
             out["limits_error"] = "the law has no linear verdict"
             return out
         small = float(small)
-        first = (first_contact_limit(sc, small, runner=LoopRunner(sc, sim=sim))
-                 if math.isfinite(small) and small > 0 else small)
+        if math.isfinite(small) and small > 0:
+            fkey = _first_contact_key(sc, small)       # shared by every draw of the stiffness, noise, length
+            if fkey not in _FIRST:
+                if len(_FIRST) >= 4096:
+                    _FIRST.clear()
+                _FIRST[fkey] = first_contact_limit(sc, small, runner=LoopRunner(sc, sim=sim))
+            first = _FIRST[fkey]
+        else:
+            first = small
     except Exception as exc:          # an analysis that does not apply to this case: said in the row
         out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         return out
