@@ -667,3 +667,52 @@ def test_a_prefixed_export_runs_in_the_loop_and_a_bad_prefix_is_one_line(tmp_pat
         err = capsys.readouterr().err.strip()
         assert err.startswith("error: --prefix:") and "\n" not in err and repr(bad) in err, err
         assert not target.exists()
+
+
+def test_the_loop_state_is_the_joints_then_the_exported_controllers_state():
+    """simulate_with_controller starts the C controller from s0[2n : 2n + n_s]:
+    the loop's state is q, dq and then exactly the torque controller's state,
+    for every task size, law, delay and hold (so that slice is the whole
+    rest of s0)."""
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.model.robot import task_of
+    from tmtcontrol.simulation.closedloop import controller_state_layout, state_layout
+
+    for n in (3, 5, 6, 7):
+        for law in ("tmt", "rls", "integral", "adaptive_damping"):
+            for delay in (0, 2):
+                for hold in (False, True):
+                    task, lw = task_of(n), get_law(law)
+                    full, ctl = state_layout(task, lw, delay, hold), controller_state_layout(task, lw, delay, True, hold)
+                    assert full.size == 2 * n + ctl.size
+                    assert list(full.slices)[:2] == ["q", "dq"]
+                    assert [k for k in full.slices if k not in ("q", "dq")] == list(ctl.slices)
+
+
+def test_software_in_the_loop_with_contact_damping_equals_the_built_in_run(exported_inner):
+    """With a contact damper (environment.damping = 50 N s/m) the SIL plant's
+    contact force takes the normal velocity (not a tangential one): the run
+    equals the built-in one."""
+    _, ctl = exported_inner
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.05", "environment.damping=50"])
+    ref = Simulator(sc).run()
+    sil = simulate_with_controller(sc, ctl)
+    assert ref.contact_force.max() > 1.0
+    for name in ("contact_force", "q", "tau"):
+        assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
+
+
+def test_the_replay_measurements_press_on_the_surface(paper_result):
+    """The force columns of measurements.csv are the sensor's reading of the
+    force on the tool in the base frame: along the surface's outward normal,
+    so -R[:,0] . force (R[:,0] the inward normal) is the measured normal
+    force, >= 0 and equal to the logged one (noise-free run)."""
+    from tmtcontrol.export.sil import measurement_table
+    from tmtcontrol.simulation.geometry import surface_of
+
+    rows, names = measurement_table(paper_result)
+    force = rows[:, [names.index(c) for c in ("force_x", "force_y", "force_z")]].T
+    inward = surface_of(paper_result.scenario).normal(paper_result.position[:, 0])
+    pressed = -inward @ force
+    np.testing.assert_allclose(pressed, paper_result.contact_force, rtol=0, atol=1e-12)
+    assert pressed.max() > 5.0

@@ -945,3 +945,50 @@ def test_a_previous_output_holding_the_current_folder_is_refused(tmp_path, monke
     monkeypatch.chdir(tmp_path)            # from outside, the same folder is replaced as before
     commit("o")
     assert snapshot(out) == before
+
+
+def test_a_failed_first_commit_is_not_saved_in_one_line_and_puts_nothing_in_place(tmp_path, monkeypatch):
+    """The staging folder cannot be renamed onto a new target (EACCES, no
+    previous output): OutputNotSaved naming the flag, no target, and no
+    attempt to put back a previous output that never existed (that attempt
+    itself would fail with FileNotFoundError instead of the one line)."""
+    from tmtcontrol import files
+
+    out = tmp_path / "results"
+    real_replace = os.replace
+    calls = []
+
+    def refusing(src, dst):
+        calls.append((os.fspath(src), os.fspath(dst)))
+        if os.fspath(dst) == str(out):
+            raise OSError(errno.EACCES, "Permission denied")
+        return real_replace(src, dst)
+
+    with pytest.raises(OutputNotSaved, match="--out: cannot write") as err:
+        with OutputFolder(out, "--out") as staging:
+            (staging.path / "a.txt").write_text("x")
+            monkeypatch.setattr(files.os, "replace", refusing)
+            staging.commit()
+    assert "\n" not in str(err.value)
+    assert not out.exists()
+    assert [dst for _, dst in calls] == [str(out)]          # one attempt, nothing put back
+
+
+@pytest.mark.parametrize("kind", ["link", "other"])
+def test_a_link_or_a_fifo_in_the_staging_folder_is_refused_not_hashed(tmp_path, kind):
+    """tmtcontrol's writers write files and folders only: anything else in a
+    staging folder at commit (a symbolic link, which hashing would follow
+    out of the folder; a FIFO, whose read would block) is an OutputError
+    naming it, and nothing is committed."""
+    out = tmp_path / "results"
+    target = tmp_path / "elsewhere.txt"
+    target.write_text("not ours")
+    with pytest.raises(OutputError, match=f"a {kind} in the output"):
+        with OutputFolder(out, "--out") as staging:
+            (staging.path / "a.txt").write_text("x")
+            if kind == "link":
+                (staging.path / "b").symlink_to(target)
+            else:
+                os.mkfifo(staging.path / "b")
+            staging.commit()
+    assert not out.exists()

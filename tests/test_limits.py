@@ -453,15 +453,18 @@ class _PeriodicRunner:
     force below zero in the last period. The decay ratio that
     first_contact.periodic_decay must return is known by construction."""
 
-    def __init__(self, rate, nyquist=0.0, drop=False, waves=37):
+    def __init__(self, rate, nyquist=0.0, drop=False, waves=37, amplitude=0.3):
         self.scenario = apply_overrides(paper_scenario(), ["trajectory.period=0.5"])
-        self.rate, self.nyquist, self.drop, self.waves = rate, nyquist, drop, waves
+        self.rate, self.nyquist, self.drop, self.waves, self.amplitude = rate, nyquist, drop, waves, amplitude
+        self.stiffness = []
 
     def run(self, k_e, duration, stiffness=None):
+        self.stiffness.append(stiffness)
         Ts, P = 1e-3, self.scenario.trajectory.period
         k = np.arange(int(round(duration / Ts)))
         t = k * Ts
-        f = 10.0 + 0.5 * np.sin(2 * np.pi * t / P) + 0.3 * self.rate(k_e) ** (t / P) * np.sin(2 * np.pi * self.waves * t / P)
+        f = (10.0 + 0.5 * np.sin(2 * np.pi * t / P)
+             + self.amplitude * self.rate(k_e) ** (t / P) * np.sin(2 * np.pi * self.waves * t / P))
         f += self.nyquist * (-1.0) ** k
         if self.drop:
             f[-10:] = -1.0
@@ -473,6 +476,34 @@ def test_periodic_decay_is_the_deviations_ratio_per_period(r):
     from tmtcontrol.stability.first_contact import periodic_decay
 
     assert periodic_decay(_PeriodicRunner(lambda k: r), 1e5, cycles=5) == pytest.approx(r, rel=1e-9)
+
+
+def test_periodic_decay_runs_the_documented_protocol():
+    """One path period at 0.95 k_e, then k_e with +-5 % on its first four
+    samples (a broadband kick), for ``cycles`` periods."""
+    from tmtcontrol.stability.first_contact import periodic_decay
+
+    r = _PeriodicRunner(lambda k: 0.5)
+    periodic_decay(r, 1e5, cycles=3)
+    (k,) = r.stiffness
+    N = 500                                                  # 0.5 s at 1 kHz
+    assert k.shape == (4 * N,)
+    np.testing.assert_array_equal(k[:N], 0.95e5)
+    np.testing.assert_allclose(k[N:N + 4], 1e5 * np.array([1.05, 0.95, 1.05, 0.95]), rtol=1e-15)
+    np.testing.assert_array_equal(k[N + 4:], 1e5)
+
+
+def test_periodic_decay_ignores_rounding_and_reports_growth_beside_a_saturated_swing():
+    """A deviation at the rounding level (1e-12 N, below 1e-9 f_d) that
+    doubles each period is no deviation: 0, stable. A deviation growing 1.2x
+    per period beside a saturated half-sampling-rate swing (repeating, so
+    its second differences keep their size): the growth, 1.2, is reported,
+    not just 'at least 1'."""
+    from tmtcontrol.stability.first_contact import periodic_decay
+
+    assert periodic_decay(_PeriodicRunner(lambda k: 2.0, waves=1, amplitude=1e-12), 1e5, cycles=5) == 0.0
+    grows = periodic_decay(_PeriodicRunner(lambda k: 1.2, waves=1, nyquist=0.05), 1e5, cycles=5)
+    assert grows == pytest.approx(1.2, rel=1e-6)
 
 
 def test_periodic_decay_sees_a_saturated_oscillation_and_a_lost_contact():

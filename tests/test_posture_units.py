@@ -45,3 +45,30 @@ def test_the_tracking_solver_reaches_the_pose_to_its_tolerance():
     track = pose_solver(robot, track=True)
     q, ok = solve_pose(robot, track, T[:3, 3], T[:3, :3], q_star + 0.05)
     assert ok and np.max(np.abs(robot.fk(q)[:3, 3] - T[:3, 3])) < 1e-12
+
+
+def test_a_path_beyond_a_joint_limit_names_the_joint_and_the_point():
+    """The UR5's base turned out of reach (its range narrowed to 0.1 rad,
+    well away from both base angles of the start pose): the path check finds
+    the pose without the limits, and the one-line error names the joint
+    beyond its limit (only that one) and the tool point to 0.1 mm."""
+    import dataclasses
+
+    import pytest
+
+    from tmtcontrol.simulation.posture import check_pose_path
+    from tmtcontrol.simulation.scenario import ScenarioError
+
+    sc = arm_scenario("ur5")
+    robot = robot_of(sc)
+    q_star = Simulator(sc, compile=False).path(sc).q[:, 0]
+    q_min, q_max = robot.q_min.copy(), robot.q_max.copy()
+    q_min[0], q_max[0] = q_star[0] + 1.5, q_star[0] + 1.6
+    narrow = dataclasses.replace(robot, q_min=q_min, q_max=q_max)
+    T = robot.fk(q_star)
+    point = T[:3, 3] + np.array([1.23456e-5, 0.0, 0.0])
+    with pytest.raises(ScenarioError) as err:
+        check_pose_path(narrow, point[:, None], T[:3, :3], np.array([0.0]), q_star)
+    msg = str(err.value)
+    assert "outside the joint limits (shoulder_pan_joint)" in msg, msg
+    assert f"at {np.round(point, 4).tolist()} m" in msg and "\n" not in msg
