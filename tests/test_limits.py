@@ -574,3 +574,18 @@ def test_the_first_contact_limit_does_not_depend_on_how_high_the_search_starts()
     # above the small-signal limit the start settles: k_hi itself; below the floor (k_hi/64): 0
     assert first_contact_limit(None, 9e4, runner=_ThresholdRunner(k_star)) == 9e4
     assert first_contact_limit(None, 1.2e5, runner=_ThresholdRunner(1.0)) == 0.0
+
+
+def test_the_orbit_is_shot_to_the_tolerance_not_stopped_after_three_steps():
+    """The CHEAP loop at 4.5e4 N/m (just past its limit) from the frozen
+    start needs four Newton steps: after three the residual is still about
+    1e-9, above the shooting tolerance (1e-10). The orbit returned is
+    converged to that tolerance; the stall rule (stop when a step no longer
+    halves the residual) is for rounding, not for slow starts."""
+    from tmtcontrol.stability.periodic import PeriodicModel
+
+    sc = apply_overrides(paper_scenario(), CHEAP)
+    three = PeriodicModel(sc, compile=False).at(4.5e4, iters=3)
+    assert three.residual > 1e-10                          # the case needs a fourth step
+    orbit = PeriodicModel(sc, compile=False).at(4.5e4)
+    assert orbit.residual < 1e-10 and orbit.newton_iterations >= 4
