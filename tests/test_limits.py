@@ -589,3 +589,37 @@ def test_the_orbit_is_shot_to_the_tolerance_not_stopped_after_three_steps():
     assert three.residual > 1e-10                          # the case needs a fourth step
     orbit = PeriodicModel(sc, compile=False).at(4.5e4)
     assert orbit.residual < 1e-10 and orbit.newton_iterations >= 4
+
+
+class _AmplitudeRunner:
+    """The smooth orbit plus a slow deviation of amplitude ``amps[j]`` in path
+    period j + 1 (the first period, at 0.95 k_e, has none)."""
+
+    def __init__(self, amps):
+        self.scenario = apply_overrides(paper_scenario(), ["trajectory.period=0.5"])
+        self.amps = amps
+
+    def run(self, k_e, duration, stiffness=None):
+        N = 500
+        k = np.arange(int(round(duration / 1e-3)))
+        a = np.r_[0.0, self.amps][np.minimum(k // N, len(self.amps))]
+        return 10.0 + 0.5 * np.sin(2 * np.pi * k / N) + a * np.sin(2 * np.pi * k / N + 1.0)
+
+
+def test_a_deviation_that_died_out_below_the_floor_is_no_growth():
+    """The deviation falls from 2e-3 N to the rounding level (1e-10 N,
+    below 1e-9 f_d) and its last two periods differ by a factor 5 at that
+    level: what is left is rounding, the ratio is 0 (converged), not 5."""
+    from tmtcontrol.stability.first_contact import periodic_decay
+
+    runner = _AmplitudeRunner([1e-3, 3e-3, 1e-10, 2e-10, 7e-10])
+    assert periodic_decay(runner, 1e5, cycles=4) == 0.0
+
+
+@pytest.mark.parametrize("k_hi", [0.0, -1.0, float("inf"), float("nan")])
+def test_first_contact_limit_refuses_a_search_top_that_is_not_a_stiffness(k_hi):
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.first_contact import first_contact_limit
+
+    with pytest.raises(AnalysisError, match="k_hi: must be a finite stiffness > 0"):
+        first_contact_limit(None, k_hi, runner=_ThresholdRunner(1e5))
