@@ -79,6 +79,7 @@ def _short(**changes):
 @example({**_short(), "environment": {"stiffness": {"segment": 1.3e-289}}})   # issue #27: an IndexError
 @example(_short(sensor__filter_cutoff=1e9))               # above Nyquist: refused, not "no filter"
 @example(_short(trajectory__radius=1.7424169434063385e182))  # found by this test: the PUMA's IK overflowed (2 lines)
+@example(_short(sensor__noise_std=1e308))                    # found by this test: the noise overflowed (2 lines)
 def test_corrupted_scenarios_run_or_fail_cleanly(data):
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)

@@ -524,7 +524,8 @@ class Simulator:
         if not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):
             raise ScenarioError("environment.stiffness: profile must stay finite and > 0")
         if sc.sensor.noise_std > 0:         # numpy.random only then: importing it takes ~6 ms
-            noise = sc.sensor.noise_std * np.random.default_rng(sc.sensor.seed).standard_normal(N)
+            with np.errstate(over="ignore"):        # an absurd std (1e308 N) overflows: the run says it diverged
+                noise = sc.sensor.noise_std * np.random.default_rng(sc.sensor.seed).standard_normal(N)
         else:
             noise = np.zeros(N)
         U = np.vstack([ref.pos, ref.vel, ref.acc, k_e[None, :], noise[None, :]])
