@@ -190,3 +190,28 @@ def test_simulator_structure_key_covers_every_structural_setting():
     import dataclasses
     outside = dataclasses.replace(tmt, update=lambda y, p, s: tmt.update(y, p, s))
     assert structure_key(sc, outside) is None
+
+
+@pytest.mark.parametrize("operations,level", [(2_668, "-O3"), (16_491, "-O3"), (19_999, "-O3"), (20_000, "-O1"),
+                                              (32_058, "-O1"), (359_633, "-O1")])
+def test_the_optimisation_level_follows_the_measured_sizes(operations, level):
+    """rollout.O1_FROM (benchmarks/bench_compile_flags.py, docs/speed.md): the simulated
+    steps (PUMA 2,668, Panda 16,491 operations) keep -O3; the periodic analysis's monodromy
+    steps (PUMA 32,058 to Panda 359,633) are compiled at -O1."""
+    assert codegen.optimisation_level(operations) == level
+
+
+def test_a_step_compiled_at_o1_computes_what_o3_and_the_vm_compute(monkeypatch, tmp_path):
+    """The level reaches the compiler, and does not change a result: -ffp-contract=off and
+    no fast-math flag, so -O1 gives the closed form (the same operations in the same
+    order) bit for bit, as -O3 does (test_compiled_rollout_matches_closed_form)."""
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    monkeypatch.setattr(codegen, "O1_FROM", 1)               # the toy step's 3 operations: -O1
+    seen = []
+    real = codegen.run_compiler
+    monkeypatch.setattr(codegen, "run_compiler", lambda args, *a, **k: seen.append(args) or real(args, *a, **k))
+    U, S_ref = reference(2500)
+    r = Rollout(toy_step(), chunk=1000)
+    assert r.how == "compiled" and len(seen) == 1
+    assert "-O1" in seen[0] and "-O3" not in seen[0]
+    np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)

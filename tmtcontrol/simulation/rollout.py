@@ -51,13 +51,42 @@ from ..processes import run_compiler
 
 __all__ = ["cache_dir", "compiler", "Rollout"]
 
-_FLAGS = ["-O3", "-fno-trapping-math", "-ffp-contract=off", "-fno-math-errno", "-march=native",
+_FLAGS = ["-fno-trapping-math", "-ffp-contract=off", "-fno-math-errno", "-march=native",
           "-fno-semantic-interposition", "-fPIC", "-shared"]
 """-ffp-contract=off: no fused multiply-adds, so the compiled code computes
 bit for bit what CasADi's virtual machine computes (tests), and a result does
 not depend on whether its run was compiled. -fno-semantic-interposition: the
 generated helpers (copy, sq, fmin, ...) are inlined instead of called through
-the shared library's PLT (the rollout 6 % faster, the same arithmetic)."""
+the shared library's PLT (the rollout 6 % faster, the same arithmetic). The
+optimisation level is :func:`optimisation_level`'s."""
+
+O1_FROM = 20_000
+"""Operations of a step (``casadi.Function.n_instructions``) from which it is
+compiled at -O1 rather than -O3. Measured by
+``benchmarks/bench_compile_flags.py`` (table in docs/speed.md): the simulated
+steps (2,668 operations for the PUMA, 10,083 for the UR5, 16,491 for the
+Panda) run 16,000 times per simulation and keep -O3; the periodic analysis's
+augmented steps (32,058, 209,727 and 359,633) compile in 6 s instead of 16 s
+(PUMA), 25 s instead of 34 s (UR5) and 52 s instead of 89 s (Panda), and run
+one path period in about the same time (PUMA, Panda) or twice as long (UR5,
+0.53 s against 0.25 s): the compile, paid once per loop structure, is most
+of a first periodic analysis. No level changes a result: with
+``-ffp-contract=off`` and no fast-math flag every level computes the same
+IEEE arithmetic (the benchmark prints the difference: 0)."""
+
+LEVEL: str | None = None
+"""An optimisation level that overrides :func:`optimisation_level` (the
+benchmark's; None in use)."""
+
+
+def optimisation_level(operations: int) -> str:
+    """The compiler's -O level for a step of ``operations`` instructions
+    (``casadi.Function.n_instructions``): -O3, or -O1 from :data:`O1_FROM`."""
+    if LEVEL is not None:
+        return LEVEL
+    return "-O3" if operations < O1_FROM else "-O1"
+
+
 _CHUNK = 1000
 COMPILE_AFTER = 10_000
 """With ``compile="auto"``, the steps run on the virtual machine before the
@@ -167,7 +196,8 @@ class Rollout:
             h = hashlib.sha256(b"structure:" + self._structure.encode())
         else:
             h = hashlib.sha256(self.step.mapaccum(self._chunk_name, self.chunk).serialize().encode())
-        for part in (" ".join(_FLAGS), ca.__version__, _cpu_id(), str(self.chunk), _WRAPPER):
+        # the optimisation level is not in the key: no level changes a result (O1_FROM)
+        for part in (" ".join(_FLAGS), LEVEL or "", ca.__version__, _cpu_id(), str(self.chunk), _WRAPPER):
             h.update(part.encode())
         return h.hexdigest()[:20]
 
@@ -203,7 +233,8 @@ class Rollout:
             gen.add(fn)
             cfile = pathlib.Path(gen.generate(str(build) + os.sep))
             tmp_lib = build / "lib.so"
-            run_compiler([compiler(), *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
+            level = optimisation_level(self.step.n_instructions())
+            run_compiler([compiler(), level, *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
             lib = self._keep(tmp_lib, target)
             # an uncached library is loaded from the build folder, which is removed
             # after loading (the mapping stays valid): nothing is left behind
