@@ -189,8 +189,8 @@ RAMP_TO_2E5 = "environment.stiffness={kind='piecewise_linear', times=[0,4,6.5], 
 
 
 def test_a_run_ending_above_the_limit_is_beyond_the_limit_not_converged():
-    """F1: the last segment ramps to 2e5 N/m, above the loop's limit (1-D 1.634e5 N/m, a simulator
-    bisection 1.672e5): the run ends before the growth shows, and every segment looked converged.
+    """F1: the last segment ramps to 2e5 N/m, above the loop's limit (periodic orbit 1.6725e5 N/m, a
+    simulator bisection 1.672e5; 1-D 1.634e5): the run ends before the growth shows, and every segment looked converged.
     The truth, independently: the same profile held on for 8 path periods loses the contact in a
     limit cycle. With the predicted limit attached (as simulate, compare, report and sweep do), the
     ramp segment is beyond_limit (issue 43: not "diverged", which this run did not do; the reason
@@ -204,7 +204,9 @@ def test_a_run_ending_above_the_limit_is_beyond_the_limit_not_converged():
     assert [s.verdict for s in segment_metrics(short)] == ["converged", "converged"]   # observation alone
     segs = segment_metrics(with_stiffness_limit(short))
     assert [s.verdict for s in segs] == ["converged", "beyond_limit"]
-    assert segs[1].reason.startswith("k_e reaches 199,9") and "predicted limit 163,417 N/m" in segs[1].reason
+    # the loop's own limit (periodic orbit), which the simulator bisection confirms (1.672e5)
+    assert segs[1].reason.startswith("k_e reaches 199,9") and "predicted limit 167,249 N/m (periodic orbit)" \
+        in segs[1].reason
     assert "this run itself: converged" in segs[1].reason
 
 

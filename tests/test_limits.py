@@ -219,8 +219,10 @@ def test_scheduled_damping_limits_match_the_simulator():
 
 def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_sim, tmp_path, capsys):
     """delta = -10 mm, k_e = 1.3e5 N/m: below the small-signal limit (1-D: 143,812
-    N/m) but above the first-contact one (~1.2e5): the run locks into a limit cycle,
-    exits 1, and the line names both limits."""
+    N/m) but above the first-contact one (~1.2e5, bracketed by the simulations of
+    test_first_contact_limit_at_minus_10_mm_within_2_percent_of_full_runs): the run
+    locks into a limit cycle and exits 1; the line quotes the loop's limit (first
+    contact) and labels the 1-D figure as small-signal, not a safe limit here."""
     import re
 
     from tmtcontrol.cli import main
@@ -230,11 +232,60 @@ def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_si
                  "--set", "trajectory.cycles=1"])
     err = capsys.readouterr().err
     assert code == 1
-    m = re.search(r"predicted limit ([\d,]+) N/m .*from first contact ([\d,]+) N/m", err)
+    m = re.search(r"the loop's limit ([\d,]+) N/m \(first contact; as tmtcontrol analyze --scenario\), "
+                  r"1-D small-signal ([\d,]+) N/m \(not a safe limit here\)", err)
     assert m, err
-    small, first = (float(g.replace(",", "")) for g in m.groups())
+    first, small = (float(g.replace(",", "")) for g in m.groups())
     assert small == pytest.approx(1.438e5, rel=2e-3)
     assert 1.15e5 < first < 1.25e5
+
+
+def test_simulate_analyze_sweep_and_report_quote_the_one_deciding_limit(monkeypatch, tmp_path, capsys):
+    """Issue 43, one limit said once: every command takes the scenario's limit from
+    stability.limit.deciding_limit. With that function replaced by a stub of known,
+    odd figures (a loop limit of 123,457 N/m from first contact, a 1-D figure of
+    150,001 N/m above it), simulate's verdicts and message, analyze --scenario's
+    table, the sweep's row and the report's analysis all show the stub's figure, and
+    the 1-D one only labelled as small-signal: a command that computed a limit of its
+    own (the 1-D one, or the first contact up to it, as before) would show another."""
+    import re
+
+    from tmtcontrol.cli import main
+    from tmtcontrol.simulation.scenario import apply_overrides, dump_scenario, paper_scenario
+    from tmtcontrol.stability import limit
+    from tmtcontrol.stability.analysis import analyze_scenario
+    from tmtcontrol.sweep import run
+    from tmtcontrol.sweep.run import case_limits
+
+    monkeypatch.setattr(run, "_LIMITS", {})           # the sweep's memo: this test's stub stays in it
+    stub = limit.ScenarioLimit(123457.0, "first contact", 150001.0, 140000.0, (140000.0, 140000.14),
+                               ((0.0, 140000.0), (2.0, 141000.0)), periodic=145000.0, first_contact=123457.0)
+    calls = []
+    monkeypatch.setattr(limit, "_deciding_limit", lambda sc, *a: calls.append(sc.name) or stub)
+    monkeypatch.setattr(limit, "_one_d", lambda sc: 150001.0)
+    # a run at 1.3e5 N/m: below the 1-D figure, above the stub's limit (a ramp from 1e4 reaches it)
+    sets = ["environment.stiffness={kind='piecewise_linear', times=[0.0, 2.0], values=[1e4, 1.6e5]}",
+            "trajectory.cycles=0.5"]
+    code = main(["simulate", "paper", "--out", str(tmp_path / "out"), "--no-plots",
+                 *[a for s in sets for a in ("--set", s)]])
+    err = capsys.readouterr().err
+    assert code == 1 and err.startswith("beyond_limit: segment 1"), err
+    assert "above the loop's predicted limit 123,457 N/m (first contact)" in err
+    assert "the loop's limit 123,457 N/m (first contact; as tmtcontrol analyze --scenario), 1-D small-signal " \
+           "150,001 N/m (not a safe limit here)" in err
+    assert len(calls) == 1                          # attached and quoted: computed once
+
+    sc = apply_overrides(paper_scenario(), sets)
+    (tmp_path / "sc.toml").write_text(dump_scenario(sc))
+    assert main(["analyze", "--scenario", str(tmp_path / "sc.toml")]) == 1
+    out = capsys.readouterr().out
+    assert re.search(r"\nlimit +123457 N/m \(the smaller: first contact", out), out
+    assert re.search(r"from first contact +123457 N/m", out) and re.search(r"along the path +145000 N/m", out)
+    row = case_limits(sc)
+    assert (row["predicted_limit"], row["predicted_limit_from"], row["small_signal_limit"]) == \
+        (123457.0, "first contact", 150001.0)
+    a = analyze_scenario(sc, limits=True)           # what the report's analysis section shows
+    assert (a["limit"], a["limit_from"], a["whole_loop_limit"]) == (123457.0, "first contact", 140000.0)
 
 
 def test_the_check_beyond_the_paper_passes_and_fails_when_the_analysis_drifts(monkeypatch):

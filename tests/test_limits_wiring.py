@@ -71,12 +71,15 @@ def test_each_sweep_case_carries_its_own_limits_and_the_smaller_predicts_its_ver
     for ke in (1e5, 1.3e5):
         row = df.loc[(ke, 0.0)]
         assert row["small_signal_limit"] == pytest.approx(closed, rel=1e-3)     # the bisection's tolerance
-        assert row["first_contact_limit"] == row["small_signal_limit"]          # the start settles up to it
+        # the start settles up to the limit along the path (above the 1-D one), which then decides
+        assert row["first_contact_limit"] == row["periodic_limit"] == row["predicted_limit"] > closed
+        assert row["predicted_limit_from"] == "periodic orbit"
         assert row["predicted_stable"] and row["verdict"] == "converged"
     cyc, ok = df.loc[(1.3e5, -0.01)], df.loc[(1e5, -0.01)]
     assert cyc["verdict"] == "limit_cycle"
     assert 1e5 < cyc["first_contact_limit"] < 1.3e5 < cyc["small_signal_limit"]
     assert cyc["predicted_limit"] == cyc["first_contact_limit"] and not cyc["predicted_stable"]
+    assert cyc["predicted_limit_from"] == "first contact"
     assert ok["predicted_stable"] and ok["verdict"] == "converged"
     assert ok["first_contact_limit"] == cyc["first_contact_limit"]    # the same inputs: the same limit
     assert (df["limits_error"] == "").all()

@@ -538,14 +538,18 @@ def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, l
     (0.5 N/m), and only those ("no positive limit found" leaves the run unchanged)."""
     import dataclasses
 
-    from tmtcontrol.stability import onedim
+    import numpy as np
 
     from tmtcontrol.simulation.scenario import paper_scenario
+    from tmtcontrol.stability import limit as limit_module, onedim
 
     monkeypatch.setattr(onedim, "scenario_stiffness_limit", lambda scenario: limit)
-    run = dataclasses.make_dataclass("Run", ["scenario", "info"], frozen=True)(paper_scenario(), {"kept": 1})
-    out = onedim.with_stiffness_limit(run)
-    assert out.info == ({"kept": 1, "stiffness_limit": limit} if attached else {"kept": 1})
+    # a run whose stiffness stays at or below the limit: the 1-D figure itself is attached
+    run = dataclasses.make_dataclass("Run", ["scenario", "info", "stiffness"], frozen=True)(
+        paper_scenario(), {"kept": 1}, np.zeros(3))
+    out = limit_module.with_stiffness_limit(run)
+    assert out.info == ({"kept": 1, "stiffness_limit": limit, "stiffness_limit_from": "1-D small-signal"}
+                        if attached else {"kept": 1})
 
 
 def test_the_x_e_error_force_is_reported_only_for_an_error_and_a_law_that_states_one():
@@ -604,7 +608,7 @@ def frozen_limits(monkeypatch):
         monkeypatch.setattr(periodic, "periodic_limit",
                             lambda scenario, bracket=None: calls.setdefault("bracket", bracket) and periodic_at)
         monkeypatch.setattr(first_contact, "first_contact_limit",
-                            lambda scenario, bound: calls.setdefault("bound", bound) and first_at)
+                            lambda scenario, bound, **kw: calls.setdefault("bound", bound) and first_at)
         return calls
 
     return set_limits

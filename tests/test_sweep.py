@@ -208,7 +208,7 @@ def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
         return real(sc, k_hi, **kw)
 
     monkeypatch.setattr(first_contact, "first_contact_limit", counting)
-    monkeypatch.setattr(run, "_FIRST", {})
+    monkeypatch.setattr(run, "_LIMITS", {})
     base = ["controller.x_e_error=-0.01", "controller.rate=250", "trajectory.period=1.0"]
     family = [apply_overrides(paper_scenario(), [*base, *extra]) for extra in (
         [], ["environment.stiffness.values=[3e4, 6e4]"], ["sensor.noise_std=0.05", "sensor.seed=3"],
@@ -216,6 +216,6 @@ def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
     rows = [run.case_limits(sc) for sc in family]
     assert len(calls) == 1
     assert len({r["first_contact_limit"] for r in rows}) == 1
-    assert rows[0]["first_contact_limit"] == real(family[0], rows[0]["small_signal_limit"])
+    assert rows[0]["first_contact_limit"] == real(family[0], rows[0]["periodic_limit"])
     run.case_limits(apply_overrides(paper_scenario(), [*base[1:], "controller.x_e_error=-0.005"]))
     assert calls == [-0.01, -0.005]

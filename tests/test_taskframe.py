@@ -261,7 +261,7 @@ def test_sweep_and_compare_run_on_the_ur5(tmp_path):
     f.write_text('scenario = "ur5"\n[grid]\n"controller.x_e_error" = [0.002]\n"trajectory.cycles" = [0.25]\n')
     sw = load_sweep(f)
     assert sw.base["robot"]["model"] == "ur5"
-    row = case_row(sw.base, sw.cases[0])
+    row = case_row(sw.base, sw.cases[0], limits=False)    # the UR5's limits: test_stability_6d
     assert row["verdict"] == "converged", row
     cmp = compare_laws(apply_overrides(arm_scenario("ur5"), ["trajectory.cycles=0.25"]), ["tmt"])
     assert cmp.runs["tmt"].result.q.shape[0] == 6

@@ -382,5 +382,5 @@ def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, caps
                  "--set", "controller.x_e_error=0.005"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and len(err) == 1
-    assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5,000 N/m, predicted limit")
+    assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5,000 N/m, the loop's limit ")
     assert "(tolerance 10 mN): a bias of +2" in err[0] and " mN" in err[0].split("a bias of")[1]

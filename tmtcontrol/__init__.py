@@ -27,6 +27,7 @@ _EXPORTS = {
     "tmtcontrol.surface": ("Surface", "Plane"),
     "tmtcontrol.simulation.metrics": ("SegmentMetrics", "segment_metrics"),
     "tmtcontrol.simulation.compare": ("compare_laws", "Comparison", "LawRun"),
+    "tmtcontrol.stability.limit": ("deciding_limit", "ScenarioLimit"),
     "tmtcontrol.export.generate": ("export_controller", "ExportError"),
     "tmtcontrol.export.sil": ("CompiledController", "simulate_with_controller"),
 }
@@ -42,6 +43,7 @@ __all__ = [
     "SimulationResult", "SimulationError", "SegmentMetrics", "segment_metrics", "compare_laws", "Comparison",
     "LawRun", "load_robot", "Robot", "URDFError", "export_controller", "ExportError", "CompiledController",
     "simulate_with_controller", "simulator_for", "Task", "Surface", "Plane",
+    "deciding_limit", "ScenarioLimit",
 ]
 
 
@@ -68,4 +70,5 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs
     from .simulation.scenario import (Scenario, ScenarioError, apply_overrides, dump_scenario, load_scenario,
                                       paper_scenario)
     from .simulation.simulator import SimulationError, SimulationResult, Simulator, simulator_for
+    from .stability.limit import ScenarioLimit, deciding_limit
     from .surface import Plane, Surface

@@ -298,7 +298,8 @@ def _simulate_with(args, workers) -> int:
             res = simulate_on_mujoco(sc, max_steps=args.max_steps)
         else:
             res = simulator_for(sc).run(max_steps=args.max_steps)
-        res = with_stiffness_limit(res)           # a segment beyond the predicted limit is not stable
+        memo: dict = {}                           # the deciding limit, computed once for the run and its message
+        res = with_stiffness_limit(res, memo=memo)   # a segment beyond the loop's limit is not stable
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
                         csv_processes=2 if args.no_plots else 1)
@@ -324,7 +325,7 @@ def _simulate_with(args, workers) -> int:
         print(f"first contact at {fc.time:.3f} s: peak {fc.peak_force:.2f} N = {fc.peak_ratio:.2f} f_d, "
               f"{fc.bounces} bounce(s) in the next second")
     print(f"wrote {out.out}/")
-    return _verdict_exit(sc, segs)
+    return _verdict_exit(sc, segs, memo)
 
 
 def _export(args) -> int:
@@ -413,9 +414,10 @@ def _crosscheck(args) -> int:
     return 0 if c.agree else 1
 
 
-def _verdict_exit(sc, segs) -> int:
+def _verdict_exit(sc, segs, memo: dict | None = None) -> int:
     """1 (with one line per failing segment on stderr: its verdict, the
-    predicted limit and why) if any segment is not ``converged``."""
+    scenario's deciding limit, ``stability.limit.deciding_limit``, and why)
+    if any segment is not ``converged``."""
     bad = [(i, s) for i, s in enumerate(segs, 1) if s.verdict != "converged"]
     if not bad:
         return 0
@@ -425,15 +427,19 @@ def _verdict_exit(sc, segs) -> int:
     bad = [(i, s) for i, s in bad if s.verdict != "over_limit"]
     if not bad:
         return 1
-    from .stability.analysis import predicted_limits
     from .fmt import num
+    from .stability.analysis import deciding_limit
 
-    pred = predicted_limits(sc)
-    limit, first = pred["small_signal"], pred["first_contact"]
-    lim = (f"predicted limit {limit:,.0f} N/m (1-D sampled model; the whole loop: tmtcontrol analyze --scenario), "
-           + f"from first contact {first:,.0f} N/m" if limit is not None else
-           "no 1-D prediction (a law without a linear verdict, or the mid-period hold: tmtcontrol analyze "
-           "--scenario gives the loop's own limits)")
+    from .stability.continuous import AnalysisError
+
+    try:
+        lim = deciding_limit(sc, memo=memo)
+    except AnalysisError as exc:
+        lim = f"the loop's limit could not be computed ({str(exc).splitlines()[0]})"
+    else:
+        lim = (lim.describe() if lim is not None and lim.limit > 0 else
+               "the loop is unstable at the scenario's smallest stiffness (tmtcontrol analyze --scenario)"
+               if lim is not None else "no linear prediction (a law without a linear verdict)")
     for i, s in bad:
         print(f"{s.verdict}: segment {i} ({s.start:g}-{s.end:g} s), k_e = {num(s.stiffness, 4)} N/m, {lim}; {s.reason}",
               file=sys.stderr)

@@ -25,14 +25,13 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
   segment that would otherwise be ``converged`` or ``off_target``: a drive
   faults or clips there, so the run's force says nothing about the robot's;
   the reason names the joint, the value, the limit, when and for how long;
-* ``beyond_limit``: when the caller has attached the loop's predicted
-  stiffness limit (``result.info["stiffness_limit"]``, N/m, from
-  ``stability``: the 1-D small-signal model, a few percent on the safe side
-  of the loop's own), a segment whose stiffness exceeds it and whose force
-  did not show an instability itself (it would be ``converged`` or
-  ``off_target``): not proven stable there; the run may have ended before
-  the growth showed, or lie in the margin between the 1-D limit and the
-  loop's own (the reason says what the run itself did);
+* ``beyond_limit``: when the caller has attached the scenario's stiffness
+  limit (``result.info["stiffness_limit"]``, N/m, and where it comes from,
+  ``"stiffness_limit_from"``: ``stability.limit.with_stiffness_limit``, the
+  limit every command quotes), a segment whose stiffness exceeds it and
+  whose force did not show an instability itself (it would be ``converged``
+  or ``off_target``): not proven stable there; the run may have ended before
+  the growth showed (the reason says what the run itself did);
 * ``limit_cycle``: the contact is lost in the last quarter, or an oscillation
   above the ripple band that does not decay and is not the periodic response
   to the forcing, or one that repeats with the forcing but swings by at
@@ -474,7 +473,7 @@ def _judge(result: SimulationResult, twin: SimulationResult | None, i0: int, i1:
 def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     """:class:`SegmentMetrics` for every segment of ``result`` (with sensor
     noise, judged against its :func:`noise_free_twin` as well; with
-    ``result.info["stiffness_limit"]``, a segment beyond it is ``diverged``)."""
+    ``result.info["stiffness_limit"]``, a segment beyond it is ``beyond_limit``)."""
     out = []
     sc = result.scenario
     f_d = sc.controller.f_d
@@ -487,7 +486,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             twin = noise_free_twin(result)
         except SimulationError as exc:       # the loop diverges without the noise: no segment is stable
             twin_error = str(exc)
-    limit = (getattr(result, "info", None) or {}).get("stiffness_limit")
+    info = getattr(result, "info", None) or {}
+    limit, source = info.get("stiffness_limit"), info.get("stiffness_limit_from", "1-D small-signal")
     limits, e_rot = getattr(result, "limits", None), getattr(result, "orientation_error", None)
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
@@ -511,8 +511,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         k_max = float(np.max(result.stiffness[i0:i1]))
         if limit is not None and np.isfinite(limit) and k_max > limit and _RANK[verdict] < _RANK["limit_cycle"]:
             verdict, reason = "beyond_limit", (f"k_e reaches {k_max:,.0f} N/m, above the loop's predicted limit "
-                                               f"{limit:,.0f} N/m (1-D small-signal, on the safe side): not "
-                                               f"proven stable there; this run itself: {verdict}: {reason}")
+                                               f"{limit:,.0f} N/m ({source}): not proven stable there; this "
+                                               f"run itself: {verdict}: {reason}")
         use = None if limits is None else limit_use(limits, t, result.q[:, i0:i1], result.dq[:, i0:i1],
                                                      result.tau[:, i0:i1], result.Ts)
         e_o = 0.0 if e_rot is None else float(np.max(np.linalg.norm(e_rot[:, i0:i1][:, ss], axis=0)))

@@ -2,10 +2,12 @@
 sampled-data loop (:mod:`.sampled`; any law's: :mod:`.lawloop`), one-call analysis of a scenario
 (:mod:`.analysis`), the whole simulated loop linearised at a frozen path point (:mod:`.wholeloop`) and along
 the moving path (:mod:`.periodic`, the monodromy), the large-signal limit from the scenario's own start
-(:mod:`.first_contact`) and the robust impedance design (:mod:`.design`)."""
+(:mod:`.first_contact`), the limit that decides a scenario's verdict, as every command quotes it
+(:mod:`.limit`) and the robust impedance design (:mod:`.design`)."""
 
 from .analysis import (analysis_kwargs, analyze, analyze_scenario, format_analysis, paper_effective_mass,
-                       predicted_limits, scenario_parameters, scenario_stiffness_limit)
+                       scenario_parameters, scenario_stiffness_limit)
+from .limit import ScenarioLimit, deciding_limit, with_stiffness_limit
 from .lawloop import (LawLoop, continuous_limit, law_loop, law_stiffness_band, law_stiffness_limit,
                       stiffness_sequence)
 from .continuous import (AnalysisError, ContinuousAnalysis, RangeAnalysis, analyze_continuous, analyze_range,
@@ -29,5 +31,6 @@ __all__ = [
     "format_analysis", "scenario_stiffness_limit", "LawLoop", "law_loop", "law_stiffness_limit",
     "continuous_limit", "stiffness_sequence", "analyze_scenario", "WholeLoop", "WholeLoopModel", "whole_loop",
     "whole_loop_limit", "equilibrium_damping", "PeriodicLoop", "PeriodicModel", "periodic_limit", "periodic_loop",
-    "FirstContactRun", "first_contact_limit", "first_contact_run", "simulated_limit", "predicted_limits",
+    "FirstContactRun", "first_contact_limit", "first_contact_run", "simulated_limit",
+    "ScenarioLimit", "deciding_limit", "with_stiffness_limit",
 ]

@@ -6,31 +6,16 @@ from __future__ import annotations
 import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
-from .onedim import (closed_form_applies, normal_masses, scenario_parameters, scenario_stiffness_limit,
-                     scheduled_damping, with_stiffness_limit)
+from .limit import WHOLE_LOOP_RTOL, ScenarioLimit, deciding_limit, periodic_note, with_stiffness_limit
+from .onedim import closed_form_applies, normal_masses, scenario_parameters, scenario_stiffness_limit, scheduled_damping
 from .sampled import sampled_closed_loop, spectral_radius, stable_band, stiffness_band
 
-__all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "predicted_limits", "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze",
-           "analysis_kwargs", "analyze_scenario", "format_analysis", "closed_form_applies"]
+__all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "deciding_limit", "ScenarioLimit",
+           "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
+           "analyze_scenario", "format_analysis", "closed_form_applies", "WHOLE_LOOP_RTOL"]
 
 
 
-
-
-def predicted_limits(scenario) -> dict:
-    """The two stiffness limits ``simulate`` quotes when a segment does not
-    converge: ``small_signal``, the 1-D sampled loop's
-    (:func:`scenario_stiffness_limit`, N/m), and ``first_contact``, the
-    largest stiffness up to it from which the scenario's own start settles
-    (``stability.first_contact``, N/m; short simulations of the scenario's
-    own loop, the 6-D one on an arm with 6 or more joints). Both ``None``
-    for a law without a linear verdict."""
-    limit = scenario_stiffness_limit(scenario)
-    if limit is None or not np.isfinite(limit) or limit <= 0:
-        return {"small_signal": limit, "first_contact": limit}
-    from .first_contact import first_contact_limit
-
-    return {"small_signal": limit, "first_contact": first_contact_limit(scenario, limit)}
 
 
 def paper_effective_mass(worst: bool = False) -> float:
@@ -163,81 +148,42 @@ def analysis_kwargs(p: dict) -> dict:
     return kw
 
 
-WHOLE_LOOP_RTOL = 1e-6
-"""Relative width of the whole-loop limit's final bracket (stable at its
-lower end, unstable at its upper): the search starts at the 1-D limit, so a
-coarser bracket would often return the 1-D value itself."""
-
-
 def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     """:func:`analyze` for a scenario (its law parameters included), plus
     the whole-loop linearisation (``stability.wholeloop``): the limit at
     ``points`` path points, whose minimum decides the sampled verdict (the
     1-D limit stays as the closed-form explanation).
 
-    With ``limits`` (``tmtcontrol analyze --scenario``), also the limit of
-    the loop along the moving path (``periodic_limit``, N/m; the monodromy,
+    With ``limits`` (``tmtcontrol analyze --scenario``), the limit that
+    decides the verdict, as every command quotes it
+    (``stability.limit.deciding_limit``): the smaller of the limit along the
+    moving path (``periodic_limit``, N/m; the monodromy,
     ``stability.periodic``) and the large-signal limit from the scenario's
-    own start (``first_contact_limit``, N/m; ``stability.first_contact``,
-    searched up to the periodic limit). Then the smaller of the two decides
-    the sampled verdict, and the frozen-point minimum stays as the
-    conservative bound. Every arm runs the same loop (its task declared by
-    the robot), the 1-D model with the arm's effective normal mass along
-    the path."""
-    from ..control.laws import get_law
-    from .wholeloop import whole_loop_limit
-
+    own start (``first_contact_limit``, N/m; ``stability.first_contact``),
+    the frozen-point minimum staying as the conservative bound. Every arm runs
+    the same loop (its task declared by the robot), the 1-D model with the
+    arm's effective normal mass along the path."""
     p = scenario_parameters(scenario)
     bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
-    if get_law(scenario.controller.law.kind).linear_analysis:
-        # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
-        limit, per_point = whole_loop_limit(scenario, points=points, rtol=WHOLE_LOOP_RTOL,
-                                            guess=out["max_stable_stiffness"], within=p["k_e_min"])
+    lim = deciding_limit(scenario, points=points, along_path=limits)
+    if lim is not None:
         k_max = out.get("k_e_max", out.get("k_e"))
         # the 1-D model has no mid-period hold: with it the whole loop's verdict stands alone
         one_d = scenario.controller.hold != "mid_period"
-        out.update({"whole_loop_limit": limit,
-                    # the bisection ends with a stable and an unstable stiffness at most WHOLE_LOOP_RTOL apart
-                    "whole_loop_bracket": ([limit, limit * (1 + WHOLE_LOOP_RTOL)] if 0 < limit < np.inf
-                                           else [limit, limit]),
-                    "whole_loop_points": [{"path_time": t, "limit": l} for t, l in per_point],
-                    "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < limit)})
-        if limits and not ((out["max_stable_stiffness"] > 0 or not one_d) and limit > 0):
-            # unstable at the scenario's smallest stiffness: no limit above it to search along the path
-            out.update({"limit": 0.0, "limit_from": "unstable at the smallest stiffness", "sampled_stable": False})
+        out.update({"whole_loop_limit": lim.whole_loop, "whole_loop_bracket": list(lim.whole_loop_bracket),
+                    "whole_loop_points": [{"path_time": t, "limit": l} for t, l in lim.whole_loop_points],
+                    "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < lim.whole_loop)})
+        if limits and lim.limit_from == "unstable at the smallest stiffness":
+            out.update({"limit": 0.0, "limit_from": lim.limit_from, "sampled_stable": False})
         elif limits:
-            from .first_contact import first_contact_limit
-            from .periodic import periodic_limit
-
-            hi = max(l for _, l in per_point)
-            note = periodic_note(scenario)
-            if note is None:
-                periodic = periodic_limit(scenario, bracket=(limit / 1.02, hi * 1.02))
-            else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in
-                periodic = limit
-                out["periodic_note"] = note
-            first = first_contact_limit(scenario, periodic)
-            decisive = min(periodic, first)
-            out.update({"periodic_limit": periodic, "first_contact_limit": first, "limit": decisive,
-                        "limit_from": "first contact" if first < periodic else (
-                            "periodic orbit" if note is None else "frozen-point minimum"),
-                        "sampled_stable": bool(k_max < decisive)})
+            if lim.periodic_note is not None:
+                out["periodic_note"] = lim.periodic_note
+            out.update({"periodic_limit": lim.periodic, "first_contact_limit": lim.first_contact,
+                        "limit": lim.limit, "limit_from": lim.limit_from,
+                        "sampled_stable": bool(k_max < lim.limit)})
     return out
-
-
-def periodic_note(scenario) -> str | None:
-    """Why the periodic analysis (``stability.periodic``) cannot run on the
-    scenario, as one line, or None: it needs a path period that is a whole
-    number of control periods (else the sampled loop is not periodic); the
-    frozen-point minimum (conservative) is then quoted in its place."""
-    Ts, period = scenario.controller.Ts, scenario.trajectory.period
-    N = int(round(period / Ts))
-    if N >= 1 and abs(N * Ts - period) <= 1e-9 * period:
-        return None
-    return (f"trajectory.period = {period:g} s is not a whole number of control periods ({Ts:g} s): the loop "
-            "is not periodic, so the frozen-point minimum stands in for the limit along the path")
 
 
 def format_analysis(d: dict) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 
 from .sampled import largest_stable, max_stable_stiffness, spectral_radius
 
-__all__ = ["scenario_parameters", "normal_masses", "scenario_stiffness_limit", "with_stiffness_limit",
+__all__ = ["scenario_parameters", "normal_masses", "scenario_stiffness_limit",
            "closed_form_applies", "scheduled_damping"]
 
 
@@ -107,27 +107,6 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
                                           **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4,
                               within=p["k_e_min"])
                for mp in (p["m_p_min"], p["m_p_max"]))
-
-
-def with_stiffness_limit(result):
-    """``result`` (a simulation) with ``info["stiffness_limit"]``, the
-    scenario's :func:`scenario_stiffness_limit` (N/m), attached: its segment
-    verdicts (``simulation.metrics.segment_metrics``) then call a segment
-    whose stiffness exceeds the limit ``diverged`` even when the run ended
-    before the instability grew (a ramp or a short hold above the limit).
-    The 1-D sampled limit is on the safe side of the simulated loop's (the
-    report of issue #28: within 2.5 %). Unchanged for a law without a linear
-    verdict or when no positive limit is found, and with the mid-period hold
-    (``controller.hold = "mid_period"``): the 1-D model has no hold, and the
-    hold's lead puts the loop's own limit far above it (about 4x on the
-    pipe, docs/theory.md), so it would call stable runs diverged; the run's
-    own verdict stands there."""
-    import dataclasses
-
-    limit = scenario_stiffness_limit(result.scenario)
-    if limit is None or not np.isfinite(limit) or limit <= 0:
-        return result
-    return dataclasses.replace(result, info={**(result.info or {}), "stiffness_limit": float(limit)})
 
 
 def scheduled_damping(scenario, m: float):

@@ -49,9 +49,10 @@ def sweep_prediction(sweep: Sweep, df) -> dict | None:
     """The analysis' stiffness limit per value of the other map axis (and of
     the facet axis: keys are then ``(other, facet)`` pairs), when the stiffness
     is one of the first two axes and the law has a linear verdict: the
-    smallest ``predicted_limit`` of the group's cases (each the smaller of its
-    small-signal and first-contact limits, with its own drawn values) when the
-    rows have it, else the small-signal limit of the group's first case."""
+    smallest ``predicted_limit`` of the group's cases (each its deciding limit,
+    ``stability.limit.deciding_limit``, with its own drawn values) when the
+    rows have it, else the 1-D small-signal limit of the group's first case
+    (the map labels it so)."""
     from ..stability.analysis import scenario_stiffness_limit
 
     axes = sweep.axes[:2]

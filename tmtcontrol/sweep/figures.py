@@ -84,7 +84,9 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
             pts = {(k[0] if isinstance(k, tuple) else k): v for k, v in predicted.items()
                    if facet is None or (isinstance(k, tuple) and k[-1] == fv)}
             others = sorted(v for v in pts if v is not None)
-            line = dict(color="k", ls="--", lw=1.2, label="predicted limit (analysis)")
+            # without the cases' own limits (sweep --limits off) the line is the 1-D small-signal figure
+            line = dict(color="k", ls="--", lw=1.2, label="predicted limit (analysis)" if "predicted_limit" in df
+                        else "1-D small-signal limit (sweep --limits off)")
             if x_key == "environment.stiffness.values":
                 if others and _numeric(others):
                     ax.plot([pts[v] for v in others], others, **line)

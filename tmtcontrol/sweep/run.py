@@ -21,7 +21,6 @@ checked (:func:`check_dask`) before anything is created.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import math
 import os
@@ -67,6 +66,7 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     stiffness limits (:func:`case_limits`)."""
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
     from ..simulation.simulator import simulator_for
+    from ..stability.limit import with_stiffness_limit
     from ..simulation.simulator import SimulationError, structure as _structure
 
     sc = case_scenario(base, case.values)
@@ -87,8 +87,9 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                     "torque_margin": math.nan, "rate_margin": math.nan, "position_margin": math.nan,
                     "error": str(exc), "run_time_s": time.perf_counter() - t0})
         return row
-    if limits and row["small_signal_limit"] > 0:       # NaN (no linear verdict) compares False
-        res = dataclasses.replace(res, info={**res.info, "stiffness_limit": row["small_signal_limit"]})
+    if limits and row.get("_limit") is not None:
+        res = with_stiffness_limit(res, row["_limit"])         # as simulate attaches it
+    row.pop("_limit", None)
     segs = segment_metrics(res)
     fc = first_contact(res)
     row.update({"verdict": max((s.verdict for s in segs), key=VERDICTS.index),
@@ -106,98 +107,82 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     return row
 
 
-_SMALL: dict = {}     # per worker process: the small-signal limit per distinct set of analysis inputs
-_FIRST: dict = {}     # per worker process: the first-contact limit per case without its ANALYSIS_FREE keys
+_LIMITS: dict = {}     # per worker process: the deciding limit per case family (:func:`_family_key`)
 
 
-def _first_contact_key(sc, small: float) -> str:
-    """What a case's first-contact limit depends on: the scenario without
-    its stiffness profile, sensor noise and run length (the search runs at
-    constant k_e, without noise, for its own durations), and the small-signal
-    limit it searches up to."""
+def _family_key(sc) -> str:
+    """What a case's limits depend on: the scenario without its stiffness
+    profile, sensor noise and run length (the analyses run at constant k_e,
+    without noise, for their own durations)."""
     d = sc.model_dump(mode="json")
     d.pop("name", None)
     d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
     d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
     d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
-    return json.dumps([d, small], sort_keys=True, default=str)
+    return json.dumps(d, sort_keys=True, default=str)
 
 ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
-"""Random axes under these keys leave a case's small-signal analysis as it was
-(the limit does not depend on k_e, the noise or the run length), so the
-memoised analysis, and the first-contact search, are reused across their
-draws."""
+"""Random axes under these keys leave a case's analysis as it was (the limit
+does not depend on k_e, the noise or the run length), so the memoised limit
+is reused across their draws."""
 
 
 def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
     """Whether a sweep computes each case's predicted limits when the user did
     not say (``--limits auto``), and why, as one line. On unless a random axis
-    changes the small-signal analysis (:data:`ANALYSIS_FREE_PREFIXES`): a grid
-    has few distinct analyses (memoised per worker; then about 0.02-0.1 s per
-    case for the first-contact search), but every draw of, e.g., the x_e error
-    is a new analysis of the law's loop (about 1 s per case, 25x a simulation)."""
+    changes the analysis (:data:`ANALYSIS_FREE_PREFIXES`): a grid has few
+    distinct case families (the limit is memoised per worker and family;
+    a few seconds each), but every draw of, e.g., the x_e error is a new
+    analysis of the loop."""
     costly = [k for k in sweep.random if not k.startswith(ANALYSIS_FREE_PREFIXES)]
     if costly:
         return False, (f"sweep: predicted limits off (random {', '.join(costly)}: each draw is a new stability "
-                       "analysis, about 1 s per case); --limits on computes them")
-    return True, "sweep: predicted limits on (each case's small-signal and first-contact limits; --limits off skips)"
+                       "analysis, seconds per case); --limits on computes them")
+    return True, ("sweep: predicted limits on (each case family's deciding limit, as analyze --scenario; "
+                  "--limits off skips)")
 
 
 def case_limits(sc, sim=None) -> dict:
-    """A case's predicted stiffness limits with its own values (x_e error,
-    delay, rate, impedance, law parameters ... as drawn), N/m:
-    ``small_signal_limit``, the 1-D sampled loop's at the worst path mass
-    (``stability.analysis.scenario_stiffness_limit``; memoised per worker on
-    its inputs), ``first_contact_limit``, the largest stiffness up to it from
-    which the case's own start settles instead of locking into a contact
-    limit cycle (``stability.first_contact``: bisection on short simulations
-    with the case's simulator ``sim``), ``predicted_limit``, the smaller of
-    the two, and ``predicted_stable``: the case's largest stiffness below it.
-    NaN (and ``predicted_stable`` None) for a law without a linear verdict
-    or an analysis that fails (``limits_error`` says why). On an arm with 6
-    or more joints the 1-D loop has the arm's effective normal mass and the
-    first-contact runs are the 6-D loop's."""
-    from ..stability.analysis import scenario_parameters, scenario_stiffness_limit
-    from ..stability.first_contact import LoopRunner, first_contact_limit
+    """A case's stiffness limits with its own values (x_e error, delay, rate,
+    impedance, law parameters ... as drawn), N/m: ``predicted_limit``, the
+    limit that decides its verdict, as ``analyze --scenario`` and
+    ``simulate`` quote it (``stability.limit.deciding_limit``, memoised per
+    worker and case family: the stiffness profile, noise and length left
+    out), ``predicted_limit_from`` (which of the limits decides),
+    ``small_signal_limit`` (the 1-D sampled loop's, labelled as such),
+    ``periodic_limit`` (along the path), ``first_contact_limit`` (from the
+    case's own start, with the case's simulator ``sim``) and
+    ``predicted_stable``: the case's largest stiffness below the predicted
+    limit. NaN (and ``predicted_stable`` None) for a law without a linear
+    verdict or an analysis that fails (``limits_error`` says why). ``_limit``
+    carries the :class:`~tmtcontrol.stability.limit.ScenarioLimit` to the
+    run's verdicts (not a column)."""
+    from ..stability.analysis import scenario_parameters
+    from ..stability.first_contact import LoopRunner
+    from ..stability.limit import deciding_limit
 
     nan = math.nan
-    out = {"small_signal_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
-           "predicted_stable": None, "limits_error": ""}
-    if sc.controller.hold == "mid_period":     # the 1-D model has no hold (scenario_stiffness_limit: None)
-        out["limits_error"] = ("the 1-D model has no mid-period hold (controller.hold); analyze --scenario gives "
-                               "the loop's own limits")
-        return out
+    out = {"small_signal_limit": nan, "periodic_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
+           "predicted_limit_from": "", "predicted_stable": None, "limits_error": "", "_limit": None}
     try:
-        ctl, p = sc.controller, scenario_parameters(sc)
-        k_max = p["k_e_max"]
-        inputs = {k: v for k, v in p.items() if not k.startswith("k_e")}     # the limit does not depend on k_e
-        key = json.dumps([inputs, ctl.law.model_dump(mode="json"), ctl.x_e_error,
-                          ctl.delay_samples, ctl.damping_schedule.model_dump(mode="json")], sort_keys=True,
-                         default=str)
-        if key not in _SMALL:
-            if len(_SMALL) >= 4096:
-                _SMALL.clear()
-            _SMALL[key] = scenario_stiffness_limit(sc, params=p)
-        small = _SMALL[key]
-        if small is None:
-            out["limits_error"] = "the law has no linear verdict"
-            return out
-        small = float(small)
-        if math.isfinite(small) and small > 0:
-            fkey = _first_contact_key(sc, small)       # shared by every draw of the stiffness, noise, length
-            if fkey not in _FIRST:
-                if len(_FIRST) >= 4096:
-                    _FIRST.clear()
-                _FIRST[fkey] = first_contact_limit(sc, small, runner=LoopRunner(sc, sim=sim))
-            first = _FIRST[fkey]
-        else:
-            first = small
+        key = _family_key(sc)
+        if key not in _LIMITS:
+            if len(_LIMITS) >= 4096:
+                _LIMITS.clear()
+            _LIMITS[key] = deciding_limit(sc, runner=LoopRunner(sc, sim=sim))
+        lim = _LIMITS[key]
+        k_max = scenario_parameters(sc)["k_e_max"]
     except Exception as exc:          # an analysis that does not apply to this case: said in the row
         out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         return out
-    limit = min(small, first)
-    out.update({"small_signal_limit": small, "first_contact_limit": float(first), "predicted_limit": limit,
-                "predicted_stable": bool(k_max < limit)})
+    if lim is None:
+        out["limits_error"] = "the law has no linear verdict"
+        return out
+    val = lambda v: nan if v is None else float(v)
+    out.update({"small_signal_limit": val(lim.small_signal), "periodic_limit": val(lim.periodic),
+                "first_contact_limit": val(lim.first_contact), "predicted_limit": float(lim.limit),
+                "predicted_limit_from": lim.limit_from, "predicted_stable": bool(k_max < lim.limit),
+                "_limit": lim})
     return out
 
 

@@ -1,0 +1,211 @@
+"""The stiffness limit that decides a scenario's verdict, computed by one function for every command.
+
+``analyze --scenario``, ``report``, ``simulate`` (a segment beyond the limit,
+a failing run's message) and ``sweep`` (each case's predicted limit) quote the
+figure :func:`deciding_limit` returns, so one scenario has one limit wherever
+it is printed (issue 43). It is the smaller of two limits of the loop as it is
+simulated (beyond the paper, whose eqs. (22)/(25) are continuous):
+
+* **along the path**: the stiffness where the monodromy of one path period
+  crosses the unit circle (``stability.periodic``), searched between the
+  smallest and the largest limit of the loop frozen at ``points`` path points
+  (``stability.wholeloop``; the smallest, bracketed to :data:`WHOLE_LOOP_RTOL`,
+  is the conservative bound and stands in where the loop is not periodic);
+* **from first contact**: the largest stiffness from which the scenario's own
+  start settles instead of locking into a contact limit cycle
+  (``stability.first_contact``, searched up to the limit along the path).
+
+The 1-D sampled loop (``stability.onedim``: the paper's normal axis, eq. (22),
+sampled, with the arm's effective normal mass) is the *small-signal*
+explanation: quoted beside the deciding limit and labelled so, it is not a
+safe limit where the deciding one is lower (a surface-location error), and it
+is the search's starting guess. :func:`with_stiffness_limit` attaches the
+limit to a simulation, whose segment verdicts then call a segment above it
+``beyond_limit``. Units are SI (N/m).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .continuous import AnalysisError
+
+__all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL"]
+
+WHOLE_LOOP_RTOL = 1e-6
+"""Relative width of the whole-loop limit's final bracket (stable at its
+lower end, unstable at its upper): the search starts at the 1-D limit, so a
+coarser bracket would often return the 1-D value itself."""
+
+
+@dataclass(frozen=True)
+class ScenarioLimit:
+    """A scenario's stiffness limits, N/m.
+
+    ``limit`` decides the verdict (``limit_from`` says which: ``"periodic
+    orbit"``, ``"first contact"``, ``"frozen-point minimum"`` where the loop is
+    not periodic, or ``"unstable at the smallest stiffness"`` with limit 0);
+    ``small_signal`` is the 1-D sampled loop's (None with the mid-period hold,
+    which the 1-D model lacks); ``whole_loop`` the frozen-point minimum with
+    ``whole_loop_bracket`` (stable, unstable) and ``whole_loop_points``
+    ((path time s, limit) per point); ``periodic`` the limit along the path
+    (the frozen minimum when ``periodic_note`` says why there is no periodic
+    analysis); ``first_contact`` the large-signal limit from the start.
+    ``periodic`` and ``first_contact`` are None when only the frozen loop was
+    asked for (``along_path=False``) or the loop is unstable at the smallest
+    stiffness."""
+    limit: float
+    limit_from: str
+    small_signal: float | None
+    whole_loop: float
+    whole_loop_bracket: tuple[float, float]
+    whole_loop_points: tuple[tuple[float, float], ...]
+    periodic: float | None = None
+    periodic_note: str | None = None
+    first_contact: float | None = None
+
+    @property
+    def small_signal_is_safe(self) -> bool:
+        """Whether the 1-D small-signal figure is at or below the deciding
+        limit (else it must not be read as a safe limit)."""
+        return self.small_signal is not None and self.small_signal <= self.limit
+
+    def describe(self) -> str:
+        """One clause for a message: the deciding limit and where it comes
+        from, then the 1-D figure labelled as small-signal."""
+        text = f"the loop's limit {self.limit:,.0f} N/m ({self.limit_from}; as tmtcontrol analyze --scenario)"
+        if self.small_signal is not None:
+            text += (f", 1-D small-signal {self.small_signal:,.0f} N/m"
+                     + ("" if self.small_signal_is_safe else " (not a safe limit here)"))
+        return text
+
+
+def periodic_note(scenario) -> str | None:
+    """Why the periodic analysis (``stability.periodic``) cannot run on the
+    scenario, as one line, or None: it needs a path period that is a whole
+    number of control periods (else the sampled loop is not periodic); the
+    frozen-point minimum (conservative) is then quoted in its place."""
+    Ts, period = scenario.controller.Ts, scenario.trajectory.period
+    N = int(round(period / Ts))
+    if N >= 1 and abs(N * Ts - period) <= 1e-9 * period:
+        return None
+    return (f"trajectory.period = {period:g} s is not a whole number of control periods ({Ts:g} s): the loop "
+            "is not periodic, so the frozen-point minimum stands in for the limit along the path")
+
+
+def _one_d(scenario) -> float | None:
+    """The 1-D small-signal limit, and the search's guess: the mid-period
+    hold's loop is guessed from the zero-order hold's 1-D figure."""
+    from .onedim import scenario_stiffness_limit
+
+    if scenario.controller.hold == "mid_period":
+        return scenario_stiffness_limit(scenario.replace(controller=scenario.controller.model_copy(
+            update={"hold": "zero_order"})))
+    return scenario_stiffness_limit(scenario)
+
+
+def deciding_limit(scenario, points: int = 8, along_path: bool = True, runner=None,
+                   memo: dict | None = None) -> ScenarioLimit | None:
+    """The stiffness limit that decides ``scenario``'s verdict (module
+    docstring); None for a law without a linear verdict. ``points``: frozen
+    path points; ``along_path=False`` stops after the frozen loop (the
+    periodic and first-contact searches are the costly part: a compile of the
+    monodromy step per loop structure, then seconds); ``runner``: a
+    ``stability.first_contact.LoopRunner`` to reuse (a sweep's simulator);
+    ``memo``: a dict the caller keeps, so that one command that attaches the
+    limit to its run and then quotes it computes it once."""
+    if memo is None:
+        return _deciding_limit(scenario, points, along_path, runner)
+    key = (scenario.model_dump_json(), int(points), bool(along_path))
+    if key not in memo:
+        memo[key] = _deciding_limit(scenario, points, along_path, runner)
+    return memo[key]
+
+
+def _deciding_limit(scenario, points, along_path, runner):
+    from ..control.laws import get_law
+    from .onedim import scenario_parameters
+    from .wholeloop import whole_loop_limit
+
+    if not get_law(scenario.controller.law.kind).linear_analysis:
+        return None
+    guess = _one_d(scenario)
+    small = None if scenario.controller.hold == "mid_period" else guess
+    p = scenario_parameters(scenario)
+    # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
+    whole, per_point = whole_loop_limit(scenario, points=points, rtol=WHOLE_LOOP_RTOL, guess=guess,
+                                        within=p["k_e_min"])
+    # the bisection ends with a stable and an unstable stiffness at most WHOLE_LOOP_RTOL apart
+    bracket = (whole, whole * (1 + WHOLE_LOOP_RTOL)) if 0 < whole < np.inf else (whole, whole)
+    frozen = dict(small_signal=small, whole_loop=float(whole), whole_loop_bracket=tuple(map(float, bracket)),
+                  whole_loop_points=tuple((float(t), float(l)) for t, l in per_point))
+    if not ((small is None or small > 0) and whole > 0):
+        # unstable at the scenario's smallest stiffness: no limit above it to search along the path
+        return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)
+    if not along_path:
+        return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
+    from .first_contact import first_contact_limit
+    from .periodic import periodic_limit
+
+    note = periodic_note(scenario)
+    if note is None:
+        hi = max(l for _, l in per_point)
+        periodic = periodic_limit(scenario, bracket=(whole / 1.02, hi * 1.02))
+    else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in
+        periodic = float(whole)
+    first = first_contact_limit(scenario, periodic, runner=runner)
+    return ScenarioLimit(min(periodic, first), "first contact" if first < periodic else (
+        "periodic orbit" if note is None else "frozen-point minimum"), periodic=float(periodic),
+        periodic_note=note, first_contact=float(first), **frozen)
+
+
+def with_stiffness_limit(result, limit: ScenarioLimit | None = None, memo: dict | None = None):
+    """``result`` (a simulation) with the scenario's limit attached as
+    ``info["stiffness_limit"]`` (N/m) and ``info["stiffness_limit_from"]``:
+    its segment verdicts (``simulation.metrics.segment_metrics``) then call a
+    segment whose stiffness exceeds it ``beyond_limit``, even when the run
+    ended before an instability grew (a ramp or a short hold above it).
+
+    While every stiffness of the run is at or below the 1-D small-signal
+    limit that figure is attached (no segment is beyond it, and it costs
+    milliseconds); above it, :func:`deciding_limit` (``limit`` when the
+    caller has it: a sweep's, per case family; ``memo`` as
+    :func:`deciding_limit`'s), the limit ``analyze
+    --scenario`` prints: a run between the 1-D figure and the loop's own
+    limit is stable, and says so (computed only when a segment above the
+    1-D figure did not already show an instability of its own, which no
+    limit changes). Unchanged for a law without a linear
+    verdict, a loop unstable at its smallest stiffness, and the mid-period
+    hold, whose lead the 1-D model lacks (the run's own verdict stands)."""
+    sc = result.scenario
+    if limit is not None:
+        small = limit.small_signal
+    else:
+        small = None if sc.controller.hold == "mid_period" else _one_d(sc)
+    if small is None or not np.isfinite(small) or small <= 0:
+        return result
+    value, source = float(small), "1-D small-signal"
+    if float(np.max(result.stiffness)) > small and _limit_can_matter(result, small):
+        try:
+            lim = limit if limit is not None else deciding_limit(sc, memo=memo)
+        except AnalysisError as exc:       # the 1-D figure stands, and says why
+            source = f"1-D small-signal; the loop's own limit failed: {str(exc).splitlines()[0]}"
+        else:
+            if lim is not None and lim.limit > 0:
+                value, source = lim.limit, lim.limit_from
+    return dataclasses.replace(result, info={**(result.info or {}), "stiffness_limit": value,
+                                             "stiffness_limit_from": source})
+
+
+def _limit_can_matter(result, small: float) -> bool:
+    """Whether some segment reaching above ``small`` (N/m) would take the
+    limit's verdict: its own is below ``limit_cycle`` (a segment that locked
+    into a limit cycle or diverged keeps that verdict whatever the limit)."""
+    from ..simulation.metrics import VERDICTS, segment_metrics, segments
+
+    own = segment_metrics(result)
+    return any(np.max(result.stiffness[i0:i1]) > small and VERDICTS.index(m.verdict) < VERDICTS.index("limit_cycle")
+               for (i0, i1), m in zip(segments(result), own))
