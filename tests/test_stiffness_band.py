@@ -233,11 +233,14 @@ def test_below_the_laws_min_stiffness_the_law_loop_decides():
     assert law_loop(law, m=M, b=B, k=K, k_e=10.0, Ts=TS, m_p=MP, d_e=200.0).spectral_radius < 1.0
 
 
+@pytest.mark.heavy
 def test_simulate_no_longer_quotes_a_zero_limit(paper_sim, tmp_path, capsys):
     """The reviewer's CLI case (a3b_cli.sh, shortened): d_e = 200 with a segment at
     8e5 N/m, above the limit: exit 1 and the line quotes the loop's limit, within 1 %
     of the simulator bisection's 7.27e5 N/m (the test below), and the 1-D figure
-    ~7.11e5 N/m, not 0."""
+    ~7.11e5 N/m, not 0. Heavy: the contact damper's periodic and first-contact
+    searches take half a minute; the message's wiring is tested in seconds by
+    test_limits.py::test_simulate_analyze_sweep_and_report_quote_the_one_deciding_limit."""
     from tmtcontrol.cli import main
 
     code = main(["simulate", "paper", "--out", str(tmp_path / "out"), "--no-plots",
