@@ -219,3 +219,38 @@ def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
     assert rows[0]["first_contact_limit"] == real(family[0], rows[0]["periodic_limit"])
     run.case_limits(apply_overrides(paper_scenario(), [*base[1:], "controller.x_e_error=-0.005"]))
     assert calls == [-0.01, -0.005]
+
+
+def test_a_diverged_case_row_has_no_limit_object_and_writes(monkeypatch, tmp_path):
+    """Review finding: a case whose simulation raises kept the ScenarioLimit object in its
+    row (the early return came before it was removed), and the Parquet write of the chunk
+    failed. The row of a diverged case has the limits' columns and no object."""
+    import pyarrow as pa
+
+    from tmtcontrol.simulation.scenario import paper_scenario, scenario_to_dict
+    from tmtcontrol.simulation.simulator import SimulationError, Simulator
+    from tmtcontrol.sweep import run
+    from tmtcontrol.sweep.spec import Case
+
+    def boom(self, *a, **k):
+        raise SimulationError("simulation diverged (test)")
+
+    monkeypatch.setattr(Simulator, "run", boom)
+    base = scenario_to_dict(paper_scenario())
+    row = run.case_row(base, Case(0, {"trajectory.cycles": 0.25}))
+    assert row["verdict"] == "diverged" and "_limit" not in row and row["predicted_limit"] > 0
+    pa.Table.from_pylist([row])                       # the chunk's rows convert
+
+
+def test_the_limit_family_of_a_damped_contact_includes_the_smallest_stiffness():
+    """Review finding: with a contact damper the loop can be unstable on soft surfaces, and
+    the limit is the top of the stable band containing the case's smallest stiffness, so two
+    cases that differ in stiffness are different families there (and the same one without
+    a damper)."""
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.sweep.run import _family_key
+
+    soft, stiff = (apply_overrides(paper_scenario(), [f"environment.stiffness.values=[{k}]"]) for k in (1e2, 1e4))
+    assert _family_key(soft, 1e2) == _family_key(stiff, 1e4)
+    soft, stiff = (apply_overrides(s, ["environment.damping=1500"]) for s in (soft, stiff))
+    assert _family_key(soft, 1e2) != _family_key(stiff, 1e4)

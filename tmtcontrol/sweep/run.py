@@ -76,8 +76,10 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
             _SIMS.clear()
         _SIMS[key] = simulator_for(sc)
     row: dict[str, Any] = {"case": case.index, **{k: _flat(v) for k, v in case.values.items()}}
+    found = None
     if limits:
         row.update(case_limits(sc, _SIMS[key]))
+        found = row.pop("_limit")                       # the ScenarioLimit for the verdicts: not a column
     t0 = time.perf_counter()
     try:
         res = _SIMS[key].run(sc, max_steps=max_steps)
@@ -87,9 +89,8 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                     "torque_margin": math.nan, "rate_margin": math.nan, "position_margin": math.nan,
                     "error": str(exc), "run_time_s": time.perf_counter() - t0})
         return row
-    if limits and row.get("_limit") is not None:
-        res = with_stiffness_limit(res, row["_limit"])         # as simulate attaches it
-    row.pop("_limit", None)
+    if found is not None:
+        res = with_stiffness_limit(res, found)         # as simulate attaches it
     segs = segment_metrics(res)
     fc = first_contact(res)
     row.update({"verdict": max((s.verdict for s in segs), key=VERDICTS.index),
@@ -110,7 +111,7 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
 _LIMITS: dict = {}     # per worker process: the deciding limit per case family (:func:`_family_key`)
 
 
-def _family_key(sc) -> str:
+def _family_key(sc, k_e_min: float) -> str:
     """What a case's limits depend on: the scenario without its stiffness
     profile, sensor noise and run length (the analyses run at constant k_e,
     without noise, for their own durations)."""
@@ -119,6 +120,10 @@ def _family_key(sc) -> str:
     d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
     d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
     d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
+    if sc.environment.damping > 0:
+        # a contact damper can make the loop unstable on soft surfaces: the searches then take the stable
+        # band that contains the smallest stiffness, so that stiffness is part of the family
+        d["k_e_min"] = float(k_e_min)
     return json.dumps(d, sort_keys=True, default=str)
 
 ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
@@ -165,13 +170,14 @@ def case_limits(sc, sim=None) -> dict:
     out = {"small_signal_limit": nan, "periodic_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
            "predicted_limit_from": "", "predicted_stable": None, "limits_error": "", "_limit": None}
     try:
-        key = _family_key(sc)
+        p = scenario_parameters(sc)
+        key = _family_key(sc, p["k_e_min"])
         if key not in _LIMITS:
             if len(_LIMITS) >= 4096:
                 _LIMITS.clear()
             _LIMITS[key] = deciding_limit(sc, runner=LoopRunner(sc, sim=sim))
         lim = _LIMITS[key]
-        k_max = scenario_parameters(sc)["k_e_max"]
+        k_max = p["k_e_max"]
     except Exception as exc:          # an analysis that does not apply to this case: said in the row
         out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         return out
