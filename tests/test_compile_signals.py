@@ -535,13 +535,4 @@ def test_ctrl_c_to_report_alone_does_not_wait_for_its_second_process(tmp_path):
         assert not _alive(child), "the second process outlived the interrupted report"
         assert not out.exists()
     finally:
-        for p in {child, *_descendants(proc.pid)} - {None}:
-            try:
-                os.kill(p, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+        _kill_all(proc, {child} - {None})
