@@ -116,14 +116,18 @@ def test_mid_period_hold_raises_the_stiffness_limit_in_the_simulator():
     assert verdicts == {"zero_order": "limit_cycle", "mid_period": "converged"}
 
 
+@pytest.mark.heavy
 def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
     """The 1-D model has no hold: with the mid-period hold its limit (about
     130 kN/m on the pipe) is far below the loop's, so it gives none
     (scenario_stiffness_limit: None) and the verdicts do not take it as the
-    loop's limit. At a constant 300 kN/m the simulate
-    command's verdict (with_stiffness_limit attached) is the run's own,
-    converged; with the zero-order hold the same run is beyond the loop's
-    limit and not converged."""
+    loop's limit. At a constant 300 kN/m, above the zero-order hold's 1-D
+    figure (the gate, stability.limit.with_stiffness_limit), the simulate
+    command's verdict is judged against the loop's own limit (the periodic
+    orbit's, above 300 kN/m: the run converges), converged; with the
+    zero-order hold the same run is beyond the loop's limit and not
+    converged. Heavy: the hold's limits on the pipe take about two minutes
+    (the gate's logic is tested with stubs in test_limits)."""
     from tmtcontrol.stability.limit import with_stiffness_limit
     from tmtcontrol.stability.onedim import scenario_stiffness_limit
 
@@ -132,7 +136,7 @@ def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
     assert scenario_stiffness_limit(zoh) < 2e5                 # the 1-D model (no hold): about 130 kN/m
     assert scenario_stiffness_limit(sc) is None                 # not this loop's: no 1-D prediction
     res = with_stiffness_limit(Simulator(sc, compile=False).run())
-    assert "stiffness_limit" not in res.info
+    assert res.info["stiffness_limit"] > 3e5 and res.info["stiffness_limit_from"] == "periodic orbit"
     assert segment_metrics(res)[0].verdict == "converged"
     assert segment_metrics(with_stiffness_limit(Simulator(zoh, compile=False).run()))[0].verdict != "converged"
 

@@ -238,6 +238,13 @@ def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_si
     first, small = (float(g.replace(",", "")) for g in m.groups())
     assert small == pytest.approx(1.438e5, rel=2e-3)
     assert 1.15e5 < first < 1.25e5
+    # the docs quote these two figures (cli.md, simulation.md): they drift with what simulate prints
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    assert f"the loop's limit {first:,.0f} N/m (first contact" in (docs / "cli.md").read_text()
+    text = " ".join((docs / "simulation.md").read_text().split())
+    assert f"below the 1-D figure ({small:,.0f} N/m) but above the first-contact limit ({first:,.0f} N/m)" in text
 
 
 def test_simulate_analyze_sweep_and_report_quote_the_one_deciding_limit(monkeypatch, tmp_path, capsys):
@@ -674,3 +681,118 @@ def test_first_contact_limit_refuses_a_search_top_that_is_not_a_stiffness(k_hi):
 
     with pytest.raises(AnalysisError, match="k_hi: must be a finite stiffness > 0"):
         first_contact_limit(None, k_hi, runner=_ThresholdRunner(1e5))
+
+
+def _stubbed(monkeypatch, deciding, one_d=150001.0):
+    """stability.limit with its two computations replaced: ``deciding`` (a
+    ScenarioLimit, or an exception to raise) and the 1-D figure; returns the
+    list of scenarios the deciding limit was computed for."""
+    from tmtcontrol.stability import limit
+
+    calls = []
+
+    def _deciding(sc, *a):
+        calls.append(sc.name)
+        if isinstance(deciding, Exception):
+            raise deciding
+        return deciding
+
+    monkeypatch.setattr(limit, "_deciding_limit", _deciding)
+    monkeypatch.setattr(limit, "_one_d", lambda sc: one_d)
+    return calls
+
+
+_STUB_ARGS = dict(small_signal=150001.0, whole_loop=140000.0, whole_loop_bracket=(140000.0, 140000.14),
+                  whole_loop_points=((0.0, 140000.0),), periodic=145000.0, first_contact=123457.0)
+_RAMP_130K = ["environment.stiffness={kind='piecewise_linear', times=[0.0, 2.0], values=[1e4, 1.3e5]}",
+              "trajectory.cycles=0.5"]
+
+
+@pytest.mark.parametrize("x_e_error, code", [(-0.01, 1), (0.0, 0)])
+def test_a_ramp_below_the_1d_figure_is_judged_by_the_deciding_limit_when_the_surface_is_in_error(
+        monkeypatch, tmp_path, capsys, x_e_error, code):
+    """Review of issue 43: with a surface-location error the start is bistable
+    and the deciding (first-contact) limit lies below the 1-D figure (the
+    paper at -10 mm: 119,656 against 143,812 N/m). A run that ramps to
+    1.3e5 N/m, between the two, was called converged (exit 0) because the
+    deciding limit was computed only above the 1-D figure, while analyze
+    called 1.3e5 unstable. With the stub's figures (deciding 123,457, 1-D
+    150,001 N/m) the ramp is beyond_limit with the error; without it no
+    segment reaches the 1-D figure and the deciding limit is not computed."""
+    from tmtcontrol.cli import main
+    from tmtcontrol.stability import limit
+
+    calls = _stubbed(monkeypatch, limit.ScenarioLimit(123457.0, "first contact", **_STUB_ARGS))
+    argv = ["simulate", "paper", "--out", str(tmp_path / "out"), "--no-plots",
+            "--set", f"controller.x_e_error={x_e_error}", *[a for s in _RAMP_130K for a in ("--set", s)]]
+    assert main(argv) == code
+    err = capsys.readouterr().err
+    if code:
+        assert err.startswith("beyond_limit: segment 1") and "predicted limit 123,457 N/m (first contact)" in err
+        assert len(calls) == 1
+    else:
+        assert err == "" and calls == []
+
+
+def test_the_sweep_falls_back_to_the_1d_figure_as_simulate_does_when_the_loops_limit_fails(monkeypatch, tmp_path,
+                                                                                            capsys):
+    """A deciding limit that raises AnalysisError: simulate judges against the
+    1-D figure and says the loop's own limit failed; the sweep's row did not
+    attach any limit (its case converged where simulate's was beyond_limit).
+    Both now give the same verdict and source."""
+    from tmtcontrol.cli import main
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.sweep import run
+    from tmtcontrol.sweep.spec import sweep_from_dict
+
+    monkeypatch.setattr(run, "_LIMITS", {})
+    calls = _stubbed(monkeypatch, AnalysisError("the search found no bracket"), one_d=1.0e5)
+    sets = ["environment.stiffness.values=[1.3e5]", "trajectory.cycles=0.5"]
+    assert main(["simulate", "paper", "--out", str(tmp_path / "out"), "--no-plots",
+                 *[a for s in sets for a in ("--set", s)]]) == 1
+    err = capsys.readouterr().err
+    assert "predicted limit 100,000 N/m (1-D small-signal; the loop's own limit failed: the search found no " \
+           "bracket)" in err, err
+    spec = sweep_from_dict({"grid": {"environment.stiffness.values": [[1.3e5]], "trajectory.cycles": [0.5]}})
+    row = run.case_row(spec.base, spec.cases[0])
+    assert row["limits_error"] == "the search found no bracket"
+    assert row["verdict"] == "beyond_limit" and row["seg1_verdict"] == "beyond_limit"
+    assert len(calls) == 2
+
+
+def test_a_loop_unstable_at_its_smallest_stiffness_has_limit_zero_everywhere(monkeypatch, paper_sim):
+    """The deciding limit 0 ("unstable at the smallest stiffness", e.g. a stiff
+    contact damper) used to leave the run's verdicts alone, or attach the
+    positive 1-D figure: every segment is now beyond it, from either source."""
+    from tmtcontrol.simulation.metrics import segment_metrics
+    from tmtcontrol.stability import limit
+
+    res = paper_sim.run(paper_scenario().replace(trajectory=paper_scenario().trajectory.model_copy(
+        update={"cycles": 0.5})))
+    assert {s.verdict for s in segment_metrics(res)} == {"converged"}
+    zero = limit.ScenarioLimit(0.0, "unstable at the smallest stiffness", **{**_STUB_ARGS, "small_signal": 0.0})
+    for attached in (limit.with_stiffness_limit(res, zero),
+                     (_stubbed(monkeypatch, zero, one_d=0.0), limit.with_stiffness_limit(res))[1]):
+        assert attached.info["stiffness_limit"] == 0.0
+        assert {s.verdict for s in segment_metrics(attached)} == {"beyond_limit"}
+
+
+@pytest.mark.parametrize("stiffness, attached", [(1.3e5, True), (5e4, False)])
+def test_the_mid_period_hold_is_judged_by_its_own_loops_limit_above_the_gate(monkeypatch, stiffness, attached):
+    """The mid-period hold has no 1-D figure (its lead raises the limit): the
+    zero-order hold's 1-D figure (stub: 1e5 N/m) is only the gate. Above it the
+    deciding limit is computed and attached (it was computed for the message
+    but never used for the verdicts); below it nothing is attached."""
+    from tmtcontrol import Simulator
+    from tmtcontrol.simulation.metrics import segment_metrics
+    from tmtcontrol.stability import limit
+
+    stub = limit.ScenarioLimit(1.2e5, "periodic orbit", **{**_STUB_ARGS, "small_signal": None})
+    calls = _stubbed(monkeypatch, stub, one_d=1.0e5)
+    sc = apply_overrides(paper_scenario(), ["controller.hold=mid_period", f"environment.stiffness.values=[{stiffness}]",
+                                            "trajectory.cycles=0.5"])
+    res = limit.with_stiffness_limit(Simulator(sc).run())
+    assert ("stiffness_limit" in (res.info or {})) == attached and len(calls) == int(attached)
+    if attached:
+        assert res.info["stiffness_limit"] == 1.2e5
+        assert segment_metrics(res)[0].verdict == "beyond_limit"

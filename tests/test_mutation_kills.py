@@ -530,12 +530,14 @@ def test_a_case_limit_that_is_not_a_positive_integer_is_refused_as_such(bad):
 
 # -- stability/analysis.py (third run, seed 3) ------------------------------------------------------
 
-@pytest.mark.parametrize("limit,attached", [(0.5, True), (2e4, True), (0.0, False), (-3.0, False),
+@pytest.mark.parametrize("limit,attached", [(0.5, True), (2e4, True), (0.0, 0.0), (-3.0, 0.0),
                                             (float("inf"), False), (float("nan"), False), (None, False)])
 def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, limit, attached):
     """analysis.py:core/NumberReplacer:28 (`limit <= 1`) and ReplaceComparisonOperator_LtE_NotEq:1
     (`limit != 0`): with_stiffness_limit attaches every positive finite limit, however small
-    (0.5 N/m), and only those ("no positive limit found" leaves the run unchanged)."""
+    (0.5 N/m); a 1-D figure of 0 or below (unstable at the smallest stiffness) is the limit 0,
+    as deciding_limit says (every segment beyond it); no figure, or an infinite one without a
+    surface error, leaves the run unchanged."""
     import dataclasses
 
     import numpy as np
@@ -548,8 +550,13 @@ def test_any_positive_finite_stiffness_limit_is_attached_to_a_run(monkeypatch, l
     run = dataclasses.make_dataclass("Run", ["scenario", "info", "stiffness"], frozen=True)(
         paper_scenario(), {"kept": 1}, np.zeros(3))
     out = limit_module.with_stiffness_limit(run)
-    assert out.info == ({"kept": 1, "stiffness_limit": limit, "stiffness_limit_from": "1-D small-signal"}
-                        if attached else {"kept": 1})
+    if attached is True:
+        assert out.info == {"kept": 1, "stiffness_limit": limit, "stiffness_limit_from": "1-D small-signal"}
+    elif attached is False:
+        assert out.info == {"kept": 1}
+    else:
+        assert out.info == {"kept": 1, "stiffness_limit": 0.0,
+                            "stiffness_limit_from": "unstable at the smallest stiffness"}
 
 
 def test_the_x_e_error_force_is_reported_only_for_an_error_and_a_law_that_states_one():

@@ -173,7 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--example", action="store_true", help="print a commented example sweep file and exit")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--limits", choices=("auto", "on", "off"), default="auto",
-                   help="each case's predicted stiffness limits (small-signal and first-contact columns); auto "
+                   help="each case's deciding stiffness limit, as analyze --scenario prints it (predicted_limit, with "
+                   "the small-signal, periodic and first-contact columns), which its verdicts use; auto "
                    "(default): on unless a random axis makes every case a new analysis")
     p.add_argument("--max-steps", type=int, default=None, metavar="N",
                    help="refuse cases longer than N control steps (default 1,000,000)")

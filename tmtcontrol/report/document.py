@@ -405,7 +405,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         return Section("simulation", "Simulation", [Paragraph(f"The simulation diverged: {exc}")]), sim, None
     from ..stability.analysis import with_stiffness_limit
 
-    res = with_stiffness_limit(res)           # a segment beyond the predicted limit is not stable
+    res = with_stiffness_limit(res)           # a segment beyond the deciding limit is not stable
     segs = segment_metrics(res)
     worst = max(s.steady_state_error for s in segs)
     # the scenario's own tolerance judges the run (the segment verdicts use it too, plus the sensor noise)
@@ -607,8 +607,10 @@ def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
     of it (Hz; the slower side is where stability is lost), and
     :data:`SWEEP_POINTS` constant stiffnesses (N/m, two significant digits)
     evenly spaced in log from half its smallest k_e to twice the larger of
-    its largest k_e and the predicted stiffness limit at its rate (the
-    boundary is inside the map whenever the analysis finds one)."""
+    its largest k_e and the 1-D small-signal limit at its rate (the
+    boundary is inside the map whenever the analysis finds one; the 1-D
+    small-signal figure sizes the map, the cases' own deciding limits draw
+    its line)."""
     from ..stability.analysis import scenario_stiffness_limit
 
     rate = 1.0 / p["Ts"]
@@ -648,16 +650,17 @@ def _sweep(rep: Report, sc: Scenario, p: dict):
     return Section("sweep", "Robustness sweep", [
         Paragraph(f"{len(df)} simulations of {fmt.qty(cycles * sc.trajectory.period, 's')} each: constant "
                   f"stiffness from {fmt.qty(stiffness[0], 'N/m')} to {fmt.qty(stiffness[-1], 'N/m')} (half the "
-                  "scenario's smallest stiffness to twice the larger of its largest and the predicted limit) × "
+                  "scenario's smallest stiffness to twice the larger of its largest and the 1-D small-signal limit) × "
                   f"the scenario's control rate {fmt.qty(rates[0], 'Hz')} and half of it, everything else as in "
                   "the scenario. Verdicts: "
-                  + ", ".join(f"{n} {v}" for v, n in counts.items()) + ". The dashed line is the analysis' "
-                  "predicted limit; a simulated verdict on the wrong side of it would show a model error. "
+                  + ", ".join(f"{n} {v}" for v, n in counts.items()) + ". The dashed line is the deciding limit at each rate "
+                  "(as analyze --scenario prints it: the smallest of the cases' own at that rate); a simulated "
+                  "verdict on the wrong side of it would show a model error. "
                   "Larger sweeps: tmtcontrol sweep (see the Robustness sweeps page)."),
         Table("Sweep cases", ["control rate", "k_e (N/m)", "worst steady-state error", "verdict"], rows,
               verdict_column=3),
         figure("Sweep map: verdict (marker) and steady-state error (colour) over stiffness and control rate, with "
-               "the predicted stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred, units=spec.units,
+               "the deciding stability limit.", sweep_map_figure, df, list(spec.axes[:2]), pred, units=spec.units,
                labels=axis_labels(spec))])
 
 

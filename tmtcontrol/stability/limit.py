@@ -116,12 +116,18 @@ def deciding_limit(scenario, points: int = 8, along_path: bool = True, runner=No
     monodromy step per loop structure, then seconds); ``runner``: a
     ``stability.first_contact.LoopRunner`` to reuse (a sweep's simulator);
     ``memo``: a dict the caller keeps, so that one command that attaches the
-    limit to its run and then quotes it computes it once."""
+    limit to its run and then quotes it computes it once (an
+    ``AnalysisError`` it raised is kept and raised again)."""
     if memo is None:
         return _deciding_limit(scenario, points, along_path, runner)
     key = (scenario.model_dump_json(), int(points), bool(along_path))
     if key not in memo:
-        memo[key] = _deciding_limit(scenario, points, along_path, runner)
+        try:
+            memo[key] = _deciding_limit(scenario, points, along_path, runner)
+        except AnalysisError as exc:         # kept too: the caller's second use says the same, at once
+            memo[key] = exc
+    if isinstance(memo[key], AnalysisError):
+        raise memo[key]
     return memo[key]
 
 
@@ -162,50 +168,78 @@ def _deciding_limit(scenario, points, along_path, runner):
         periodic_note=note, first_contact=float(first), **frozen)
 
 
-def with_stiffness_limit(result, limit: ScenarioLimit | None = None, memo: dict | None = None):
+def _has_surface_error(scenario) -> bool:
+    """Whether the controller's surface or part location is in error
+    (``controller.x_e_error``, ``controller.part_offset``): the start may
+    then be bistable and the first-contact limit lie below the 1-D figure."""
+    ctl = scenario.controller
+    return ctl.x_e_error != 0.0 or any(v != 0.0 for v in ctl.part_offset)
+
+
+def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = None, memo: dict | None = None):
     """``result`` (a simulation) with the scenario's limit attached as
     ``info["stiffness_limit"]`` (N/m) and ``info["stiffness_limit_from"]``:
     its segment verdicts (``simulation.metrics.segment_metrics``) then call a
     segment whose stiffness exceeds it ``beyond_limit``, even when the run
     ended before an instability grew (a ramp or a short hold above it).
 
-    While every stiffness of the run is at or below the 1-D small-signal
-    limit that figure is attached (no segment is beyond it, and it costs
-    milliseconds); above it, :func:`deciding_limit` (``limit`` when the
-    caller has it: a sweep's, per case family; ``memo`` as
-    :func:`deciding_limit`'s), the limit ``analyze
-    --scenario`` prints: a run between the 1-D figure and the loop's own
-    limit is stable, and says so (computed only when a segment above the
-    1-D figure did not already show an instability of its own, which no
-    limit changes). Unchanged for a law without a linear
-    verdict, a loop unstable at its smallest stiffness, and the mid-period
-    hold, whose lead the 1-D model lacks (the run's own verdict stands)."""
+    The limit attached is :func:`deciding_limit`'s, the one ``analyze
+    --scenario`` prints (``limit`` when the caller has it: a sweep's, per
+    case family, or the :class:`AnalysisError` its computation raised;
+    ``memo`` as :func:`deciding_limit`'s). It is computed (a compile per
+    loop structure, then seconds) only where it can change a verdict: when
+    some segment whose own verdict is below ``limit_cycle`` reaches above the
+    1-D small-signal figure or, with a surface-location error (whose start
+    may be bistable, its first-contact limit below the 1-D figure), reaches
+    any stiffness. Otherwise the 1-D figure is attached (no segment is beyond
+    it; milliseconds), or nothing with the mid-period hold, which the 1-D
+    model lacks (the hold's lead raises the limit; the zero-order hold's 1-D
+    figure is only the gate). Where the deciding limit fails, the 1-D figure
+    is attached and its source says why. A loop unstable at its smallest
+    stiffness gets limit 0 (every segment is beyond it). Unchanged for a law
+    without a linear verdict."""
+    if isinstance(limit, ScenarioLimit):
+        return _attached(result, float(limit.limit), limit.limit_from)
+    from ..control.laws import get_law
+
     sc = result.scenario
-    if limit is not None:
-        small = limit.small_signal
-    else:
-        small = None if sc.controller.hold == "mid_period" else _one_d(sc)
-    if small is None or not np.isfinite(small) or small <= 0:
+    if not get_law(sc.controller.law.kind).linear_analysis:
         return result
-    value, source = float(small), "1-D small-signal"
-    if float(np.max(result.stiffness)) > small and _limit_can_matter(result, small):
+    guess, error = _one_d(sc), _has_surface_error(sc)
+    if guess is None or np.isnan(guess) or (guess == np.inf and not error):
+        return result
+    small = None if sc.controller.hold == "mid_period" else guess
+    if guess <= 0:          # as deciding_limit: unstable at the scenario's smallest stiffness
+        return _attached(result, 0.0, "unstable at the smallest stiffness")
+    gate = 0.0 if error else guess
+    if limit is None and not (np.max(result.stiffness) > gate and _limit_can_matter(result, gate)):
+        return result if small is None else _attached(result, small, "1-D small-signal")
+    if limit is None:
         try:
-            lim = limit if limit is not None else deciding_limit(sc, memo=memo)
-        except AnalysisError as exc:       # the 1-D figure stands, and says why
-            source = f"1-D small-signal; the loop's own limit failed: {str(exc).splitlines()[0]}"
-        else:
-            if lim is not None and lim.limit > 0:
-                value, source = lim.limit, lim.limit_from
+            limit = deciding_limit(sc, memo=memo)
+        except AnalysisError as exc:
+            limit = exc
+        if limit is None:
+            return result
+        if isinstance(limit, ScenarioLimit):
+            return _attached(result, float(limit.limit), limit.limit_from)
+    if small is None:       # the deciding limit failed: the 1-D figure stands, and says why
+        return result
+    return _attached(result, small, "1-D small-signal; the loop's own limit failed: "
+                     + (str(limit).splitlines() or [type(limit).__name__])[0])
+
+
+def _attached(result, value: float, source: str):
     return dataclasses.replace(result, info={**(result.info or {}), "stiffness_limit": value,
                                              "stiffness_limit_from": source})
 
 
-def _limit_can_matter(result, small: float) -> bool:
-    """Whether some segment reaching above ``small`` (N/m) would take the
+def _limit_can_matter(result, gate: float) -> bool:
+    """Whether some segment reaching above ``gate`` (N/m) would take the
     limit's verdict: its own is below ``limit_cycle`` (a segment that locked
     into a limit cycle or diverged keeps that verdict whatever the limit)."""
     from ..simulation.metrics import VERDICTS, segment_metrics, segments
 
     own = segment_metrics(result)
-    return any(np.max(result.stiffness[i0:i1]) > small and VERDICTS.index(m.verdict) < VERDICTS.index("limit_cycle")
+    return any(np.max(result.stiffness[i0:i1]) > gate and VERDICTS.index(m.verdict) < VERDICTS.index("limit_cycle")
                for (i0, i1), m in zip(segments(result), own))

@@ -51,8 +51,9 @@ def sweep_prediction(sweep: Sweep, df) -> dict | None:
     is one of the first two axes and the law has a linear verdict: the
     smallest ``predicted_limit`` of the group's cases (each its deciding limit,
     ``stability.limit.deciding_limit``, with its own drawn values) when the
-    rows have it, else the 1-D small-signal limit of the group's first case
-    (the map labels it so)."""
+    rows have it (no line for a group whose analyses all failed: its rows'
+    ``limits_error`` says why), else (``sweep --limits off``) the 1-D
+    small-signal limit of the group's first case (the map labels it so)."""
     from ..stability.analysis import scenario_stiffness_limit
 
     axes = sweep.axes[:2]
@@ -66,8 +67,9 @@ def sweep_prediction(sweep: Sweep, df) -> dict | None:
                                         for k, g in df.groupby(by if len(by) > 1 else by[0], sort=True)]
     out = {}
     for k, g in groups:
-        if "predicted_limit" in g and g["predicted_limit"].notna().any():
-            out[k[0] if len(k) == 1 else (k if k else None)] = float(g["predicted_limit"].min())
+        if "predicted_limit" in g:      # the cases' own limits: a group whose analyses all failed has no line
+            if g["predicted_limit"].notna().any():
+                out[k[0] if len(k) == 1 else (k if k else None)] = float(g["predicted_limit"].min())
             continue
         case = sweep.cases[int(g["case"].iloc[0])]
         try:

@@ -160,9 +160,10 @@ def case_limits(sc, sim=None) -> dict:
     ``predicted_stable``: the case's largest stiffness below the predicted
     limit. NaN (and ``predicted_stable`` None) for a law without a linear
     verdict or an analysis that fails (``limits_error`` says why). ``_limit``
-    carries the :class:`~tmtcontrol.stability.limit.ScenarioLimit` to the
-    run's verdicts (not a column)."""
+    carries the :class:`~tmtcontrol.stability.limit.ScenarioLimit` (or the
+    ``AnalysisError`` it raised) to the run's verdicts (not a column)."""
     from ..stability.analysis import scenario_parameters
+    from ..stability.continuous import AnalysisError
     from ..stability.first_contact import LoopRunner
     from ..stability.limit import deciding_limit
 
@@ -180,6 +181,8 @@ def case_limits(sc, sim=None) -> dict:
         k_max = p["k_e_max"]
     except Exception as exc:          # an analysis that does not apply to this case: said in the row
         out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+        if isinstance(exc, AnalysisError):
+            out["_limit"] = exc       # the verdicts fall back to the 1-D figure and say why, as simulate's
         return out
     if lim is None:
         out["limits_error"] = "the law has no linear verdict"
