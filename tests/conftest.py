@@ -13,16 +13,21 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 def _private_cache(tmp_path_factory):
     """A compile cache private to this test run, shared by its xdist workers
     (the cache's atomic, verified writes make sharing safe), so each law's
-    step is compiled once per run rather than once per worker."""
-    old = os.environ.get("TMTCONTROL_CACHE")
+    step is compiled once per run rather than once per worker. Analysis
+    results are not kept (TMTCONTROL_RESULT_CACHE=0): tests replace parts of
+    the analyses with stubs, whose figures must not reach another test; the
+    results cache has its own tests (tests/test_result_cache.py)."""
+    old = {k: os.environ.get(k) for k in ("TMTCONTROL_CACHE", "TMTCONTROL_RESULT_CACHE")}
     cache = _shared_base(tmp_path_factory) / "tmtcontrol-cache"
     cache.mkdir(exist_ok=True)
     os.environ["TMTCONTROL_CACHE"] = str(cache)
+    os.environ["TMTCONTROL_RESULT_CACHE"] = "0"
     yield
-    if old is None:
-        os.environ.pop("TMTCONTROL_CACHE", None)
-    else:
-        os.environ["TMTCONTROL_CACHE"] = old
+    for k, v in old.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
 
 
 def _shared_base(tmp_path_factory):

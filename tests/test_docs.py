@@ -63,3 +63,33 @@ def test_api_package_map_lists_every_module_and_only_those():
     text = (ROOT / "docs" / "api.md").read_text().split("## Package map", 1)[1]
     listed = set(re.findall(r"^\| `([\w.]+)` \|", text, flags=re.M))
     assert listed == actual, (sorted(actual - listed), sorted(listed - actual))
+
+
+def _bench_report():
+    import importlib.util
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))          # bench_report imports bench_all beside it
+    try:
+        spec = importlib.util.spec_from_file_location("bench_report", ROOT / "benchmarks" / "bench_report.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return module
+
+
+def test_speed_page_quotes_the_recorded_report_benchmark():
+    """docs/speed.md's table of issue 42's targets is the one benchmarks/bench_report.py
+    printed and recorded (benchmarks/report_results.json): a new record, or an edited
+    figure on the page, fails here until the two agree."""
+    import json
+
+    bench = _bench_report()
+    record = json.loads((ROOT / "benchmarks" / "report_results.json").read_text())
+    table = bench.markdown_table(record)
+    assert table in (ROOT / "docs" / "speed.md").read_text()
+    # the comparison the rows print: a changed figure is found, the same figures are not
+    assert bench.compared(["PASS  limit 163,417 N/m"], ["PASS  limit 163,417 N/m"]).endswith("record 0")
+    assert "1e-06" in bench.compared(["PASS  limit 100,000.1 N/m"], ["PASS  limit 100,000 N/m"])
+    assert bench.compared(["PASS  a"], ["FAIL  a"]).startswith("changed")

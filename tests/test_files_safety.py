@@ -606,13 +606,21 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
         _fake_library(tmp_path, f"law{i}", 2**20, 1.7e9)
     (tmp_path / "notes.txt").write_text("mine")
     (tmp_path / "law0_chunk_other.so").write_text("not tmtcontrol's name")
+    from tmtcontrol.cache import load_result, store_result
+
+    assert store_result("limit", "a key", {"limit": 1.0})                 # an analysis result, in results/
+    (tmp_path / "results" / "result_mine.json").write_text("not tmtcontrol's name")
     assert main(["cache", "--info"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == f"cache: {tmp_path}: 2 libraries, 2.0 MiB"          # 2 x 1 MiB plus two 2-byte sidecars
+    size = 2 * 2**20 + 4 + len(next((tmp_path / "results").glob("result_*[0-9a-f].json")).read_bytes())
+    assert out[0] == f"cache: {tmp_path}: 2 libraries, 1 analysis result, {size / 2**20:,.1f} MiB"
     assert main(["cache", "--clear"]) == 0
-    assert capsys.readouterr().out == "removed 2 compiled libraries (2.0 MiB)\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "notes.txt"]
-    assert main(["cache"]) == 0 and capsys.readouterr().out.startswith(f"cache: {tmp_path}: 0 libraries, 0.0 MiB")
+    assert capsys.readouterr().out == "removed 2 compiled libraries and 1 analysis result (2.0 MiB)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "notes.txt", "results"]
+    assert [p.name for p in (tmp_path / "results").iterdir()] == ["result_mine.json"]
+    assert load_result("limit", "a key") is None
+    assert main(["cache"]) == 0 and capsys.readouterr().out.startswith(
+        f"cache: {tmp_path}: 0 libraries, 0 analysis results, 0.0 MiB")
 
 
 # -- item 4: concurrent commits into one target ----------------------------------------------

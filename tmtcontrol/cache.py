@@ -27,6 +27,15 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   no cache folder can be used (the disk holding it has less than
   :data:`BUILD_MIN_FREE` free, or neither it nor the fallback can be
   written) is a build folder made in the temporary folder, removed the same way.
+* Analysis results (the deciding stiffness limit of a scenario,
+  ``stability.limit``) are kept as ``results/result_HASH.json`` in the
+  cache (:func:`store_result`, :func:`load_result`): each file holds its
+  full key (the package's sources, the arm's and the surface's content, the
+  scenario's every value, the numerical libraries' versions), checked on
+  reading, so a changed input is a new key and a damaged file is ignored
+  and recomputed. At most :data:`MAX_RESULTS` are kept (least recently used
+  go first, and any unused for :data:`MAX_AGE_DAYS` days); ``cache --clear``
+  removes them.
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -47,8 +56,8 @@ import stat
 import tempfile
 import time
 
-__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
-           "write_staged", "mark_used", "prune", "prune_temporary", "build_folder", "new_build_folder",
+__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "MAX_RESULTS", "load_result", "store_result", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
+           "write_staged", "mark_used", "prune", "prune_results", "prune_temporary", "build_folder", "new_build_folder",
            "remove_build_folder", "cache_info", "clear_cache", "format_cache_info"]
 
 MAX_BYTES = 200 * 2**20
@@ -58,7 +67,13 @@ MAX_BYTES = 200 * 2**20
 MAX_AGE_DAYS = 90
 """A library not used for 90 days is removed (an old CasADi version, old sources)."""
 
+MAX_RESULTS = 20_000
+"""Analysis results kept in one cache folder (a few kilobytes each): a
+sweep with a random axis stores one per case family."""
+
 _STALE_TMP_SECONDS = 3600
+_RESULT = re.compile(r"result_[0-9a-f]{40}\.json")
+_RESULT_STAGED = re.compile(r"\.result_[0-9a-f]{40}\.json\.[0-9]+\.tmp")
 _LIBRARY = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so")
 _SIDECAR = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.json")
 _STAGED = re.compile(r"\.[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.(so|json)\.[0-9]+\.tmp")
@@ -181,6 +196,87 @@ def write_staged(files: list[tuple[pathlib.Path, bytes]]) -> None:
             except OSError:
                 pass
         raise
+
+
+def _result_name(kind: str, key: str) -> str:
+    return "result_" + hashlib.sha256(f"{kind}\0{key}".encode()).hexdigest()[:40] + ".json"
+
+
+def load_result(kind: str, key: str) -> dict | None:
+    """The result of ``kind`` stored under ``key`` (:func:`store_result`), or
+    None: not stored, or a file that is damaged or holds another key (a
+    hash collision) is no result. Marks it used."""
+    name = _result_name(kind, key)
+    for folder in cache_folders():
+        path = folder / "results" / name
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, ValueError, UnicodeDecodeError):
+            continue
+        if isinstance(data, dict) and data.get("kind") == kind and data.get("key") == key \
+                and isinstance(data.get("value"), dict):
+            mark_used(path)
+            return data["value"]
+    return None
+
+
+def store_result(kind: str, key: str, value: dict) -> bool:
+    """Keep ``value`` (JSON-serialisable) as the result of ``kind`` under
+    ``key`` in the cache, by :func:`write_staged`, then prune the results
+    (:func:`prune_results`). A cache that cannot be written (read-only, a
+    full disk) keeps nothing: the result is recomputed next time. Returns
+    whether it was stored."""
+    folder = cache_dir() / "results"
+    try:
+        write_staged([(folder / _result_name(kind, key),
+                       json.dumps({"kind": kind, "key": key, "value": value}).encode())])
+    except OSError:
+        return False
+    prune_results(folder)
+    return True
+
+
+def _results(folder: pathlib.Path) -> list[tuple[pathlib.Path, float]]:
+    """``(result file, last use)`` of the results in ``folder``."""
+    out = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return out
+    for e in entries:
+        if _RESULT.fullmatch(e.name) and e.is_file(follow_symlinks=False):
+            try:
+                out.append((pathlib.Path(e.path), e.stat(follow_symlinks=False).st_mtime))
+            except OSError:
+                continue
+    return out
+
+
+def prune_results(folder: pathlib.Path, max_results: int | None = None, max_age_days: float | None = None,
+                  now: float | None = None) -> int:
+    """Remove from a results ``folder`` the results unused for
+    ``max_age_days`` (default :data:`MAX_AGE_DAYS`), then the least recently
+    used beyond ``max_results`` (default :data:`MAX_RESULTS`), and staged
+    results older than an hour; returns how many results went."""
+    max_results = MAX_RESULTS if max_results is None else max_results
+    max_age = (MAX_AGE_DAYS if max_age_days is None else max_age_days) * 86400.0
+    now = time.time() if now is None else now
+    try:
+        for e in os.scandir(folder):
+            if _RESULT_STAGED.fullmatch(e.name) and e.is_file(follow_symlinks=False) \
+                    and now - e.stat(follow_symlinks=False).st_mtime > _STALE_TMP_SECONDS:
+                pathlib.Path(e.path).unlink(missing_ok=True)
+    except OSError:
+        pass
+    removed = 0
+    for i, (path, used) in enumerate(sorted(_results(folder), key=lambda t: t[1], reverse=True)):
+        if i >= max_results or now - used > max_age:
+            try:
+                path.unlink()
+                removed += 1
+            except OSError:
+                pass
+    return removed
 
 
 def mark_used(lib: pathlib.Path) -> None:
@@ -468,8 +564,15 @@ def cache_info() -> dict:
     out = []
     for folder in cache_folders():
         libs = _libraries(folder)
-        out.append({"path": str(folder), "libraries": len(libs), "bytes": sum(s for _, s, _ in libs)})
-    return {"folders": out, "max_bytes": MAX_BYTES, "max_age_days": MAX_AGE_DAYS}
+        results = _results(folder / "results")
+        size = sum(s for _, s, _ in libs)
+        for path, _ in results:
+            try:
+                size += path.stat().st_size
+            except OSError:
+                pass
+        out.append({"path": str(folder), "libraries": len(libs), "results": len(results), "bytes": size})
+    return {"folders": out, "max_bytes": MAX_BYTES, "max_results": MAX_RESULTS, "max_age_days": MAX_AGE_DAYS}
 
 
 def clear_cache() -> dict:
@@ -479,7 +582,7 @@ def clear_cache() -> dict:
     their age); anything else stays (a running build keeps its folder).
     Returns the counts."""
     prune_temporary(max_age_days=0.0)
-    count = size = 0
+    count = size = results = 0
     for folder in cache_folders():
         try:
             entries = list(os.scandir(folder))
@@ -496,7 +599,22 @@ def clear_cache() -> dict:
                 continue
             count += e.name.endswith(".so")
             size += n
-    return {"libraries": count, "bytes": size}
+        try:
+            entries = list(os.scandir(folder / "results"))
+        except OSError:
+            continue
+        for e in entries:
+            if not (_RESULT.fullmatch(e.name) or _RESULT_STAGED.fullmatch(e.name)) \
+                    or not e.is_file(follow_symlinks=False):
+                continue
+            try:
+                n = e.stat(follow_symlinks=False).st_size
+                os.unlink(e.path)
+            except FileNotFoundError:
+                continue
+            results += _RESULT.fullmatch(e.name) is not None
+            size += n
+    return {"libraries": count, "results": results, "bytes": size}
 
 
 def _mib(n: int) -> str:
@@ -509,7 +627,8 @@ def format_cache_info(info: dict) -> str:
     for i, f in enumerate(info["folders"]):
         label = "cache" if i == 0 else "fallback (the cache was not writable)"
         lines.append(f"{label}: {f['path']}: {f['libraries']} librar{'y' if f['libraries'] == 1 else 'ies'}, "
+                     f"{f.get('results', 0)} analysis result{'' if f.get('results', 0) == 1 else 's'}, "
                      f"{_mib(f['bytes'])}")
-    lines.append(f"bound: {_mib(info['max_bytes'])} per folder, libraries unused for {info['max_age_days']} days "
-                 "removed (least recently used first)")
+    lines.append(f"bound: {_mib(info['max_bytes'])} of libraries and {info.get('max_results', MAX_RESULTS):,} results "
+                 f"per folder, anything unused for {info['max_age_days']} days removed (least recently used first)")
     return "\n".join(lines)

@@ -747,7 +747,8 @@ def _cache(args) -> int:
 
     if args.clear:
         done = clear_cache()
-        print(f"removed {done['libraries']} compiled librar{'y' if done['libraries'] == 1 else 'ies'} "
+        print(f"removed {done['libraries']} compiled librar{'y' if done['libraries'] == 1 else 'ies'} and "
+              f"{done['results']} analysis result{'' if done['results'] == 1 else 's'} "
               f"({done['bytes'] / 2**20:,.1f} MiB)")
     else:
         print(format_cache_info(cache_info()))

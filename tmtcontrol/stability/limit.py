@@ -132,6 +132,60 @@ def deciding_limit(scenario, points: int = 8, along_path: bool = True, runner=No
 
 
 def _deciding_limit(scenario, points, along_path, runner):
+    """:func:`_computed_limit`, kept in the compile cache's results
+    (``tmtcontrol.cache.store_result``) under a key of everything that
+    changes it: a second command on the same scenario reads it (a warm
+    report, ``analyze`` after ``simulate``). ``TMTCONTROL_RESULT_CACHE=0``
+    turns it off (always computed, nothing kept)."""
+    import os
+
+    from ..cache import load_result, store_result
+
+    use = os.environ.get("TMTCONTROL_RESULT_CACHE", "1").strip() not in ("0", "off", "no", "false")
+    key = _result_key(scenario, points, along_path) if use else None
+    if key is not None and (kept := load_result("deciding_limit", key)) is not None:
+        try:
+            return _from_json(kept)
+        except (TypeError, ValueError, KeyError):       # a result of another layout: computed again
+            pass
+    lim = _computed_limit(scenario, points, along_path, runner)
+    if key is not None and lim is not None:
+        store_result("deciding_limit", key, dataclasses.asdict(lim))
+    return lim
+
+
+def _result_key(scenario, points, along_path) -> str | None:
+    """What the deciding limit depends on: the compiled loop's structure key
+    (the package's sources, the arm's and the controller model's content,
+    the surface's, the law's declaration), every value of the scenario, its
+    analysis parameters (a stiffness table's range), the numerical
+    libraries' versions and the search's settings. None for a law declared
+    outside the package (its code is not in the key: not kept)."""
+    import casadi
+    import scipy
+
+    from ..control.laws import get_law
+    from ..simulation.simulator import structure_key
+    from .onedim import scenario_parameters
+
+    structure = structure_key(scenario, get_law(scenario.controller.law.kind))
+    if structure is None:
+        return None
+    params = sorted((k, repr(v)) for k, v in scenario_parameters(scenario).items())
+    return repr((structure, scenario.model_dump_json(), params, casadi.__version__, np.__version__,
+                 scipy.__version__, int(points), bool(along_path)))
+
+
+def _from_json(data: dict) -> ScenarioLimit:
+    """A :class:`ScenarioLimit` from its stored form (``dataclasses.asdict``)."""
+    fields = {f.name for f in dataclasses.fields(ScenarioLimit)}
+    if set(data) != fields:
+        raise KeyError("fields")
+    return ScenarioLimit(**{**data, "whole_loop_bracket": tuple(data["whole_loop_bracket"]),
+                            "whole_loop_points": tuple(tuple(p) for p in data["whole_loop_points"])})
+
+
+def _computed_limit(scenario, points, along_path, runner):
     from ..control.laws import get_law
     from .onedim import scenario_parameters
     from .wholeloop import whole_loop_limit

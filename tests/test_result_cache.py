@@ -1,0 +1,152 @@
+"""The analysis results kept in the compile cache (tmtcontrol.cache.store_result /
+load_result; stability.limit keeps the deciding limit there): a second command reads
+what the first computed, equal to the last bit, and only for the same inputs
+(issue 42: the cache key covers what changes the result and nothing else).
+
+The suite runs with TMTCONTROL_RESULT_CACHE=0 (conftest: stubs must not leak into
+other tests); each test here turns it on with a cache folder of its own."""
+import dataclasses
+import json
+import os
+
+import pytest
+
+from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+from tmtcontrol.stability import limit
+
+
+@pytest.fixture
+def kept(monkeypatch, tmp_path):
+    """Results kept in a private cache folder; returns the results folder."""
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "1")
+    return tmp_path / "cache" / "results"
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """``_computed_limit`` replaced by a fake that counts its calls and returns a
+    limit that depends on f_d (so a wrong hit would show)."""
+    calls = []
+
+    def fake(sc, points, along_path, runner):
+        calls.append(sc.controller.f_d)
+        return limit.ScenarioLimit(1e5 + sc.controller.f_d, "periodic orbit", 1.1e5, 1.05e5, (1.05e5, 1.05e5 + 0.1),
+                                   ((0.0, 1.05e5), (1.0, 1.07e5)), periodic=1e5 + sc.controller.f_d,
+                                   first_contact=2e5)
+    monkeypatch.setattr(limit, "_computed_limit", fake)
+    return calls
+
+
+def test_a_second_command_reads_the_deciding_limit_the_first_computed(kept, monkeypatch):
+    """The paper's real limit: computed once, stored, read back equal to the last
+    bit (every field, the bracket and the per-point limits included)."""
+    calls = []
+    real = limit._computed_limit
+    monkeypatch.setattr(limit, "_computed_limit", lambda *a: calls.append(1) or real(*a))
+    sc = paper_scenario()
+    first = limit.deciding_limit(sc)
+    assert len(calls) == 1 and len(list(kept.glob("result_*.json"))) == 1
+    second = limit.deciding_limit(sc)
+    assert len(calls) == 1                       # read, not computed
+    assert second == first and dataclasses.asdict(second) == dataclasses.asdict(first)
+    assert isinstance(second.whole_loop_bracket, tuple) and isinstance(second.whole_loop_points[0], tuple)
+    assert 1.67e5 < second.limit < 1.68e5        # the periodic orbit's 167,249 N/m (test_verdict_words)
+
+
+def test_a_changed_input_is_a_new_key(kept, counted, monkeypatch, tmp_path):
+    """Each input that changes the limit changes the key: a scenario value, the
+    content of a stiffness table behind the same file name, the search's settings,
+    the package's sources and the numerical libraries' versions."""
+    import casadi
+
+    from tmtcontrol.simulation import simulator
+
+    sc = paper_scenario()
+    limit.deciding_limit(sc)
+    limit.deciding_limit(sc)
+    assert counted == [10.0]                                   # the same inputs: one computation
+    limit.deciding_limit(apply_overrides(sc, ["controller.f_d=12"]))
+    assert counted == [10.0, 12.0]
+    assert limit.deciding_limit(apply_overrides(sc, ["controller.f_d=12"])).limit == 1e5 + 12.0
+    limit.deciding_limit(sc, points=4)
+    limit.deciding_limit(sc, along_path=False)
+    assert len(counted) == 4
+
+    table = tmp_path / "k.csv"
+    table.write_text("0, 5000\n4, 20000\n")
+    on_table = apply_overrides(sc, [f"environment.stiffness={{kind='table', file='{table}'}}"])
+    key = limit._result_key(on_table, 8, True)
+    table.write_text("0, 5000\n4, 90000\n")                    # the same name, another range
+    assert limit._result_key(on_table, 8, True) != key
+
+    key = limit._result_key(sc, 8, True)
+    monkeypatch.setattr(casadi, "__version__", casadi.__version__ + ".post1")
+    assert limit._result_key(sc, 8, True) != key
+    monkeypatch.undo()
+    monkeypatch.setattr(simulator, "_package_digest", lambda: "another source tree")
+    assert limit._result_key(sc, 8, True) != key
+
+
+@pytest.mark.parametrize("damage", ["not json {", "another key", "fields", "\xff\xfe"])
+def test_a_damaged_or_foreign_result_is_computed_again(kept, counted, damage):
+    """A file that is not JSON, holds another key (a hash collision) or another
+    layout of the result is no result: the limit is computed again and kept."""
+    sc = paper_scenario()
+    limit.deciding_limit(sc)
+    (path,) = kept.glob("result_*.json")
+    if damage == "fields":
+        data = json.loads(path.read_text())
+        del data["value"]["first_contact"]
+        path.write_text(json.dumps(data))
+    elif damage == "another key":          # a whole result, of other inputs (a hash collision)
+        data = json.loads(path.read_text())
+        data["key"] += " of another scenario"
+        data["value"]["limit"] = 1.0
+        path.write_text(json.dumps(data))
+    else:
+        path.write_bytes(damage.encode("latin-1"))
+    assert limit.deciding_limit(sc).limit == 1e5 + 10.0
+    assert counted == [10.0, 10.0]
+    assert limit.deciding_limit(sc).limit == 1e5 + 10.0 and counted == [10.0, 10.0]   # kept again
+
+
+def test_turned_off_it_computes_every_time_and_keeps_nothing(kept, counted, monkeypatch):
+    monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "0")
+    sc = paper_scenario()
+    limit.deciding_limit(sc)
+    limit.deciding_limit(sc)
+    assert counted == [10.0, 10.0] and not kept.exists()
+
+
+def test_an_unwritable_cache_keeps_nothing_and_the_command_goes_on(counted, monkeypatch, tmp_path):
+    """The cache folder's place is a file: nothing can be kept; the limit is
+    still computed and returned (no error), and computed again next time."""
+    blocker = tmp_path / "a file"
+    blocker.write_text("mine")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(blocker))
+    monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "1")
+    from tmtcontrol import cache
+
+    monkeypatch.setattr(cache, "cache_dir", lambda: blocker)
+    sc = paper_scenario()
+    assert limit.deciding_limit(sc).limit == 1e5 + 10.0
+    assert limit.deciding_limit(sc).limit == 1e5 + 10.0 and counted == [10.0, 10.0]
+    assert blocker.read_text() == "mine"
+
+
+def test_results_are_pruned_least_recently_used_first_and_by_age(tmp_path, monkeypatch):
+    from tmtcontrol.cache import load_result, prune_results, store_result
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    for i in range(4):
+        assert store_result("k", f"key {i}", {"i": i})
+    files = {i: next(p for p in (tmp_path / "results").glob("result_*.json") if f'"key {i}"' in p.read_text())
+             for i in range(4)}
+    now = 2e9
+    for i, p in files.items():           # key 0 used last, key 1 longest ago
+        os.utime(p, (now - [1, 400, 300, 200][i] * 86400.0,) * 2)
+    (tmp_path / "results" / "notes.txt").write_text("mine")
+    assert prune_results(tmp_path / "results", max_results=2, max_age_days=350, now=now) == 2
+    assert [load_result("k", f"key {i}") for i in range(4)] == [{"i": 0}, None, None, {"i": 3}]
+    assert (tmp_path / "results" / "notes.txt").read_text() == "mine"
