@@ -124,7 +124,8 @@ def main():
                    "target_warm_s": TARGETS[(command, arm)][0], "target_cold_s": TARGETS[(command, arm)][1],
                    "figures": warm_figures, "cold_equals_warm": cold_figures == warm_figures,
                    "against_record": compared(warm_figures, None if old is None else old["figures"]),
-                   "slowest_stage": slowest_stage(err) if command == "report" else ""}
+                   "slowest_stage": slowest_stage(err) if command == "report" else "",
+                   "slowest_stage_warm": slowest_stage(warm[-1][2]) if command == "report" and warm else ""}
             rows.append(row)
             print(_line(row), flush=True)
 
@@ -157,20 +158,21 @@ def _line(row) -> str:
     what = f"{row['command']} {row['arm']}"
     acc = ("cold = warm" if row["cold_equals_warm"] else "COLD != WARM") + "; " + row["against_record"]
     if row["slowest_stage"]:
-        acc += f"; slowest stage {row['slowest_stage']}"
+        acc += f"; slowest stage cold: {row['slowest_stage']}, warm: {row['slowest_stage_warm']}"
     return (f"{what:<34} {_s(row['cold_s']):>8} {_s(row['target_cold_s']):>7} {_s(row['warm_s']):>8} "
             f"{_s(row['target_warm_s']):>7}  {acc}")
 
 
 def markdown_table(record: dict) -> str:
     """The recorded rows as the Markdown table docs/speed.md quotes."""
-    lines = ["| command | cold | target | warm | target | figures cold = warm | slowest stage |",
+    lines = ["| command | cold | target | warm | target | figures cold = warm | slowest stage cold / warm |",
              "|---|---|---|---|---|---|---|"]
     for r in record["rows"]:
         lines.append(f"| `tmtcontrol {r['command']} {r['arm'] if r['command'] != 'analyze' else '--scenario ur5'}` "
                      f"| {_s(r['cold_s'])} | ≤ {_s(r['target_cold_s'])} | {_s(r['warm_s'])} | "
                      + (f"≤ {_s(r['target_warm_s'])}" if r["target_warm_s"] else "–")
-                     + f" | {'yes' if r['cold_equals_warm'] else 'no'} | {r['slowest_stage'] or '–'} |")
+                     + f" | {'yes' if r['cold_equals_warm'] else 'no'} | "
+                     + (f"{r['slowest_stage']} / {r['slowest_stage_warm']}" if r["slowest_stage"] else "–") + " |")
     m = record["machine"]
     lines.append("")
     lines.append(f"Recorded {m['date']} on {m['cpu']}, {m['cores']} cores, Python {m['python']}; host speed loop "
