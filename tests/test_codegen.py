@@ -215,3 +215,61 @@ def test_a_step_compiled_at_o1_computes_what_o3_and_the_vm_compute(monkeypatch, 
     assert r.how == "compiled" and len(seen) == 1
     assert "-O1" in seen[0] and "-O3" not in seen[0]
     np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)
+
+
+def test_the_compile_lock_excludes_another_holder_until_released(monkeypatch, tmp_path):
+    """cache.compile_lock: while a block holds it, another open file of the same
+    lock cannot take it (flock conflicts between open files, as between
+    processes); released at the block's end; a holder that never lets go is
+    waited for only ``wait`` seconds, then the block runs anyway."""
+    import fcntl
+    import os
+
+    from tmtcontrol.cache import compile_lock
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    name = "toy_chunk_" + "0" * 20 + ".so"
+    with compile_lock(name):
+        fd = os.open(tmp_path / "locks" / f"{name}.lock", os.O_RDWR)
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)            # free once the block ended; now held here
+    ran = []
+    with compile_lock(name, wait=0.2):
+        ran.append(True)
+    assert ran == [True]
+    os.close(fd)
+
+
+def test_a_library_stored_while_waiting_for_the_lock_is_loaded_not_compiled_again(monkeypatch, tmp_path):
+    """Two processes needing the same step at once (a report's two processes, a
+    sweep's workers): the second waits at the compile lock, then looks in the
+    cache again and loads what the first stored. Here the "first process" is a
+    Rollout of the same structure that compiles while the second holds its
+    place at the lock: the compiler runs once, and the second's library is the
+    first's."""
+    from tmtcontrol import cache
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    runs = []
+    real_compiler, real_lock = codegen.run_compiler, cache.compile_lock
+    monkeypatch.setattr(codegen, "run_compiler", lambda *a, **k: runs.append(1) or real_compiler(*a, **k))
+    structure = ("toy_locked", "toy step, lock test")
+    first = []
+
+    import contextlib
+
+    @contextlib.contextmanager
+    def lock_taken_after_another_build(name, wait=None):
+        if not first:                          # the other process builds while this one waits
+            monkeypatch.setattr(cache, "compile_lock", real_lock)
+            first.append(Rollout(toy_step(), structure=structure))
+        with real_lock(name, wait):
+            yield
+
+    monkeypatch.setattr(cache, "compile_lock", lock_taken_after_another_build)
+    second = Rollout(toy_step(), structure=structure)
+    assert first[0].how == "compiled" and second.how == "cached" and runs == [1]
+    assert second.library == first[0].library
+    U, S_ref = reference(30)
+    np.testing.assert_array_equal(second.run([0.0, 1.0], U, [P])[0], S_ref)

@@ -609,6 +609,11 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     from tmtcontrol.cache import load_result, store_result
 
     assert store_result("limit", "a key", {"limit": 1.0})                 # an analysis result, in results/
+    from tmtcontrol.cache import compile_lock
+
+    with compile_lock("law0_chunk_" + "a" * 20 + ".so"):                  # a compile's lock file, in locks/
+        pass
+    (tmp_path / "locks" / "mine.lock").write_text("not tmtcontrol's name")
     (tmp_path / "results" / "result_mine.json").write_text("not tmtcontrol's name")
     assert main(["cache", "--info"]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -616,7 +621,8 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert out[0] == f"cache: {tmp_path}: 2 libraries, 1 analysis result, {size / 2**20:,.1f} MiB"
     assert main(["cache", "--clear"]) == 0
     assert capsys.readouterr().out == "removed 2 compiled libraries and 1 analysis result (2.0 MiB)\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "notes.txt", "results"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["law0_chunk_other.so", "locks", "notes.txt", "results"]
+    assert [p.name for p in (tmp_path / "locks").iterdir()] == ["mine.lock"]
     assert [p.name for p in (tmp_path / "results").iterdir()] == ["result_mine.json"]
     assert load_result("limit", "a key") is None
     assert main(["cache"]) == 0 and capsys.readouterr().out.startswith(

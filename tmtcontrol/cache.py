@@ -36,6 +36,12 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   and recomputed. At most :data:`MAX_RESULTS` are kept (least recently used
   go first, and any unused for :data:`MAX_AGE_DAYS` days); ``cache --clear``
   removes them.
+* A compile takes a lock on its library's name first (:func:`compile_lock`:
+  ``locks/NAME.so.lock``, ``flock``), and looks in the cache again once it
+  holds it: two processes that need the same step at once (a report's two
+  processes, a sweep's workers, the test suite's) compile it once, the
+  second loading what the first stored. A lock held longer than the
+  compiler's own time limit is not waited for.
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -56,7 +62,7 @@ import stat
 import tempfile
 import time
 
-__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "MAX_RESULTS", "load_result", "store_result", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
+__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "MAX_RESULTS", "LOCK_WAIT", "compile_lock", "load_result", "store_result", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
            "write_staged", "mark_used", "prune", "prune_results", "prune_temporary", "build_folder", "new_build_folder",
            "remove_build_folder", "cache_info", "clear_cache", "format_cache_info"]
 
@@ -72,6 +78,10 @@ MAX_RESULTS = 20_000
 sweep with a random axis stores one per case family."""
 
 _STALE_TMP_SECONDS = 3600
+_LOCK = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so\.lock")
+LOCK_WAIT = 600.0
+"""Seconds a compile waits for another process' compile of the same library
+(the compiler's own time limit) before compiling it itself."""
 _RESULT = re.compile(r"result_[0-9a-f]{40}\.json")
 _RESULT_STAGED = re.compile(r"\.result_[0-9a-f]{40}\.json\.[0-9]+\.tmp")
 _LIBRARY = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so")
@@ -196,6 +206,47 @@ def write_staged(files: list[tuple[pathlib.Path, bytes]]) -> None:
             except OSError:
                 pass
         raise
+
+
+@contextlib.contextmanager
+def compile_lock(name: str, wait: float | None = None):
+    """A block that holds the compile lock of library ``name`` (an exclusive
+    ``flock`` on ``CACHE/locks/NAME.lock``): another process compiling the
+    same library waits at its own lock, then finds it in the cache. Polled
+    every 50 ms for at most ``wait`` s (default :data:`LOCK_WAIT`), after
+    which the block runs without the lock (a stopped holder does not stop
+    this run); without ``fcntl`` (not POSIX) or a writable cache, it runs
+    without one. Ctrl-C while waiting ends the wait."""
+    wait = LOCK_WAIT if wait is None else wait
+    try:
+        import fcntl
+    except ImportError:
+        fcntl = None
+    fd = None
+    if fcntl is not None and _LOCK.fullmatch(name + ".lock"):
+        try:
+            folder = cache_dir() / "locks"
+            folder.mkdir(parents=True, exist_ok=True)
+            fd = os.open(folder / f"{name}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+        except OSError:
+            fd = None
+    try:
+        if fd is not None:
+            deadline = time.monotonic() + wait
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        break
+                    time.sleep(0.05)
+                except OSError:
+                    break
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)                    # releases the lock
 
 
 def _result_name(kind: str, key: str) -> str:
@@ -599,6 +650,12 @@ def clear_cache() -> dict:
                 continue
             count += e.name.endswith(".so")
             size += n
+        try:
+            for e in os.scandir(folder / "locks"):
+                if _LOCK.fullmatch(e.name) and e.is_file(follow_symlinks=False):
+                    os.unlink(e.path)
+        except OSError:
+            pass
         try:
             entries = list(os.scandir(folder / "results"))
         except OSError:

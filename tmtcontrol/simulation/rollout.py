@@ -219,6 +219,19 @@ class Rollout:
             return
         if compiler() is None:
             raise OSError("no C compiler")
+        with cache.compile_lock(self._library_name()):
+            again = cache.find(self._library_name())
+            if again is not None and cache.verify(again):      # another process stored it while this one waited
+                self._bind(ctypes.CDLL(str(again)), name)
+                cache.mark_used(again)
+                self.how, self.library = "cached", again
+                return
+            self._build(lib, how)
+
+    def _build(self, lib, how):
+        """Generate, compile, store and load the library (``lib``: a damaged
+        cached one to replace, or None)."""
+        name = self._chunk_name
         target = lib if lib is not None else cache_dir() / self._library_name()
         acc = self.step.mapaccum(name, self.chunk)
         # named as the library is (mapaccum names its Function after the chunk's factors)
