@@ -708,7 +708,7 @@ _RAMP_130K = ["environment.stiffness={kind='piecewise_linear', times=[0.0, 2.0],
               "trajectory.cycles=0.5"]
 
 
-@pytest.mark.parametrize("x_e_error, code", [(-0.01, 1), (0.0, 0)])
+@pytest.mark.parametrize("x_e_error, code", [(-0.01, 1), (0.0, 0), (1e-5, 0)])
 def test_a_ramp_below_the_1d_figure_is_judged_by_the_deciding_limit_when_the_surface_is_in_error(
         monkeypatch, tmp_path, capsys, x_e_error, code):
     """Review of issue 43: with a surface-location error the start is bistable
@@ -717,8 +717,11 @@ def test_a_ramp_below_the_1d_figure_is_judged_by_the_deciding_limit_when_the_sur
     1.3e5 N/m, between the two, was called converged (exit 0) because the
     deciding limit was computed only above the 1-D figure, while analyze
     called 1.3e5 unstable. With the stub's figures (deciding 123,457, 1-D
-    150,001 N/m) the ramp is beyond_limit with the error; without it no
-    segment reaches the 1-D figure and the deciding limit is not computed."""
+    150,001 N/m) the ramp is beyond_limit with the error; without it, or
+    with a positive error (the surface believed deeper: not bistable, the
+    paper at +10 mm keeps the periodic orbit's limit above the 1-D figure;
+    10 um here, whose force bias stays within the tolerance), no segment reaches the 1-D figure and the deciding limit is not
+    computed."""
     from tmtcontrol.cli import main
     from tmtcontrol.stability import limit
 

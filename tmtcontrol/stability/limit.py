@@ -223,11 +223,16 @@ def _computed_limit(scenario, points, along_path, runner):
 
 
 def _has_surface_error(scenario) -> bool:
-    """Whether the controller's surface or part location is in error
-    (``controller.x_e_error``, ``controller.part_offset``): the start may
-    then be bistable and the first-contact limit lie below the 1-D figure."""
+    """Whether the controller believes the surface nearer than it is
+    (``controller.x_e_error`` < 0) or the part displaced
+    (``controller.part_offset``, whose error along the normal changes sign
+    on a curved part): the start may then be bistable and the first-contact
+    limit lie below the 1-D figure (``stability.first_contact``). A positive
+    x_e error pushes harder from the start and is not bistable (the paper at
+    +5 and +10 mm: deciding limit 167,249 N/m, the periodic orbit's, above
+    the 1-D 163,402)."""
     ctl = scenario.controller
-    return ctl.x_e_error != 0.0 or any(v != 0.0 for v in ctl.part_offset)
+    return ctl.x_e_error < 0.0 or any(v != 0.0 for v in ctl.part_offset)
 
 
 def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = None, memo: dict | None = None):
@@ -243,9 +248,9 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
     ``memo`` as :func:`deciding_limit`'s). It is computed (a compile per
     loop structure, then seconds) only where it can change a verdict: when
     some segment whose own verdict is below ``limit_cycle`` reaches above the
-    1-D small-signal figure or, with a surface-location error (whose start
-    may be bistable, its first-contact limit below the 1-D figure), reaches
-    any stiffness. Otherwise the 1-D figure is attached (no segment is beyond
+    1-D small-signal figure or, with the surface believed nearer than it is
+    or the part displaced (whose start may be bistable, its first-contact
+    limit below the 1-D figure), reaches any stiffness. Otherwise the 1-D figure is attached (no segment is beyond
     it; milliseconds), or nothing with the mid-period hold, which the 1-D
     model lacks (the hold's lead raises the limit; the zero-order hold's 1-D
     figure is only the gate). Where the deciding limit fails, the 1-D figure
