@@ -150,3 +150,26 @@ def test_results_are_pruned_least_recently_used_first_and_by_age(tmp_path, monke
     assert prune_results(tmp_path / "results", max_results=2, max_age_days=350, now=now) == 2
     assert [load_result("k", f"key {i}") for i in range(4)] == [{"i": 0}, None, None, {"i": 3}]
     assert (tmp_path / "results" / "notes.txt").read_text() == "mine"
+
+
+def test_a_limit_another_process_stored_while_this_one_waited_is_read_not_computed(kept, counted, monkeypatch):
+    """Two processes needing the same limit at once (a report's sampled-data stage
+    and its sweep): the second waits at the result's lock, then reads what the
+    first stored. The "first process" stores the limit while the second holds
+    its place at the lock: computed once."""
+    import contextlib
+
+    from tmtcontrol import cache
+
+    real_lock = cache.result_lock
+    sc = paper_scenario()
+
+    @contextlib.contextmanager
+    def lock_after_another_computed(kind, key, wait=None):
+        cache.store_result(kind, key, dataclasses.asdict(limit.ScenarioLimit(
+            99999.0, "periodic orbit", 1.1e5, 1.05e5, (1.05e5, 1.05e5), ((0.0, 1.05e5),))))
+        with real_lock(kind, key, wait):
+            yield
+
+    monkeypatch.setattr(cache, "result_lock", lock_after_another_computed)
+    assert limit.deciding_limit(sc).limit == 99999.0 and counted == []

@@ -41,7 +41,9 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   holds it: two processes that need the same step at once (a report's two
   processes, a sweep's workers, the test suite's) compile it once, the
   second loading what the first stored. A lock held longer than the
-  compiler's own time limit is not waited for.
+  compiler's own time limit is not waited for. An analysis result is
+  computed under the same kind of lock (:func:`result_lock`), so a report's
+  two processes needing one limit compute it once.
 * Only files named as tmtcontrol names them are ever removed; anything else in
   the folder is left alone.
 
@@ -62,7 +64,7 @@ import stat
 import tempfile
 import time
 
-__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "MAX_RESULTS", "LOCK_WAIT", "compile_lock", "load_result", "store_result", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
+__all__ = ["MAX_BYTES", "MAX_AGE_DAYS", "MAX_RESULTS", "LOCK_WAIT", "compile_lock", "result_lock", "load_result", "store_result", "compiler", "cache_dir", "fallback_dir", "cache_folders", "find", "verify", "store",
            "write_staged", "mark_used", "prune", "prune_results", "prune_temporary", "build_folder", "new_build_folder",
            "remove_build_folder", "cache_info", "clear_cache", "format_cache_info"]
 
@@ -78,7 +80,7 @@ MAX_RESULTS = 20_000
 sweep with a random axis stores one per case family."""
 
 _STALE_TMP_SECONDS = 3600
-_LOCK = re.compile(r"[A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so\.lock")
+_LOCK = re.compile(r"([A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so|result_[0-9a-f]{40})\.lock")
 LOCK_WAIT = 600.0
 """Seconds a compile waits for another process' compile of the same library
 (the compiler's own time limit) before compiling it itself."""
@@ -247,6 +249,13 @@ def compile_lock(name: str, wait: float | None = None):
     finally:
         if fd is not None:
             os.close(fd)                    # releases the lock
+
+
+def result_lock(kind: str, key: str, wait: float | None = None):
+    """:func:`compile_lock` for the result of ``kind`` under ``key``
+    (``locks/result_HASH.lock``): a process about to compute a result another
+    is computing waits, then reads it (:func:`load_result`)."""
+    return compile_lock(_result_name(kind, key).removesuffix(".json"), wait)
 
 
 def _result_name(kind: str, key: str) -> str:

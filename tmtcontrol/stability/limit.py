@@ -135,22 +135,36 @@ def _deciding_limit(scenario, points, along_path, runner):
     """:func:`_computed_limit`, kept in the compile cache's results
     (``tmtcontrol.cache.store_result``) under a key of everything that
     changes it: a second command on the same scenario reads it (a warm
-    report, ``analyze`` after ``simulate``). ``TMTCONTROL_RESULT_CACHE=0``
-    turns it off (always computed, nothing kept)."""
+    report, ``analyze`` after ``simulate``), and computed under a lock on
+    that key (``tmtcontrol.cache.result_lock``): a process that needs it
+    while another computes it (a report's two processes) waits and reads it.
+    ``TMTCONTROL_RESULT_CACHE=0`` turns it off (always computed, nothing
+    kept)."""
     import os
 
-    from ..cache import load_result, store_result
+    from ..cache import load_result, result_lock, store_result
 
     use = os.environ.get("TMTCONTROL_RESULT_CACHE", "1").strip() not in ("0", "off", "no", "false")
     key = _result_key(scenario, points, along_path) if use else None
-    if key is not None and (kept := load_result("deciding_limit", key)) is not None:
+    if key is None:
+        return _computed_limit(scenario, points, along_path, runner)
+
+    def kept():
+        found = load_result("deciding_limit", key)
         try:
-            return _from_json(kept)
+            return None if found is None else _from_json(found)
         except (TypeError, ValueError, KeyError):       # a result of another layout: computed again
-            pass
-    lim = _computed_limit(scenario, points, along_path, runner)
-    if key is not None and lim is not None:
-        store_result("deciding_limit", key, dataclasses.asdict(lim))
+            return None
+
+    if (lim := kept()) is not None:
+        return lim
+    # another process computing the same limit (a report's two): wait for it, then read it
+    with result_lock("deciding_limit", key):
+        if (lim := kept()) is not None:
+            return lim
+        lim = _computed_limit(scenario, points, along_path, runner)
+        if lim is not None:
+            store_result("deciding_limit", key, dataclasses.asdict(lim))
     return lim
 
 
