@@ -467,10 +467,12 @@ def test_the_plan_is_printed_before_the_first_case_runs(tmp_path, capsys, monkey
     (err, todo), = seen
     line, = [x for x in err.splitlines() if x.startswith("sweep: 4 cases")]
     # 2 x 0.25 x 4 s and 2 x 1 x 4 s at 1 kHz = 10,000 steps; the estimate is that at the stated rates
-    from tmtcontrol.sweep.spec import SECONDS_PER_CASE, SECONDS_PER_STEP
+    # and the limits (on by default for a grid): 2 families (the two f_d; the run length changes no analysis)
+    from tmtcontrol.sweep.spec import SECONDS_PER_CASE, SECONDS_PER_LIMIT, SECONDS_PER_STEP
 
-    est = (10_000 * SECONDS_PER_STEP + 4 * SECONDS_PER_CASE) / 2
-    assert line == f"sweep: 4 cases (2 x 2 grid); about {est:.0f} s on 2 workers (estimate)" and todo == 4
+    est = (10_000 * SECONDS_PER_STEP + 4 * SECONDS_PER_CASE + 2 * SECONDS_PER_LIMIT) / 2
+    assert line == (f"sweep: 4 cases (2 x 2 grid); about {est:.0f} s on 2 workers (estimate, 2 limit analyses "
+                    "included)") and todo == 4
 
 
 def test_the_docs_quote_the_plan_line_of_the_example():
@@ -481,7 +483,10 @@ def test_the_docs_quote_the_plan_line_of_the_example():
 
     from tmtcontrol.sweep import EXAMPLE, sweep_from_dict
 
-    line = sweep_from_dict(tomllib.loads(EXAMPLE)).plan(workers=2)
+    from tmtcontrol.sweep.run import limits_by_default
+
+    sweep = sweep_from_dict(tomllib.loads(EXAMPLE))
+    line = sweep.plan(workers=2, limits=limits_by_default(sweep)[0])     # as tmtcontrol sweep prints it
     docs = pathlib.Path(__file__).parents[1] / "docs"
     for page in ("sweeps.md", "cli.md"):
         text = re.sub(r"\s+", " ", (docs / page).read_text())
@@ -499,3 +504,25 @@ def test_steps_of_an_axis_that_sets_a_whole_table(tmp_path):
     sweep = load_sweep(tmp_path / "s.toml")
     per_case = [sweep.scenario(c).duration * sweep.scenario(c).controller.rate for c in sweep.cases]
     assert per_case == [2000.0, 500.0] and sweep.steps() == (2500.0, 2000, 0)
+
+
+def test_the_estimate_counts_one_limit_analysis_per_case_family():
+    """Sweep.limit_families: the combinations of the grid axes that change the
+    analysis (not the stiffness, the noise, the run length), times the samples
+    when a random axis changes it; the estimate adds SECONDS_PER_LIMIT for each,
+    shared by the workers."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SECONDS_PER_LIMIT
+
+    grid = {"environment.stiffness.values": [[1e4], [2e4], [4e4]], "controller.rate": [500.0, 1000.0],
+            "controller.f_d": [5.0, 10.0, 20.0], "trajectory.cycles": [0.5, 1.0]}
+    sweep = sweep_from_dict({"grid": grid})
+    assert sweep.limit_families() == 6
+    assert sweep.estimate_seconds(workers=2, limits=True) - sweep.estimate_seconds(workers=2) == \
+        pytest.approx(6 * SECONDS_PER_LIMIT / 2, rel=1e-12)
+    noisy = sweep_from_dict({"grid": grid, "random": {"samples": 10, "sensor.noise_std": {"uniform": [0.0, 0.1]}}})
+    assert noisy.limit_families() == 6                     # the noise changes no analysis
+    drawn = sweep_from_dict({"grid": grid, "random": {"samples": 10, "controller.x_e_error": {"uniform": [-1e-3, 0.0]}}})
+    assert drawn.limit_families() == 60                    # every draw of the x_e error is a new analysis
+    assert "(estimate, 60 limit analyses included)" in drawn.plan(limits=True)
+    assert drawn.plan().endswith("(estimate)")

@@ -331,7 +331,7 @@ def test_the_plan_line_changes_unit_at_two_minutes_and_two_hours(monkeypatch, se
     from tmtcontrol.sweep import EXAMPLE, sweep_from_dict
 
     sweep = sweep_from_dict(tomllib.loads(EXAMPLE))
-    monkeypatch.setattr(type(sweep), "estimate_seconds", lambda self, cases=None, workers=1: sec)
+    monkeypatch.setattr(type(sweep), "estimate_seconds", lambda self, cases=None, workers=1, limits=False: sec)
     assert f"; {when} on 1 worker (estimate)" in sweep.plan()
 
 

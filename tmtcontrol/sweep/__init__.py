@@ -197,9 +197,11 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume)
         done = partial.done()
         todo = sweep.cases.without(done)           # a view: the cases are generated as they run
-        print(sweep.plan(len(todo), workers), file=sys.stderr, flush=True)
+        why = None
         if limits is None:
             limits, why = limits_by_default(sweep)
+        print(sweep.plan(len(todo), workers, limits), file=sys.stderr, flush=True)
+        if why is not None:
             print(why, file=sys.stderr, flush=True)
         prog = Progress(len(sweep.cases), len(done))
         t0 = time.perf_counter()

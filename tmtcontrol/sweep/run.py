@@ -33,7 +33,7 @@ from typing import Any, Callable
 
 from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
-from .spec import Case, Sweep, case_scenario
+from .spec import ANALYSIS_FREE_PREFIXES, Case, Sweep, case_scenario
 
 __all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
@@ -126,10 +126,6 @@ def _family_key(sc, k_e_min: float) -> str:
         d["k_e_min"] = float(k_e_min)
     return json.dumps(d, sort_keys=True, default=str)
 
-ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
-"""Random axes under these keys leave a case's analysis as it was (the limit
-does not depend on k_e, the noise or the run length), so the memoised limit
-is reused across their draws."""
 
 
 def limits_by_default(sweep: Sweep) -> tuple[bool, str]:

@@ -90,6 +90,18 @@ SECONDS_PER_CASE = 4e-3
 (metrics, the row), measured with ``case_row`` on a busy 2-core machine (the
 paper loop, compiled, 1,000-16,000 steps per case)."""
 
+SECONDS_PER_LIMIT = 2.0
+"""The estimate's cost of one case family's deciding limit
+(``sweep.run.case_limits``): the paper loop's on a 2-core machine with its
+compiled steps cached (the periodic and first-contact searches; a 6-D arm's
+take about ten times as long, and a cold cache adds the monodromy
+compile)."""
+
+ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
+"""Axes under these keys leave a case's analysis as it was (the limit does
+not depend on k_e, the noise or the run length), so the memoised limit is
+reused across their values and draws."""
+
 STEP_KEYS = ("trajectory.cycles", "trajectory.period", "controller.rate")
 """A case's control steps: cycles x period x rate."""
 
@@ -236,24 +248,40 @@ class Sweep:
                     most, where = n, index
         return total, int(round(most)), where
 
-    def plan(self, todo: int | None = None, workers: int = 1) -> str:
+    def plan(self, todo: int | None = None, workers: int = 1, limits: bool = False) -> str:
         """The line printed before the first case runs: the number of cases,
         the sweep's shape and the estimated run time of the ``todo`` cases
-        still to run (default all)."""
+        still to run (default all), with ``limits`` the cases' limit
+        analyses included (:meth:`limit_families`)."""
         todo = self.cases.total if todo is None else todo
         left = f", {self.cases.total - todo:,} already done" if todo < self.cases.total else ""
-        sec = self.estimate_seconds(todo, workers)
+        sec = self.estimate_seconds(todo, workers, limits)
         when = f"{sec:.0f} s" if sec < 120 else f"{sec / 60:.0f} min" if sec < 7200 else f"{sec / 3600:.1f} h"
+        n = self.limit_families()
+        how = (f"estimate, {n:,} limit analys{'i' if n == 1 else 'e'}s included" if limits else "estimate")
         return (f"sweep: {self.cases.total:,} cases ({self.shape}){left}; about {when} on {workers} "
-                f"worker{'s' if workers > 1 else ''} (estimate)")
+                f"worker{'s' if workers > 1 else ''} ({how})")
 
-    def estimate_seconds(self, cases: int | None = None, workers: int = 1) -> float:
+    def limit_families(self) -> int:
+        """How many distinct limit analyses the cases need (their families,
+        ``sweep.run.case_limits``): the combinations of the grid axes that
+        change the analysis (all but :data:`ANALYSIS_FREE_PREFIXES`), times
+        the random samples if a random axis changes it too."""
+        changes = lambda a: not a.startswith(ANALYSIS_FREE_PREFIXES)
+        n = math.prod(len(v) for a, v in self.grid.items() if changes(a))
+        return n * (self.samples if any(changes(a) for a in self.random) else 1)
+
+    def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
         """A rough run time (s) of ``cases`` of the cases (default all) on
         ``workers`` processes: :data:`SECONDS_PER_STEP` per control step and
-        :data:`SECONDS_PER_CASE` per case, before any compilation."""
+        :data:`SECONDS_PER_CASE` per case, before any compilation; with
+        ``limits``, :data:`SECONDS_PER_LIMIT` per limit analysis (the
+        families' share of ``cases``)."""
         n = self.cases.total if cases is None else cases
-        total = self.steps()[0] * n / max(self.cases.total, 1)
-        return (total * SECONDS_PER_STEP + n * SECONDS_PER_CASE) / max(1, workers)
+        share = n / max(self.cases.total, 1)
+        total = self.steps()[0] * share
+        analyses = self.limit_families() * share * SECONDS_PER_LIMIT if limits else 0.0
+        return (total * SECONDS_PER_STEP + n * SECONDS_PER_CASE + analyses) / max(1, workers)
 
 
 def check_sweep_size(sweep: Sweep, max_steps: int | None = None) -> None:
