@@ -233,7 +233,12 @@ def test_the_compile_lock_excludes_another_holder_until_released(monkeypatch, tm
         fd = os.open(tmp_path / "locks" / f"{name}.lock", os.O_RDWR)
         with pytest.raises(BlockingIOError):
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)            # free once the block ended; now held here
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)            # free once the block ended
+    os.close(fd)
+    assert not (tmp_path / "locks").exists()                 # and its file removed: nothing left behind
+    (tmp_path / "locks").mkdir()
+    fd = os.open(tmp_path / "locks" / f"{name}.lock", os.O_RDWR | os.O_CREAT)
+    fcntl.flock(fd, fcntl.LOCK_EX)                           # a holder that never lets go
     ran = []
     with compile_lock(name, wait=0.2):
         ran.append(True)

@@ -611,8 +611,11 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert store_result("limit", "a key", {"limit": 1.0})                 # an analysis result, in results/
     from tmtcontrol.cache import compile_lock
 
-    with compile_lock("law0_chunk_" + "a" * 20 + ".so"):                  # a compile's lock file, in locks/
-        pass
+    with compile_lock("law0_chunk_" + "a" * 20 + ".so"):                  # a compile's lock: removed after
+        assert [p.name for p in (tmp_path / "locks").iterdir()] == ["law0_chunk_" + "a" * 20 + ".so.lock"]
+    assert not (tmp_path / "locks").exists()
+    (tmp_path / "locks").mkdir()                                          # one left by a killed compile
+    (tmp_path / "locks" / ("law1_chunk_" + "b" * 20 + ".so.lock")).write_text("")
     (tmp_path / "locks" / "mine.lock").write_text("not tmtcontrol's name")
     (tmp_path / "results" / "result_mine.json").write_text("not tmtcontrol's name")
     assert main(["cache", "--info"]) == 0

@@ -37,8 +37,8 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   go first, and any unused for :data:`MAX_AGE_DAYS` days); ``cache --clear``
   removes them.
 * A compile takes a lock on its library's name first (:func:`compile_lock`:
-  ``locks/NAME.so.lock``, ``flock``), and looks in the cache again once it
-  holds it: two processes that need the same step at once (a report's two
+  ``locks/NAME.so.lock``, ``flock``, removed when released), and looks in
+  the cache again once it holds it: two processes that need the same step at once (a report's two
   processes, a sweep's workers, the test suite's) compile it once, the
   second loading what the first stored. A lock held longer than the
   compiler's own time limit is not waited for. An analysis result is
@@ -225,11 +225,12 @@ def compile_lock(name: str, wait: float | None = None):
     except ImportError:
         fcntl = None
     fd = None
-    if fcntl is not None and _LOCK.fullmatch(name + ".lock"):
+    folder = cache_dir() / "locks"
+    path = folder / f"{name}.lock"
+    if fcntl is not None and _LOCK.fullmatch(path.name):
         try:
-            folder = cache_dir() / "locks"
             folder.mkdir(parents=True, exist_ok=True)
-            fd = os.open(folder / f"{name}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
         except OSError:
             fd = None
     try:
@@ -248,7 +249,14 @@ def compile_lock(name: str, wait: float | None = None):
         yield
     finally:
         if fd is not None:
+            # nothing left behind (a full disk's cache stays empty): the file, then the folder if empty.
+            # A process already waiting on this file takes it next; one arriving now makes a new file:
+            # both then look in the cache again, so at worst a library is compiled twice, as without a lock
+            with contextlib.suppress(OSError):
+                path.unlink()
             os.close(fd)                    # releases the lock
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
 
 def result_lock(kind: str, key: str, wait: float | None = None):
