@@ -329,13 +329,7 @@ def prune_results(folder: pathlib.Path, max_results: int | None = None, max_age_
     max_results = MAX_RESULTS if max_results is None else max_results
     max_age = (MAX_AGE_DAYS if max_age_days is None else max_age_days) * 86400.0
     now = time.time() if now is None else now
-    try:
-        for e in os.scandir(folder):
-            if _RESULT_STAGED.fullmatch(e.name) and e.is_file(follow_symlinks=False) \
-                    and now - e.stat(follow_symlinks=False).st_mtime > _STALE_TMP_SECONDS:
-                pathlib.Path(e.path).unlink(missing_ok=True)
-    except OSError:
-        pass
+    _remove_stale_staged(folder, _RESULT_STAGED, now)
     removed = 0
     for i, (path, used) in enumerate(sorted(_results(folder), key=lambda t: t[1], reverse=True)):
         if i >= max_results or now - used > max_age:
@@ -402,13 +396,7 @@ def prune(folder: pathlib.Path, keep: tuple[pathlib.Path, ...] = (), max_bytes: 
     max_age = (MAX_AGE_DAYS if max_age_days is None else max_age_days) * 86400.0
     now = time.time() if now is None else now
     keep = {pathlib.Path(k).resolve() for k in keep}
-    try:
-        for e in os.scandir(folder):
-            if _STAGED.fullmatch(e.name) and e.is_file(follow_symlinks=False) \
-                    and now - e.stat(follow_symlinks=False).st_mtime > _STALE_TMP_SECONDS:
-                pathlib.Path(e.path).unlink(missing_ok=True)
-    except OSError:
-        pass
+    _remove_stale_staged(folder, _STAGED, now)
     removed = []
     libs = sorted(_libraries(folder), key=lambda t: t[2], reverse=True)      # most recently used first
     total, full = 0, False
@@ -643,6 +631,39 @@ def cache_info() -> dict:
     return {"folders": out, "max_bytes": MAX_BYTES, "max_results": MAX_RESULTS, "max_age_days": MAX_AGE_DAYS}
 
 
+def _remove_named(folder: pathlib.Path, names: tuple, counted=None) -> tuple[int, int]:
+    """Remove the files in ``folder`` whose names match one of ``names``
+    (compiled patterns); ``(how many matched counted, bytes removed)``."""
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0, 0
+    count = size = 0
+    for e in entries:
+        if not any(p.fullmatch(e.name) for p in names) or not e.is_file(follow_symlinks=False):
+            continue
+        try:
+            n = e.stat(follow_symlinks=False).st_size
+            os.unlink(e.path)
+        except FileNotFoundError:
+            continue
+        count += counted is not None and counted.fullmatch(e.name) is not None
+        size += n
+    return count, size
+
+
+def _remove_stale_staged(folder: pathlib.Path, staged, now: float) -> None:
+    """Remove the staged files (``staged``: their name pattern) in ``folder``
+    older than an hour: a write that was killed."""
+    try:
+        for e in os.scandir(folder):
+            if staged.fullmatch(e.name) and e.is_file(follow_symlinks=False) \
+                    and now - e.stat(follow_symlinks=False).st_mtime > _STALE_TMP_SECONDS:
+                pathlib.Path(e.path).unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
 def clear_cache() -> dict:
     """Remove every file tmtcontrol put in its cache folders (libraries,
     sidecars, staged files), the build folders of ended processes and the
@@ -652,42 +673,11 @@ def clear_cache() -> dict:
     prune_temporary(max_age_days=0.0)
     count = size = results = 0
     for folder in cache_folders():
-        try:
-            entries = list(os.scandir(folder))
-        except OSError:
-            continue
-        for e in entries:
-            if not (_LIBRARY.fullmatch(e.name) or _SIDECAR.fullmatch(e.name) or _STAGED.fullmatch(e.name)) \
-                    or not e.is_file(follow_symlinks=False):
-                continue
-            try:
-                n = e.stat(follow_symlinks=False).st_size
-                os.unlink(e.path)
-            except FileNotFoundError:
-                continue
-            count += e.name.endswith(".so")
-            size += n
-        try:
-            for e in os.scandir(folder / "locks"):
-                if _LOCK.fullmatch(e.name) and e.is_file(follow_symlinks=False):
-                    os.unlink(e.path)
-        except OSError:
-            pass
-        try:
-            entries = list(os.scandir(folder / "results"))
-        except OSError:
-            continue
-        for e in entries:
-            if not (_RESULT.fullmatch(e.name) or _RESULT_STAGED.fullmatch(e.name)) \
-                    or not e.is_file(follow_symlinks=False):
-                continue
-            try:
-                n = e.stat(follow_symlinks=False).st_size
-                os.unlink(e.path)
-            except FileNotFoundError:
-                continue
-            results += _RESULT.fullmatch(e.name) is not None
-            size += n
+        n, b = _remove_named(folder, (_LIBRARY, _SIDECAR, _STAGED), counted=_LIBRARY)
+        count, size = count + n, size + b
+        _remove_named(folder / "locks", (_LOCK,))
+        n, b = _remove_named(folder / "results", (_RESULT, _RESULT_STAGED), counted=_RESULT)
+        results, size = results + n, size + b
     return {"libraries": count, "results": results, "bytes": size}
 
 

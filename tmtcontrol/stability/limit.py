@@ -284,10 +284,10 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
     small = None if sc.controller.hold == "mid_period" else guess
     if guess <= 0:          # as deciding_limit: unstable at the scenario's smallest stiffness
         return _attached(result, 0.0, "unstable at the smallest stiffness")
-    gate = 0.0 if error else guess
-    if limit is None and not (np.max(result.stiffness) > gate and _limit_can_matter(result, gate)):
-        return result if small is None else _attached(result, small, "1-D small-signal")
     if limit is None:
+        gate = 0.0 if error else guess
+        if not (np.max(result.stiffness) > gate and _limit_can_matter(result, gate)):
+            return result if small is None else _attached(result, small, "1-D small-signal")
         try:
             limit = deciding_limit(sc, memo=memo)
         except AnalysisError as exc:

@@ -33,7 +33,7 @@ from typing import Any, Callable
 
 from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
-from .spec import ANALYSIS_FREE_PREFIXES, Case, Sweep, case_scenario
+from .spec import Case, Sweep, case_scenario, changes_analysis
 
 __all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
@@ -131,11 +131,11 @@ def _family_key(sc, k_e_min: float) -> str:
 def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
     """Whether a sweep computes each case's predicted limits when the user did
     not say (``--limits auto``), and why, as one line. On unless a random axis
-    changes the analysis (:data:`ANALYSIS_FREE_PREFIXES`): a grid has few
+    changes the analysis (``spec.changes_analysis``): a grid has few
     distinct case families (the limit is memoised per worker and family;
     a few seconds each), but every draw of, e.g., the x_e error is a new
     analysis of the loop."""
-    costly = [k for k in sweep.random if not k.startswith(ANALYSIS_FREE_PREFIXES)]
+    costly = [k for k in sweep.random if changes_analysis(k)]
     if costly:
         return False, (f"sweep: predicted limits off (random {', '.join(costly)}: each draw is a new stability "
                        "analysis, seconds per case); --limits on computes them")

@@ -102,6 +102,13 @@ ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajecto
 not depend on k_e, the noise or the run length), so the memoised limit is
 reused across their values and draws."""
 
+
+def changes_analysis(axis: str) -> bool:
+    """Whether a sweep axis changes a case's limit analysis (not under
+    :data:`ANALYSIS_FREE_PREFIXES`)."""
+    return not axis.startswith(ANALYSIS_FREE_PREFIXES)
+
+
 STEP_KEYS = ("trajectory.cycles", "trajectory.period", "controller.rate")
 """A case's control steps: cycles x period x rate."""
 
@@ -267,9 +274,8 @@ class Sweep:
         ``sweep.run.case_limits``): the combinations of the grid axes that
         change the analysis (all but :data:`ANALYSIS_FREE_PREFIXES`), times
         the random samples if a random axis changes it too."""
-        changes = lambda a: not a.startswith(ANALYSIS_FREE_PREFIXES)
-        n = math.prod(len(v) for a, v in self.grid.items() if changes(a))
-        return n * (self.samples if any(changes(a) for a in self.random) else 1)
+        n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a))
+        return n * (self.samples if any(changes_analysis(a) for a in self.random) else 1)
 
     def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
         """A rough run time (s) of ``cases`` of the cases (default all) on
