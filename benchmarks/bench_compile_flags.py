@@ -3,11 +3,12 @@ the compiled steps at each optimisation level, with the results' difference.
 
 For each scenario, two Functions that ``simulation.rollout.Rollout`` compiles:
 the simulated closed-loop step (``step``) and the periodic analysis's
-augmented step (``monodromy``: the step and the product of its Jacobians,
-``stability.periodic``, about 12-20x the step's operations). Each is compiled
-at every level of ``--levels`` (the other flags of ``rollout._FLAGS`` kept)
-into a fresh cache, then one path period (the monodromy) or 16 s (the step)
-is run five times; the table prints the compile time, the median run time,
+tangent-linear step (``tangent``: the step and its Jacobian times one
+direction, ``stability.periodic``, about 3x the step's operations). Each is
+compiled at every level of ``--levels`` (the other flags of
+``rollout._FLAGS`` kept) into a fresh cache, then one path period's monodromy
+(one tangent rollout per dynamic state) or 16 s (the step) is run five
+times; the table prints the compile time, the median run time,
 the Function's size and the largest difference of the outputs from -O3
 (0 expected: ``-ffp-contract=off`` and no fast-math flag, so every level
 computes the same IEEE arithmetic).
@@ -32,7 +33,7 @@ import numpy as np
 def _one(name: str, levels: list[str]) -> list[dict]:
     from tmtcontrol.simulation import rollout as ro
     from tmtcontrol.simulation.scenario import load_scenario
-    from tmtcontrol.stability.periodic import PeriodicModel, _augmented
+    from tmtcontrol.stability.periodic import PeriodicModel, _tangent
 
     sc = load_scenario(name)
     mdl = PeriodicModel(sc, compile=False)
@@ -40,14 +41,14 @@ def _one(name: str, levels: list[str]) -> list[dict]:
     k_e = 5000.0                       # N/m: the paper's first segment, stable on every bundled arm
     U = mdl._inputs(k_e)
     nd = mdl.dynamic.size
-    s0 = np.r_[mdl._start(k_e), np.eye(nd).ravel(order="F")]
+    s0 = np.r_[mdl._start(k_e), np.eye(1, nd, 0).ravel()]
     sim_U, sim_P, sim_s0, _ = loop.inputs(sc, loop.path(sc))
     cases = {
-        "step": (loop.build_step(contact_refine=1), sim_s0, sim_U, sim_P),
-        "monodromy": (_augmented(loop, mdl.dynamic), s0, U, mdl.P),
+        "step": (loop.build_step(contact_refine=1), sim_s0, sim_U, sim_P, 1),
+        "tangent": (_tangent(loop, mdl.dynamic), s0, U, mdl.P, nd),       # nd rollouts: the monodromy
     }
     rows = []
-    for fn_name, (fn, x0, UU, PP) in cases.items():
+    for fn_name, (fn, x0, UU, PP, reps) in cases.items():
         ref = None
         for level in levels:
             ro.LEVEL = level                # in the cache key: each level is its own library
@@ -57,7 +58,8 @@ def _one(name: str, levels: list[str]) -> list[dict]:
             times = []
             for _ in range(5):
                 t0 = time.perf_counter()
-                S, L = r.run(x0, UU, PP)
+                for _ in range(reps):
+                    S, L = r.run(x0, UU, PP)
                 times.append(time.perf_counter() - t0)
             out = np.r_[S[:, -1], np.ravel(L)]
             if ref is None:

@@ -36,6 +36,31 @@ def test_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_period
         assert per.residual < 1e-8
 
 
+def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):
+    """The tangent-linear rollouts (forward-mode AD in the compiled-step form,
+    stability.periodic) against the product A_(N-1) ... A_0 of the whole-loop
+    Jacobians (reverse/MX AD in stability.wholeloop, another CasADi graph)
+    evaluated at the orbit's own states, the path moving. Tolerance 1e-9 of the
+    largest entry: 250 products of Jacobians that agree to ~1e-13 each."""
+    from tmtcontrol.simulation.closedloop import INPUT
+
+    mdl = cheap_model
+    k_e = 3e4
+    per = mdl.at(k_e)
+    d = mdl.dynamic
+    U = mdl._inputs(k_e)
+    S, _ = mdl.frozen.loop.rollout.run(per.s_orbit, U, mdl.P)
+    states = np.column_stack([per.s_orbit, S[:, :-1]])
+    want = np.eye(d.size)
+    for j in range(per.samples):
+        A = np.array(mdl.frozen._jac(states[:, j], np.r_[U[:, j], mdl.P]))[np.ix_(d, d)]
+        want = A @ want
+    assert U[INPUT["k_e"]].min() == U[INPUT["k_e"]].max() == k_e
+    assert np.ptp(U[0]) > 0.01                   # the path moves (a circle, not a point)
+    assert np.max(np.abs(per.monodromy - want)) <= 1e-9 * np.max(np.abs(want))
+    assert per.spectral_radius == pytest.approx(np.max(np.abs(np.linalg.eigvals(want))), rel=1e-9)
+
+
 def test_periodic_limit_within_1_percent_of_the_simulator_where_the_frozen_minimum_is_not(cheap_model):
     """The simulated loop (compiled step, along the circle, constant k_e) converges at
     0.99x the periodic limit and does not at 1.01x; the frozen-point minimum is more

@@ -20,22 +20,23 @@ its spectral radius is below 1 (for a path standing still, ``Phi = A^N``).
 :func:`periodic_limit` finds the stiffness where that radius crosses 1 by a
 bracketing root search (``scipy.optimize.brentq`` on log k_e).
 
-The Jacobians are exact (CasADi, SX) and multiplied inside the rolled-out
-step itself: the state of the augmented step is ``(s, vec(Phi))``, so one
-rollout of one period (compiled and cached by ``simulation.rollout``) gives
-the orbit's end point and the monodromy. The step is built without the
+The Jacobians are exact (CasADi's forward mode, ``casadi.jtimes``) and
+multiplied along the rollout itself: the tangent-linear step
+``(s, v) -> (step(s), A(s) v)`` is compiled once per loop structure (about
+three times the step's operations: 7,000 on the PUMA, 29,000 on the UR5,
+48,000 on the Panda; a few seconds of compiling, where the earlier augmented
+step ``(s, vec Phi)``, 20 times the step, took 25 s on the UR5 and 50 s on
+the Panda), and one rollout of one period from ``(s_0, e_j)`` gives the
+orbit's end point and the monodromy's column j, so a period costs one
+rollout per dynamic state (16 on the UR5, 18 on the Panda, without delay).
+The step is built without the
 contact-switch refinement; along an orbit in permanent contact (checked:
 the force stays > 0) it is the simulated step. The controller's bookkeeping
 states (approach phase and command, f_d ramp, surface estimate) are
 constants in contact and are left out, as in ``stability.wholeloop``; a
 scheduled damping (``controller.damping_schedule``) is a dynamic state.
 On a 6-D arm the dynamic state is the n joints' q and dq, the force filter,
-the damping, the delay queue and the law's state (16 on the UR5, 18 on the
-Panda, without delay): the augmented step carries 16^2 or 18^2 entries of
-Phi, about 20 times the step's operations (220,000 and 360,000), and
-compiling it (at -O1, ``simulation.rollout.O1_FROM``) takes about 25 s of CPU on the
-UR5 and 50 s on the Panda
-(once per structure; cached like the PUMA's).
+the damping, the delay queue and the law's state.
 Units are SI.
 """
 
@@ -54,7 +55,7 @@ __all__ = ["PeriodicLoop", "PeriodicModel", "periodic_loop", "periodic_limit"]
 
 
 _BUILT: dict = {}
-"""Augmented steps (Rollouts) per closed-loop structure."""
+"""Tangent-linear steps (Rollouts) per closed-loop structure."""
 
 
 @dataclass(frozen=True)
@@ -90,23 +91,26 @@ class PeriodicLoop:
         return self.spectral_radius ** (1.0 / self.samples)
 
 
-def _augmented(loop, dynamic):
-    """``(s; vec Phi) -> (step(s); vec(A(s) Phi))`` with log ``f_e``: the
-    orbit and the monodromy in one rollout (``loop``: the scenario's
-    ``simulation.Simulator``)."""
+def _tangent(loop, dynamic):
+    """``(s; v) -> (step(s); A(s) v)`` with log ``f_e``, ``A = d step/d s`` on
+    the dynamic states: the orbit and one column of the monodromy in one
+    rollout (``loop``: the scenario's ``simulation.Simulator``). Forward-mode
+    AD (``casadi.jtimes``): about three times the step's operations, where
+    the Jacobian itself would be the step's times the dynamic states."""
     step = loop.build_step(contact_refine=1)
     s, u, p = step.sx_in()
     s_next, log = step(s, u, p)
-    nd = dynamic.size
-    Phi = ca.SX.sym("Phi", nd, nd)
-    A = ca.jacobian(s_next[dynamic.tolist()], s)[:, dynamic.tolist()]
-    return ca.Function("monodromy_step", [ca.vertcat(s, ca.vec(Phi)), u, p],
-                       [ca.vertcat(s_next, ca.vec(ca.mtimes(A, Phi))), log[loop.f_e]],
-                       ["s", "u", "p"], ["s_next", "log"])
+    idx = dynamic.tolist()
+    v = ca.SX.sym("v", len(idx))
+    direction = ca.SX.zeros(s.numel())
+    direction[idx] = v
+    Av = ca.jtimes(s_next, s, direction)[idx]
+    return ca.Function("tangent_step", [ca.vertcat(s, v), u, p],
+                       [ca.vertcat(s_next, Av), log[loop.f_e]], ["s", "u", "p"], ["s_next", "log"])
 
 
 class PeriodicModel:
-    """The scenario's augmented step, its one-period inputs and the frozen
+    """The scenario's tangent-linear step, its one-period inputs and the frozen
     loop (for a starting orbit), built once; :meth:`at` for a stiffness.
 
     ``compile``: as :class:`~tmtcontrol.simulation.simulator.Simulator`
@@ -131,15 +135,15 @@ class PeriodicModel:
         self.dynamic = dynamic_states(self.layout)
         self.states = self._names()
         key = structure_key(sc, loop.law)
-        make = lambda: _augmented(loop, self.dynamic)
+        make = lambda: _tangent(loop, self.dynamic)
         if key is None:                  # a law declared outside the package: keyed by its serialisation
             self.rollout = Rollout(make(), compile=compile)
         else:
             if key not in _BUILT:
                 if len(_BUILT) >= 16:
                     _BUILT.clear()
-                _BUILT[key] = Rollout(make, compile=compile, structure=(f"monodromy_{loop.name}",
-                                                                        key + "|monodromy" + loop.cache_tag))
+                _BUILT[key] = Rollout(make, compile=compile, structure=(f"tangent_{loop.name}",
+                                                                        key + "|tangent" + loop.cache_tag))
             self.rollout = _BUILT[key]
         U, self.P = self.frozen.U, self.frozen.P
         self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()
@@ -195,23 +199,32 @@ class PeriodicModel:
         s[L["dq"]] = loop.joint_rates(s[L["q"]], *surface_of(sc).rates(X, np.r_[0.0, self.U[2:4, 0]]))
         return s
 
+    def _period(self, s: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One period from ``s``: the end state, the monodromy (one tangent
+        rollout per column) and the contact force along the period (N)."""
+        ns, nd = self.layout.size, self.dynamic.size
+        Phi = np.empty((nd, nd))
+        with np.errstate(all="ignore"):
+            for j in range(nd):
+                S, F = self.rollout.run(np.r_[s, np.eye(1, nd, j).ravel()], U, self.P)
+                Phi[:, j] = S[ns:, -1]
+        return S[:ns, -1], Phi, F
+
     def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:
         """The loop at constant stiffness ``k_e`` (N/m) linearised along its
         periodic orbit (Newton shooting to ``tol``, relative)."""
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         U = self._inputs(float(k_e))
-        d, nd, ns = self.dynamic, self.dynamic.size, self.layout.size
+        d, nd = self.dynamic, self.dynamic.size
         eye = np.eye(nd)
         s = self._start(float(k_e))
         residual, it, previous = math.inf, 0, math.inf
         for it in range(1, iters + 1):
-            with np.errstate(all="ignore"):
-                S, F = self.rollout.run(np.r_[s, eye.ravel(order="F")], U, self.P)
-            if not np.all(np.isfinite(S[:, -1])):
+            end, Phi, F = self._period(s, U)
+            if not (np.all(np.isfinite(end)) and np.all(np.isfinite(Phi))):
                 raise AnalysisError(f"k_e = {k_e:.6g} N/m: no periodic orbit found (the shooting diverged)")
-            Phi = S[ns:, -1].reshape(nd, nd, order="F")
-            r = (S[:ns, -1] - s)[d]
+            r = (end - s)[d]
             residual = float(np.max(np.abs(r) / (1.0 + np.abs(s[d]))))
             # converged, or stalled at the rounding of one period's arithmetic (f = k_e x: ~1e-6 relative at 2.6e6 N/m)
             if residual < tol or (it > 2 and residual > 0.5 * previous):
