@@ -307,10 +307,9 @@ class Rollout:
         fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
         fn.restype = ctypes.c_int
         self._fn = fn
-        self._arg = (ctypes.c_void_p * max(sz_arg, 3))()
-        self._res = (ctypes.c_void_p * max(sz_res, 2))()
-        self._iw = np.zeros(max(sz_iw, 1), dtype=np.int64)
-        self._w = np.zeros(max(sz_w, 1))
+        # the work buffers' sizes: each run allocates its own, so runs may go side by side in threads
+        # (ctypes releases the GIL during the call; the generated code keeps no state of its own)
+        self._work = (max(sz_arg, 3), max(sz_res, 2), max(sz_iw, 1), max(sz_w, 1))
         self._lib = dll
 
     # -- running ------------------------------------------------------------------
@@ -342,13 +341,15 @@ class Rollout:
         # mapaccum's C code reads p per period (CasADi's Python call broadcasts it)
         Pblk = np.asfortranarray(np.repeat(p[:, None], C, axis=1))
         state = s0.copy()
-        arg, res = self._arg, self._res
+        n_arg, n_res, n_iw, n_w = self._work
+        arg, res = (ctypes.c_void_p * n_arg)(), (ctypes.c_void_p * n_res)()
+        iw, w = np.zeros(n_iw, dtype=np.int64), np.zeros(n_w)
         for i in range(nchunks):
             cols = slice(i * C, (i + 1) * C)
             Ui, Si, Li = Upad[:, cols], S[:, cols], L[:, cols]
             arg[0], arg[1], arg[2] = state.ctypes.data, Ui.ctypes.data, Pblk.ctypes.data
             res[0], res[1] = Si.ctypes.data, Li.ctypes.data
-            if self._fn(arg, res, self._iw.ctypes.data, self._w.ctypes.data, 0) != 0:
+            if self._fn(arg, res, iw.ctypes.data, w.ctypes.data, 0) != 0:
                 raise RuntimeError("compiled rollout failed")
             state = Si[:, -1].copy()
         return S[:, :N], L[:, :N]

@@ -109,6 +109,19 @@ def _tangent(loop, dynamic):
                        [ca.vertcat(s_next, Av), log[loop.f_e]], ["s", "u", "p"], ["s_next", "log"])
 
 
+def _threads() -> int:
+    """Threads for the tangent rollouts: the usable cores up to 2, and 1 in a
+    worker process (a sweep's or the report's: the cores are shared out by
+    process already)."""
+    import multiprocessing
+    import os
+
+    if multiprocessing.parent_process() is not None:
+        return 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(2, cores))
+
+
 class PeriodicModel:
     """The scenario's tangent-linear step, its one-period inputs and the frozen
     loop (for a starting orbit), built once; :meth:`at` for a stiffness.
@@ -201,13 +214,22 @@ class PeriodicModel:
 
     def _period(self, s: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period from ``s``: the end state, the monodromy (one tangent
-        rollout per column) and the contact force along the period (N)."""
+        rollout per column; compiled rollouts two at a time in threads, see
+        :func:`_threads`) and the contact force along the period (N)."""
         ns, nd = self.layout.size, self.dynamic.size
-        Phi = np.empty((nd, nd))
+        run = lambda j: self.rollout.run(np.r_[s, np.eye(1, nd, j).ravel()], U, self.P)
         with np.errstate(all="ignore"):
-            for j in range(nd):
-                S, F = self.rollout.run(np.r_[s, np.eye(1, nd, j).ravel()], U, self.P)
-                Phi[:, j] = S[ns:, -1]
+            first = run(0)                  # on the virtual machine until compiled (rollout's "auto")
+            threads = _threads() if self.rollout.how != "vm" else 1
+            if threads > 1 and nd > 1:
+                from concurrent.futures import ThreadPoolExecutor
+
+                with ThreadPoolExecutor(threads) as pool:
+                    rest = list(pool.map(run, range(1, nd)))
+            else:
+                rest = [run(j) for j in range(1, nd)]
+        Phi = np.column_stack([S[ns:, -1] for S, _ in (first, *rest)])
+        S, F = first
         return S[:ns, -1], Phi, F
 
     def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:
