@@ -404,8 +404,12 @@ def _crosscheck(args) -> int:
     sc = _load(args)
     check_run_size(sc, args.max_steps)
     _mujoco_ready(sc, "crosscheck")
+    from .stability.analysis import with_stiffness_limit
+
+    memo: dict = {}
     with OutputFolder(args.out, "--out") as out:
-        c = crosscheck(sc, max_steps=args.max_steps)
+        # the same verdicts as simulate: a segment beyond the loop's limit is beyond_limit on both plants
+        c = crosscheck(sc, max_steps=args.max_steps, prepare=lambda r: with_stiffness_limit(r, memo=memo))
         save_crosscheck(c, out.path, plots=not args.no_plots)
         out.commit()
     print(f"scenario {sc.name!r}: the built-in plant and MuJoCo ({c.mujoco.info['code']}, "

@@ -78,7 +78,8 @@ def mujoco_model(robot, lock_held: bool = False, edit=None):
     compiled (geoms added for a contact model)."""
     mujoco = import_mujoco()
     if robot.urdf is None:
-        raise NotImplementedError(f"{robot.name} has no URDF (its model is a parameter set): MuJoCo loads URDF files")
+        raise NotImplementedError(f"{robot.name} has no URDF (its model is the paper's DH parameter set, "
+                                  "not written as a URDF or MJCF file for MuJoCo to load); the URDF arms run")
     text = robot.urdf
     if lock_held:
         for name, value in robot.held.items():

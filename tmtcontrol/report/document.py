@@ -572,28 +572,34 @@ def _independent_plant(rep: Report, sc: Scenario):
     steady-state error and verdict, both force traces, the largest
     difference; the verdict "the plants agree" (issue 41's report section,
     ``report --plant mujoco``)."""
-    from ..simulation.crosscheck import crosscheck
+    from ..simulation.crosscheck import agreement_tolerance, crosscheck
     from ..simulation.figures import crosscheck_figure
+    from ..stability.analysis import with_stiffness_limit
 
-    c = crosscheck(sc)
+    memo: dict = {}
+    c = crosscheck(sc, prepare=lambda r: with_stiffness_limit(r, memo=memo))     # simulate's verdicts
     info = c.mujoco.info
     rows = [[str(i), f"{fmt.num(r['start'])}–{fmt.num(r['end'])}", fmt.num(r["stiffness"], 4),
              fmt.qty(r["steady_state_error_builtin"], "N"), fmt.qty(r["steady_state_error_mujoco"], "N"),
+             f"{fmt.qty(r['peak_force_builtin'], 'N')} / {fmt.qty(r['peak_force_mujoco'], 'N')}",
+             f"{fmt.qty(r['settling_time_builtin'], 's')} / {fmt.qty(r['settling_time_mujoco'], 's')}",
              r["verdict_builtin"], r["verdict_mujoco"], "PASS" if r["agree"] else "FAIL"]
             for i, r in enumerate(c.segments, 1)]
     value = f"largest force difference {fmt.qty(c.max_force_difference, 'N')} at {c.time_of_max:.3f} s"
     rep.verdicts.append(Verdict("The built-in and MuJoCo plants agree", c.agree, value,
                                 "simulation.crosscheck (same verdicts, steady-state errors within "
-                                f"{fmt.qty(sc.controller.force_tolerance, 'N')})"))
+                                f"{fmt.qty(agreement_tolerance(sc), 'N')})"))
     rep.data["crosscheck"] = c.as_dict()
     return Section("mujoco", "Independent plant: MuJoCo", [
         Paragraph(f"The scenario's controller against MuJoCo {info.get('mujoco', '')}'s dynamics of the same URDF "
                   f"({info['plant'][len('mujoco ('):-1]}; {info['integrator']}), judged by the same rules as the "
                   "built-in run. The plants agree when every segment has the same verdict on both and their "
-                  "steady-state errors differ by at most the force tolerance (docs/mujoco.md). " + value + "."),
+                  f"steady-state errors differ by at most {fmt.qty(agreement_tolerance(sc), 'N')} "
+                  "(docs/mujoco.md). " + value + "."),
         Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
-                                          "steady-state error, MuJoCo", "verdict, built-in", "verdict, MuJoCo",
-                                          "agree"], rows, verdict_column=7),
+                                          "steady-state error, MuJoCo", "peak force, built-in / MuJoCo",
+                                          "settling 2 %, built-in / MuJoCo", "verdict, built-in",
+                                          "verdict, MuJoCo", "agree"], rows, verdict_column=9),
         figure("Contact force on the built-in plant and on MuJoCo's.", crosscheck_figure, c)])
 
 

@@ -1,0 +1,108 @@
+"""`tmtcontrol crosscheck` and the report's MuJoCo section judge each plant's
+run by simulate's rules, the scenario's stiffness limit included, and print
+each plant's peak force and settling time (issue 41: "a per-segment table
+(steady-state error, peak, settling, verdict of each plant)"; "the MuJoCo run
+gets its own verdicts by the same rules")."""
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco")
+
+from tmtcontrol.simulation.scenario import apply_overrides, load_scenario  # noqa: E402
+
+SHORT = ["trajectory.cycles=0.5"]
+
+
+@pytest.fixture(scope="module")
+def ur5_short_mujoco():
+    """MuJoCo's run of the UR5's first 2 s (spring contact), made once."""
+    from tmtcontrol.simulation.mujoco_plant import simulate_on_mujoco
+
+    return simulate_on_mujoco(apply_overrides(load_scenario("ur5"), SHORT))
+
+
+def _stub_limits(monkeypatch, limit_value: float, one_d: float):
+    """stability.limit's two computations replaced by figures (as
+    tests/test_limits.py does): the deciding limit and the 1-D gate."""
+    from tmtcontrol.stability import limit
+
+    args = dict(small_signal=one_d, whole_loop=limit_value, whole_loop_bracket=(limit_value, limit_value * 1.001),
+                whole_loop_points=((0.0, limit_value),), periodic=limit_value, first_contact=limit_value)
+    calls = []
+
+    def _deciding(sc, *a):
+        calls.append(sc.name)
+        return limit.ScenarioLimit(limit_value, "periodic orbit", **args)
+
+    monkeypatch.setattr(limit, "_deciding_limit", _deciding)
+    monkeypatch.setattr(limit, "_one_d", lambda sc: one_d)
+    return calls
+
+
+@pytest.mark.parametrize("below", [True, False])
+def test_crosscheck_calls_a_segment_beyond_the_loops_limit_beyond_limit_on_both_plants(
+        monkeypatch, tmp_path, capsys, ur5_short_mujoco, below):
+    """With the loop's limit (stubbed) below the segment's stiffness, both
+    plants' segment is beyond_limit, as `simulate` says, though both runs
+    converged in 2 s (before the fix crosscheck called them converged and
+    "agree", exit 0, where simulate exits 1); with the limit above it both
+    are converged. The limit is computed once for the two plants (one memo)."""
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.cli import main
+
+    k_e = float(ur5_short_mujoco.scenario.environment.stiffness.values[0])
+    calls = _stub_limits(monkeypatch, 0.5 * k_e if below else 4 * k_e, one_d=0.4 * k_e)
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: ur5_short_mujoco)
+    out = tmp_path / "xc"
+    assert main(["crosscheck", "ur5", "--set", SHORT[0], "--out", str(out), "--no-plots"]) == 0
+    (row,) = json.loads((out / "crosscheck.json").read_text())["segments"]
+    want = "beyond_limit" if below else "converged"
+    assert row["verdict_builtin"] == row["verdict_mujoco"] == want
+    assert row["agree"] is True
+    assert len(calls) == 1
+    assert want in capsys.readouterr().out
+
+
+def test_crosscheck_rows_carry_each_plants_peak_and_settling(monkeypatch, ur5_short_mujoco):
+    """The peak force and the 2 % settling time of each plant's segment, as
+    each run's own segment metrics compute them (a swapped pair of columns,
+    or the built-in's value given for both, fails), and printed."""
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.simulation.crosscheck import crosscheck, format_crosscheck
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: ur5_short_mujoco)
+    c = crosscheck(ur5_short_mujoco.scenario)
+    (row,) = c.segments
+    (a,), (b,) = segment_metrics(c.builtin), segment_metrics(ur5_short_mujoco)
+    assert row["peak_force_builtin"] == a.peak_force and row["peak_force_mujoco"] == b.peak_force
+    assert row["settling_time_builtin"] == a.settling_time and row["settling_time_mujoco"] == b.settling_time
+    assert a.peak_force != b.peak_force                       # two plants: the columns can be told apart
+    # the peak is the largest force of each run's own trace after contact (an independent reduction)
+    assert b.peak_force == pytest.approx(float(np.max(ur5_short_mujoco.contact_force)), rel=1e-12)
+    text = format_crosscheck(c)
+    assert "peak built-in" in text and "settling MuJoCo" in text
+
+
+def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypatch, ur5_short_mujoco):
+    """The spring model's agreement rule is issue 41's acceptance (steady
+    state within 1e-3 N at f_d = 10 N): a MuJoCo run 2 mN off (within the
+    10 mN force tolerance, so the verdicts still match) disagrees; 0.5 mN
+    off agrees. MuJoCo's own contact keeps the force tolerance."""
+    import dataclasses
+
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.simulation.crosscheck import agreement_tolerance, crosscheck
+
+    sc = ur5_short_mujoco.scenario
+    assert agreement_tolerance(sc) == pytest.approx(1e-3)
+    assert agreement_tolerance(sc.replace(simulation={"mujoco_contact": "contact"})) == \
+        sc.controller.force_tolerance
+    for shift, agree in ((2e-3, False), (5e-4, True)):
+        off = dataclasses.replace(ur5_short_mujoco, contact_force=ur5_short_mujoco.contact_force + shift)
+        monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None, off=off: off)
+        c = crosscheck(sc)
+        assert c.segments[0]["verdict_builtin"] == c.segments[0]["verdict_mujoco"] == "converged"
+        assert c.agree is agree
