@@ -173,3 +173,63 @@ def test_a_limit_another_process_stored_while_this_one_waited_is_read_not_comput
 
     monkeypatch.setattr(cache, "result_lock", lock_after_another_computed)
     assert limit.deciding_limit(sc).limit == 99999.0 and counted == []
+
+
+def test_the_design_is_solved_once_and_read_back_equal_for_the_same_spec_only(kept, monkeypatch):
+    """design_impedance (IPOPT) kept under its spec: the second call reads the
+    first's result equal in every field (the spec's tuples included); another
+    spec value, another start or another source tree solves again; an
+    infeasible spec raises every time and keeps nothing."""
+    import tmtcontrol.cache as cache
+    from tmtcontrol.stability import design
+
+    calls = []
+    real = design._designed
+    monkeypatch.setattr(design, "_designed", lambda *a: calls.append(a) or real(*a))
+    spec = design.DesignSpec(m=1.0, k=100.0, k_e_min=2000.0, k_e_max=20000.0, Ts=1e-3, m_p=3.3)
+    first = design.design_impedance(spec)
+    second = design.design_impedance(spec)
+    assert len(calls) == 1 and second == first
+    assert dataclasses.asdict(second) == dataclasses.asdict(first)
+    assert isinstance(second.spec.b_bounds, tuple) and second.spec == spec
+    design.design_impedance(dataclasses.replace(spec, max_overshoot=4.0))
+    design.design_impedance(spec, b0=150.0)
+    assert len(calls) == 3
+    monkeypatch.setattr(cache, "_DIGEST", ["another source tree"])
+    design.design_impedance(spec)
+    assert len(calls) == 4
+    n = len(list(kept.glob("result_*.json")))
+    with pytest.raises(design.DesignInfeasible):
+        design.design_impedance(dataclasses.replace(spec, max_overshoot=0.0, k_e_min=19000.0, b_bounds=(1.0, 2.0)))
+    assert len(list(kept.glob("result_*.json"))) == n
+
+
+def test_the_reports_check_rows_are_kept_per_group_scenario_and_source_tree(kept, monkeypatch):
+    """kept_check_group (the report's derivation checks): a group's rows are
+    run once and read back equal; the arm's rows are keyed on the scenario (a
+    UR5 report does not read the PUMA's), the paper's groups on the source
+    tree; tmtcontrol check's run_check_group is never kept."""
+    import tmtcontrol.cache as cache
+    import tmtcontrol.checks as checks
+    from tmtcontrol.simulation.scenario import load_scenario
+
+    calls = []
+    real = checks.run_check_group
+    monkeypatch.setattr(checks, "run_check_group", lambda g, seed=2024, scenario=None:
+                        calls.append((g, None if scenario is None else scenario.name)) or real(g, seed, scenario))
+    sc = paper_scenario()
+    first = checks.kept_check_group("model", scenario=sc)
+    second = checks.kept_check_group("model", scenario=sc)
+    assert len(calls) == 1 and second == first and all(r.passed for r in first)
+    checks.kept_check_group("model", scenario=apply_overrides(sc, ["controller.f_d=12.0"]))
+    assert len(calls) == 2                          # another scenario value: run again
+    ur5 = checks.kept_check_group("arm", scenario=load_scenario("ur5"))
+    assert calls[-1] == ("arm", "ur5") and ur5 != checks.kept_check_group("arm", scenario=sc)
+    law = checks.kept_check_group("law: tmt")
+    assert checks.kept_check_group("law: tmt") == law and calls.count(("law: tmt", None)) == 1
+    monkeypatch.setattr(cache, "_DIGEST", ["another source tree"])
+    checks.kept_check_group("law: tmt")
+    assert calls.count(("law: tmt", None)) == 2
+    stored = len(list(kept.glob("result_*.json")))
+    real("law: tmt")
+    assert len(list(kept.glob("result_*.json"))) == stored

@@ -27,7 +27,7 @@ found, pruned, described and cleared (``tmtcontrol cache --info/--clear``).
   no cache folder can be used (the disk holding it has less than
   :data:`BUILD_MIN_FREE` free, or neither it nor the fallback can be
   written) is a build folder made in the temporary folder, removed the same way.
-* Analysis results (the deciding stiffness limit of a scenario,
+* Analysis results (the deciding stiffness limit of a scenario, the damping design, the report's check rows;
   ``stability.limit``) are kept as ``results/result_HASH.json`` in the
   cache (:func:`store_result`, :func:`load_result`): each file holds its
   full key (the package's sources, the arm's and the surface's content, the
@@ -302,6 +302,56 @@ def store_result(kind: str, key: str, value: dict) -> bool:
         return False
     prune_results(folder)
     return True
+
+
+def results_enabled() -> bool:
+    """Whether analysis results are kept (``TMTCONTROL_RESULT_CACHE``, default
+    on; ``0``, ``off``, ``no`` or ``false`` turns it off)."""
+    return os.environ.get("TMTCONTROL_RESULT_CACHE", "1").strip().lower() not in ("0", "off", "no", "false")
+
+
+def kept_result(kind: str, key: str | None, compute, dump, load):
+    """``compute()``, kept in the results under ``(kind, key)``: read if
+    stored (``load(stored dict)``; a stored value ``load`` refuses with
+    TypeError, ValueError or KeyError, another layout, is computed again),
+    else computed under :func:`result_lock` (a process that needs it while
+    another computes it waits, then reads it) and stored as ``dump(value)``
+    (a JSON-serialisable dict; ``dump`` may return None: not kept). Without a
+    ``key`` or with :func:`results_enabled` false it is just ``compute()``."""
+    if key is None or not results_enabled():
+        return compute()
+
+    def stored():
+        found = load_result(kind, key)
+        try:
+            return None if found is None else load(found)
+        except (TypeError, ValueError, KeyError):
+            return None
+
+    if (value := stored()) is not None:
+        return value
+    with result_lock(kind, key):
+        if (value := stored()) is not None:
+            return value
+        value = compute()
+        if (data := dump(value)) is not None:
+            store_result(kind, key, data)
+    return value
+
+
+_DIGEST: list[str] = []
+
+
+def package_digest() -> str:
+    """SHA-256 of the package's Python sources (computed once per process):
+    any change of the code gives new cache keys."""
+    if not _DIGEST:
+        root = pathlib.Path(__file__).resolve().parent
+        h = hashlib.sha256()
+        for f in sorted(root.rglob("*.py")):
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+        _DIGEST.append(h.hexdigest())
+    return _DIGEST[0]
 
 
 def _results(folder: pathlib.Path) -> list[tuple[pathlib.Path, float]]:

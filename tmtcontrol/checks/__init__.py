@@ -40,10 +40,41 @@ def run_check_group(group: str, seed: int = 2024, scenario=None) -> list:
     raise ValueError(f"group: expected one of {', '.join(check_groups(scenario))}, got {group!r}")
 
 
+def kept_check_group(group: str, seed: int = 2024, scenario=None) -> list:
+    """:func:`run_check_group`, kept in the cache's results
+    (``tmtcontrol.cache.kept_result``) under a key of everything the checks
+    run on: the package's sources, the group, the seed, the scenario's every
+    value and its arm's content (for the groups that take them), and the
+    versions of CasADi, NumPy, SciPy, python-control, SymPy and Pinocchio.
+    The report uses it (a warm report reads its rows); ``tmtcontrol check``
+    always runs them. ``TMTCONTROL_RESULT_CACHE=0`` always runs them."""
+    import importlib.metadata
+
+    from ..cache import kept_result, package_digest
+    from .derivations import CheckResult
+
+    def version(dist):
+        try:
+            return importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return None
+
+    arm = None
+    if scenario is not None and group in ("model", "arm"):
+        from ..simulation.simulator import robot_of
+
+        arm = (scenario.model_dump_json(), robot_of(scenario).key, robot_of(scenario, controller=True).key)
+    key = repr((package_digest(), group, int(seed), scenario is None, arm,
+                *(version(d) for d in ("casadi", "numpy", "scipy", "control", "sympy", "pin"))))
+    return kept_result("checks", key, lambda: run_check_group(group, seed, scenario),
+                       lambda rows: {"rows": [r.as_dict() for r in rows]},
+                       lambda data: [CheckResult(**r) for r in data["rows"]])
+
+
 def all_checks(seed: int = 2024, scenario=None) -> list:
     """The paper's derivation checks, every registered law's, the loop
     checks, then (with a ``scenario``) the checks of its arm."""
     return [r for group in check_groups(scenario) for r in run_check_group(group, seed, scenario)]
 
 
-__all__ = ["all_checks", "run_check_group", "check_groups"]
+__all__ = ["all_checks", "run_check_group", "kept_check_group", "check_groups"]

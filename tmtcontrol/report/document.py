@@ -209,7 +209,10 @@ def _checks(rep: Report, checks: list):
                   "difference found. The last rows check the scenario's arm: its task-frame loop with the ideal "
                   "inner loop (model = plant) realises the command U and reduces to eq. (22) on the normal axis "
                   "(on an arm with 6 or more joints also: the null-space torque leaves the task alone and the "
-                  "other axes follow their impedance)."),
+                  "other axes follow their impedance). The rows are kept in tmtcontrol's cache under a key of "
+                  "the package's sources, the scenario and the libraries' versions, so a later report on the same "
+                  "code reads them (TMTCONTROL_RESULT_CACHE=0 runs them again; tmtcontrol check always runs "
+                  "them)."),
         Table("Derivation checks", ["equation", "check", "claim", "residual", "verdict"], rows, verdict_column=4)])
     rep.data["checks"] = checks
     return sec
@@ -837,11 +840,11 @@ def _task(name: str, sc: Scenario, p: dict):
     """Run one of :func:`_remote_tasks` (in either process) on the scenario
     ``sc`` with its analysis parameters ``p``: its output (a section, or a
     check group's results), verdicts, data and time."""
-    from ..checks import run_check_group
+    from ..checks import kept_check_group
 
     t0 = time.perf_counter()
     if name.startswith("checks: "):
-        output, verdicts, data = run_check_group(name.removeprefix("checks: "), scenario=sc), [], {}
+        output, verdicts, data = kept_check_group(name.removeprefix("checks: "), scenario=sc), [], {}
     else:
         output, verdicts, data = _on_own(sc, _TASKS[name], sc, p)
     return output, verdicts, data, time.perf_counter() - t0

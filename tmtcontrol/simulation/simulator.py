@@ -22,8 +22,6 @@ loop interface: :attr:`Simulator.layout`, :attr:`Simulator.log`,
 from __future__ import annotations
 
 import functools
-import hashlib
-import pathlib
 import time
 from dataclasses import dataclass, field
 
@@ -158,13 +156,11 @@ def structure(scenario: Scenario):
 
 @functools.lru_cache(maxsize=1)
 def _package_digest() -> str:
-    """SHA-256 of the package's Python sources: any change of the code that
-    builds the closed loop gives new cache keys."""
-    root = pathlib.Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for f in sorted(root.rglob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
-    return h.hexdigest()
+    """SHA-256 of the package's Python sources (``tmtcontrol.cache.package_digest``):
+    any change of the code that builds the closed loop gives new cache keys."""
+    from ..cache import package_digest
+
+    return package_digest()
 
 
 def structure_key(scenario: Scenario, law) -> str | None:

@@ -479,7 +479,36 @@ def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
 
 def design_impedance(spec: DesignSpec, b0: float | None = None, k0: float | None = None,
                      verify_points: int = 60) -> DesignResult:
-    """Solve the robust design NLP with IPOPT (CasADi Opti).
+    """Solve the robust design NLP with IPOPT (CasADi Opti): :func:`_designed`,
+    kept in the cache's results (``tmtcontrol.cache.kept_result``) under a key
+    of the package's sources, the spec's every value, the start, the
+    verification points and the libraries' versions (a warm report or a
+    second ``design`` reads it; ``TMTCONTROL_RESULT_CACHE=0`` always solves).
+    An infeasible spec raises every time (nothing kept)."""
+    import scipy
+
+    from ..cache import kept_result, package_digest
+
+    key = repr((package_digest(), repr(spec), b0, k0, int(verify_points), ca.__version__, np.__version__,
+                scipy.__version__))
+    return kept_result("design", key, lambda: _designed(spec, b0, k0, verify_points), dataclasses.asdict,
+                       _design_from_json)
+
+
+def _design_from_json(data: dict) -> DesignResult:
+    """A :class:`DesignResult` from its stored form (``dataclasses.asdict``)."""
+    spec = dict(data["spec"])
+    for name in ("b_bounds", "k_bounds"):
+        spec[name] = tuple(spec[name])
+    fields = {f.name for f in dataclasses.fields(DesignResult)}
+    if set(data) != fields:
+        raise KeyError("fields")
+    return DesignResult(**{**data, "spec": DesignSpec(**spec)})
+
+
+def _designed(spec: DesignSpec, b0: float | None = None, k0: float | None = None,
+              verify_points: int = 60) -> DesignResult:
+    """The design NLP solved (:func:`design_impedance`).
 
     Raises :class:`DesignError` naming the binding constraint when the
     specification is invalid and :class:`DesignInfeasible` naming the binding

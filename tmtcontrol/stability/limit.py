@@ -140,32 +140,11 @@ def _deciding_limit(scenario, points, along_path, runner):
     while another computes it (a report's two processes) waits and reads it.
     ``TMTCONTROL_RESULT_CACHE=0`` turns it off (always computed, nothing
     kept)."""
-    import os
+    from ..cache import kept_result, results_enabled
 
-    from ..cache import load_result, result_lock, store_result
-
-    use = os.environ.get("TMTCONTROL_RESULT_CACHE", "1").strip() not in ("0", "off", "no", "false")
-    key = _result_key(scenario, points, along_path) if use else None
-    if key is None:
-        return _computed_limit(scenario, points, along_path, runner)
-
-    def kept():
-        found = load_result("deciding_limit", key)
-        try:
-            return None if found is None else _from_json(found)
-        except (TypeError, ValueError, KeyError):       # a result of another layout: computed again
-            return None
-
-    if (lim := kept()) is not None:
-        return lim
-    # another process computing the same limit (a report's two): wait for it, then read it
-    with result_lock("deciding_limit", key):
-        if (lim := kept()) is not None:
-            return lim
-        lim = _computed_limit(scenario, points, along_path, runner)
-        if lim is not None:
-            store_result("deciding_limit", key, dataclasses.asdict(lim))
-    return lim
+    key = _result_key(scenario, points, along_path) if results_enabled() else None
+    return kept_result("deciding_limit", key, lambda: _computed_limit(scenario, points, along_path, runner),
+                       lambda lim: None if lim is None else dataclasses.asdict(lim), _from_json)
 
 
 def _result_key(scenario, points, along_path) -> str | None:
