@@ -44,10 +44,23 @@ def test_the_puma_cannot_be_loaded_into_mujoco_one_line_exit_2(capsys):
     assert "\n" not in err and err.startswith("error: --against mujoco: puma560 has no URDF")
 
 
-def test_without_mujoco_the_flag_says_what_to_install(monkeypatch, capsys):
+@pytest.mark.parametrize("args, flag", [
+    (["simulate", "ur5", "--plant", "mujoco"], "--plant mujoco"),
+    (["crosscheck", "ur5"], "crosscheck"),
+    (["report", "ur5", "--plant", "mujoco", "--format", "html"], "--plant mujoco"),
+    (["robot", "ur5", "--against", "mujoco"], "--against mujoco"),
+], ids=["simulate", "crosscheck", "report", "robot"])
+def test_without_mujoco_the_flag_says_what_to_install(monkeypatch, capsys, tmp_path, args, flag):
+    """Every command that needs MuJoCo, with MuJoCo not importable: exit 2,
+    one stderr line naming the flag and what to install, nothing on stdout,
+    and the --out folder not created (``robot`` writes no folder)."""
     import sys
 
     monkeypatch.setitem(sys.modules, "mujoco", None)            # import mujoco raises ImportError
-    assert main(["robot", "ur5", "--against", "mujoco"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "pip install 'tmtcontrol[mujoco]'" in err
+    out = tmp_path / "out"
+    assert main([*args, "--out", str(out)] if args[0] != "robot" else args) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert "\n" not in err and err.startswith(f"error: {flag}: MuJoCo is not installed")
+    assert "pip install 'tmtcontrol[mujoco]'" in err
+    assert captured.out == "" and not out.exists()

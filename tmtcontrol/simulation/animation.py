@@ -3,10 +3,13 @@
 ``tmtcontrol simulate SCENARIO --animate`` writes ``animation.gif`` next to
 the figures: each frame draws the surface around the path (the part itself
 on a curved scenario), the desired path X_d on it, the trace of the tool
-point so far, and the arm as its skeleton (base, every joint's origin, the
+point so far, the arm as its skeleton (base, every joint's origin, the
 tool point; :meth:`tmtcontrol.model.Robot.joint_origins`) at that instant,
 from the run's logged joints (the same for the built-in, MuJoCo and
-exported-C plants). Beside it the contact force against f_d up to that
+exported-C plants), and the contact force on the tool as a red arrow from
+the tool point along the surface's outward normal, as long as MuJoCo's
+(:data:`.mujoco_render.FORCE_SCALE`, 1 cm per N; none while the tool is
+off the surface). Beside it the contact force against f_d up to that
 instant, and the time, k_e and the segment's stiffness. Frames are sampled
 every ``1 / fps`` s of simulated time (at most :data:`MAX_FRAMES`); the GIF
 plays in real time. Written by Pillow, matplotlib's own writer: no ffmpeg
@@ -143,6 +146,8 @@ def _matplotlib_frames(result, robot, idx):
     from matplotlib.figure import Figure
 
     from .figures import desired_path
+    from .geometry import surface_of
+    from .mujoco_render import FORCE_SCALE
 
     tr = result.traces
     t = result.time
@@ -174,17 +179,26 @@ def _matplotlib_frames(result, robot, idx):
     axf.legend(loc="upper right", fontsize=8)
     label = axf.text(0.02, 0.97, "", transform=axf.transAxes, va="top", fontsize=8)
     fig.subplots_adjust(left=0.02, right=0.98, wspace=0.25)
+    surface = surface_of(result.scenario)
+    arrow = []                                           # the force arrow drawn now (a Line3DCollection), if any
 
     def draw(i):
         k = idx[i]
         s = skeletons[i]
         arm.set_data(s[0], s[1])
         arm.set_3d_properties(s[2])
+        while arrow:
+            arrow.pop().remove()
+        f = float(result.contact_force[k])
+        if f > 0:                                        # the force on the tool: out of the part, 1 cm per N
+            p = result.position[:, k]
+            u = -FORCE_SCALE * f * surface.normal(p)
+            arrow.append(ax.quiver(*p, *u, color="tab:red", lw=2, arrow_length_ratio=0.25))
         trace.set_data(result.position[0, :k + 1:stride], result.position[1, :k + 1:stride])
         trace.set_3d_properties(result.position[2, :k + 1:stride])
         force.set_data(t[:k + 1], result.contact_force[:k + 1])
         label.set_text(f"t = {t[k]:5.2f} s   f_e = {result.contact_force[k]:6.2f} N   "
                        f"k_e = {result.stiffness[k]:,.0f} N/m")
-        return arm, trace, force, label
+        return arm, trace, force, label, *arrow
 
     return fig, draw, idx
