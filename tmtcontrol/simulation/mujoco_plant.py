@@ -16,8 +16,8 @@ their integration, not the contact: a check of eq. (1) in the loop.
 
 ``contact``: MuJoCo's own soft contact between the part, a MuJoCo geom (a
 plane, or a sphere or cylinder worked from outside), and a sphere of
-:data:`TOOL_RADIUS` on the tool frame whose lowest point along the tool's
-z axis is the tool point. MuJoCo's contact is a soft constraint: with
+``robot.tool_radius`` (default :data:`TOOL_RADIUS`) on the tool frame whose
+lowest point along the tool's z axis is the tool point. MuJoCo's contact is a soft constraint: with
 ``solref = (-K, -B)`` and a constant impedance ``d`` (``solimp = (d, d,
 ...)``, :data:`CONTACT_IMPEDANCE`) the constraint force at rest is
 ``K r / ((1 - d) A^)`` for a penetration r, where ``A^`` is MuJoCo's fixed
@@ -49,6 +49,7 @@ import numpy as np
 from ..surface import contact_force
 from .cosim import builtin_controller, run_split
 from .scenario import ScenarioError
+from .scenario.robot import TOOL_RADIUS
 
 __all__ = ["SUBSTEPS", "MujocoPlant", "simulate_on_mujoco", "check_contact", "CONTACT_IMPEDANCE", "TOOL_RADIUS", "contact_solref",
            "contact_inverse_inertia", "add_part", "add_tool"]
@@ -65,9 +66,9 @@ dwidth = d: constant with the penetration). Small, so the regulariser R =
 (1-d)/d A^ is large against the true inverse inertia and the force follows
 the spring k_e r rather than the applied push (module docstring)."""
 
-TOOL_RADIUS = 1e-3
-"""Radius (m) of the tool's sphere in the ``contact`` model: its lowest
-point along the tool's z axis is the tool point."""
+
+NOSLIP_ITERATIONS = 20
+"""MuJoCo's no-slip solver's iterations with friction (``simulation.mujoco_friction > 0``)."""
 
 
 def contact_solref(k_e: float, d_e: float, A_hat: float, d: float = CONTACT_IMPEDANCE) -> tuple[float, float]:
@@ -131,16 +132,17 @@ def add_part(mujoco, body, surface, friction: float = 0.0):
     return g
 
 
-def add_tool(body, friction: float = 0.0):
-    """Add the tool's sphere (:data:`TOOL_RADIUS`) to the MjSpec ``body``:
-    its point furthest along the body's z axis (the tool's, along the inward
-    normal: into the part) at the body's origin, the tool point."""
+def add_tool(body, friction: float = 0.0, radius: float = TOOL_RADIUS):
+    """Add the tool's sphere of ``radius`` (m; the scenario's
+    ``robot.tool_radius``, default :data:`TOOL_RADIUS`) to the MjSpec
+    ``body``: its point furthest along the body's z axis (the tool's, along
+    the inward normal: into the part) at the body's origin, the tool point."""
     import mujoco
 
     g = body.add_geom()
     g.name = "tmt_tool"
-    g.type, g.size = mujoco.mjtGeom.mjGEOM_SPHERE, [TOOL_RADIUS, 0.0, 0.0]
-    g.pos = [0.0, 0.0, -TOOL_RADIUS]
+    g.type, g.size = mujoco.mjtGeom.mjGEOM_SPHERE, [float(radius), 0.0, 0.0]
+    g.pos = [0.0, 0.0, -float(radius)]
     g.density = 0.0                                   # massless: the arm's inertia stays the URDF's
     g.contype, g.conaffinity = 1, 0
     _contact_geom(g, friction)
@@ -151,7 +153,7 @@ class MujocoPlant:
     """MuJoCo's arm as a :func:`.cosim.run_split` plant (module docstring)."""
 
     def __init__(self, robot, surface, Ts: float, d_e: float, substeps: int = SUBSTEPS, contact: str = "spring",
-                 friction: float = 0.0):
+                 friction: float = 0.0, tool_radius: float = TOOL_RADIUS):
         from ..model.against_mujoco import base_body, base_id, import_mujoco, mujoco_model
 
         edit = None
@@ -160,7 +162,7 @@ class MujocoPlant:
 
             def edit(spec):
                 add_part(mujoco, base_body(spec, robot), surface, friction)
-                add_tool(spec.body(robot.tip), friction)
+                add_tool(spec.body(robot.tip), friction, tool_radius)
         elif contact != "spring":
             raise ValueError(f"contact: expected 'spring' or 'contact', got {contact!r}")
         self.contact = contact
@@ -179,6 +181,10 @@ class MujocoPlant:
         if contact == "contact":
             if friction > 0:
                 m.opt.cone = mj.mjtCone.mjCONE_ELLIPTIC
+                # the friction rows share the normal's calibrated soft solref, whose damping is 0 without
+                # contact damping: alone they barely resist a slip (0.013 N at 0.16 m/s for any mu); MuJoCo's
+                # no-slip solver makes them Coulomb's (the slip stops while |f_t| < mu f_n, else mu f_n)
+                m.opt.noslip_iterations = NOSLIP_ITERATIONS
             self.geoms = np.array([m.geom("tmt_part").id, m.geom("tmt_tool").id])
             self.A_hat = contact_inverse_inertia(m, self.geoms)
             self._k_e, self._f6 = None, np.zeros(6)
@@ -266,7 +272,8 @@ def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:
     check_contact(scenario, sim.surface)
     try:
         plant = MujocoPlant(sim.plant, sim.surface, scenario.controller.Ts, scenario.environment.damping,
-                            contact=s.mujoco_contact, friction=s.mujoco_friction)
+                            contact=s.mujoco_contact, friction=s.mujoco_friction,
+                            tool_radius=scenario.robot.tool_radius)
     except NotImplementedError as exc:
         raise ScenarioError(f"robot.model: {exc}") from None
     what = ("spring contact" if s.mujoco_contact == "spring" else

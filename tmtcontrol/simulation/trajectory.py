@@ -17,8 +17,12 @@ exact:
   polishing or sanding tool, without corners (an infinite acceleration at a
   corner would be no reference for eq. 4).
 
-A path may reach ``radius`` along each tangential axis (a raster's corners
-``radius sqrt 2`` from the centre); the scenario's domain checks use that.
+How far a path reaches along each tangential axis is :func:`path_extent`,
+not ``radius``: a circle reaches ``radius`` along both axes, a line ``radius
+|cos|`` and ``radius |sin|`` of its direction, a raster up to ``radius
+(|cos| + |sin|)`` (its patch turned by ``direction_deg``: up to ``radius
+sqrt 2`` at 45 deg). The scenario's domain checks (the height map's grid, a
+sphere's or cylinder's chart) use :func:`path_extent`.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CircleReference", "PathReference", "circle_reference", "path_reference", "PATHS"]
+__all__ = ["CircleReference", "PathReference", "circle_reference", "path_reference", "path_extent", "PATHS"]
 
 PATHS = ("circle", "line", "raster")
 """The path kinds (``trajectory.path``)."""
@@ -85,3 +89,42 @@ def path_reference(t, trajectory) -> PathReference:
         raise ValueError(f"trajectory.path: expected one of {', '.join(PATHS)}, got {kind!r}")
     pos, vel, acc = (np.outer(d, a) + np.outer(d_perp, b) for a, b in zip(along, across))
     return PathReference(t, pos, vel, acc)
+
+
+def path_extent(trajectory) -> tuple[float, float]:
+    """How far the path of ``trajectory`` reaches from its centre along task
+    axes 1 and 2 (m): ``max |pos_i(t)|`` over one period of
+    :func:`path_reference`. Closed forms for the circle (``radius`` along
+    both) and the line (``radius |cos|``, ``radius |sin|`` of
+    ``direction_deg``); the raster's two harmonics have none, so it is its
+    own position sampled over a period (at least 64 samples per pass), each
+    local maximum of ``|pos_i|`` then refined by Newton's method on ``vel_i
+    = 0`` (the path's analytic velocity and acceleration), kept within a
+    sample of it: exact to rounding (tests/test_curved_refusals.py checks it
+    against 2 million samples)."""
+    kind = getattr(trajectory, "path", "circle")
+    r = float(trajectory.radius)
+    if kind == "circle" or r == 0.0:
+        return r, r
+    th = np.radians(trajectory.direction_deg)
+    if kind == "line":
+        return r * abs(float(np.cos(th))), r * abs(float(np.sin(th)))
+    T = float(trajectory.period)
+    n = 64 * int(getattr(trajectory, "lanes", 2)) + 256
+    t = np.linspace(0.0, T, n, endpoint=False)
+    dt = T / n
+    pos = np.abs(path_reference(t, trajectory).pos)
+    out = []
+    for i in range(2):
+        a = pos[i]
+        peaks = np.flatnonzero((a >= np.roll(a, 1)) & (a >= np.roll(a, -1)))
+        tk = t[peaks]
+        lo, hi = tk - dt, tk + dt
+        for _ in range(8):                    # Newton on vel_i = 0, kept within a sample of the peak
+            ref = path_reference(tk, trajectory)
+            acc = ref.acc[i]
+            step = np.divide(ref.vel[i], acc, out=np.zeros_like(tk), where=np.abs(acc) > 0)
+            tk = np.clip(tk - step, lo, hi)
+        refined = np.abs(path_reference(tk, trajectory).pos[i])
+        out.append(float(max(a.max(), refined.max(initial=0.0))))
+    return out[0], out[1]

@@ -125,6 +125,18 @@ class Surface(abc.ABC):
         does not turn (a plane)."""
         return None
 
+    def concave_radius(self, s) -> np.ndarray:
+        """The smallest concave radius of curvature (m) at tangential
+        coordinates ``s`` (2 x k, the task coordinates ``X[1:]`` a path is
+        given in): over every tangent direction, the radius of the tightest
+        circle along which the surface bends towards the tool (away from the
+        material); ``inf`` where it bends towards the tool in no direction (a
+        plane, a convex part). A spherical tool tip of radius rho touches the
+        surface at one point only where this exceeds rho (else it rests on
+        the rims of the hollow, not at the tool point). The default: nowhere
+        concave."""
+        return np.full(np.asarray(s, dtype=float).reshape(2, -1).shape[1], np.inf)
+
     def primitive(self):
         """The part as a solid primitive, for a physics engine or a renderer
         (MuJoCo's contact, its pictures): ``(kind, centre, R, radius)`` with

@@ -184,6 +184,12 @@ class _Curved(Surface):
         w = self._fn("turn")(X, dX, np.zeros(3), *self._vals())[1]
         return np.array(v).ravel(), np.array(w).ravel()
 
+    def concave_radius(self, s) -> np.ndarray:
+        """:meth:`.base.Surface.concave_radius`: ``radius`` everywhere on the
+        inside (a bowl, a bore), ``inf`` on the outside (convex)."""
+        k = np.asarray(s, dtype=float).reshape(2, -1).shape[1]
+        return np.full(k, self.radius if self.side == "inside" else np.inf)
+
     def shifted(self, offset: float):
         return type(self)(self.R, self.c + offset * self.R[:, 0], self.radius, self.side)
 

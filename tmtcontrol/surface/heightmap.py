@@ -147,6 +147,52 @@ class HeightMap(_Curved):
         tangent plane (beyond the grid: its edge height, the part continuing flat)."""
         return float(self._h([np.clip(u, self.u[0], self.u[-1]), np.clip(v, self.v[0], self.v[-1])]))
 
+    def curvatures(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """The principal curvatures ``(k_1, k_2)``, ``k_1 >= k_2`` (1/m), of
+        the spline surface at tangential coordinates ``s`` (2 x k: u, v in m),
+        positive where the surface bends towards the tool (away from the
+        material: a valley, the inside of a bowl), 0 beyond the grid (the part
+        continues flat there). From the spline's own first and second
+        derivatives: the surface is the graph ``z = h(u, v)`` along the
+        outward normal, with first fundamental form ``I = [[1 + h_u^2, h_u
+        h_v], [h_u h_v, 1 + h_v^2]]`` and second ``II = Hess(h) / sqrt(1 +
+        h_u^2 + h_v^2)`` (normal towards the tool); the principal curvatures
+        are the eigenvalues of ``I^-1 II``: ``H +- sqrt(H^2 - K)`` with the
+        mean curvature ``H`` and the Gaussian ``K``."""
+        s = np.asarray(s, dtype=float).reshape(2, -1)
+        k = s.shape[1]
+        if k == 0:
+            return np.zeros(0), np.zeros(0)
+        inside = (s[0] >= self.u[0]) & (s[0] <= self.u[-1]) & (s[1] >= self.v[0]) & (s[1] <= self.v[-1])
+        uv = np.vstack([np.clip(s[0], self.u[0], self.u[-1]), np.clip(s[1], self.v[0], self.v[-1])])
+        g, hess = (np.array(m) for m in self._second().map(k)(uv))        # g: 2 x k, hess: 2 x 2k
+        hu, hv = g[0], g[1]
+        huu, huv, hvv = hess[0, 0::2], hess[0, 1::2], hess[1, 1::2]
+        E, F, G = 1 + hu * hu, hu * hv, 1 + hv * hv
+        W = np.sqrt(1 + hu * hu + hv * hv)
+        L, M, N = huu / W, huv / W, hvv / W
+        det = E * G - F * F
+        H = (E * N - 2 * F * M + G * L) / (2 * det)
+        K = (L * N - M * M) / det
+        root = np.sqrt(np.maximum(H * H - K, 0.0))
+        return np.where(inside, H + root, 0.0), np.where(inside, H - root, 0.0)
+
+    def concave_radius(self, s) -> np.ndarray:
+        """:meth:`.base.Surface.concave_radius`: ``1 / k_1`` of
+        :meth:`curvatures` where ``k_1 > 0`` (the largest curvature towards
+        the tool, over every tangent direction: a groove across the path
+        counts as much as one along it), ``inf`` elsewhere."""
+        k1 = self.curvatures(s)[0]
+        return np.where(k1 > 0, 1.0 / np.where(k1 > 0, k1, 1.0), np.inf)
+
+    def _second(self) -> ca.Function:
+        """``uv -> (dh, d2h)``: the spline's gradient (2 x 1) and Hessian (2 x 2)."""
+        def build():
+            x = ca.SX.sym("uv", 2)
+            hess, grad = ca.hessian(self._h(x), x)
+            return ca.Function("height_curvature", [x], [grad, hess], ["uv"], ["dh", "d2h"])
+        return self._cached("curvature", build)
+
     def shifted(self, offset: float):
         return HeightMap(self.R, self.c + offset * self.R[:, 0], self.heights, self.spacing)
 

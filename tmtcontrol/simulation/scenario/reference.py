@@ -41,6 +41,9 @@ def _applies(sc: Scenario, key: str) -> bool:
         return sc.environment.normal is None
     if key in ("environment.radius", "environment.side"):
         return sc.environment.shape != "plane"
+    if key == "robot.tool_radius":      # the concave parts' check and MuJoCo's own contact use it
+        return (sc.environment.side == "inside" or sc.environment.heightmap is not None
+                or sc.simulation.mujoco_contact == "contact")
     if key == "environment.axis":
         return sc.environment.shape == "cylinder"
     if key == "trajectory.lanes":

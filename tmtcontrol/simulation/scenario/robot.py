@@ -6,7 +6,12 @@ from pydantic import Field, StrictBool
 
 from .fields import F, Pos, Section, num
 
-__all__ = ["RobotSettings"]
+__all__ = ["RobotSettings", "TOOL_RADIUS"]
+
+TOOL_RADIUS = 1e-3
+"""The default radius (m) of the tool's spherical tip, ``robot.tool_radius``:
+the sphere of MuJoCo's ``contact`` model (:mod:`..mujoco_plant`) and the
+tightest concave curvature the tool can follow (:func:`.schema.sampling_problem`)."""
 
 
 class RobotSettings(Section):
@@ -38,6 +43,11 @@ class RobotSettings(Section):
     limit_margin: float = num(0.0, "1", "fraction of each limit held in reserve: a torque or rate above "
                               "(1 - margin) x its limit, or a joint within margin x half its range of either "
                               "end, is over the limit (verdict over_limit)", ge=0, lt=1)
+    tool_radius: float = num(TOOL_RADIUS, "m", (
+        "radius of the tool's spherical tip, whose point furthest along the tool's z axis (into the part) is the "
+        "tool point: a concave part (a bowl, a bore, a valley of a height map) must curve less tightly than the "
+        "tip along the path (its smallest concave radius of curvature above this), and MuJoCo's own contact "
+        "(simulation.mujoco_contact = \"contact\") touches the part with this sphere"), gt=0)
     saturate: StrictBool = Field(False, description=(
         "the drive model: clip the applied joint torque at tau_max, as a real drive does (the exported C "
         "clips at the same parameter); off, the torque is whatever the controller asks and a run beyond a "

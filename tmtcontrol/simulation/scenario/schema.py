@@ -87,39 +87,30 @@ TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller
 SAMPLED_KEYS = ("trajectory.period", "trajectory.lanes", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
                 "robot.model", "environment.normal", "environment.point", "trajectory.center",
                 "environment.radius", "trajectory.radius", "environment.axis", "environment.heightmap",
-                "environment.grid_spacing")
+                "environment.grid_spacing", "environment.shape", "environment.side", "trajectory.path",
+                "trajectory.direction_deg", "robot.tool_radius")
 """The keys :func:`sampling_problem` relates (the only check across sections)."""
 
 
 def _plane_problem(sc: Scenario) -> str | None:
-    """The plane across sections: the PUMA takes ``tilt_deg`` only, and the
-    circle's centre lies on the plane given by ``environment.point``."""
+    """The surface across sections: the PUMA takes ``tilt_deg`` only, the
+    path stays in a curved part's domain (:func:`_domain_problem`), a
+    cylinder's axis lies in the tangent plane, and the circle's centre lies
+    on the plane given by ``environment.point``."""
     env = sc.environment
     if env.normal is not None and sc.robot.model.lower() == "puma560":
         return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
                 "(its analyses and export use it); leave normal unset")
-    if env.heightmap is not None:
-        from .environment import read_height_grid
+    if env.shape != "plane":
+        domain = _domain_problem(sc)
+        if domain:
+            return domain
+    if env.axis is not None and env.normal is None:          # (an axis is a cylinder's only)
+        from ..geometry import surface_frame
 
-        rows, cols = read_height_grid(env.heightmap).shape
-        half = min(rows - 1, cols - 1) / 2 * env.grid_spacing
-        if sc.trajectory.radius > half - 2 * env.grid_spacing:
-            return (f"trajectory.radius: the path leaves the height map: {sc.trajectory.radius:g} m from its centre, "
-                    f"the grid ({rows} x {cols} at {env.grid_spacing:g} m) reaches {half:g} m (two spacings kept "
-                    "as margin)")
-    elif env.shape != "plane":
-        # the chart of a curved surface is regular within these angles from the path's centre
-        # (a sphere's latitude below pi/2, a cylinder's turn below pi): the path must stay in it
-        reach, limit = sc.trajectory.radius / env.radius, (1.2 if env.shape == "sphere" else 2.5)
-        if reach > limit:
-            return (f"trajectory.radius: the path leaves the {env.shape}'s domain: {sc.trajectory.radius:g} m on "
-                    f"radius {env.radius:g} m spans {reach:.3g} rad (at most {limit:g} rad from its centre)")
-        if env.axis is not None and env.normal is None:
-            from ..geometry import surface_frame
-
-            n = surface_frame(env)[:, 0]
-            if abs(sum(a * b for a, b in zip(env.axis, n))) > 1e-6 * math.sqrt(sum(a * a for a in env.axis)):
-                return "environment.axis: must be perpendicular to the surface's normal (from tilt_deg)"
+        n = surface_frame(env)[:, 0]
+        if abs(sum(a * b for a, b in zip(env.axis, n))) > 1e-6 * math.sqrt(sum(a * a for a in env.axis)):
+            return "environment.axis: must be perpendicular to the surface's normal (from tilt_deg)"
     if env.point is not None:
         from ..geometry import surface_frame   # the one definition of the task frame's normal
 
@@ -131,6 +122,95 @@ def _plane_problem(sc: Scenario) -> str | None:
     return None
 
 
+def _domain_problem(sc: Scenario) -> str | None:
+    """The path within the curved part's domain, along each task axis by how
+    far the path really reaches (:func:`..trajectory.path_extent`: a raster
+    turned by ``direction_deg`` reaches beyond ``radius``): a height map's
+    grid less two spacings (beyond it the part continues flat: the tool
+    would ride an extension nobody measured); the chart of a sphere or
+    cylinder, regular within these angles from the path's centre (a sphere's
+    latitude below pi/2, a cylinder's turn below pi; the same bound along
+    both task axes: conservative along a sphere's longitude and a
+    cylinder's axis)."""
+    from ..trajectory import path_extent
+
+    env, tr = sc.environment, sc.trajectory
+    extent = path_extent(tr)
+    turned = (" (a raster turned by trajectory.direction_deg reaches beyond its radius)"
+              if max(extent) > tr.radius * (1 + 1e-9) else "")
+    if env.heightmap is not None:
+        from .environment import read_height_grid
+
+        shape = read_height_grid(env.heightmap).shape
+        for axis, (reach, points) in enumerate(zip(extent, shape)):
+            half = (points - 1) / 2 * env.grid_spacing
+            if reach > half - 2 * env.grid_spacing:
+                return (f"trajectory.radius: the path leaves the height map: it reaches {reach:.6g} m from its "
+                        f"centre along task axis {axis + 1}{turned}, the grid ({shape[0]} x {shape[1]} at "
+                        f"{env.grid_spacing:g} m) reaches {half:g} m (two spacings kept as margin)")
+        return None
+    limit = 1.2 if env.shape == "sphere" else 2.5
+    for axis, reach in enumerate(extent):
+        if reach / env.radius > limit:
+            return (f"trajectory.radius: the path leaves the {env.shape}'s domain: it reaches {reach:.6g} m from "
+                    f"its centre along task axis {axis + 1}{turned}, {reach / env.radius:.3g} rad on radius "
+                    f"{env.radius:g} m (at most {limit:g} rad from its centre)")
+    return None
+
+
+_CONCAVE: dict = {}
+"""The tightest concave radius along a path, by (the surface's key, the path's shape)."""
+
+
+def _tool_problem(sc: Scenario) -> str | None:
+    """A concave part the tool's spherical tip (``robot.tool_radius``, rho)
+    cannot follow. The tip touches the surface at one point, the tool point,
+    only if the surface bends towards the tool less tightly than the tip in
+    every tangent direction: its smallest concave radius of curvature
+    (:meth:`~tmtcontrol.surface.Surface.concave_radius`, the largest
+    principal curvature, not the curvature along the path: the tip bridges
+    a groove the path runs along as surely as one it crosses) above rho;
+    else the tip rests on the hollow's rims and the contact law at the tool
+    point describes no real contact. A sphere's or cylinder's inside: its
+    radius (a bore's principal curvatures are 1/radius round it and 0 along
+    it); a height map: the spline's principal curvatures at the path's
+    points over one period, eight per grid spacing along the path (at most
+    50,000 points; a second-order, local test at the path: a feature
+    narrower than the tip beside the path is not seen)."""
+    import numpy as np
+
+    env, tr, rho = sc.environment, sc.trajectory, sc.robot.tool_radius
+    if env.radius is not None and env.side == "inside" and env.radius <= rho:
+        return (f"environment.radius: a {env.shape} worked from inside must have a radius larger than the tool's "
+                f"tip (robot.tool_radius = {rho:g} m), got {env.radius:g} m: a spherical tip touches a hollow at one "
+                "point only where the hollow's radius of curvature exceeds the tip's")
+    if env.heightmap is None:
+        return None
+    from ..geometry import surface_of
+    from ..trajectory import path_reference
+
+    surface = surface_of(sc)
+    key = (surface.key, tr.path, tr.radius, tr.lanes, tr.direction_deg)
+    if key not in _CONCAVE:
+        coarse = path_reference(np.linspace(0.0, tr.period, 64 * tr.lanes + 257), tr).pos
+        length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=1), axis=0)))
+        n = int(min(max(math.ceil(8 * length / env.grid_spacing), 512), 50_000))
+        s = path_reference(np.linspace(0.0, tr.period, n, endpoint=False), tr).pos
+        radius = surface.concave_radius(s)
+        i = int(np.argmin(radius))
+        if len(_CONCAVE) > 64:
+            _CONCAVE.clear()
+        _CONCAVE[key] = (float(radius[i]), float(s[0, i]), float(s[1, i]))
+    least, u, v = _CONCAVE[key]
+    if least <= rho:
+        u, v = (round(x, 9) + 0.0 for x in (u, v))          # no -0 or 1e-17 for a point on an axis
+        return (f"environment.heightmap: must curve concave less tightly than the tool's tip (robot.tool_radius = "
+                f"{rho:g} m) along the path, got a concave radius of curvature of {least:.3g} m at (u, v) = "
+                f"({u:.4g}, {v:.4g}) m: the tip would rest on the hollow's rims, not at the tool point; smooth "
+                "the map or use a smaller tool_radius")
+    return None
+
+
 def sampling_problem(sc: Scenario) -> str | None:
     """What the control period ``Ts = 1/controller.rate`` forbids, as an error
     message naming the key, or None: a path period, a stiffness segment or a
@@ -139,8 +219,9 @@ def sampling_problem(sc: Scenario) -> str | None:
     last quarter holds no sample), and a force-filter cut-off at or above the
     Nyquist frequency ``rate/2`` (its discrete pole ``exp(-2 pi f_c Ts)``
     would be below ``exp(-pi) = 0.04``: no filtering at all, silently); and
-    the plane's checks across sections (:func:`_plane_problem`)."""
-    plane = _plane_problem(sc)
+    the surface's checks across sections (:func:`_plane_problem`) and a
+    concave part the tool's tip cannot follow (:func:`_tool_problem`)."""
+    plane = _plane_problem(sc) or _tool_problem(sc)
     if plane:
         return plane
     Ts, rate = sc.controller.Ts, sc.controller.rate

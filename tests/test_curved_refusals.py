@@ -1,0 +1,297 @@
+"""Curved parts the tool cannot follow, and paths that leave a part's domain (issue 40's bad input).
+
+* A spherical tool tip (``robot.tool_radius``, the sphere of MuJoCo's own
+  contact) touches a concave part at one point only where the part's
+  smallest concave radius of curvature exceeds the tip's: a bowl or a bore
+  no wider than the tip, or a height map whose spline is hollow tighter than
+  the tip somewhere on the path, is refused in one line naming the key
+  (exit 2, nothing written); the curvature of the spline is checked against
+  closed forms (a spherical cap, a trough) written here in NumPy.
+* A path's reach along each task axis is its own (``path_extent``, against
+  brute-force sampling of ``path_reference``), not ``trajectory.radius``: a
+  raster turned by ``direction_deg`` that leaves a height map's grid or a
+  sphere's chart is refused; its neighbours that fit are accepted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tmtcontrol.cli import main
+from tmtcontrol.simulation.scenario import ScenarioError, apply_overrides, load_scenario, paper_scenario
+
+
+def _refused(tmp_path, capsys, toml: str, needle: str, sets=()):
+    """``simulate`` of the scenario ``toml`` (with ``--set`` each of ``sets``):
+    exit 2, one stderr line holding ``needle``, nothing on stdout, no output
+    folder. Returns the line."""
+    (tmp_path / "s.toml").write_text(toml)
+    out = tmp_path / "out"
+    rc = main(["simulate", str(tmp_path / "s.toml"), "--out", str(out), "--no-plots",
+               *[a for s in sets for a in ("--set", s)]])
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert rc == 2 and captured.out == "" and len(lines) == 1 and needle in lines[0], captured.err
+    assert not out.exists()
+    return lines[0]
+
+
+def _validates(toml: str, sets=()):
+    """The scenario ``toml`` with each ``key=value`` of ``sets`` set before
+    it is validated (as ``--set`` on a file would), validated."""
+    import tomllib
+
+    from tmtcontrol.simulation.scenario import scenario_from_dict
+
+    d = tomllib.loads(toml)
+    for item in sets:
+        key, raw = item.split("=", 1)
+        *sections, name = key.split(".")
+        node = d
+        for part in sections:
+            node = node.setdefault(part, {})
+        node[name] = tomllib.loads(f"v = {raw}")["v"]
+    return scenario_from_dict(d)
+
+
+def _grid(f, n=41, spacing=0.01):
+    u = (np.arange(n) - (n - 1) / 2) * spacing
+    U, V = np.meshgrid(u, u, indexing="ij")
+    return f(U, V)
+
+
+def _heightmap_toml(tmp_path, heights, spacing, extra=""):
+    np.savetxt(tmp_path / "part.csv", heights, delimiter=",", fmt="%.12g")
+    return (f'[environment]\nshape = "heightmap"\nheightmap = "{tmp_path / "part.csv"}"\n'
+            f"grid_spacing = {spacing!r}\n"
+            f"[trajectory]\ncycles = 0.25\n{extra}")
+
+
+# -- A: the tool's tip on a concave part -------------------------------------------------------------
+
+def test_the_default_tool_radius_is_the_mujoco_tool_sphere():
+    from tmtcontrol.simulation.mujoco_plant import TOOL_RADIUS
+    from tmtcontrol.simulation.scenario import RobotSettings
+
+    assert RobotSettings().tool_radius == TOOL_RADIUS == 1e-3
+    assert paper_scenario().robot.tool_radius == TOOL_RADIUS
+
+
+def test_the_mujoco_contact_touches_with_the_scenarios_tool_sphere():
+    pytest.importorskip("mujoco")
+    from tmtcontrol.simulation.mujoco_plant import mujoco_plant_for
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(load_scenario("ur5"), ['simulation.mujoco_contact="contact"', "robot.tool_radius=0.004"])
+    plant, _ = mujoco_plant_for(Simulator(sc, compile=False), sc)
+    g = plant.model.geom("tmt_tool").id
+    assert plant.model.geom_size[g][0] == pytest.approx(0.004, abs=1e-15)
+    assert plant.model.geom_pos[g] == pytest.approx([0.0, 0.0, -0.004], abs=1e-15)   # its lowest point the tool point
+
+
+def test_the_tool_radius_is_a_setting_where_it_matters(tmp_path):
+    """The report's settings table shows robot.tool_radius where it changes
+    something: a part worked from inside, a height map, MuJoCo's own contact;
+    not on the paper's plane or a convex part."""
+    from tmtcontrol.simulation.scenario import applicable_settings
+
+    def shown(sc):
+        return "robot.tool_radius" in {r.key for r in applicable_settings(sc)}
+
+    assert shown(load_scenario("panda-bowl")) and not shown(load_scenario("ur5-pipe"))
+    assert not shown(paper_scenario())
+    assert shown(apply_overrides(load_scenario("ur5"), ['simulation.mujoco_contact="contact"']))
+    assert shown(_validates(_heightmap_toml(tmp_path, np.zeros((41, 41)), 0.01)))
+
+
+@pytest.mark.parametrize("shape, radius, tool", [("sphere", 0.002, 0.002), ("sphere", 0.002, 0.0025),
+                                                 ("cylinder", 0.003, 0.003), ("cylinder", 0.003, 0.01)])
+def test_a_bowl_or_bore_no_wider_than_the_tool_tip_is_refused(tmp_path, capsys, shape, radius, tool):
+    toml = (f'[environment]\nshape = "{shape}"\nradius = {radius!r}\nside = "inside"\n'
+            f"[trajectory]\nradius = 0.001\ncycles = 0.25\n")
+    line = _refused(tmp_path, capsys, toml, f"environment.radius: a {shape} worked from inside must have a radius "
+                    f"larger than the tool's tip (robot.tool_radius = {tool:g} m), got {radius:g} m",
+                    [f"robot.tool_radius={tool!r}"])
+    assert line.startswith("error: environment.radius:")
+
+
+@pytest.mark.parametrize("shape", ["sphere", "cylinder"])
+def test_a_bowl_or_bore_just_wider_than_the_tool_tip_or_a_convex_part_is_accepted(tmp_path, shape):
+    toml = f'[environment]\nshape = "{shape}"\nradius = 0.002\nside = "inside"\n[trajectory]\nradius = 0.001\n'
+    assert _validates(toml, ["robot.tool_radius=0.00199"]).robot.tool_radius == 0.00199
+    # the outside of the same part is convex: a tip of any size touches it at one point
+    convex = _validates(toml.replace('"inside"', '"outside"'), ["robot.tool_radius=0.01"])
+    assert convex.environment.side == "outside"
+
+
+def test_the_reviewers_2_mm_bowl_runs_with_the_default_1_mm_tip(tmp_path, capsys):
+    """The 2 mm bowl of the review is wider than the default 1 mm tip: it runs
+    (and converges); with a 2 mm tip it is refused (above)."""
+    (tmp_path / "s.toml").write_text('[environment]\nshape = "sphere"\nradius = 0.002\nside = "inside"\n'
+                                     "[trajectory]\nradius = 0.001\ncycles = 0.25\n")
+    rc = main(["simulate", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--no-plots"])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "out" / "summary.json").exists()
+
+
+def _spherical_cap(R, spacing, n=41):
+    return _grid(lambda U, V: R - np.sqrt(R * R - U * U - V * V), n, spacing)
+
+
+def test_the_height_maps_principal_curvatures_are_the_closed_forms():
+    """The spline's curvatures against closed forms: a spherical cap of
+    radius R seen from inside (a bowl) has both principal curvatures 1/R
+    (slopes up to 0.4 here: the metric terms matter), upside down (a dome)
+    -1/R and no concave radius; a trough ``u^2 / (2 rho)`` has 1/rho across
+    it (at u = 0) and 0 along it; a sphere's or cylinder's inside its radius,
+    its outside none."""
+    from tmtcontrol.surface import Cylinder, HeightMap, Sphere, tilt_frame
+
+    R0, c0 = tilt_frame(45.0), np.array([0.5, -0.15, 0.55])
+    s = np.random.default_rng(40).uniform(-0.015, 0.015, (2, 50))
+    bowl = HeightMap(R0, c0, _spherical_cap(0.05, 0.001), 0.001)
+    k1, k2 = bowl.curvatures(s)
+    assert np.abs(k1 * 0.05 - 1).max() < 2e-4 and np.abs(k2 * 0.05 - 1).max() < 2e-4
+    assert np.abs(bowl.concave_radius(s) - 0.05).max() < 1e-5
+    dome = HeightMap(R0, c0, -_spherical_cap(0.05, 0.001), 0.001)
+    assert np.abs(dome.curvatures(s)[1] * 0.05 + 1).max() < 2e-4 and np.all(np.isinf(dome.concave_radius(s)))
+    trough = HeightMap(R0, c0, _grid(lambda U, V: U * U / (2 * 0.2)), 0.01)
+    axis = np.vstack([np.zeros(5), np.linspace(-0.1, 0.1, 5)])
+    k1, k2 = trough.curvatures(axis)
+    assert np.abs(k1 * 0.2 - 1).max() < 1e-6 and np.abs(k2).max() < 1e-6
+    # beyond the grid the part continues flat: no curvature
+    assert np.all(np.isinf(trough.concave_radius(np.array([[0.5], [0.0]]))))
+    for cls in (Sphere, Cylinder):
+        assert np.all(cls(R0, c0, 0.3, "inside").concave_radius(s) == 0.3)
+        assert np.all(np.isinf(cls(R0, c0, 0.3, "outside").concave_radius(s)))
+
+
+DIP = 0.01 * np.array([np.cos(np.radians(37.0)), np.sin(np.radians(37.0))])
+"""Where the hollow is: on the 1 cm circle at 37 deg (between the samples of a coarse path)."""
+
+
+def _dip(U, V):
+    """A Gaussian hollow 5 mm deep, sigma 2 mm, at :data:`DIP`: its bottom's
+    curvature is 5e-3 / 2e-3^2 = 1250 1/m (the spline's, about 1330 1/m: a
+    concave radius of 0.75 mm), tighter than the 1 mm tip."""
+    return -0.005 * np.exp(-((U - DIP[0]) ** 2 + (V - DIP[1]) ** 2) / (2 * 0.002 ** 2))
+
+
+def test_a_height_map_hollow_tighter_than_the_tool_tip_on_the_path_is_refused(tmp_path, capsys):
+    toml = _heightmap_toml(tmp_path, _grid(_dip, 41, 0.001), 0.001, "radius = 0.01\n")
+    line = _refused(tmp_path, capsys, toml, "environment.heightmap: must curve concave less tightly than the tool's "
+                    "tip (robot.tool_radius = 0.001 m) along the path, got a concave radius of curvature of")
+    at = [float(x) for x in line.split("at (u, v) = (")[1].split(")")[0].split(",")]
+    assert np.hypot(*(np.array(at) - DIP)) < 2e-4                # the hollow's bottom (0.2 mm: a quarter spacing)
+    least = float(line.split("radius of curvature of ")[1].split(" m")[0])
+    assert 1 / 1400 < least < 1 / 1250                          # the spline's bottom, near the closed form's
+    # the neighbours: a tip finer than the hollow; the same tip on a circle that misses the hollow
+    assert _validates(toml, ["robot.tool_radius=0.0007"]).robot.tool_radius == 0.0007
+    assert _validates(toml, ["trajectory.radius=0.004"]).trajectory.radius == 0.004
+
+
+def test_the_tool_tip_bridges_a_groove_the_path_runs_along(tmp_path, capsys):
+    """The test is the smallest concave radius over every direction, not the
+    curvature along the path: a line running along a trough of radius 0.2 m
+    is straight, yet a 0.21 m tip rests on the trough's sides."""
+    toml = _heightmap_toml(tmp_path, _grid(lambda U, V: U * U / (2 * 0.2)), 0.01,
+                           'path = "line"\ndirection_deg = 90.0\n')
+    line = _refused(tmp_path, capsys, toml, "environment.heightmap: must curve concave less tightly",
+                    ["robot.tool_radius=0.21"])
+    assert "radius of curvature of 0.2 m at (u, v) = (0, " in line
+    assert _validates(toml, ["robot.tool_radius=0.19"]).robot.tool_radius == 0.19
+
+
+def test_a_sweep_couples_the_tool_radius_with_the_parts_radius(tmp_path):
+    """Axes in different sections that the cross-section check relates are
+    validated in every combination: each value alone fits the 1 cm bowl or
+    the 1 mm tip, the 2 mm bowl with the 3 mm tip does not."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SweepError
+
+    (tmp_path / "bowl.toml").write_text('[environment]\nshape = "sphere"\nradius = 0.01\nside = "inside"\n'
+                                        "[trajectory]\nradius = 0.001\n")
+    with pytest.raises(SweepError, match=r"environment\.radius = 0\.002, robot\.tool_radius = 0\.003.*"
+                                         r"environment\.radius: a sphere worked from inside"):
+        sweep_from_dict({"scenario": "bowl.toml", "grid": {"environment.radius": [0.01, 0.002],
+                                                           "robot.tool_radius": [0.001, 0.003]}}, folder=tmp_path)
+
+
+# -- B: how far the path really reaches ---------------------------------------------------------------
+
+def _traj(**kw):
+    from tmtcontrol.simulation.scenario import scenario_from_dict
+
+    return scenario_from_dict({"trajectory": kw}).trajectory
+
+
+@pytest.mark.parametrize("kw", [{"path": "circle"}, {"path": "line", "direction_deg": 30.0},
+                                {"path": "raster"}, {"path": "raster", "direction_deg": 45.0, "radius": 0.17},
+                                {"path": "raster", "lanes": 7, "direction_deg": 45.0},
+                                {"path": "raster", "lanes": 100, "direction_deg": -30.0, "period": 20.0}])
+def test_path_extent_is_the_paths_own_reach(kw):
+    """Against ``path_reference`` sampled at 2,000,001 points over a period
+    (its sampling error below 2e-9 m here): never below, at most 1e-9 m
+    above; a raster within ``radius (|cos| + |sin|)``, which an odd number
+    of lanes at 45 deg reaches (``radius sqrt 2``, both harmonics at an end
+    together)."""
+    from tmtcontrol.simulation.trajectory import path_extent, path_reference
+
+    tr = _traj(**kw)
+    ext = np.array(path_extent(tr))
+    brute = np.abs(path_reference(np.linspace(0.0, tr.period, 2_000_001), tr).pos).max(axis=1)
+    assert np.all(ext >= brute - 1e-15) and np.all(ext - brute < 1e-9), (ext, brute)
+    th = np.radians(tr.direction_deg)
+    if tr.path == "raster":
+        assert ext.max() <= tr.radius * (abs(np.cos(th)) + abs(np.sin(th))) * (1 + 1e-12)
+        if tr.lanes % 2 and tr.direction_deg == 45.0:
+            assert ext.max() == pytest.approx(tr.radius * np.sqrt(2), rel=1e-12)
+
+
+def test_a_raster_turned_beyond_the_height_map_is_refused(tmp_path, capsys):
+    """41 x 41 at 1 cm: the grid reaches 0.2 m, 0.18 m with the margin. A
+    raster of radius 0.17 m turned 45 deg reaches 0.2258 m: refused (it rode
+    the flat extension); unturned, or smaller, it fits."""
+    toml = _heightmap_toml(tmp_path, np.zeros((41, 41)), 0.01,
+                           'path = "raster"\nradius = 0.17\ndirection_deg = 45.0\n')
+    line = _refused(tmp_path, capsys, toml, "trajectory.radius: the path leaves the height map: it reaches 0.225836 m "
+                    "from its centre along task axis 1 (a raster turned by trajectory.direction_deg reaches beyond "
+                    "its radius), the grid (41 x 41 at 0.01 m) reaches 0.2 m")
+    assert "two spacings kept as margin" in line
+    assert _validates(toml, ["trajectory.direction_deg=0.0"]).trajectory.radius == 0.17
+    assert _validates(toml, ["trajectory.radius=0.12"]).trajectory.direction_deg == 45.0
+
+
+def test_a_height_map_longer_than_wide_is_checked_per_axis(tmp_path, capsys):
+    """Rows along task axis 1, columns along axis 2: 61 x 21 at 1 cm reaches
+    0.3 m and 0.1 m. A line of 0.2 m along axis 1 fits; turned onto axis 2
+    it leaves the grid."""
+    toml = _heightmap_toml(tmp_path, np.zeros((61, 21)), 0.01, 'path = "line"\nradius = 0.2\n')
+    assert _validates(toml).trajectory.radius == 0.2
+    _refused(tmp_path, capsys, toml, "trajectory.radius: the path leaves the height map: it reaches 0.2 m from its "
+             "centre along task axis 2", ["trajectory.direction_deg=90.0"])
+
+
+def test_a_raster_turned_off_the_spheres_chart_is_refused(tmp_path, capsys):
+    """r = 0.0835 m: a 0.1 m raster spans 1.198 rad unturned (at most 1.2),
+    turned 45 deg 0.13284 m, 1.59 rad: beyond the chart's pi/2 latitude."""
+    toml = '[environment]\nshape = "sphere"\nradius = 0.0835\n[trajectory]\npath = "raster"\ncycles = 0.25\n'
+    _refused(tmp_path, capsys, toml, "trajectory.radius: the path leaves the sphere's domain: it reaches 0.132845 m "
+             "from its centre along task axis 1 (a raster turned by trajectory.direction_deg reaches beyond its "
+             "radius), 1.59 rad on radius 0.0835 m (at most 1.2 rad from its centre)",
+             ["trajectory.direction_deg=45.0"])
+    assert _validates(toml).environment.radius == 0.0835
+
+
+def test_a_line_is_checked_by_its_own_reach_not_its_radius():
+    """A line's reach along each axis is radius |cos|, |sin|: one of 0.11 m
+    along task axis 1 on a sphere of radius 0.09 m spans 1.22 rad and is
+    refused; turned 60 deg it spans 0.61 rad along axis 1 and 1.06 rad along
+    axis 2 and is accepted."""
+    sets = ['environment.shape="sphere"', "environment.radius=0.09", 'trajectory.path="line"',
+            "trajectory.radius=0.11"]
+    with pytest.raises(ScenarioError, match=r"^trajectory\.radius: the path leaves the sphere's domain: it reaches "
+                                            r"0\.11 m from its centre along task axis 1, 1\.22 rad"):
+        apply_overrides(paper_scenario(), sets)
+    assert apply_overrides(paper_scenario(), [*sets, "trajectory.direction_deg=60.0"]).trajectory.radius == 0.11
