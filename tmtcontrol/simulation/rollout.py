@@ -66,11 +66,9 @@ compiled at -O1 rather than -O3. Measured by
 ``benchmarks/bench_compile_flags.py`` (table in docs/speed.md): the simulated
 steps (2,668 operations for the PUMA, 10,083 for the UR5, 16,491 for the
 Panda) run 16,000 times per simulation and keep -O3; the periodic analysis's
-augmented steps (32,058, 209,727 and 359,633) compile in 6 s instead of 16 s
-(PUMA), 25 s instead of 34 s (UR5) and 52 s instead of 89 s (Panda), and run
-one path period in about the same time (PUMA, Panda) or twice as long (UR5,
-0.53 s against 0.25 s): the compile, paid once per loop structure, is most
-of a first periodic analysis. No level changes a result: with
+tangent-linear steps (7,025, 29,046 and 46,363) are compiled once per loop
+structure: the UR5's in 8 s instead of 17 s and the Panda's in 18 s instead
+of 42 s, running 30 % slower (UR5) or as fast (Panda). No level changes a result: with
 ``-ffp-contract=off`` and no fast-math flag every level computes the same
 IEEE arithmetic (the benchmark prints the difference: 0)."""
 

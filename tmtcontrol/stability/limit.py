@@ -113,7 +113,7 @@ def deciding_limit(scenario, points: int = 8, along_path: bool = True, runner=No
     docstring); None for a law without a linear verdict. ``points``: frozen
     path points; ``along_path=False`` stops after the frozen loop (the
     periodic and first-contact searches are the costly part: a compile of the
-    monodromy step per loop structure, then seconds); ``runner``: a
+    tangent-linear step per loop structure, then seconds); ``runner``: a
     ``stability.first_contact.LoopRunner`` to reuse (a sweep's simulator);
     ``memo``: a dict the caller keeps, so that one command that attaches the
     limit to its run and then quotes it computes it once (an

@@ -23,10 +23,10 @@ bracketing root search (``scipy.optimize.brentq`` on log k_e).
 The Jacobians are exact (CasADi's forward mode, ``casadi.jtimes``) and
 multiplied along the rollout itself: the tangent-linear step
 ``(s, v) -> (step(s), A(s) v)`` is compiled once per loop structure (about
-three times the step's operations: 7,000 on the PUMA, 29,000 on the UR5,
-48,000 on the Panda; a few seconds of compiling, where the earlier augmented
-step ``(s, vec Phi)``, 20 times the step, took 25 s on the UR5 and 50 s on
-the Panda), and one rollout of one period from ``(s_0, e_j)`` gives the
+three times the step's operations: 7,025 on the PUMA, 29,046 on the UR5,
+46,363 on the Panda; 1 s, 8 s and 18 s of compiling at -O1, where the
+earlier augmented step ``(s, vec Phi)``, 12 to 22 times the step, took 6 s,
+25 s and 52 s; docs/speed.md), and one rollout of one period from ``(s_0, e_j)`` gives the
 orbit's end point and the monodromy's column j, so a period costs one
 rollout per dynamic state (16 on the UR5, 18 on the Panda, without delay).
 The step is built without the
