@@ -295,3 +295,23 @@ def test_a_line_is_checked_by_its_own_reach_not_its_radius():
                                             r"0\.11 m from its centre along task axis 1, 1\.22 rad"):
         apply_overrides(paper_scenario(), sets)
     assert apply_overrides(paper_scenario(), [*sets, "trajectory.direction_deg=60.0"]).trajectory.radius == 0.11
+
+
+def test_the_drawn_surface_patch_covers_a_turned_rasters_reach():
+    """The figures' surface patch (SimulationTraces.surface_mesh) spans 1.4x
+    the path's true reach along each task axis (path_extent): a smooth
+    raster turned 45 deg reaches 1.33 radius, not the radius the circle's
+    patch was sized by (its patch unchanged: 2 x 1.4 x 0.1 m along base y)."""
+    import numpy as np
+
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.simulator import Simulator
+    from tmtcontrol.simulation.trajectory import path_extent
+
+    circle = apply_overrides(paper_scenario(), ["trajectory.cycles=0.05"])
+    assert np.ptp(Simulator(circle).run().traces.surface_mesh[1]) == pytest.approx(0.28, rel=1e-12)
+    sc = apply_overrides(circle, ['trajectory.path="raster"', "trajectory.direction_deg=45"])
+    reach = max(path_extent(sc.trajectory))
+    assert reach > 1.3 * sc.trajectory.radius
+    mesh = Simulator(sc).run().traces.surface_mesh
+    assert np.ptp(mesh[1]) == pytest.approx(2 * 1.4 * reach, rel=1e-12)      # base y is task axis 2 here

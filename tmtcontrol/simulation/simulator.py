@@ -39,7 +39,7 @@ from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve
 from .rollout import Rollout
 from .scenario import Scenario, ScenarioError, paper_scenario
 from .traces import SimulationTraces
-from .trajectory import path_reference
+from .trajectory import path_extent, path_reference
 
 __all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS",
            "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "structure",
@@ -309,7 +309,7 @@ class SimulationResult:
         # controller.part_offset); the true surface around the path
         desired = (surface.to_base(np.vstack([np.zeros(self.time.size), self.reference_task[1:]]))
                    + np.asarray(sc.controller.part_offset, dtype=float)[:, None])
-        r = 1.4 * max(float(sc.trajectory.radius), 1e-3)
+        r = 1.4 * max(*path_extent(sc.trajectory), 1e-3)           # around the path's true reach (a turned raster)
         u = np.linspace(-r, r, 25 if surface.turns else 2)
         U, V = np.meshgrid(u, u, indexing="ij")
         mesh = surface.to_base(np.stack([np.zeros_like(U), U, V]))
