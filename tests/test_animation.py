@@ -182,3 +182,25 @@ def test_a_renderer_that_aborts_the_process_falls_back_to_matplotlib(tmp_path):
     assert ("animation.gif drawn by matplotlib (MuJoCo's renderer did not start (MUJOCO_GL=egl): "
             "starting it killed a test process (SIGABRT))") in r.stdout
     assert (out / "animation.gif").is_file()
+
+
+def test_mujocos_renderer_aborting_while_drawing_is_one_line_and_the_process_lives():
+    """MuJoCo's renderer aborted a pytest worker (SIGABRT in EGL) though the
+    probe in a fresh process had started it: the frames are now drawn in a
+    forked child, whose death by a signal is RenderUnavailable naming it
+    (matplotlib then draws), whose exceptions arrive here, and whose
+    answer is the frames themselves."""
+    import os
+    import signal
+
+    import numpy as np
+
+    from tmtcontrol.simulation.animation import _in_child
+    from tmtcontrol.simulation.mujoco_render import RenderUnavailable
+
+    with pytest.raises(RenderUnavailable, match="killed by SIGABRT"):
+        _in_child(lambda: os.kill(os.getpid(), signal.SIGABRT))
+    with pytest.raises(RenderUnavailable, match="no GL here"):
+        _in_child(lambda: (_ for _ in ()).throw(RenderUnavailable("no GL here")))
+    frames = _in_child(lambda n: [np.full((2, 3, 3), i, dtype=np.uint8) for i in range(n)], 4)
+    assert [int(f[0, 0, 0]) for f in frames] == [0, 1, 2, 3] and frames[0].shape == (2, 3, 3)

@@ -26,6 +26,8 @@ why not MuJoCo. :func:`still` is one such frame (the report shows the last).
 
 from __future__ import annotations
 
+import contextlib
+
 import pathlib
 from dataclasses import dataclass
 
@@ -59,6 +61,63 @@ class Drawn:
     why: str = ""
 
 
+def _in_child(fn, *args, **kw):
+    """``fn(*args, **kw)`` in a forked child process on Linux, its result
+    (pickled) through a pipe: MuJoCo's offscreen renderer has aborted the
+    whole process on starting (SIGABRT in EGL) even where a probe in a fresh
+    process had started it (``mujoco_render.renderer_problem``), so it is
+    never started in this one. A child killed by a signal, or ending without
+    an answer, raises :class:`~.mujoco_render.RenderUnavailable` saying so
+    (matplotlib then draws); an exception in the child is raised here. The
+    child is killed if this process stops waiting (Ctrl-C). Elsewhere than
+    Linux, ``fn`` runs here."""
+    import os
+    import pickle
+    import signal
+
+    from ..drawing import can_fork, read_all, write_all
+    from .mujoco_render import RenderUnavailable
+
+    if not can_fork():
+        return fn(*args, **kw)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                   # the child: answer through the pipe, then leave at once
+        code = 0
+        try:
+            os.close(r)
+            try:
+                out = ("ok", fn(*args, **kw))
+            except BaseException as exc:           # noqa: BLE001 - every failure goes to the parent
+                out = ("error", exc)
+            write_all(w, pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
+        except BaseException:                      # noqa: BLE001
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    try:
+        data = read_all(r)
+        _, status = os.waitpid(pid, 0)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        raise
+    finally:
+        os.close(r)
+    if os.WIFSIGNALED(status):
+        name = signal.Signals(os.WTERMSIG(status)).name
+        raise RenderUnavailable(f"MuJoCo's renderer was killed by {name} while drawing")
+    try:
+        kind, value = pickle.loads(data)
+    except Exception:                              # noqa: BLE001 - no answer: the child failed to write it
+        raise RenderUnavailable("MuJoCo's renderer ended without its frames") from None
+    if kind == "error":
+        raise value
+    return value
+
+
 def _mujoco_frames(result, indices, robot, renderer: str):
     """MuJoCo's frames, or ``(None, why)`` where it cannot render and ``renderer`` allows matplotlib."""
     if renderer == "matplotlib":
@@ -66,7 +125,7 @@ def _mujoco_frames(result, indices, robot, renderer: str):
     from .mujoco_render import RenderUnavailable, render_frames
 
     try:
-        return render_frames(result, indices, robot=robot), ""
+        return _in_child(render_frames, result, indices, robot=robot), ""
     except RenderUnavailable as exc:
         if renderer == "mujoco":
             raise
