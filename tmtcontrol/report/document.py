@@ -209,10 +209,7 @@ def _checks(rep: Report, checks: list):
                   "difference found. The last rows check the scenario's arm: its task-frame loop with the ideal "
                   "inner loop (model = plant) realises the command U and reduces to eq. (22) on the normal axis "
                   "(on an arm with 6 or more joints also: the null-space torque leaves the task alone and the "
-                  "other axes follow their impedance). The rows are kept in tmtcontrol's cache under a key of "
-                  "the package's sources, the scenario and the libraries' versions, so a later report on the same "
-                  "code reads them (TMTCONTROL_RESULT_CACHE=0 runs them again; tmtcontrol check always runs "
-                  "them)."),
+                  "other axes follow their impedance)."),
         Table("Derivation checks", ["equation", "check", "claim", "residual", "verdict"], rows, verdict_column=4)])
     rep.data["checks"] = checks
     return sec
