@@ -81,3 +81,22 @@ def known_sim():
 @pytest.fixture(scope="session")
 def paper_result(paper_sim):
     return paper_sim.run()
+
+
+def load_benchmark(name: str):
+    """``benchmarks/NAME.py`` as a module (the docs tests compare the pages with
+    what a benchmark prints); its folder is on ``sys.path`` while it loads, for
+    the ``bench_all`` it imports beside it."""
+    import importlib.util
+    import pathlib
+    import sys
+
+    folder = pathlib.Path(__file__).resolve().parents[1] / "benchmarks"
+    sys.path.insert(0, str(folder))
+    try:
+        spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(folder))
+    return module

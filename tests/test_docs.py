@@ -66,17 +66,9 @@ def test_api_package_map_lists_every_module_and_only_those():
 
 
 def _bench_report():
-    import importlib.util
-    import sys
+    from conftest import load_benchmark
 
-    sys.path.insert(0, str(ROOT / "benchmarks"))          # bench_report imports bench_all beside it
-    try:
-        spec = importlib.util.spec_from_file_location("bench_report", ROOT / "benchmarks" / "bench_report.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-    return module
+    return load_benchmark("bench_report")
 
 
 def test_speed_page_quotes_the_recorded_report_benchmark():

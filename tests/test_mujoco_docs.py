@@ -10,11 +10,9 @@ crosscheck``): a new record or an edited number on the page fails here until
 the two agree. Nothing here runs MuJoCo.
 """
 import copy
-import importlib.util
 import json
 import pathlib
 import re
-import sys
 
 import numpy as np
 import pytest
@@ -25,14 +23,9 @@ FIGURES = ROOT / "docs" / "figures" / "mujoco"
 
 
 def _bench():
-    sys.path.insert(0, str(ROOT / "benchmarks"))          # bench_mujoco imports bench_all beside it
-    try:
-        spec = importlib.util.spec_from_file_location("bench_mujoco", ROOT / "benchmarks" / "bench_mujoco.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
-    return module
+    from conftest import load_benchmark
+
+    return load_benchmark("bench_mujoco")
 
 
 def _record():
