@@ -589,6 +589,36 @@ def test_periodic_decay_ignores_rounding_and_reports_growth_beside_a_saturated_s
     assert grows == pytest.approx(1.2, rel=1e-6)
 
 
+class _FloorRunner(_PeriodicRunner):
+    """A deviation that shrinks 1000-fold per period down to a floor of
+    rounding amplified along the path: 2e-8 N (above 1e-9 f_d), a different
+    shape each period, twice as large in the last period as in the one
+    before (the ratio of two floors is noise about 1; here 2). Seeded."""
+
+    def run(self, k_e, duration, stiffness=None):
+        f = super().run(k_e, duration, stiffness)
+        P = int(round(self.scenario.trajectory.period / 1e-3))
+        rng = np.random.default_rng(7)
+        for p in range(len(f) // P):
+            f[p * P:(p + 1) * P] += 2e-8 * (2.0 if p == len(f) // P - 1 else 1.0) * rng.standard_normal(P)
+        return f
+
+
+def test_periodic_decay_counts_a_floor_a_millionfold_below_the_kick_as_rounding():
+    """Regression (the UR5 on the pipe's helix, issue 40): near its limit the
+    loop is locally unstable where the normal mass is largest, so each period
+    amplifies the step's rounding there to a floor above 1e-9 f_d, while the
+    kick's deviation has decayed a millionfold. The floor's period-to-period
+    ratio is noise (2 here), not a mode: the orbit attracts, 0."""
+    from tmtcontrol.stability.first_contact import ROUNDING, periodic_decay
+
+    assert ROUNDING == 1e-6
+    # the stand-in's deviation starts at t = 0: 1 N in the first period at k_e, as the kick leaves on the pipe
+    assert periodic_decay(_FloorRunner(lambda k: 1e-3, amplitude=1e3), 1e5, cycles=5) == 0.0
+    # a deviation that grows from the same floor is no rounding: reported
+    assert periodic_decay(_FloorRunner(lambda k: 1.5), 1e5, cycles=5) == pytest.approx(1.5, rel=1e-3)
+
+
 def test_periodic_decay_sees_a_saturated_oscillation_and_a_lost_contact():
     """An oscillation at half the sampling rate that repeats every period
     cancels in the difference between periods (ratio (a) = 0) but not in the

@@ -234,27 +234,29 @@ class PeriodicModel:
 
     def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:
         """The loop at constant stiffness ``k_e`` (N/m) linearised along its
-        periodic orbit (Newton shooting to ``tol``, relative)."""
+        periodic orbit (Newton shooting to ``tol``, relative).
+
+        Single shooting fails where the loop is locally unstable on part of
+        the path (a curved part's largest normal mass above the frozen
+        limit): a deviation grows there by orders of magnitude before the
+        rest of the period damps it, so the period map is far from linear a
+        short way off the orbit and Newton stalls although the orbit
+        attracts. Then the orbit is found as the simulator finds it: up to
+        :data:`RELAX_PERIODS` periods run from the start until they repeat,
+        and Newton again from there."""
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         U = self._inputs(float(k_e))
-        d, nd = self.dynamic, self.dynamic.size
-        eye = np.eye(nd)
-        s = self._start(float(k_e))
-        residual, it, previous = math.inf, 0, math.inf
-        for it in range(1, iters + 1):
-            end, Phi, F = self._period(s, U)
-            if not (np.all(np.isfinite(end)) and np.all(np.isfinite(Phi))):
-                raise AnalysisError(f"k_e = {k_e:.6g} N/m: no periodic orbit found (the shooting diverged)")
-            r = (end - s)[d]
-            residual = float(np.max(np.abs(r) / (1.0 + np.abs(s[d]))))
-            # converged, or stalled at the rounding of one period's arithmetic (f = k_e x: ~1e-6 relative at 2.6e6 N/m)
-            if residual < tol or (it > 2 and residual > 0.5 * previous):
-                break
-            previous = residual
-            s = s.copy()
-            s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
+        start = self._start(float(k_e))
+        s, Phi, F, residual, it = self._shoot(start, U, iters, tol)
+        if residual > 1e-5:
+            relaxed = self._relax(start, U, tol)
+            if relaxed is not None:
+                s, Phi, F, residual, more = self._shoot(relaxed, U, iters, tol)
+                it += more
         f = np.ravel(F)
+        if residual == math.inf:
+            raise AnalysisError(f"k_e = {k_e:.6g} N/m: no periodic orbit found (the shooting diverged)")
         if residual > 1e-5:
             raise AnalysisError(f"k_e = {k_e:.6g} N/m: the periodic orbit did not converge "
                                 f"(residual {residual:.3g} after {it} Newton steps)")
@@ -265,6 +267,53 @@ class PeriodicModel:
         rho = float(np.max(np.abs(np.linalg.eigvals(Phi))))
         return PeriodicLoop(float(k_e), self.scenario.controller.Ts, self.samples, s, Phi, self.states, rho,
                             residual, (float(f.min()), float(f.max())), it)
+
+    def _shoot(self, s: np.ndarray, U: np.ndarray, iters: int, tol: float):
+        """Newton shooting on one period from ``s``: (the orbit's start, the
+        monodromy, the force along the period, the residual, iterations)."""
+        d, eye = self.dynamic, np.eye(self.dynamic.size)
+        residual, it, previous = math.inf, 0, math.inf
+        for it in range(1, iters + 1):
+            end, Phi, F = self._period(s, U)
+            if not (np.all(np.isfinite(end)) and np.all(np.isfinite(Phi))):
+                return s, Phi, F, math.inf, it               # diverged
+            r = (end - s)[d]
+            residual = float(np.max(np.abs(r) / (1.0 + np.abs(s[d]))))
+            # converged, or stalled at the rounding of one period's arithmetic (f = k_e x: ~1e-6 relative at 2.6e6 N/m)
+            if residual < tol or (it > 2 and residual > 0.5 * previous):
+                break
+            previous = residual
+            s = s.copy()
+            s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
+        return s, Phi, F, residual, it
+
+    def _relax(self, s: np.ndarray, U: np.ndarray, tol: float) -> np.ndarray | None:
+        """The state at the start of the period after running periods of the
+        nonlinear loop from ``s`` until two successive ones agree to 100
+        ``tol`` (relative), within :data:`RELAX_PERIODS`; None if they do not,
+        or if after 10 periods the difference has not shrunk a thousandfold
+        (no attracting orbit: a limit cycle, a drift, a divergence)."""
+        d, ns, zeros = self.dynamic, self.layout.size, np.zeros(self.dynamic.size)
+        first = None
+        for n in range(1, RELAX_PERIODS + 1):
+            with np.errstate(all="ignore"):
+                S, _ = self.rollout.run(np.r_[s, zeros], U, self.P)
+            end = S[:ns, -1]
+            if not np.all(np.isfinite(end)):
+                return None
+            residual = float(np.max(np.abs(end - s)[d] / (1.0 + np.abs(s[d]))))
+            s = end
+            first = residual if first is None else first
+            if residual < 100 * tol:
+                return s
+            if n >= 10 and residual > 1e-3 * first:
+                return None
+        return None
+
+
+RELAX_PERIODS = 40
+"""Periods the orbit's search runs the loop for when Newton shooting alone
+fails (:meth:`PeriodicModel.at`)."""
 
 
 def periodic_loop(scenario, k_e: float) -> PeriodicLoop:
