@@ -124,7 +124,7 @@ def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
     loop's limit. At a constant 300 kN/m, above the zero-order hold's 1-D
     figure (the gate, stability.limit.with_stiffness_limit), the simulate
     command's verdict is judged against the loop's own limit (the periodic
-    orbit's, above 300 kN/m: the run converges), converged; with the
+    orbit's or the first contact's, above 300 kN/m: the run converges), converged; with the
     zero-order hold the same run is beyond the loop's limit and not
     converged. Heavy: the hold's limits on the pipe take about two minutes
     (the gate's logic is tested with stubs in test_limits)."""
@@ -136,7 +136,10 @@ def test_a_stable_run_above_the_1d_limit_is_not_called_diverged_with_the_hold():
     assert scenario_stiffness_limit(zoh) < 2e5                 # the 1-D model (no hold): about 130 kN/m
     assert scenario_stiffness_limit(sc) is None                 # not this loop's: no 1-D prediction
     res = with_stiffness_limit(Simulator(sc, compile=False).run())
-    assert res.info["stiffness_limit"] > 3e5 and res.info["stiffness_limit_from"] == "periodic orbit"
+    # the loop's own limit (periodic orbit or first contact, whichever is smaller; on the helix they agree
+    # within 0.1 %), not the 1-D figure
+    assert res.info["stiffness_limit"] > 3e5
+    assert res.info["stiffness_limit_from"] in ("periodic orbit", "first contact")
     assert segment_metrics(res)[0].verdict == "converged"
     assert segment_metrics(with_stiffness_limit(Simulator(zoh, compile=False).run()))[0].verdict != "converged"
 

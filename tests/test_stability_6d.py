@@ -261,3 +261,32 @@ def test_first_contact_limit_equals_a_long_run_bisection_on_the_ur5(delta, k_hi)
         mid = (lo * hi) ** 0.5
         lo, hi = (mid, hi) if settles_40s(mid) else (lo, mid)
     assert limit == pytest.approx((lo * hi) ** 0.5, rel=2e-3)
+
+
+@pytest.mark.heavy      # the UR5's tangent-linear step compiled (~8 s) and ~60 one-period runs
+def test_pipe_orbit_where_single_shooting_stalls_is_found_by_running_the_loop():
+    """Regression (issue 40, the helix on the pipe): at 602 kN/m, just below the
+    simulated limit (~604 kN/m), the loop is locally unstable where the normal
+    mass is largest, and Newton shooting over the whole period stalls (residual
+    ~0.3) although the orbit attracts; it used to count as unstable, putting the
+    periodic limit 1.4 % low. PeriodicModel.at finds the orbit by running the
+    loop, then shoots from there: the state it returns repeats after one period
+    of the nonlinear loop (1e-8 relative: the amplified rounding is ~1e-10),
+    its monodromy's radius is below 1, as the simulator's own verdict
+    (periodic_decay < 1) says."""
+    from tmtcontrol.stability.first_contact import LoopRunner, periodic_decay
+    from tmtcontrol.stability.periodic import PeriodicModel
+
+    sc = arm_scenario("ur5-pipe")
+    mdl = PeriodicModel(sc)
+    k = 6.02e5
+    U = mdl._inputs(k)
+    *_, shot, _ = mdl._shoot(mdl._start(k), U, 12, 1e-10)
+    assert shot > 1e-5                                   # single shooting alone fails here
+    w = mdl.at(k)
+    assert w.stable and w.residual < 1e-8
+    S, _ = mdl.rollout.run(np.r_[w.s_orbit, np.zeros(mdl.dynamic.size)], U, mdl.P)
+    end = S[:mdl.layout.size, -1]
+    d = mdl.dynamic
+    assert np.max(np.abs(end - w.s_orbit)[d] / (1 + np.abs(w.s_orbit[d]))) < 1e-8
+    assert periodic_decay(LoopRunner(sc), k, 5) < 1.0
