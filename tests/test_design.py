@@ -131,6 +131,8 @@ def test_cli_design_json_and_errors(tmp_path):
     for key in ("m", "b", "k", "objective", "baseline_b", "baseline_objective", "worst_overshoot", "status"):
         assert key in d
     assert d["objective"] < d["baseline_objective"]
+    # the spec the design was made for, as given (issue 40: design --json said no m_p, f_d or delay)
+    assert (d["m_p"], d["f_d"], d["delay"], d["Ts"], d["k_e_max"]) == (3.3, 10.0, 0, 0.001, 20000.0)
     assert {p.name for p in (tmp_path / "p").iterdir()} == {"design_cost.png", "design_responses.png",
                                                           ".tmtcontrol-output.json"}
     bad = subprocess.run(cmd[:-6] + ["--ts", "0.005", "--max-overshoot", "5", "--ke-max", "100000"],

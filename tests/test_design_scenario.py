@@ -103,8 +103,9 @@ def test_design_scenario_ur5_equals_the_explicit_flags(capsys):
     assert from_scenario["verified"] and explicit["verified"]
     # m_p agrees to ~1e-15 between the two sources; IPOPT's optimum moves by far less than its 1e-8 tolerance
     assert from_scenario["b"] == pytest.approx(explicit["b"], rel=1e-6)
-    for key in ("k", "k_e_min", "k_e_max", "Ts", "max_overshoot", "m"):
+    for key in ("k", "k_e_min", "k_e_max", "Ts", "max_overshoot", "m", "f_d", "delay"):
         assert from_scenario[key] == explicit[key]
+    assert from_scenario["m_p"] == pytest.approx(max(_pinocchio_normal_masses(sc)), rel=1e-10)
 
 
 @pytest.mark.parametrize("argv, needle", [

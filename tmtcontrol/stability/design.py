@@ -175,7 +175,8 @@ class DesignResult:
                 "worst_overshoot": self.worst_overshoot, "status": self.status,
                 "dense_objective": self.dense_objective, "sampled_max_stable_stiffness": self.sampled_limit,
                 "k_e_min": self.spec.k_e_min, "k_e_max": self.spec.k_e_max, "Ts": self.spec.Ts,
-                "max_overshoot": self.spec.max_overshoot, **self.info}
+                "max_overshoot": self.spec.max_overshoot, "f_d": self.spec.f_d, "m_p": self.spec.m_p,
+                "delay": self.spec.delay, "alpha": self.spec.alpha, **self.info}
 
 
 # -- independent closed forms (verification) ---------------------------------------------
