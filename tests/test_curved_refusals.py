@@ -218,6 +218,33 @@ def test_a_sweep_couples_the_tool_radius_with_the_parts_radius(tmp_path):
                                                            "robot.tool_radius": [0.001, 0.003]}}, folder=tmp_path)
 
 
+def test_a_sweep_draws_no_turned_raster_off_the_part_between_two_valid_ends(tmp_path):
+    """Regression (found by a review): a sphere of radius 0.09 m takes the
+    0.1 m raster unturned (0 deg) and turned 90 deg (1.11 rad from the
+    centre), not turned 45 deg (0.133 m, 1.48 rad: beyond the chart's 1.2).
+    A random direction over [0, 90] used to be validated at its ends only,
+    so the sweep was accepted and drew invalid cases; every case is
+    validated now, the first invalid one named. A range that stays valid
+    (0 to 5 deg: at most 0.107 m, 1.19 rad) is accepted, and on a plane (no
+    domain) the ends suffice."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SweepError
+
+    (tmp_path / "dome.toml").write_text('[environment]\nshape = "sphere"\nradius = 0.09\n'
+                                        '[trajectory]\npath = "raster"\ncycles = 0.25\n')
+    for end in (0.0, 90.0):
+        apply_overrides(load_scenario(tmp_path / "dome.toml"), [f"trajectory.direction_deg={end}"])
+    random = {"trajectory.direction_deg": {"uniform": [0.0, 90.0]}, "samples": 40, "seed": 3}
+    with pytest.raises(SweepError, match=r"^case \d+ \(trajectory\.direction_deg = [\d.]+\): trajectory\.radius: "
+                                         r"the path leaves the sphere's domain"):
+        sweep_from_dict({"scenario": "dome.toml", "random": random}, folder=tmp_path)
+    ok = sweep_from_dict({"scenario": "dome.toml", "random": {**random, "trajectory.direction_deg":
+                                                               {"uniform": [0.0, 5.0]}}}, folder=tmp_path)
+    assert ok.cases.total == 40
+    (tmp_path / "plane.toml").write_text('[trajectory]\npath = "raster"\n')
+    assert sweep_from_dict({"scenario": "plane.toml", "random": random}, folder=tmp_path).cases.total == 40
+
+
 # -- B: how far the path really reaches ---------------------------------------------------------------
 
 def _traj(**kw):

@@ -31,7 +31,11 @@ schema, checked per axis rather than per case: each grid value once, each
 random axis at both ends of its range, and every combination only for axes
 the schema checks together (the same section's cross-field check, a tagged
 union, or the control-period bounds of ``sampling_problem``). An error names
-the axis key.
+the axis key. One exception, checked case by case: a random axis of the path
+or the part (:data:`ALONG_THE_PATH`) on a curved part, whose checks (the
+path's reach within the part's domain, a turned raster reaching furthest at
+45 deg; a height map's concave curvature along the path) are not intervals,
+so a value between two valid ends can be invalid; an error names the case.
 """
 
 from __future__ import annotations
@@ -498,12 +502,20 @@ def _coupled_groups(axes: list[str]) -> list[list[str]]:
     return [g for g in groups.values() if len(g) > 1]
 
 
+ALONG_THE_PATH = ("trajectory.radius", "trajectory.center", "trajectory.direction_deg", "trajectory.lanes",
+                  "environment.radius", "environment.grid_spacing", "robot.tool_radius")
+"""Numeric keys whose checks on a curved part are not intervals (see the
+module docstring): a random one on a curved part is validated case by case."""
+
+
 def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases: Cases) -> None:
     """Every case's scenario is valid, checked per axis: each grid value once;
     each random axis at both ends of its range (the schema's constraints are
     intervals and linear inequalities, so a box is valid if its corners are);
     and, for axes the schema checks together (:func:`_coupled_groups`), every
-    combination of their grid values and range ends once."""
+    combination of their grid values and range ends once. A random axis of
+    :data:`ALONG_THE_PATH` where some case's part is curved: every case
+    (:func:`_validate_each`)."""
     for key, values in grid.items():
         for i, v in enumerate(values):
             try:
@@ -535,6 +547,20 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
                                          f"{exc}") from None
                     index = sum(i * strides[k] for k, i in zip(gkeys, gi)) * cases.samples
                     raise SweepError(f"case {index} ({_describe(cases.case(index).values)}): {exc}") from None
+    shapes = {base.get("environment", {}).get("shape", "plane"), *grid.get("environment.shape", [])}
+    if shapes != {"plane"} and any(k in ALONG_THE_PATH for k in random):
+        _validate_each(base, cases)
+
+
+def _validate_each(base: dict, cases: Cases) -> None:
+    """Every case's scenario through the schema (about 2 ms a case; the first
+    invalid one named by its index and values)."""
+    for index in range(cases.total):
+        values = cases.case(index).values
+        try:
+            case_scenario(base, values)
+        except ScenarioError as exc:
+            raise SweepError(f"case {index} ({_describe(values)}): {exc}") from None
 
 
 def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
