@@ -46,7 +46,8 @@ def test_a_second_command_reads_the_deciding_limit_the_first_computed(kept, monk
     monkeypatch.setattr(limit, "_computed_limit", lambda *a: calls.append(1) or real(*a))
     sc = paper_scenario()
     first = limit.deciding_limit(sc)
-    assert len(calls) == 1 and len(list(kept.glob("result_*.json"))) == 1
+    kinds = sorted(json.loads(f.read_text())["kind"] for f in kept.glob("result_*.json"))
+    assert len(calls) == 1 and kinds == ["deciding_limit", "small_signal_limit"]   # its 1-D guess kept too
     second = limit.deciding_limit(sc)
     assert len(calls) == 1                       # read, not computed
     assert second == first and dataclasses.asdict(second) == dataclasses.asdict(first)
@@ -233,3 +234,31 @@ def test_the_reports_check_rows_are_kept_per_group_scenario_and_source_tree(kept
     stored = len(list(kept.glob("result_*.json")))
     real("law: tmt")
     assert len(list(kept.glob("result_*.json"))) == stored
+
+
+def test_the_small_signal_limit_is_kept_and_read_back_to_the_last_bit(kept, monkeypatch):
+    """A warm ``simulate`` reads the 1-D limit its verdict gate needs instead of
+    computing it (which would import SciPy, 0.15-0.2 s): the paper's 163,402 N/m
+    computed once, read back bit for bit, and a changed input (f_d: the x_e error
+    and hence the loop are the same, but the key covers every value) computed anew."""
+    calls = []
+    real = limit._computed_one_d
+    monkeypatch.setattr(limit, "_computed_one_d", lambda sc: calls.append(sc.controller.f_d) or real(sc))
+    sc = paper_scenario()
+    first = limit._one_d(sc)
+    assert calls == [10.0] and 1.63e5 < first < 1.64e5      # the paper's 1-D figure, 163,402 N/m
+    assert limit._one_d(sc) == first and calls == [10.0]    # read, equal to the last bit
+    assert limit._one_d(apply_overrides(sc, ["controller.f_d=12"])) == pytest.approx(first, rel=1e-9)
+    assert calls == [10.0, 12.0]
+    monkeypatch.setattr(limit, "_computed_one_d", lambda sc: float("inf"))   # no limit: JSON's Infinity
+    assert limit._one_d(apply_overrides(sc, ["controller.f_d=14"])) == float("inf")
+    assert limit._one_d(apply_overrides(sc, ["controller.f_d=14"])) == float("inf")
+
+
+def test_the_small_signal_limit_is_not_kept_when_results_are_off(kept, monkeypatch):
+    monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "0")
+    calls = []
+    monkeypatch.setattr(limit, "_computed_one_d", lambda sc: calls.append(1) or 1.5e5)
+    sc = paper_scenario()
+    assert limit._one_d(sc) == limit._one_d(sc) == 1.5e5
+    assert calls == [1, 1] and not kept.exists()

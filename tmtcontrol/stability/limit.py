@@ -98,7 +98,18 @@ def periodic_note(scenario) -> str | None:
 
 def _one_d(scenario) -> float | None:
     """The 1-D small-signal limit, and the search's guess: the mid-period
-    hold's loop is guessed from the zero-order hold's 1-D figure."""
+    hold's loop is guessed from the zero-order hold's 1-D figure. Kept in the
+    results under the deciding limit's key (:func:`_result_key`): it costs
+    milliseconds, but SciPy's import (0.15-0.2 s) on every warm ``simulate``;
+    ``TMTCONTROL_RESULT_CACHE=0`` computes it every time."""
+    from ..cache import kept_result, results_enabled
+
+    key = _result_key(scenario, 0, False) if results_enabled() else None
+    return kept_result("small_signal_limit", key, lambda: _computed_one_d(scenario),
+                       lambda v: None if v is None else {"limit": float(v)}, lambda d: float(d["limit"]))
+
+
+def _computed_one_d(scenario) -> float | None:
     from .onedim import scenario_stiffness_limit
 
     if scenario.controller.hold == "mid_period":
