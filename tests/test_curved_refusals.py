@@ -245,6 +245,28 @@ def test_a_sweep_draws_no_turned_raster_off_the_part_between_two_valid_ends(tmp_
     assert sweep_from_dict({"scenario": "plane.toml", "random": random}, folder=tmp_path).cases.total == 40
 
 
+def test_a_part_made_curved_by_a_grid_over_the_whole_environment_table_is_validated_case_by_case(tmp_path):
+    """Regression (found by a review): the curved-part test read only the base's
+    shape and a grid over ``environment.shape``; a grid over the whole
+    ``environment`` table (a plane base, the dome as a grid value) left the random
+    direction checked at its ends, 0 and 90 deg, both valid on the 0.09 m dome,
+    and the sweep drew rasters off the part. The plane alone as the table's
+    value is accepted (no domain: the ends suffice)."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SweepError
+
+    (tmp_path / "raster.toml").write_text('[trajectory]\npath = "raster"\ncycles = 0.25\n')
+    random = {"trajectory.direction_deg": {"uniform": [0.0, 90.0]}, "samples": 40, "seed": 3}
+    dome = {"shape": "sphere", "radius": 0.09}
+    with pytest.raises(SweepError, match=r"^case \d+ \(environment = .*trajectory\.direction_deg = [\d.]+\): "
+                                         r"trajectory\.radius: the path leaves the sphere's domain"):
+        sweep_from_dict({"scenario": "raster.toml", "grid": {"environment": [{"shape": "plane"}, dome]},
+                         "random": random}, folder=tmp_path)
+    ok = sweep_from_dict({"scenario": "raster.toml", "grid": {"environment": [{"shape": "plane"}]},
+                          "random": random}, folder=tmp_path)
+    assert ok.cases.total == 40
+
+
 # -- B: how far the path really reaches ---------------------------------------------------------------
 
 def _traj(**kw):

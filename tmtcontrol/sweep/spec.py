@@ -514,8 +514,8 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     intervals and linear inequalities, so a box is valid if its corners are);
     and, for axes the schema checks together (:func:`_coupled_groups`), every
     combination of their grid values and range ends once. A random axis of
-    :data:`ALONG_THE_PATH` where some case's part is curved: every case
-    (:func:`_validate_each`)."""
+    :data:`ALONG_THE_PATH` where some case's part is curved
+    (:func:`_shapes`): every case."""
     for key, values in grid.items():
         for i, v in enumerate(values):
             try:
@@ -539,28 +539,38 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
             for corner in itertools.product(*(_range(random[k]) for k in rkeys)):
                 values = {k: grid[k][i] for k, i in zip(gkeys, gi)} | dict(zip(rkeys, corner))
                 values = {k: values[k] for k in order if k in values}
-                try:
-                    case_scenario(base, values)
-                except ScenarioError as exc:
-                    if rkeys:
+                if rkeys:
+                    try:
+                        case_scenario(base, values)
+                    except ScenarioError as exc:
                         raise SweepError(f"cases with {_describe(values)} (ends of the random ranges): "
                                          f"{exc}") from None
-                    index = sum(i * strides[k] for k, i in zip(gkeys, gi)) * cases.samples
-                    raise SweepError(f"case {index} ({_describe(cases.case(index).values)}): {exc}") from None
-    shapes = {base.get("environment", {}).get("shape", "plane"), *grid.get("environment.shape", [])}
-    if shapes != {"plane"} and any(k in ALONG_THE_PATH for k in random):
-        _validate_each(base, cases)
+                else:
+                    _check_case(base, cases, sum(i * strides[k] for k, i in zip(gkeys, gi)) * cases.samples)
+    if any(k in ALONG_THE_PATH for k in random) and _shapes(base, grid) != {"plane"}:
+        for index in range(cases.total):      # about 2 ms a case
+            _check_case(base, cases, index)
 
 
-def _validate_each(base: dict, cases: Cases) -> None:
-    """Every case's scenario through the schema (about 2 ms a case; the first
-    invalid one named by its index and values)."""
-    for index in range(cases.total):
-        values = cases.case(index).values
-        try:
-            case_scenario(base, values)
-        except ScenarioError as exc:
-            raise SweepError(f"case {index} ({_describe(values)}): {exc}") from None
+def _check_case(base: dict, cases: Cases, index: int) -> None:
+    """Case ``index``'s scenario through the schema; invalid: a SweepError
+    naming the case by its index and values."""
+    values = cases.case(index).values
+    try:
+        case_scenario(base, values)
+    except ScenarioError as exc:
+        raise SweepError(f"case {index} ({_describe(values)}): {exc}") from None
+
+
+def _shapes(base: dict, grid: dict[str, list]) -> set[str]:
+    """The part shapes the sweep's cases take: the base's and, for each grid
+    axis that sets the shape (``environment.shape`` or a whole
+    ``environment`` table), each value's (already validated one by one)."""
+    shapes = {base.get("environment", {}).get("shape", "plane")}
+    for key, values in grid.items():
+        if _covers(key, "environment.shape"):
+            shapes |= {case_scenario(base, {key: v}).environment.shape for v in values}
+    return shapes
 
 
 def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
