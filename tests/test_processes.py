@@ -74,6 +74,28 @@ def _wait_for_line(stream, needle: str, limit: int = 200) -> list[str]:
     pytest.fail(f"no {needle!r} in {limit} lines:\n{''.join(lines)}")
 
 
+def _survivors_after(pids: set[int], seconds: float) -> set[int]:
+    """The processes of ``pids`` still alive after polling for at most ``seconds``
+    (a generous bound: the expected time is milliseconds)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and any(_alive(p) for p in pids):
+        time.sleep(0.05)
+    return {p for p in pids if _alive(p)}
+
+
+def _kill_all(proc, pids: set[int]) -> None:
+    """Clean-up after a test: SIGKILL ``pids`` and what ``proc`` still has below it
+    (those already gone are skipped), then ``proc`` itself."""
+    for p in pids | _descendants(proc.pid):
+        try:
+            os.kill(p, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
 def _sigkill_leaves_no_orphan(args: list[str], cwd, needle: str) -> None:
     """Start ``tmtcontrol ARGS``, wait for the line ``needle`` on stderr, collect the
     descendants, SIGKILL the parent alone, then poll (at most 10 s, a generous bound: the
@@ -87,22 +109,12 @@ def _sigkill_leaves_no_orphan(args: list[str], cwd, needle: str) -> None:
         assert workers, "the command started no worker process"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
-        end = time.monotonic() + 10.0
-        while time.monotonic() < end and any(_alive(p) for p in workers):
-            time.sleep(0.05)
-        survivors = {p for p in workers if _alive(p)}
+        survivors = _survivors_after(workers, 10.0)
         assert not survivors, f"worker processes outlived their parent: {sorted(survivors)}"
         # every holder of the pipe is gone: reading reaches EOF (what `| tee` and communicate() wait for)
         assert proc.stdout.read() is not None and proc.stderr.read() is not None
     finally:
-        for p in survivors | _descendants(proc.pid):
-            try:
-                os.kill(p, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        _kill_all(proc, survivors)
         proc.stdout.close()
         proc.stderr.close()
 
@@ -348,21 +360,16 @@ def test_the_portable_watchdog_alone_ends_a_worker_whose_parent_was_killed():
     method = "fork"
     proc = subprocess.Popen([sys.executable, "-c", WATCHDOG_SCRIPT, method], env=ENV, stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True, start_new_session=True)
+    survivors: set[int] = set()
     try:
         worker = int(proc.stdout.readline())
         assert _alive(worker)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
-        end = time.monotonic() + 10.0          # a generous bound; expected at once
-        while time.monotonic() < end and _alive(worker):
-            time.sleep(0.05)
-        assert not _alive(worker), "the worker outlived its parent"
+        survivors = _survivors_after({worker}, 10.0)
+        assert not survivors, "the worker outlived its parent"
     finally:
-        for p in _descendants(proc.pid):
-            os.kill(p, signal.SIGKILL)
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        _kill_all(proc, survivors)
         proc.stdin.close()
         proc.stdout.close()
 
