@@ -37,6 +37,15 @@ def _refused(tmp_path, capsys, toml: str, needle: str, sets=()):
     return lines[0]
 
 
+def _valid(toml: str, sets=()) -> bool:
+    """Whether :func:`_validates` accepts the scenario."""
+    try:
+        _validates(toml, sets)
+        return True
+    except ScenarioError:
+        return False
+
+
 def _validates(toml: str, sets=()):
     """The scenario ``toml`` with each ``key=value`` of ``sets`` set before
     it is validated (as ``--set`` on a file would), validated."""
@@ -265,6 +274,80 @@ def test_a_part_made_curved_by_a_grid_over_the_whole_environment_table_is_valida
     ok = sweep_from_dict({"scenario": "raster.toml", "grid": {"environment": [{"shape": "plane"}]},
                           "random": random}, folder=tmp_path)
     assert ok.cases.total == 40
+
+
+def test_every_shape_declares_which_of_its_checks_are_not_intervals(tmp_path):
+    """The sweep asks the scenario's NOT_INTERVALS by shape: a shape added
+    without its entry would fail there (KeyError), and a misspelt key, or one
+    the shape does not use, would never match a random axis: each shape's keys
+    are settings of a scenario of that shape (raster path: lanes and
+    direction apply)."""
+    from typing import get_args
+
+    from tmtcontrol.simulation.scenario import NOT_INTERVALS, EnvironmentSettings, applicable_settings
+
+    shapes = get_args(EnvironmentSettings.model_fields["shape"].annotation)
+    assert set(NOT_INTERVALS) == set(shapes) and NOT_INTERVALS["plane"] == ()
+    raster = '[trajectory]\npath = "raster"\ncycles = 0.25\nradius = 0.01\n'
+    tomls = {"plane": raster, "sphere": '[environment]\nshape = "sphere"\nradius = 0.09\n' + raster,
+             "cylinder": '[environment]\nshape = "cylinder"\nradius = 0.09\n' + raster,
+             "heightmap": _heightmap_toml(tmp_path, np.zeros((41, 41)), 0.01, 'path = "raster"\nradius = 0.01\n')}
+    for shape, toml in tomls.items():
+        keys = {row.key for row in applicable_settings(_validates(toml))}
+        assert set(NOT_INTERVALS[shape]) <= keys, (shape, set(NOT_INTERVALS[shape]) - keys)
+
+
+@pytest.mark.parametrize("shape", ["sphere", "cylinder"])
+def test_on_a_sphere_or_cylinder_the_sizes_are_intervals_so_their_ends_suffice(tmp_path, shape):
+    """The claim behind NOT_INTERVALS, checked by brute force: on a sphere or
+    cylinder the path's size, the part's radius and the tool's tip are
+    checked at their ends only, so every value between two valid ends must be
+    valid. Each range ends at the largest valid path (a raster turned 30 deg,
+    found by bisection: 1e-9 m) or the smallest valid part radius, where an
+    error would show first; 200 seeded cases each, every one through the
+    schema."""
+    from tmtcontrol.sweep import sweep_from_dict
+
+    toml = (f'[environment]\nshape = "{shape}"\nradius = 0.09\nside = "inside"\n'
+            '[trajectory]\npath = "raster"\ncycles = 0.25\ndirection_deg = 30.0\nradius = 0.01\n')
+
+    lo, hi = 0.01, 1.0                 # the largest valid path size
+    while hi - lo > 1e-9:
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if _valid(toml, [f"trajectory.radius={mid!r}"]) else (lo, mid)
+    assert 0.05 < lo < 0.3 and not _valid(toml, [f"trajectory.radius={hi!r}"])
+    toml = toml.replace("radius = 0.01\n", f"radius = {lo!r}\n")        # the path at its largest
+    (tmp_path / "part.toml").write_text(toml)
+    for key, rng in (("trajectory.radius", [lo / 2, lo]), ("environment.radius", [0.09, 0.5]),
+                     ("robot.tool_radius", [1e-4, 0.0899])):
+        sweep = sweep_from_dict({"scenario": "part.toml", "random": {key: {"uniform": rng}, "samples": 200,
+                                                                      "seed": 5}}, folder=tmp_path)
+        for index in range(sweep.cases.total):
+            values = sweep.cases.case(index).values
+            assert rng[0] <= values[key] <= rng[1]
+            _validates(toml, [f"{key}={values[key]!r}"])
+
+
+def test_a_height_maps_hollow_between_two_valid_path_sizes_is_found_case_by_case(tmp_path):
+    """On a height map the path's size is not an interval: circles of 4 mm and
+    16 mm miss the hollow of ``_dip`` (on the 1 cm circle), those near 1 cm run
+    through it, tighter than the tool's tip. A random radius over [4, 16] mm
+    is valid at both ends, so only a case-by-case check refuses it, naming a
+    case whose radius is near the hollow."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SweepError
+
+    toml = _heightmap_toml(tmp_path, _grid(_dip, 41, 0.001), 0.001, "radius = 0.004\n")
+    (tmp_path / "part.toml").write_text(toml)
+    assert not _valid(toml, ["trajectory.radius=0.01"])
+    for end in (0.004, 0.016):
+        assert _validates(toml, [f"trajectory.radius={end}"]).trajectory.radius == end
+    with pytest.raises(SweepError, match=r"^case \d+ \(trajectory\.radius = ([\d.]+)\): environment\.heightmap: "
+                                         r"must curve concave less tightly") as err:
+        sweep_from_dict({"scenario": "part.toml", "random": {"trajectory.radius": {"uniform": [0.004, 0.016]},
+                                                             "samples": 60, "seed": 1}}, folder=tmp_path)
+    radius = float(str(err.value).split("trajectory.radius = ")[1].split(")")[0])
+    assert 0.007 < radius < 0.013                       # a circle through the hollow (sigma 2 mm)
 
 
 # -- B: how far the path really reaches ---------------------------------------------------------------

@@ -32,10 +32,13 @@ random axis at both ends of its range, and every combination only for axes
 the schema checks together (the same section's cross-field check, a tagged
 union, or the control-period bounds of ``sampling_problem``). An error names
 the axis key. One exception, checked case by case: a random axis of the path
-or the part (:data:`ALONG_THE_PATH`) on a curved part, whose checks (the
-path's reach within the part's domain, a turned raster reaching furthest at
-45 deg; a height map's concave curvature along the path) are not intervals,
-so a value between two valid ends can be invalid; an error names the case.
+or the part on a curved part whose checks are not intervals in it (the
+scenario's ``NOT_INTERVALS`` by shape: the path's reach within a sphere's
+or cylinder's domain is not monotone in its direction, a turned raster
+reaching furthest at 45 deg; a height map's concave curvature along the
+path changes with the path's size, direction and lanes and the grid's
+spacing), so a value between two valid ends can be invalid; an error names
+the case.
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from ..simulation.scenario import (BUILTIN_ARMS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
+from ..simulation.scenario import (BUILTIN_ARMS, NOT_INTERVALS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
                                    load_scenario, read_toml, scenario_from_dict, scenario_to_dict,
                                    set_key)
 
@@ -502,20 +505,14 @@ def _coupled_groups(axes: list[str]) -> list[list[str]]:
     return [g for g in groups.values() if len(g) > 1]
 
 
-ALONG_THE_PATH = ("trajectory.radius", "trajectory.center", "trajectory.direction_deg", "trajectory.lanes",
-                  "environment.radius", "environment.grid_spacing", "robot.tool_radius")
-"""Numeric keys whose checks on a curved part are not intervals (see the
-module docstring): a random one on a curved part is validated case by case."""
-
-
 def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases: Cases) -> None:
     """Every case's scenario is valid, checked per axis: each grid value once;
     each random axis at both ends of its range (the schema's constraints are
     intervals and linear inequalities, so a box is valid if its corners are);
     and, for axes the schema checks together (:func:`_coupled_groups`), every
     combination of their grid values and range ends once. A random axis of
-    :data:`ALONG_THE_PATH` where some case's part is curved
-    (:func:`_shapes`): every case."""
+    the scenario's checks of some case's part do not hold on an interval
+    (``NOT_INTERVALS`` of its shape, :func:`_shapes`): every case."""
     for key, values in grid.items():
         for i, v in enumerate(values):
             try:
@@ -547,7 +544,7 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
                                          f"{exc}") from None
                 else:
                     _check_case(base, cases, sum(i * strides[k] for k, i in zip(gkeys, gi)) * cases.samples)
-    if any(k in ALONG_THE_PATH for k in random) and _shapes(base, grid) != {"plane"}:
+    if set(random) & {k for shape in _shapes(base, grid) for k in NOT_INTERVALS[shape]}:
         for index in range(cases.total):      # about 2 ms a case
             _check_case(base, cases, index)
 

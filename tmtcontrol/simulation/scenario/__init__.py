@@ -34,7 +34,7 @@ from .fields import MAX_STIFFNESS, MIN_PERIODS, ScenarioError
 from .reference import SettingRow, applicable_settings, scenario_json_schema, scenario_reference
 from .requirements import RequirementsSettings
 from .robot import RobotSettings
-from .schema import (SAMPLED_KEYS, TAGGED_TABLES, Scenario, check_filter_cutoff, check_period, check_setting,
+from .schema import (NOT_INTERVALS, SAMPLED_KEYS, TAGGED_TABLES, Scenario, check_filter_cutoff, check_period, check_setting,
                      sampling_problem, scenario_from_dict, scenario_to_dict, setting_bounds)
 from .sensor import SensorSettings, SimulationSettings, filter_pole
 from .textfiles import MAX_INPUT_BYTES, MAX_KEY_PARTS, InputFileError, parse_toml, read_text_file, read_toml
@@ -47,7 +47,7 @@ __all__ = [
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "DampingSchedule", "ControllerSettings",
     "SensorSettings", "SimulationSettings", "RequirementsSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
     "scenario_to_dict", "dump_scenario", "toml_document", "apply_overrides", "set_key", "scenario_json_schema",
-    "scenario_reference", "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "SAMPLED_KEYS",
+    "scenario_reference", "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "SAMPLED_KEYS", "NOT_INTERVALS",
     "applicable_settings", "read_text_file", "read_toml", "parse_toml", "InputFileError", "MAX_INPUT_BYTES",
     "MAX_KEY_PARTS", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",
     "check_filter_cutoff", "setting_bounds", "filter_pole", "BUILTIN_ARMS", "arm_scenario",

@@ -27,7 +27,7 @@ from .sensor import SensorSettings, SimulationSettings
 from .requirements import RequirementsSettings
 from .trajectory import TrajectorySettings
 
-__all__ = ["Scenario", "TAGGED_TABLES", "TAG_DEFAULTS", "SAMPLED_KEYS", "sampling_problem", "scenario_from_dict",
+__all__ = ["Scenario", "TAGGED_TABLES", "TAG_DEFAULTS", "SAMPLED_KEYS", "NOT_INTERVALS", "sampling_problem", "scenario_from_dict",
            "scenario_to_dict", "model_at", "check_setting", "setting_bounds", "check_period", "check_filter_cutoff"]
 
 
@@ -156,6 +156,23 @@ def _domain_problem(sc: Scenario) -> str | None:
                     f"its centre along task axis {axis + 1}{turned}, {reach / env.radius:.3g} rad on radius "
                     f"{env.radius:g} m (at most {limit:g} rad from its centre)")
     return None
+
+
+NOT_INTERVALS = {
+    "plane": (),
+    "sphere": ("trajectory.direction_deg",),
+    "cylinder": ("trajectory.direction_deg",),
+    "heightmap": ("trajectory.radius", "trajectory.direction_deg", "trajectory.lanes", "environment.grid_spacing"),
+}
+"""By shape, the numeric keys for which this module's checks of a curved part
+(:func:`_domain_problem`, :func:`_tool_problem`) do not hold on an interval:
+a value between two valid ones can fail (a sweep validates such a random
+axis case by case, ``tmtcontrol.sweep.spec``). The path's reach from its
+centre grows with ``trajectory.radius`` but not with its direction (a raster
+turned 45 deg reaches furthest); a sphere's or cylinder's checks are then
+monotone in its radius and the tool's; a height map's tightest concave
+radius along the path changes with everything that moves the path over the
+map (its size, direction, lanes, and the spacing that scales the map)."""
 
 
 _CONCAVE: dict = {}
