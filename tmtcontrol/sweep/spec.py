@@ -510,9 +510,9 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     each random axis at both ends of its range (the schema's constraints are
     intervals and linear inequalities, so a box is valid if its corners are);
     and, for axes the schema checks together (:func:`_coupled_groups`), every
-    combination of their grid values and range ends once. A random axis of
-    the scenario's checks of some case's part do not hold on an interval
-    (``NOT_INTERVALS`` of its shape, :func:`_shapes`): every case."""
+    combination of their grid values and range ends once. When a random
+    axis is a key in which the checks of some case's part do not hold on an
+    interval (``NOT_INTERVALS`` of its shape, :func:`_shapes`): every case."""
     for key, values in grid.items():
         for i, v in enumerate(values):
             try:
