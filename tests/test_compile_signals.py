@@ -21,6 +21,7 @@ import time
 import pytest
 
 from test_processes import _alive, _descendants
+from test_processes import _kill_all as _reap
 
 LINUX = sys.platform.startswith("linux")
 pytestmark = pytest.mark.skipif(not LINUX or shutil.which("sleep") is None,
@@ -104,14 +105,7 @@ def _simulate(tmp_path, env) -> subprocess.Popen:
 
 
 def _kill_all(proc, pids):
-    for p in pids | _descendants(proc.pid):
-        try:
-            os.kill(p, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-    if proc.poll() is None:
-        proc.kill()
-        proc.wait()
+    _reap(proc, pids)
     proc.stdout.close()
     proc.stderr.close()
 
