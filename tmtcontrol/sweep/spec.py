@@ -544,7 +544,7 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
                                          f"{exc}") from None
                 else:
                     _check_case(base, cases, sum(i * strides[k] for k, i in zip(gkeys, gi)) * cases.samples)
-    if set(random) & {k for shape in _shapes(base, grid) for k in NOT_INTERVALS[shape]}:
+    if random and set(random) & {k for shape in _shapes(base, grid) for k in NOT_INTERVALS[shape]}:
         for index in range(cases.total):      # about 2 ms a case
             _check_case(base, cases, index)
 
