@@ -399,8 +399,9 @@ def test_validation_is_per_axis_not_per_case(monkeypatch):
                                       "environment.damping": [0.0, 5.0]},
                              "random": {"samples": 500, "controller.x_e_error": {"uniform": [-0.005, 0.005]}}})
     assert len(sweep.cases) == 3 * 2 * 2 * 500
-    # each grid value once and each random range at both ends: 3 + 2 + 2 + 2 schema checks, not 6000
-    assert len(calls) == 9 and all(len(v) == 1 for v in calls)
+    # each grid value once and each random range at both ends and just inside them: 3 + 2 + 2 + 4
+    # schema checks, not 6000
+    assert len(calls) == 11 and all(len(v) == 1 for v in calls)
 
 
 def test_axes_the_schema_checks_together_are_validated_in_combination(tmp_path):
@@ -425,6 +426,48 @@ def test_axes_the_schema_checks_together_are_validated_in_combination(tmp_path):
     with pytest.raises(SweepError, match=r"^case 3 \(trajectory\.period = 0\.05, controller\.rate = 100\.0\): "
                                          r"trajectory\.period: must be at least 10 control periods"):
         sweep_from_dict({"grid": {"trajectory.period": [4.0, 0.05], "controller.rate": [1000.0, 100.0]}})
+
+
+def test_a_random_range_from_an_isolated_valid_zero_is_refused():
+    """Regression (review F2): a stiffness segment is 0 (the path's period) or at least 10
+    control periods (0.01 s at 1 kHz): {0} and [0.01, inf) is not an interval, and a range
+    [0, 1] is valid at both ends while 3 of 200 seeded draws (e.g. 0.0027 s) are not. The
+    sweep checks the number just inside each end too: refused, naming the axis."""
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    with pytest.raises(SweepError, match=r"^random\.environment\.stiffness\.segment: uniform range \[0, 1\] "
+                                         r"reaches 5e-324: environment\.stiffness\.segment: must be 0 \(the path "
+                                         r"period\) or at least 10 control periods"):
+        sweep_from_dict({"random": {"environment.stiffness.segment": {"uniform": [0.0, 1.0]}, "samples": 200}})
+    # from the least valid segment up: every draw valid (checked case by case here, independently)
+    sweep = sweep_from_dict({"random": {"environment.stiffness.segment": {"uniform": [0.01, 1.0]}, "samples": 50}})
+    for case in sweep.cases:
+        sweep.scenario(case)
+
+
+@pytest.mark.parametrize("axes", [
+    {"grid": {"environment.tilt_deg": [45.0, 0.0]}},
+    {"random": {"environment.tilt_deg": {"uniform": [0.0, 45.0]}, "samples": 5}}], ids=["grid", "random"])
+def test_the_tilt_and_the_centre_on_the_plane_are_validated_together(tmp_path, axes):
+    """Regression (review F3): with ``environment.point`` set, the circle's centre must lie on
+    the plane through it whose normal comes from ``environment.tilt_deg`` (a check across
+    sections). The second centre is 1 cm along the 45 deg plane: valid with the base's tilt,
+    off the plane at any other (1 cm at 0 deg). Each axis value alone is valid; the combination is refused,
+    naming the cases (a grid) or the end of the random range."""
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    (tmp_path / "pt.toml").write_text("[environment]\npoint = [0.5, -0.15, 0.55]\n")
+    spec = {"scenario": "pt.toml",
+            "grid": {"trajectory.center": [[0.5, -0.15, 0.55], [0.51, -0.15, 0.56]], **axes.get("grid", {})},
+            **({"random": axes["random"]} if "random" in axes else {})}
+    with pytest.raises(SweepError, match=r"trajectory\.center: must lie on the plane \(environment\.point, "
+                                         r"normal\), it is -0\.01 m off it$"):
+        sweep_from_dict(spec, folder=tmp_path)
+    # the same centres on the base's plane only: accepted, every case valid
+    spec["grid"].pop("environment.tilt_deg", None)
+    spec.pop("random", None)
+    sweep = sweep_from_dict(spec, folder=tmp_path)
+    assert [sweep.scenario(c).trajectory.center for c in sweep.cases] == [(0.5, -0.15, 0.55), (0.51, -0.15, 0.56)]
 
 
 def test_the_cross_section_check_is_the_one_the_sweep_knows():

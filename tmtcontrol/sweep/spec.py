@@ -28,7 +28,8 @@ with the number of cases.
 
 Validation: before anything runs, every case is known to pass the scenario
 schema, checked per axis rather than per case: each grid value once, each
-random axis at both ends of its range, and every combination only for axes
+random axis at both ends of its range and just inside them (a valid 0 beside
+a least positive value is isolated), and every combination only for axes
 the schema checks together (the same section's cross-field check, a tagged
 union, or the control-period bounds of ``sampling_problem``). An error names
 the axis key. One exception, checked case by case: a random axis of the path
@@ -507,8 +508,11 @@ def _coupled_groups(axes: list[str]) -> list[list[str]]:
 
 def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases: Cases) -> None:
     """Every case's scenario is valid, checked per axis: each grid value once;
-    each random axis at both ends of its range (the schema's constraints are
-    intervals and linear inequalities, so a box is valid if its corners are);
+    each random axis at both ends of its range and at the numbers just inside
+    them (the schema's constraints are intervals and linear inequalities, so
+    a box is valid if its corners are; an isolated valid value, a 0 meaning
+    "off" or "the path's period" beside a least positive value, is found
+    next to the end it sits on);
     and, for axes the schema checks together (:func:`_coupled_groups`), every
     combination of their grid values and range ends once. When a random
     axis is a key in which the checks of some case's part do not hold on an
@@ -520,7 +524,11 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
             except ScenarioError as exc:
                 raise SweepError(f"grid.{key}[{i}] = {v!r}: {exc}") from None
     for key, spec in random.items():
-        for v in _range(spec):
+        lo, hi = _range(spec)
+        # the ends and the numbers just inside them: a valid set with an
+        # isolated point at an end (a stiffness segment of 0 = the path's
+        # period, else at least 10 control periods) passes at its ends only
+        for v in dict.fromkeys((lo, hi, float(np.nextafter(lo, hi)), float(np.nextafter(hi, lo)))):
             try:
                 case_scenario(base, {key: v})
             except ScenarioError as exc:

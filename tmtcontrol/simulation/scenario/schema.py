@@ -85,7 +85,7 @@ TAG_DEFAULTS = {("environment", "stiffness"): "piecewise_constant", ("controller
 
 
 SAMPLED_KEYS = ("trajectory.period", "trajectory.lanes", "environment.stiffness", "sensor.filter_cutoff", "controller.rate",
-                "robot.model", "environment.normal", "environment.point", "trajectory.center",
+                "robot.model", "environment.normal", "environment.tilt_deg", "environment.point", "trajectory.center",
                 "environment.radius", "trajectory.radius", "environment.axis", "environment.heightmap",
                 "environment.grid_spacing", "environment.shape", "environment.side", "trajectory.path",
                 "trajectory.direction_deg", "robot.tool_radius")
