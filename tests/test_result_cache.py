@@ -262,3 +262,46 @@ def test_the_small_signal_limit_is_not_kept_when_results_are_off(kept, monkeypat
     sc = paper_scenario()
     assert limit._one_d(sc) == limit._one_d(sc) == 1.5e5
     assert calls == [1, 1] and not kept.exists()
+
+
+def test_a_law_derived_from_a_package_law_keeps_no_result_and_no_step_key(kept, monkeypatch):
+    """Regression (review F1): ``TMT.replace(name="ext", ...)``, the documented way to derive
+    a law, keeps TMT's ``update``; the structure key used to test only that function's
+    module, so the derived law counted as the package's own and its kept results were keyed
+    by its name, states and parameter names, not its ``steady_force`` (read by the 1-D limit
+    through the scheduled damping), ``initial`` or ``uses_impedance_filter``. A user who
+    changed the steady-force claim then read the old 1-D figure (2,575,902 N/m kept against
+    163,402 N/m computed). Now such a law has no structure key, nothing is kept, and the
+    figure follows its declaration; the package's own TMT is still keyed."""
+    from typing import Literal
+
+    from tmtcontrol.control.laws import TMT, get_law, register_law, unregister_law
+    from tmtcontrol.control.laws.tmt import TmtParameters
+    from tmtcontrol.simulation.scenario import scenario_from_dict, scenario_to_dict
+    from tmtcontrol.simulation.simulator import structure_key
+
+    class ExtParameters(TmtParameters):
+        kind: Literal["ext"] = "ext"
+
+    def scenario():
+        d = scenario_to_dict(paper_scenario())
+        d["controller"]["law"] = {"kind": "ext"}
+        d["controller"]["damping_schedule"] = {"kind": "zeta"}
+        return scenario_from_dict(d)
+
+    derived = TMT.replace(name="ext", parameters=ExtParameters)
+    register_law(derived)
+    try:
+        assert structure_key(paper_scenario(), get_law("tmt")) is not None      # the package's own: keyed
+        assert structure_key(scenario(), derived) is None
+        assert limit._result_key(scenario(), 0, False) is None
+        first = limit._one_d(scenario())
+        # the same name, its declaration changed: the steady force it claims
+        register_law(derived.replace(steady_force=lambda params, f_d, k, k_e, delta: 0.0), replace=True)
+        second = limit._one_d(scenario())
+        monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "0")
+        fresh = limit._one_d(scenario())
+        assert second == fresh and second != pytest.approx(first, rel=1e-3)
+        assert not kept.exists() or not list(kept.glob("result_*.json"))
+    finally:
+        unregister_law("ext")

@@ -77,7 +77,8 @@ MAX_AGE_DAYS = 90
 
 MAX_RESULTS = 20_000
 """Analysis results kept in one cache folder (a few kilobytes each): a
-sweep with a random axis stores one per case family."""
+sweep with a random axis stores two per case family (its deciding limit
+and the 1-D small-signal limit that seeds it), so 10,000 families."""
 
 _STALE_TMP_SECONDS = 3600
 _LOCK = re.compile(r"([A-Za-z0-9_]+_chunk_[0-9a-f]{20}\.so|result_[0-9a-f]{40})\.lock")

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..control.laws import get_law
+from ..control.laws import get_law, is_package_law
 from ..files import VerdictFailed, check_interrupt
 from ..model import URDFError, load_robot
 from ..model.urdf import TipError
@@ -167,9 +167,11 @@ def structure_key(scenario: Scenario, law) -> str | None:
     """A key that identifies the compiled step of ``scenario`` without building
     it: the package's sources, the structural settings, the arm's and the
     controller model's content and the law's declaration. None for a law
-    declared outside the package (its code is not covered by the digest; the
-    step's serialisation is the key then)."""
-    if not getattr(law.update, "__module__", "").startswith(__package__.split(".")[0] + "."):
+    that is not the package's own declaration (its code is not covered by
+    the digest; the step's serialisation is the key then): one derived from
+    a package law (``TMT.replace(name=..., steady_force=...)``) shares its
+    update but not its other fields."""
+    if not is_package_law(law):
         return None
     return repr((_package_digest(), structure(scenario), robot_of(scenario).key,
                  robot_of(scenario, controller=True).key, law.name, law.states, law.parameter_names))

@@ -163,8 +163,8 @@ def _result_key(scenario, points, along_path) -> str | None:
     (the package's sources, the arm's and the controller model's content,
     the surface's, the law's declaration), every value of the scenario, its
     analysis parameters (a stiffness table's range), the numerical
-    libraries' versions and the search's settings. None for a law declared
-    outside the package (its code is not in the key: not kept)."""
+    libraries' versions and the search's settings. None for a law that is not
+    the package's own declaration (its code is not in the key: not kept)."""
     import casadi
     import scipy
 

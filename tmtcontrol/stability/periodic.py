@@ -149,7 +149,7 @@ class PeriodicModel:
         self.states = self._names()
         key = structure_key(sc, loop.law)
         make = lambda: _tangent(loop, self.dynamic)
-        if key is None:                  # a law declared outside the package: keyed by its serialisation
+        if key is None:                  # not the package's own law: keyed by its serialisation
             self.rollout = Rollout(make(), compile=compile)
         else:
             if key not in _BUILT:

@@ -19,11 +19,20 @@ from .known import KNOWN
 from .rls import RLS
 from .tmt import TMT
 
-register_law(TMT)
-register_law(KNOWN)
-register_law(INTEGRAL)
-register_law(ADAPTIVE_DAMPING)
-register_law(RLS)
+PACKAGE_LAWS = (TMT, KNOWN, INTEGRAL, ADAPTIVE_DAMPING, RLS)
+"""The package's own declarations, whose code the package's digest covers."""
+
+for _law in PACKAGE_LAWS:
+    register_law(_law)
+
+
+def is_package_law(law: Law) -> bool:
+    """Whether ``law`` is one of :data:`PACKAGE_LAWS` itself (by identity): a
+    declaration made elsewhere, even from a package law's pieces
+    (``TMT.replace(name=...)``), is not, whatever module its functions
+    come from."""
+    return any(law is own for own in PACKAGE_LAWS)
+
 
 __all__ = ["Law", "LawParameters", "MEASUREMENTS", "OUTPUTS", "register_law", "unregister_law", "get_law",
-           "laws", "on_register", "TMT", "KNOWN", "INTEGRAL", "ADAPTIVE_DAMPING", "RLS"]
+           "laws", "on_register", "PACKAGE_LAWS", "is_package_law", "TMT", "KNOWN", "INTEGRAL", "ADAPTIVE_DAMPING", "RLS"]
