@@ -698,8 +698,15 @@ def test_the_orbit_is_shot_to_the_tolerance_not_stopped_after_three_steps():
     from tmtcontrol.stability.periodic import PeriodicModel
 
     sc = apply_overrides(paper_scenario(), CHEAP)
-    three = PeriodicModel(sc, compile=False).at(4.5e4, iters=3)
+    model = PeriodicModel(sc, compile=False)
+    three = model.at(4.5e4, iters=3)
     assert three.residual > 1e-10                          # the case needs a fourth step
+    # out of steps, the start, residual and monodromy returned are one iterate's (the start was
+    # one Newton step past the residual and monodromy reported): one period from it, run again
+    end, Phi, _ = model._period(three.s_orbit, model._inputs(4.5e4))
+    d = model.dynamic
+    again = float(np.max(np.abs(end - three.s_orbit)[d] / (1.0 + np.abs(three.s_orbit[d]))))
+    assert again == pytest.approx(three.residual, rel=1e-6) and np.array_equal(Phi, three.monodromy)
     orbit = PeriodicModel(sc, compile=False).at(4.5e4)
     assert orbit.residual < 1e-10 and orbit.newton_iterations >= 4
 

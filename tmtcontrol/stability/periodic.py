@@ -270,7 +270,8 @@ class PeriodicModel:
 
     def _shoot(self, s: np.ndarray, U: np.ndarray, iters: int, tol: float):
         """Newton shooting on one period from ``s``: (the orbit's start, the
-        monodromy, the force along the period, the residual, iterations)."""
+        monodromy, the force along the period, the residual, iterations),
+        all of one iterate: the last one run, also when ``iters`` run out."""
         d, eye = self.dynamic, np.eye(self.dynamic.size)
         residual, it, previous = math.inf, 0, math.inf
         for it in range(1, iters + 1):
@@ -280,8 +281,8 @@ class PeriodicModel:
             r = (end - s)[d]
             residual = float(np.max(np.abs(r) / (1.0 + np.abs(s[d]))))
             # converged, or stalled at the rounding of one period's arithmetic (f = k_e x: ~1e-6 relative at 2.6e6 N/m)
-            if residual < tol or (it > 2 and residual > 0.5 * previous):
-                break
+            if residual < tol or (it > 2 and residual > 0.5 * previous) or it == iters:
+                break                    # (out of steps: s is the iterate the residual and Phi belong to)
             previous = residual
             s = s.copy()
             s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
