@@ -445,6 +445,70 @@ def test_a_random_range_from_an_isolated_valid_zero_is_refused():
         sweep.scenario(case)
 
 
+def test_a_random_range_wider_than_the_largest_float_is_refused():
+    """Regression (review, second round): the draws compute a + (b - a) u, and numpy's
+    uniform raises OverflowError once b - a passes 1.8e308. A range of two finite ends,
+    each valid (controller.x_e_error has no bound), was accepted and every case then
+    crashed. Refused now, naming the axis; a normal's +-10 std span likewise."""
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-1e\+308, 1e\+308\] is wider "
+                                         r"than the largest float, 1\.79769e\+308$"):
+        sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"uniform": [-1e308, 1e308]}}})
+    with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-1e\+308, 1e\+308\]"):
+        sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"normal": [0.0, 1e307]}}})
+    # just under the limit (width 1.6e308): accepted, and every draw is a finite number inside it
+    sweep = sweep_from_dict({"random": {"samples": 20, "controller.x_e_error": {"uniform": [-8e307, 8e307]}}})
+    draws = [case.values["controller.x_e_error"] for case in sweep.cases]
+    assert all(np.isfinite(draws)) and min(draws) >= -8e307 and max(draws) <= 8e307 and len(set(draws)) == 20
+
+
+@pytest.mark.parametrize("grid", [
+    {"trajectory.path": ["line", "raster"], "trajectory.direction_deg": [0.0, 45.0]},
+    {"controller.rate": [1.0, 100.0], "trajectory.period": [10.0, 20.0]},
+    {"environment.shape": ["sphere"], "environment.radius": [0.5]},
+], ids=["path-direction", "rate-period", "shape-radius"])
+def test_coupled_axes_are_not_checked_against_the_base_value_of_the_other(grid):
+    """Regression (review, second round): axes the schema checks together were first checked
+    one by one against the base's value of the others, a value no case has. A sweep whose
+    every case is valid was refused (direction_deg "not used by path = 'circle'" though no
+    case is a circle; a 1 Hz rate against the base's 4 s period; a sphere without the base
+    plane's radius). Every case is checked valid here, through the schema, independently of
+    the sweep's validation; the sweep must accept it."""
+    import itertools
+
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import case_scenario, load_scenario, scenario_to_dict
+
+    base = scenario_to_dict(load_scenario("paper"))
+    for combo in itertools.product(*grid.values()):
+        case_scenario(base, dict(zip(grid, combo)))
+    sweep = sweep_from_dict({"grid": grid})
+    assert len(sweep.cases) == np.prod([len(v) for v in grid.values()])
+
+
+def test_a_coupled_random_axis_is_checked_just_inside_its_ends_too():
+    """A random axis in a coupled group is checked only in the group's combinations; those
+    must still include the numbers just inside its ends (the isolated valid 0 of a stiffness
+    segment, with the control rate it is checked against), and a range valid only at the
+    grid's values must be accepted (period [0.05, 1] s needs 10 control periods: 1 kHz only)."""
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    with pytest.raises(SweepError, match=r"^cases with controller\.rate = 1000\.0, environment\.stiffness\.segment "
+                                         r"= 5e-324 \(ends of the random ranges\): environment\.stiffness\.segment: "
+                                         r"must be 0 \(the path period\) or at least 10 control periods"):
+        sweep_from_dict({"grid": {"controller.rate": [1000.0]},
+                         "random": {"environment.stiffness.segment": {"uniform": [0.0, 1.0]}, "samples": 5}})
+    sweep = sweep_from_dict({"grid": {"controller.rate": [1000.0, 500.0]},
+                             "random": {"trajectory.period": {"uniform": [0.05, 1.0]}, "samples": 5}},
+                            max_cases=None)
+    with pytest.raises(SweepError, match=r"controller\.rate = 100\.0, trajectory\.period = 0\.05 "
+                                         r"\(ends of the random ranges\)"):
+        sweep_from_dict({"grid": {"controller.rate": [1000.0, 100.0]},
+                         "random": {"trajectory.period": {"uniform": [0.05, 1.0]}, "samples": 5}})
+    assert len(sweep.cases) == 10
+
+
 @pytest.mark.parametrize("axes", [
     {"grid": {"environment.tilt_deg": [45.0, 0.0]}},
     {"random": {"environment.tilt_deg": {"uniform": [0.0, 45.0]}, "samples": 5}}], ids=["grid", "random"])

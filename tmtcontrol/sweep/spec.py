@@ -454,9 +454,15 @@ def _check_random(key: str, spec) -> dict:
             out["bounds"] = pair("bounds", spec["bounds"])
             if out["bounds"][0] > out["bounds"][1]:
                 raise SweepError(f"random.{key}: bounds need lo <= hi, got {spec['bounds']!r}")
-        if _normal_mass(out) < 1e-9:
-            (mean, std), (lo, hi) = out["normal"], _normal_range(out)
-            raise SweepError(f"random.{key}: bounds [{lo:g}, {hi:g}] too far in the tail of normal({mean:g}, {std:g})")
+    lo, hi = _range(out)
+    if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(hi - lo)):
+        # the draws compute a + (b - a) u: a width past the largest float
+        # (1.8e308) would overflow in every case
+        raise SweepError(f"random.{key}: range [{lo:g}, {hi:g}] is wider than the largest float, "
+                         f"{np.finfo(float).max:g}")
+    if kind == "normal" and _normal_mass(out) < 1e-9:
+        (mean, std), (lo, hi) = out["normal"], _normal_range(out)
+        raise SweepError(f"random.{key}: bounds [{lo:g}, {hi:g}] too far in the tail of normal({mean:g}, {std:g})")
     return out
 
 
@@ -507,41 +513,45 @@ def _coupled_groups(axes: list[str]) -> list[list[str]]:
 
 
 def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases: Cases) -> None:
-    """Every case's scenario is valid, checked per axis: each grid value once;
-    each random axis at both ends of its range and at the numbers just inside
-    them (the schema's constraints are intervals and linear inequalities, so
-    a box is valid if its corners are; an isolated valid value, a 0 meaning
-    "off" or "the path's period" beside a least positive value, is found
-    next to the end it sits on);
-    and, for axes the schema checks together (:func:`_coupled_groups`), every
-    combination of their grid values and range ends once. When a random
-    axis is a key in which the checks of some case's part do not hold on an
-    interval (``NOT_INTERVALS`` of its shape, :func:`_shapes`): every case."""
+    """Every case's scenario is valid. An axis the schema checks alone is
+    checked by itself: each grid value once; each random axis at both ends
+    of its range and at the numbers just inside them (the schema's
+    constraints are intervals and linear inequalities, so a box is valid if
+    its corners are; an isolated valid value, a 0 meaning "off" or "the
+    path's period" beside a least positive value, is found next to the end
+    it sits on). Axes the schema checks together (:func:`_coupled_groups`)
+    are checked only together, never against the base's value of the
+    others (which no case may have): every combination of their grid values
+    and those ends once. When a random axis is a key in which the checks of
+    some case's part do not hold on an interval (``NOT_INTERVALS`` of its
+    shape, :func:`_shapes`): every case."""
+    order = [*grid, *random]
+    groups = _coupled_groups(order)
+    coupled = {k for group in groups for k in group}
     for key, values in grid.items():
         for i, v in enumerate(values):
+            if key in coupled:
+                continue
             try:
                 case_scenario(base, {key: v})
             except ScenarioError as exc:
                 raise SweepError(f"grid.{key}[{i}] = {v!r}: {exc}") from None
     for key, spec in random.items():
-        lo, hi = _range(spec)
-        # the ends and the numbers just inside them: a valid set with an
-        # isolated point at an end (a stiffness segment of 0 = the path's
-        # period, else at least 10 control periods) passes at its ends only
-        for v in dict.fromkeys((lo, hi, float(np.nextafter(lo, hi)), float(np.nextafter(hi, lo)))):
+        if key in coupled:
+            continue
+        for v in _ends(spec):
             try:
                 case_scenario(base, {key: v})
             except ScenarioError as exc:
                 kind = next(k for k in ("uniform", "loguniform", "normal") if k in spec)
                 raise SweepError(f"random.{key}: {kind} range [{_range(spec)[0]:g}, {_range(spec)[1]:g}] "
                                  f"reaches {v!r}: {exc}") from None
-    order = [*grid, *random]
     strides = dict(zip(grid, cases._strides))
-    for group in _coupled_groups(order):
+    for group in groups:
         gkeys = [k for k in group if k in grid]
         rkeys = [k for k in group if k in random]
         for gi in itertools.product(*(range(len(grid[k])) for k in gkeys)):
-            for corner in itertools.product(*(_range(random[k]) for k in rkeys)):
+            for corner in itertools.product(*(_ends(random[k]) for k in rkeys)):
                 values = {k: grid[k][i] for k, i in zip(gkeys, gi)} | dict(zip(rkeys, corner))
                 values = {k: values[k] for k in order if k in values}
                 if rkeys:
@@ -557,6 +567,14 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
             _check_case(base, cases, index)
 
 
+def _ends(spec: dict) -> list[float]:
+    """A random axis's range ends and the numbers just inside them: a valid
+    set with an isolated point at an end (a stiffness segment of 0 = the
+    path's period, else at least 10 control periods) passes at its ends only."""
+    lo, hi = _range(spec)
+    return list(dict.fromkeys((lo, hi, float(np.nextafter(lo, hi)), float(np.nextafter(hi, lo)))))
+
+
 def _check_case(base: dict, cases: Cases, index: int) -> None:
     """Case ``index``'s scenario through the schema; invalid: a SweepError
     naming the case by its index and values."""
@@ -570,11 +588,11 @@ def _check_case(base: dict, cases: Cases, index: int) -> None:
 def _shapes(base: dict, grid: dict[str, list]) -> set[str]:
     """The part shapes the sweep's cases take: the base's and, for each grid
     axis that sets the shape (``environment.shape`` or a whole
-    ``environment`` table), each value's (already validated one by one)."""
+    ``environment`` table), each value's (already validated)."""
     shapes = {base.get("environment", {}).get("shape", "plane")}
     for key, values in grid.items():
-        if _covers(key, "environment.shape"):
-            shapes |= {case_scenario(base, {key: v}).environment.shape for v in values}
+        if _covers(key, "environment.shape"):     # read, not parsed: a value may be valid only beside others
+            shapes |= {_resolve(base, {key: v}, [key], "environment.shape") or "plane" for v in values}
     return shapes
 
 
