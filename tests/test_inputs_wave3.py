@@ -3,6 +3,7 @@ special files, numbers the schema bounds (the command line with the same range a
 message), bounds relative to the control period, a UTF-8 BOM, strict schema details,
 and sweeps too large to run (refused at once, cases generated lazily)."""
 import os
+import pathlib
 import subprocess
 import sys
 from typing import Literal
@@ -507,6 +508,46 @@ def test_a_coupled_random_axis_is_checked_just_inside_its_ends_too():
         sweep_from_dict({"grid": {"controller.rate": [1000.0, 100.0]},
                          "random": {"trajectory.period": {"uniform": [0.05, 1.0]}, "samples": 5}})
     assert len(sweep.cases) == 10
+
+
+def test_a_normal_of_std_0_is_checked_at_its_mean_only():
+    """A normal of std 0 draws its mean in every case; its bounds, which it never reaches, were
+    validated as if it could (sensor.noise_std >= 0 refused bounds [-1, 1] around a mean 0)."""
+    from tmtcontrol.sweep import SweepError, sweep_from_dict
+
+    sweep = sweep_from_dict({"random": {"samples": 4, "sensor.noise_std": {"normal": [0.0, 0.0], "bounds": [-1.0, 1.0]}}})
+    assert [case.values["sensor.noise_std"] for case in sweep.cases] == [0.0] * 4
+    # any positive std can reach the bounds: still checked there
+    with pytest.raises(SweepError, match=r"^random\.sensor\.noise_std: normal range \[-1, 1\] reaches -1\.0"):
+        sweep_from_dict({"random": {"samples": 4, "sensor.noise_std": {"normal": [0.0, 1e-9], "bounds": [-1.0, 1.0]}}})
+
+
+@pytest.mark.parametrize("key,value", [
+    ("environment.stiffness.file", "k.csv"),
+    ("environment.stiffness", {"kind": "table", "file": "k.csv"}),
+    ("environment", {"stiffness": {"kind": "table", "file": "k.csv"}}),
+], ids=["leaf", "profile", "section"])
+def test_a_file_a_grid_value_names_is_found_beside_the_sweep_file(tmp_path, monkeypatch, key, value):
+    """Regression (review, second round): a scenario names its files relative to itself, but a
+    grid value naming a stiffness table was read relative to the working directory. Run from
+    another folder, the sweep file's own neighbour is found, in each way of naming it."""
+    from tmtcontrol.sweep import load_sweep
+
+    folder = tmp_path / "study"
+    folder.mkdir()
+    (folder / "k.csv").write_text("t, k_e\n0.0, 5000\n1.0, 20000\n")
+    (folder / "t.toml").write_text('[environment.stiffness]\nkind = "table"\nfile = "k.csv"\n')
+    (folder / "s.toml").write_text(f'scenario = "t.toml"\n[grid]\n"{key}" = [{_toml(value)}]\n')
+    monkeypatch.chdir(tmp_path)          # k.csv is not in the working directory
+    sweep = load_sweep(folder / "s.toml")
+    stiffness = sweep.scenario(sweep.cases[0]).environment.stiffness
+    assert pathlib.Path(stiffness.file) == folder / "k.csv"
+
+
+def _toml(value) -> str:
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    return f'"{value}"'
 
 
 @pytest.mark.parametrize("axes", [

@@ -44,6 +44,7 @@ the case.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import itertools
 import json
@@ -56,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..simulation.scenario import (BUILTIN_ARMS, NOT_INTERVALS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
-                                   load_scenario, read_toml, scenario_from_dict, scenario_to_dict,
+                                   load_scenario, read_toml, resolve_files, scenario_from_dict, scenario_to_dict,
                                    set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "Cases", "load_sweep", "sweep_from_dict", "EXAMPLE", "DEFAULT_MAX_CASES",
@@ -467,9 +468,10 @@ def _check_random(key: str, spec) -> dict:
 
 
 def _range(spec: dict) -> tuple[float, float]:
-    """The interval a random axis draws from."""
+    """The interval a random axis draws from (a normal of std 0: its mean)."""
     if "normal" in spec:
-        return _normal_range(spec)
+        mean, std = spec["normal"]
+        return (mean, mean) if std == 0 else _normal_range(spec)
     return tuple(spec["uniform" if "uniform" in spec else "loguniform"])
 
 
@@ -652,9 +654,24 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
         raise SweepError(f"scenario: {exc}") from None
     base = scenario_to_dict(base_sc)
     grid = {key: _generated(v) if isinstance(v, dict) else v for key, v in grid_in.items()}
+    if folder is not None:      # a file a grid value names is found beside the sweep file, as in a scenario
+        grid = {key: [_beside(key, v, folder) for v in values] for key, values in grid.items()}
     cases = Cases(grid, random, samples, seed)
     _validate(base, grid, random, cases)
     return Sweep(base, grid, random, samples, seed, cases)
+
+
+def _beside(key: str, value: Any, folder: pathlib.Path) -> Any:
+    """Grid value ``value`` of ``key`` with a relative file it names (a
+    stiffness table, height map or URDF) joined to ``folder``."""
+    parts = key.split(".")
+    nested = copy.deepcopy(value)
+    for part in reversed(parts):
+        nested = {part: nested}
+    resolve_files(nested, folder)
+    for part in parts:
+        nested = nested[part]
+    return nested
 
 
 def _describe(values: dict) -> str:

@@ -68,6 +68,23 @@ def toml_document(d: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def resolve_files(data: dict, folder: pathlib.Path) -> None:
+    """Join a relative stiffness ``table`` file, height map or URDF of the
+    scenario dict ``data`` (TOML layout, or any part of it from the top) to
+    ``folder``, in place: a file named in a file is found beside it."""
+    stiff = data.get("environment", {}).get("stiffness") if isinstance(data.get("environment"), dict) else None
+    if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
+            and not pathlib.Path(stiff["file"]).is_absolute():
+        stiff["file"] = str(folder / stiff["file"])
+    env = data.get("environment")
+    if isinstance(env, dict) and isinstance(env.get("heightmap"), str) and env["heightmap"] \
+            and not pathlib.Path(env["heightmap"]).is_absolute():
+        env["heightmap"] = str(folder / env["heightmap"])
+    robot = data.get("robot")
+    if isinstance(robot, dict) and isinstance(robot.get("model"), str) and robot["model"].lower().endswith(".urdf") \
+            and not pathlib.Path(robot["model"]).is_absolute():
+        robot["model"] = str(folder / robot["model"])
+
 
 def load_scenario(path: str | pathlib.Path) -> Scenario:
     """Read and validate a scenario TOML file; the string ``"paper"`` gives
@@ -82,18 +99,7 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
     data = read_toml(path, "scenario", ScenarioError)
     if not data:
         raise ScenarioError(f"{src}: empty scenario; start from 'tmtcontrol scenario paper > {path.name}'")
-    stiff = data.get("environment", {}).get("stiffness") if isinstance(data.get("environment"), dict) else None
-    if isinstance(stiff, dict) and isinstance(stiff.get("file"), str) and stiff["file"] \
-            and not pathlib.Path(stiff["file"]).is_absolute():
-        stiff["file"] = str(path.parent / stiff["file"])
-    env = data.get("environment")
-    if isinstance(env, dict) and isinstance(env.get("heightmap"), str) and env["heightmap"] \
-            and not pathlib.Path(env["heightmap"]).is_absolute():
-        env["heightmap"] = str(path.parent / env["heightmap"])
-    robot = data.get("robot")
-    if isinstance(robot, dict) and isinstance(robot.get("model"), str) and robot["model"].lower().endswith(".urdf") \
-            and not pathlib.Path(robot["model"]).is_absolute():
-        robot["model"] = str(path.parent / robot["model"])
+    resolve_files(data, path.parent)
     return scenario_from_dict(data, src)
 
 
