@@ -1,6 +1,9 @@
 """Throughput of `tmtcontrol sweep`: paper-length cases (16 s at 1 kHz) per second.
 
-Run: python benchmarks/bench_sweep.py [--cases N] [--arm-cases N]   (defaults 1000, 64)
+Run: python benchmarks/bench_sweep.py [--cases N] [--arm-cases N] [--json FILE]   (defaults 1000, 64,
+benchmarks/sweep_results.json); ``--markdown FILE`` prints the paragraph
+docs/sweeps.md and docs/speed.md quote from a JSON written before (a test
+fails when they differ).
 The compiled step is built once before timing (warm). Each case draws its
 noise level, so no two cases are alike. Prints cases/s for 1 and 2 local
 workers and for a Dask LocalCluster of 2 workers on the PUMA's paper
@@ -14,6 +17,11 @@ figures also go into the arm speed table (``bench_arm.py`` calls
 :func:`marginal_rate`).
 """
 import argparse
+import datetime
+import json
+import os
+import pathlib
+import sys
 import time
 import tomllib
 
@@ -32,11 +40,13 @@ def noise_sweep(scenario: str, cases: int):
 
 
 def warm(scenario: str) -> None:
-    """Compile (or load) the scenario's step, so the timed sweeps below run warm."""
+    """Compile (or load) the scenario's step and compute (or load) its case family's limits, so
+    the timed sweeps below run warm (the first sweep would otherwise carry the analysis)."""
     from tmtcontrol import load_scenario
     from tmtcontrol.simulation.simulator import simulator_for
 
     simulator_for(load_scenario(scenario)).run()
+    run_sweep(noise_sweep(scenario, 1), workers=1)
 
 
 def throughput(scenario: str, cases: int, workers: int = 2, dask: str | None = None):
@@ -61,28 +71,64 @@ def marginal_rate(scenario: str, cases: int, workers: int = 2, base: int = 16):
     return rate, t_small - base / rate
 
 
+def paragraph(doc: dict) -> str:
+    """The throughput paragraph the docs quote, from a JSON written by :func:`main`."""
+    p, u = doc["puma560"], doc["ur5"]
+    side = doc["two_workers_startup_apart"]
+    return (f"Throughput (`python benchmarks/bench_sweep.py`, paper-length cases, 16 s at 1 kHz, warm; "
+            f"recorded {doc['date']} on {doc['cpu']}, {doc['cores']} cores, load average "
+            f"{doc['load_before']:.1f} before and {doc['load_after']:.1f} after): the PUMA "
+            f"{p['1 worker'] :.1f} cases/s on 1 worker, {p['2 workers']:.1f} on 2 workers "
+            f"({doc['cases']:,} cases in {doc['cases'] / p['2 workers']:.1f} s), "
+            f"{p['dask local, 2 workers']:.1f} on a 2-worker Dask LocalCluster, each with its workers' "
+            f"start-up; identical rows on every engine: {'yes' if doc['identical'] else 'NO'}. The UR5 "
+            f"(the 6-D loop, {doc['arm_cases']} cases): {u['1 worker']:.1f} cases/s on 1 worker, "
+            f"{u['2 workers']:.1f} on 2. On 2 workers with the start-up apart: the PUMA "
+            f"{side['puma560'][0]:.1f} cases/s (start-up {side['puma560'][1]:.1f} s), the UR5 "
+            f"{side['ur5'][0]:.1f} (start-up {side['ur5'][1]:.1f} s), against issue 42's target of 150 "
+            f"PUMA cases/s.")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", type=int, default=1000, help="PUMA (paper scenario) cases")
     ap.add_argument("--arm-cases", type=int, default=64, help="UR5 scenario cases")
+    ap.add_argument("--json", default=str(pathlib.Path(__file__).parent / "sweep_results.json"))
+    ap.add_argument("--markdown", metavar="JSON", help="print the docs paragraph of a JSON written before and exit")
     args = ap.parse_args()
+    if args.markdown:
+        print(paragraph(json.loads(pathlib.Path(args.markdown).read_text())))
+        return
+    from bench_all import cpu
+
+    load_before = os.getloadavg()[0]
     warm("paper")
-    frames = {}
+    frames, rates = {}, {"puma560": {}, "ur5": {}}
     for label, kw in (("1 worker", dict(workers=1)), ("2 workers", dict(workers=2)),
                       ("dask local, 2 workers", dict(workers=2, dask="local"))):
         dt, frames[label] = throughput("paper", args.cases, **kw)
+        rates["puma560"][label] = args.cases / dt
         print(f"puma560 {label:>22}: {args.cases} cases in {dt:.1f} s = {args.cases / dt:.1f} cases/s "
-              f"(1,000 cases: {1000 * dt / args.cases:.0f} s)")
+              f"(1,000 cases: {1000 * dt / args.cases:.0f} s)", flush=True)
     same = all(f.equals(frames["1 worker"]) for f in frames.values())
     print(f"identical rows on every engine: {same}")
     warm("ur5")
     for label, w in (("1 worker", 1), ("2 workers", 2)):
         dt, _ = throughput("ur5", args.arm_cases, workers=w)
-        print(f"ur5     {label:>22}: {args.arm_cases} cases in {dt:.1f} s = {args.arm_cases / dt:.1f} cases/s")
+        rates["ur5"][label] = args.arm_cases / dt
+        print(f"ur5     {label:>22}: {args.arm_cases} cases in {dt:.1f} s = {args.arm_cases / dt:.1f} cases/s",
+              flush=True)
     side = {arm: marginal_rate(sc, args.arm_cases) for arm, sc in (("puma560", "paper"), ("ur5", "ur5"))}
     print("2 workers, paper-length cases/s after the workers' start-up (sweeps of 16 and "
           f"{16 + args.arm_cases} cases): " + ", ".join(f"{arm} {r:.1f} (start-up {s0:.1f} s)"
                                                          for arm, (r, s0) in side.items()))
+    doc = {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "cpu": cpu(),
+           "cores": os.cpu_count(), "python": sys.version.split()[0], "load_before": load_before,
+           "load_after": os.getloadavg()[0], "cases": args.cases, "arm_cases": args.arm_cases, "identical": same,
+           **rates, "two_workers_startup_apart": side}
+    pathlib.Path(args.json).write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {args.json}")
+    print(paragraph(doc))
 
 
 if __name__ == "__main__":      # Dask and process pools may start fresh interpreters

@@ -85,3 +85,24 @@ def test_speed_page_quotes_the_recorded_report_benchmark():
     assert bench.compared(["PASS  limit 163,417 N/m"], ["PASS  limit 163,417 N/m"]).endswith("record 0")
     assert "1e-06" in bench.compared(["PASS  limit 100,000.1 N/m"], ["PASS  limit 100,000 N/m"])
     assert bench.compared(["PASS  a"], ["FAIL  a"]).startswith("changed")
+
+
+def test_sweep_throughput_quoted_is_the_recorded_benchmark():
+    """docs/sweeps.md and docs/speed.md quote benchmarks/bench_sweep.py's paragraph of its
+    recorded run (benchmarks/sweep_results.json; regenerate with ``python
+    benchmarks/bench_sweep.py``): a new record, or an edited figure, fails here until they agree.
+    The record itself says the three engines gave identical rows."""
+    import json
+
+    from conftest import load_benchmark
+
+    bench = load_benchmark("bench_sweep")
+    record = json.loads((ROOT / "benchmarks" / "sweep_results.json").read_text())
+    assert record["identical"] is True and record["cases"] >= 1000
+    text = bench.paragraph(record)
+    for page in ("sweeps.md", "speed.md"):
+        assert text in (ROOT / "docs" / page).read_text(), page
+    # the paragraph shows the figures it is given: a changed rate is a changed paragraph
+    changed = json.loads(json.dumps(record))
+    changed["puma560"]["2 workers"] *= 1.01
+    assert bench.paragraph(changed) != text

@@ -14,7 +14,7 @@ import numpy as np
 
 from .sampled import largest_stable, max_stable_stiffness, spectral_radius
 
-__all__ = ["scenario_parameters", "normal_masses", "scenario_stiffness_limit",
+__all__ = ["scenario_parameters", "stiffness_seen", "normal_masses", "scenario_stiffness_limit",
            "closed_form_applies", "scheduled_damping"]
 
 
@@ -26,13 +26,11 @@ def scenario_parameters(scenario) -> dict:
     (``x_e_error``, m: ``controller.x_e_error`` plus the part position
     error's component along the inward normal there, ``part_offset . n``;
     exact on a plane, the centre's value on a curved part)."""
-    from ..simulation.environment import stiffness_samples
     from ..simulation.geometry import surface_error
 
     sc = scenario
     masses = normal_masses(sc)
-    t = np.arange(0.0, sc.duration, sc.controller.Ts)
-    k_e = stiffness_samples(sc.environment.stiffness, t, sc.trajectory.period)
+    k_e = stiffness_seen(sc)
     kd, kp = sc.impedance.gains
     return {"m": sc.impedance.m[0], "b": sc.impedance.b[0], "k": sc.impedance.k[0],
             "f_d": sc.controller.f_d, "k_e_min": float(k_e.min()), "k_e_max": float(k_e.max()),
@@ -43,6 +41,13 @@ def scenario_parameters(scenario) -> dict:
             "law": sc.controller.law.kind, "delay": sc.controller.delay_samples,
             "x_e_error": surface_error(sc)}
 
+
+def stiffness_seen(sc) -> np.ndarray:
+    """The surface stiffness k_e (N/m) at each control instant of the run."""
+    from ..simulation.environment import stiffness_samples
+
+    return stiffness_samples(sc.environment.stiffness, np.arange(0.0, sc.duration, sc.controller.Ts),
+                             sc.trajectory.period)
 
 
 def normal_masses(sc) -> list:

@@ -158,23 +158,23 @@ def case_limits(sc, sim=None) -> dict:
     verdict or an analysis that fails (``limits_error`` says why). ``_limit``
     carries the :class:`~tmtcontrol.stability.limit.ScenarioLimit` (or the
     ``AnalysisError`` it raised) to the run's verdicts (not a column)."""
-    from ..stability.analysis import scenario_parameters
     from ..stability.continuous import AnalysisError
     from ..stability.first_contact import LoopRunner
     from ..stability.limit import deciding_limit
+    from ..stability.onedim import stiffness_seen
 
     nan = math.nan
     out = {"small_signal_limit": nan, "periodic_limit": nan, "first_contact_limit": nan, "predicted_limit": nan,
            "predicted_limit_from": "", "predicted_stable": None, "limits_error": "", "_limit": None}
     try:
-        p = scenario_parameters(sc)
-        key = _family_key(sc, p["k_e_min"])
+        k_e = stiffness_seen(sc)        # not scenario_parameters: its path masses are the family's (12 ms a case)
+        key = _family_key(sc, k_e.min())
         if key not in _LIMITS:
             if len(_LIMITS) >= 4096:
                 _LIMITS.clear()
             _LIMITS[key] = deciding_limit(sc, runner=LoopRunner(sc, sim=sim))
         lim = _LIMITS[key]
-        k_max = p["k_e_max"]
+        k_max = float(k_e.max())
     except Exception as exc:          # an analysis that does not apply to this case: said in the row
         out["limits_error"] = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         if isinstance(exc, AnalysisError):
