@@ -187,11 +187,13 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
         x = series[kind]
         lo, hi = limits.bounds(kind)
         for j in range(x.shape[0]):
-            xj = x[j]
-            below, above = (xj < lo[j]) | ~np.isfinite(xj), xj > hi[j]
             if not (np.isfinite(lo[j]) or np.isfinite(hi[j])):
                 continue
-            for i0, i1 in _runs(below | above):
+            xj = x[j]
+            beyond = (xj < lo[j]) | ~np.isfinite(xj) | (xj > hi[j])
+            if not beyond.any():
+                continue
+            for i0, i1 in _runs(beyond):
                 seg = xj[i0:i1]
                 k = i0 + int(np.nanargmax(np.abs(seg))) if np.any(np.isfinite(seg)) else i0
                 up = xj[k] > hi[j] or not (xj[k] < lo[j])
