@@ -450,14 +450,19 @@ def test_a_random_range_wider_than_the_largest_float_is_refused():
     """Regression (review, second round): the draws compute a + (b - a) u, and numpy's
     uniform raises OverflowError once b - a passes 1.8e308. A range of two finite ends,
     each valid (controller.x_e_error has no bound), was accepted and every case then
-    crashed. Refused now, naming the axis; a normal's +-10 std span likewise."""
+    crashed. Refused now, naming the axis (review 3: a truncated normal's draws never compute
+    its bounds' width; only its span must be finite)."""
     from tmtcontrol.sweep import SweepError, sweep_from_dict
 
     with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-1e\+308, 1e\+308\] is wider "
                                          r"than the largest float, 1\.79769e\+308$"):
         sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"uniform": [-1e308, 1e308]}}})
-    with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-1e\+308, 1e\+308\]"):
-        sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"normal": [0.0, 1e307]}}})
+    # a normal draws mean + std * z, clipped: its +-10 std span must be numbers, its width need not
+    with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-inf, inf\]"):
+        sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"normal": [0.0, 1e308]}}})
+    for spec in ({"normal": [0.0, 1e307]}, {"normal": [0.0, 1e-3], "bounds": [-1e308, 1e308]}):
+        sweep = sweep_from_dict({"random": {"samples": 20, "controller.x_e_error": spec}})
+        assert all(np.isfinite([case.values["controller.x_e_error"] for case in sweep.cases])), spec
     # just under the limit (width 1.6e308): accepted, and every draw is a finite number inside it
     sweep = sweep_from_dict({"random": {"samples": 20, "controller.x_e_error": {"uniform": [-8e307, 8e307]}}})
     draws = [case.values["controller.x_e_error"] for case in sweep.cases]
@@ -486,6 +491,43 @@ def test_coupled_axes_are_not_checked_against_the_base_value_of_the_other(grid):
         case_scenario(base, dict(zip(grid, combo)))
     sweep = sweep_from_dict({"grid": grid})
     assert len(sweep.cases) == np.prod([len(v) for v in grid.values()])
+
+
+def test_the_shapes_of_a_sweep_are_those_its_cases_take():
+    """Regression (review 3): the curved shapes a sweep takes (for the case-by-case check of
+    NOT_INTERVALS keys) were read from each shape-setting grid value alone; a value replaced
+    in every case by a later whole ``environment`` table ("cube") raised a bare KeyError,
+    although every case is a valid plane. Every case is checked valid here independently."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import case_scenario, load_scenario, scenario_to_dict
+
+    env = {"shape": "plane", "tilt_deg": 45.0}
+    base = scenario_to_dict(load_scenario("paper"))
+    for r in (0.05, 0.1):
+        case_scenario(base, {"environment.shape": "cube", "environment": env, "trajectory.radius": r})
+    sweep = sweep_from_dict({"grid": {"environment.shape": ["cube"], "environment": [env]},
+                             "random": {"samples": 3, "trajectory.radius": {"uniform": [0.05, 0.1]}}})
+    assert {sweep.scenario(c).environment.shape for c in sweep.cases} == {"plane"}
+
+
+def test_coupled_random_axes_take_two_boxes_of_corners_not_four_values_each(monkeypatch):
+    """Regression (review 3): k random axes of one coupled group (every ``controller`` key
+    is, by its section's check) were checked at 4^k combinations of their ends and the
+    numbers just inside (8 axes: 65,536 schema checks, 12: 16.8 million, before anything
+    runs). The corners of the range box and of the box just inside: 2 x 2^8 = 512 here."""
+    from tmtcontrol.sweep import spec, sweep_from_dict
+
+    calls = []
+    real = spec.case_scenario
+    monkeypatch.setattr(spec, "case_scenario", lambda base, values: calls.append(values) or real(base, values))
+    ranges = {"controller.f_d": [5.0, 15.0], "controller.x_e_error": [-0.001, 0.001],
+              "controller.approach_speed": [0.005, 0.02], "controller.contact_threshold": [0.5, 2.0],
+              "controller.force_ramp": [0.1, 0.5], "controller.force_tolerance": [0.005, 0.02],
+              "controller.orientation_tolerance": [1e-3, 2e-3], "controller.rate": [800.0, 1200.0]}
+    sweep_from_dict({"random": {"samples": 10, **{k: {"uniform": v} for k, v in ranges.items()}}})
+    assert len(calls) == 2 * 2 ** 8
+    assert {v["controller.f_d"] for v in calls} == {5.0, 15.0, float(np.nextafter(5.0, 6)),
+                                                     float(np.nextafter(15.0, 14))}
 
 
 def test_a_coupled_random_axis_is_checked_just_inside_its_ends_too():

@@ -456,9 +456,9 @@ def _check_random(key: str, spec) -> dict:
             if out["bounds"][0] > out["bounds"][1]:
                 raise SweepError(f"random.{key}: bounds need lo <= hi, got {spec['bounds']!r}")
     lo, hi = _range(out)
-    if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(hi - lo)):
-        # the draws compute a + (b - a) u: a width past the largest float
-        # (1.8e308) would overflow in every case
+    if not (math.isfinite(lo) and math.isfinite(hi)) or (kind == "uniform" and not math.isfinite(hi - lo)):
+        # a uniform draw computes a + (b - a) u: a width past the largest float
+        # (1.8e308) would overflow in every case; a normal's mean +- 10 std must be a number
         raise SweepError(f"random.{key}: range [{lo:g}, {hi:g}] is wider than the largest float, "
                          f"{np.finfo(float).max:g}")
     if kind == "normal" and _normal_mass(out) < 1e-9:
@@ -524,7 +524,8 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     it sits on). Axes the schema checks together (:func:`_coupled_groups`)
     are checked only together, never against the base's value of the
     others (which no case may have): every combination of their grid values
-    and those ends once. When a random axis is a key in which the checks of
+    with the corners of their random ranges' box and of the box just inside
+    it (2 x 2^k checks for k random axes, not 4^k). When a random axis is a key in which the checks of
     some case's part do not hold on an interval (``NOT_INTERVALS`` of its
     shape, :func:`_shapes`): every case."""
     order = [*grid, *random]
@@ -541,7 +542,7 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     for key, spec in random.items():
         if key in coupled:
             continue
-        for v in _ends(spec):
+        for v in dict.fromkeys(_ends(spec)):
             try:
                 case_scenario(base, {key: v})
             except ScenarioError as exc:
@@ -552,8 +553,12 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     for group in groups:
         gkeys = [k for k in group if k in grid]
         rkeys = [k for k in group if k in random]
+        corners = list(itertools.product(*(_range(random[k]) for k in rkeys)))
+        if rkeys:       # the box just inside: 2 x 2^k checks, not 4^k
+            corners += [c for c in itertools.product(*(_ends(random[k])[-2:] for k in rkeys))
+                        if c not in corners]
         for gi in itertools.product(*(range(len(grid[k])) for k in gkeys)):
-            for corner in itertools.product(*(_ends(random[k]) for k in rkeys)):
+            for corner in corners:
                 values = {k: grid[k][i] for k, i in zip(gkeys, gi)} | dict(zip(rkeys, corner))
                 values = {k: values[k] for k in order if k in values}
                 if rkeys:
@@ -574,7 +579,7 @@ def _ends(spec: dict) -> list[float]:
     set with an isolated point at an end (a stiffness segment of 0 = the
     path's period, else at least 10 control periods) passes at its ends only."""
     lo, hi = _range(spec)
-    return list(dict.fromkeys((lo, hi, float(np.nextafter(lo, hi)), float(np.nextafter(hi, lo)))))
+    return [lo, hi, float(np.nextafter(lo, hi)), float(np.nextafter(hi, lo))]
 
 
 def _check_case(base: dict, cases: Cases, index: int) -> None:
@@ -588,14 +593,14 @@ def _check_case(base: dict, cases: Cases, index: int) -> None:
 
 
 def _shapes(base: dict, grid: dict[str, list]) -> set[str]:
-    """The part shapes the sweep's cases take: the base's and, for each grid
-    axis that sets the shape (``environment.shape`` or a whole
-    ``environment`` table), each value's (already validated)."""
-    shapes = {base.get("environment", {}).get("shape", "plane")}
-    for key, values in grid.items():
-        if _covers(key, "environment.shape"):     # read, not parsed: a value may be valid only beside others
-            shapes |= {_resolve(base, {key: v}, [key], "environment.shape") or "plane" for v in values}
-    return shapes
+    """The part shapes the sweep's cases take: the base's, or with grid axes
+    that set the shape (``environment.shape``, a whole ``environment``
+    table), each combination's (already validated)."""
+    keys = [k for k in grid if _covers(k, "environment.shape")]
+    # each combination of those axes, applied in order as a case applies them (a value may be
+    # replaced by a later axis's table, and valid only beside the others)
+    return {_resolve(base, dict(zip(keys, combo)), keys, "environment.shape") or "plane"
+            for combo in itertools.product(*(grid[k] for k in keys))}
 
 
 def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
