@@ -5,8 +5,16 @@ import os
 import pickle
 
 import pytest
+from hypothesis import settings
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+# property tests are deterministic: a fixed seed per test (derandomize) and no example
+# database carried between runs, so CI and a fresh clone draw the same examples; a failure
+# one of them finds becomes a named @example. HYPOTHESIS_PROFILE=explore draws new ones.
+settings.register_profile("fixed", derandomize=True, database=None, print_blob=True)
+settings.register_profile("explore", derandomize=False, database=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "fixed"))
 
 
 @pytest.fixture(scope="session", autouse=True)
