@@ -29,10 +29,12 @@ with the number of cases.
 Validation: before anything runs, every case is known to pass the scenario
 schema, checked per axis rather than per case: each grid value once, each
 random axis at both ends of its range and just inside them (a valid 0 beside
-a least positive value is isolated), and every combination only for axes
-the schema checks together (the same section's cross-field check, a tagged
-union, or the control-period bounds of ``sampling_problem``). An error names
-the axis key. One exception, checked case by case: a random axis of the path
+a least positive value is isolated); axes the schema checks together (the
+same section's cross-field check, a tagged union, or the checks across
+sections of ``sampling_problem``) only together, in every combination of
+their grid values with the corners of their random ranges and the corners
+just inside. An error names the axis key, or the values of the combination.
+A file a grid value names is found beside the sweep file. One exception, checked case by case: a random axis of the path
 or the part on a curved part whose checks are not intervals in it (the
 scenario's ``NOT_INTERVALS`` by shape: the path's reach within a sphere's
 or cylinder's domain is not monotone in its direction, a turned raster
@@ -525,16 +527,14 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     are checked only together, never against the base's value of the
     others (which no case may have): every combination of their grid values
     with the corners of their random ranges' box and of the box just inside
-    it (2 x 2^k checks for k random axes, not 4^k). When a random axis is a key in which the checks of
-    some case's part do not hold on an interval (``NOT_INTERVALS`` of its
-    shape, :func:`_shapes`): every case."""
+    it (2 x 2^k checks for k random axes, not 4^k). When a random axis is a
+    key in which the checks of some case's part do not hold on an interval
+    (``NOT_INTERVALS`` of its shape, :func:`_shapes`): every case."""
     order = [*grid, *random]
     groups = _coupled_groups(order)
     coupled = {k for group in groups for k in group}
     for key, values in grid.items():
-        for i, v in enumerate(values):
-            if key in coupled:
-                continue
+        for i, v in enumerate(values if key not in coupled else ()):
             try:
                 case_scenario(base, {key: v})
             except ScenarioError as exc:
@@ -553,10 +553,9 @@ def _validate(base: dict, grid: dict[str, list], random: dict[str, dict], cases:
     for group in groups:
         gkeys = [k for k in group if k in grid]
         rkeys = [k for k in group if k in random]
-        corners = list(itertools.product(*(_range(random[k]) for k in rkeys)))
-        if rkeys:       # the box just inside: 2 x 2^k checks, not 4^k
-            corners += [c for c in itertools.product(*(_ends(random[k])[-2:] for k in rkeys))
-                        if c not in corners]
+        # the corners of the box and of the box just inside: 2 x 2^k checks, not 4^k
+        corners = list(dict.fromkeys([*itertools.product(*(_range(random[k]) for k in rkeys)),
+                                      *itertools.product(*(_ends(random[k])[2:] for k in rkeys))]))
         for gi in itertools.product(*(range(len(grid[k])) for k in gkeys)):
             for corner in corners:
                 values = {k: grid[k][i] for k, i in zip(gkeys, gi)} | dict(zip(rkeys, corner))
