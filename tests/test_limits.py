@@ -17,6 +17,20 @@ def cheap_model():
     return PeriodicModel(apply_overrides(paper_scenario(), CHEAP), compile=False)
 
 
+def test_a_virtual_machine_tangent_step_does_not_serve_a_compiled_request(cheap_model):
+    """Regression: the tangent steps were memoised by loop structure alone, so after
+    one PeriodicModel(compile=False) every later model of the same loop ran its
+    periodic search on CasADi's virtual machine (test_simulate_quotes_the_first_
+    contact_limit_in_the_bistable_region took 30 s after such a test, 2 s without)."""
+    from tmtcontrol.stability.periodic import PeriodicModel
+
+    assert cheap_model.rollout.how == "vm"
+    compiled = PeriodicModel(cheap_model.scenario, compile=True)
+    assert compiled.rollout is not cheap_model.rollout
+    assert compiled.rollout.how in ("compiled", "cached")
+    assert PeriodicModel(cheap_model.scenario, compile=False).rollout.how == "vm"
+
+
 def test_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_period():
     """Closed form: with the path standing still (radius 0) the orbit is the frozen
     fixed point and Phi = A^N, so rho(Phi) = rho(A)^N. Tolerance 1e-6 relative: the

@@ -152,12 +152,13 @@ class PeriodicModel:
         if key is None:                  # not the package's own law: keyed by its serialisation
             self.rollout = Rollout(make(), compile=compile)
         else:
-            if key not in _BUILT:
+            memo = (key, compile)        # a virtual-machine rollout (compile=False) never serves "auto" or True
+            if memo not in _BUILT:
                 if len(_BUILT) >= 16:
                     _BUILT.clear()
-                _BUILT[key] = Rollout(make, compile=compile, structure=(f"tangent_{loop.name}",
-                                                                        key + "|tangent" + loop.cache_tag))
-            self.rollout = _BUILT[key]
+                _BUILT[memo] = Rollout(make, compile=compile, structure=(f"tangent_{loop.name}",
+                                                                         key + "|tangent" + loop.cache_tag))
+            self.rollout = _BUILT[memo]
         U, self.P = self.frozen.U, self.frozen.P
         self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()
         self._warm: tuple[float, np.ndarray] | None = None
