@@ -189,11 +189,18 @@ def test_run_compiler_kills_the_group_on_keyboard_interrupt(tmp_path, fake_cc, m
             time.sleep(0.02)
 
     monkeypatch.setenv("TMPDIR", fake_cc["TMPDIR"])
-    watcher = threading.Thread(target=interrupt_once_cc1_runs, daemon=True)
-    watcher.start()
-    with pytest.raises(KeyboardInterrupt):
-        run_compiler([fake_cc["CC"], "x.c"], tmp_path / "tmp", timeout=300.0)
-    watcher.join()
+    # a terminal's Python: SIGINT raises KeyboardInterrupt. A test run started in the background
+    # of a script (`pytest &`: the shell ignores SIGINT for it, and Python keeps an inherited
+    # SIG_IGN) would otherwise drop the signal and wait out the 300 s timeout, proving nothing.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        watcher = threading.Thread(target=interrupt_once_cc1_runs, daemon=True)
+        watcher.start()
+        with pytest.raises(KeyboardInterrupt):
+            run_compiler([fake_cc["CC"], "x.c"], tmp_path / "tmp", timeout=300.0)
+        watcher.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert seen, "no cc1 was seen"
     assert time.monotonic() - sent[0] < 60.0, "the interrupt waited for the compiler"
     assert not _wait_gone(seen), "compiler processes outlived the interrupt"
