@@ -1,11 +1,11 @@
 """The worked example of docs/sweeps.md: what `tmtcontrol sweep` prints for
 docs/sweeps/paper-gains.toml, its exit code and its map (the page quotes them).
 
-Usage: python analysis/sweep_example.py [--out DIR] [--workers N] [--points N] [--cycles C]
+Usage: python analysis/sweep_example.py [--out DIR] [--workers N] [--points N] [--cycles C] [--rates R,...]
 
 Runs ``tmtcontrol sweep docs/sweeps/paper-gains.toml --workers N`` (with
-``--points``/``--cycles`` other than the file's 12 stiffnesses and 1 cycle, a
-smaller copy of it, for a quick look) and writes ``output.txt`` (stdout, the
+``--points``/``--cycles``/``--rates`` other than the file's 12 stiffnesses, 1
+cycle and 4 control rates, a smaller copy of it, for a quick look) and writes ``output.txt`` (stdout, the
 run time replaced by "T", then "exit code: N"), ``sweep_map.png`` and
 ``summary.json``. Regenerate the page's figure and quote with
 ``--out docs/figures/sweep-example`` (the defaults); tests/test_presentation.py
@@ -26,23 +26,38 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "docs" / "sweeps" / "paper-gains.toml"
 
 
-def sweep_text(points: int = 12, cycles: float = 1.0) -> str:
-    """The example's sweep file, with ``points`` stiffnesses and ``cycles`` per case."""
+def sweep_text(points: int = 12, cycles: float = 1.0, rates: list[float] | None = None) -> str:
+    """The example's sweep file, with ``points`` stiffnesses, ``cycles`` per case and
+    ``rates`` (Hz; None: the file's four)."""
     text = SWEEP.read_text()
     text = re.sub(r"geomspace = \[1e3, 3e5, \d+\]", f"geomspace = [1e3, 3e5, {points}]", text)
+    if rates is not None:
+        text, n = re.subn(r'"controller.rate" = \[[^\]]*\]', f'"controller.rate" = {[float(r) for r in rates]!r}', text)
+        assert n == 1, "the example's controller.rate axis is not where it was"
     return re.sub(r'"trajectory.cycles" = \[[\d.]+\]', f'"trajectory.cycles" = [{cycles!r}]', text)
 
 
-def run(points: int = 12, cycles: float = 1.0, workers: int = 2) -> tuple[str, int, pathlib.Path]:
+def run(points: int = 12, cycles: float = 1.0, workers: int = 2,
+        rates: list[float] | None = None) -> tuple[str, int, pathlib.Path]:
     """Run the example; ``(stdout with the run time as T, exit code, folder with its outputs)``."""
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="sweep-example-"))
-    (tmp / "paper-gains.toml").write_text(sweep_text(points, cycles))
+    (tmp / "paper-gains.toml").write_text(sweep_text(points, cycles, rates))
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", "paper-gains.toml", "--out", "out",
                         "--workers", str(workers)], capture_output=True, text=True, cwd=tmp)
     if r.returncode not in (0, 1):
         raise SystemExit(f"sweep failed (exit {r.returncode}): {r.stderr.strip().splitlines()[-1:]}")
     stdout = re.sub(r"\(\d+\.\d s\)", "(T s)", r.stdout).replace("wrote out/", "wrote paper-gains/")
     return stdout, r.returncode, tmp
+
+
+def _rates(text: str) -> list[float]:
+    try:
+        rates = [float(r) for r in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
+    if not rates or not all(r > 0 and r < float("inf") for r in rates):
+        raise argparse.ArgumentTypeError(f"expected positive finite rates in Hz, got {text!r}")
+    return rates
 
 
 def main(argv=None):
@@ -53,9 +68,11 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--points", type=int, default=12, help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
     ap.add_argument("--cycles", type=float, default=1.0, help="path cycles per case (default 1, the file's)")
+    ap.add_argument("--rates", type=_rates, default=None,
+                    help="control rates, Hz, comma-separated (default the file's 2000,1000,500,250)")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")
-    stdout, code, tmp = run(args.points, args.cycles, args.workers)
+    stdout, code, tmp = run(args.points, args.cycles, args.workers, args.rates)
     try:
         with out:
             (out.path / "output.txt").write_text(stdout + f"exit code: {code}\n")

@@ -14,7 +14,7 @@ SCRIPTS = {
     "first_contact.py": ["--points", "2"],
     "noise.py": ["--cycles", "0.5", "--sigmas", "0.2"],
     "regenerate_robots.py": ["--from", str(ROOT / "tmtcontrol" / "model" / "data")],
-    "sweep_example.py": ["--points", "2", "--cycles", "0.25", "--workers", "1"],
+    "sweep_example.py": ["--points", "2", "--cycles", "0.25", "--workers", "1", "--rates", "1000"],
 }
 
 

@@ -126,7 +126,7 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
     from tmtcontrol.sweep.run import case_limits
 
     sc = apply_overrides(arm_scenario("ur5"), [*CHEAP, "controller.x_e_error=-0.01"])
-    sim = Simulator(sc, compile=False)
+    sim = Simulator(sc)
     row = case_limits(sc, sim=sim)
     assert row["limits_error"] == ""
     assert row["small_signal_limit"] == scenario_stiffness_limit(sc)
