@@ -463,26 +463,38 @@ def _cell_value(cell: str):
         return None, False
 
 
+# The cells whose reference is a bisection over a verdict that is not monotone in k_e: the
+# scheduled-damping row's simulated limit (column 4) and the two percentages made from it.
+# Measured on 2026-12-05 (decay ratio over five periods, LoopRunner, 1 kHz): 1.22 at 2.650e6
+# N/m, 0.58-0.59 at 2.655e6-2.665e6, 1.75 at 2.670e6; so the bisection lands anywhere in that
+# band when its bracket (the periodic limit x/ 1.05) moves by 1e-5: 2.643e6 on 2026-12-04 and
+# 2.662e6 on 2026-12-05 from the same periodic limit to 4 digits. Compared to 1 % (the band's
+# width; docs/theory.md states the two within 1 %) and 1 percentage point.
+_BISECTED_OVER_A_NON_MONOTONE_VERDICT = {("periodic", "scheduled damping (zeta = 1)"): {4, 5, 6}}
+
+
 def _assert_same_table(doc: str, generated: str, name: str) -> None:
     """The table in the docs is what the benchmark prints now: the same rows
     and words; numbers to 1e-3 relative (4 significant digits print them, and
     the scheduled-damping row's limit is where Newton shooting stalls at the
     rounding of one period, which moves by a few 1e-4 with the order of the
     floating-point operations, docs/theory.md) and percentages to 0.1
-    percentage point (the same shift, printed as a difference of two limits)."""
+    percentage point (the same shift, printed as a difference of two limits);
+    the cells of _BISECTED_OVER_A_NON_MONOTONE_VERDICT to 1 % and 1 point."""
     a, b = _rows(doc), _rows(generated)
     assert doc.splitlines()[:2] == generated.splitlines()[:2], name
     assert len(a) == len(b), (name, doc, generated)
     for ra, rb in zip(a, b):
         assert len(ra) == len(rb), (name, ra, rb)
-        for ca, cb in zip(ra, rb):
+        loose = _BISECTED_OVER_A_NON_MONOTONE_VERDICT.get((name, ra[0]), set())
+        for j, (ca, cb) in enumerate(zip(ra, rb)):
             (va, pa), (vb, _) = _cell_value(ca), _cell_value(cb)
             if va is None or vb is None:
                 assert ca == cb, (name, ra, rb)
             elif pa:
-                assert abs(va - vb) <= 0.1 + 1e-9, (name, ra, rb)
+                assert abs(va - vb) <= (1.0 if j in loose else 0.1) + 1e-9, (name, ra, rb)
             else:
-                assert va == pytest.approx(vb, rel=1e-3, abs=1e-12), (name, ra, rb)
+                assert va == pytest.approx(vb, rel=1e-2 if j in loose else 1e-3, abs=1e-12), (name, ra, rb)
 
 
 def test_the_drift_comparison_catches_a_changed_number_and_a_changed_word():
@@ -493,6 +505,19 @@ def test_the_drift_comparison_catches_a_changed_number_and_a_changed_word():
                 doc + "\n| c | 1 | 1 % |"):
         with pytest.raises(AssertionError):
             _assert_same_table(doc, bad, "t")
+    # the scheduled-damping row: its simulated limit and the percentages made from it to 1 % / 1 point,
+    # every other cell of the row (and that column in every other row) as tightly as the rest
+    head = "| case | 1-D | frozen | periodic | simulated | per vs sim | frozen vs sim |\n|---|---|---|---|---|---|---|\n"
+    row = "| scheduled damping (zeta = 1) | 2.576e+06 | 2.617e+06 | 2.664e+06 | 2.643e+06 | +0.80 % | -0.99 % |"
+    other = "| paper, 1 ms | 1.634e+05 | 1.637e+05 | 1.672e+05 | 1.672e+05 | +0.04 % | -2.10 % |"
+    table = head + other + "\n" + row
+    _assert_same_table(table, table.replace("2.643e+06", "2.662e+06").replace("+0.80", "+0.04")
+                       .replace("-0.99", "-1.71"), "periodic")
+    for bad in (table.replace("2.643e+06", "2.68e+06"), table.replace("+0.80", "-0.30"),
+                table.replace("2.664e+06", "2.67e+06"), table.replace("2.576e+06", "2.58e+06"),
+                table.replace("| 1.672e+05 | +0.04", "| 1.68e+05 | +0.04"), table.replace("-2.10", "-1.50")):
+        with pytest.raises(AssertionError):
+            _assert_same_table(table, bad, "periodic")
 
 
 class _SyntheticRunner:
