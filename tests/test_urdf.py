@@ -112,6 +112,29 @@ def test_check_robot_fails_on_a_wrong_model(arms):
     assert not check.ok
 
 
+ONE_JOINT = """<robot name="r"><link name="base"/><link name="l1"><inertial><mass value="1"/>
+<origin xyz="0 0 0.1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="10" velocity="1"/></joint></robot>"""
+
+
+def test_a_one_joint_arm_passes_its_model_check(tmp_path, capsys):
+    """Regression (review 5): the Jacobian row compared our 6 x 1 Jacobian with
+    Pinocchio's 6-vector by broadcasting (every row against every other: 3.16), so
+    `tmtcontrol robot` failed a right one-joint model and exited 1."""
+    path = tmp_path / "one.urdf"
+    path.write_text(ONE_JOINT)
+    check = check_robot(load_robot(str(path)), samples=4, seed=2)
+    assert check.reference.startswith("pinocchio")
+    assert check.ok, [(i.name, i.worst) for i in check.identities if not i.ok]
+    assert main(["robot", str(path)]) == 0, capsys.readouterr()
+    from tmtcontrol.model.verify import _rel
+
+    assert _rel(np.ones((6, 1)), np.ones(6)) == 0.0
+    with pytest.raises(ValueError, match="cannot compare"):
+        _rel(np.ones((6, 1)), np.ones(5))
+
+
 # -- closed forms ---------------------------------------------------------------------
 PENDULUM = """<robot name="pendulum">
   <link name="base"/>

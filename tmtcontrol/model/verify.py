@@ -84,7 +84,15 @@ class RobotCheck:
 
 
 def _rel(a, b) -> float:
+    """||a - b|| / ||b|| (Frobenius; the absolute difference where b = 0). ``b`` is
+    taken in ``a``'s shape when they hold the same number of entries (a one-joint
+    arm's Jacobian: 6 x 1 here, 6 from another library); NumPy's broadcasting of
+    6 x 1 against 6 compared every row with every other (3.16 on a right model)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
+    if a.shape != b.shape:
+        if a.size != b.size:
+            raise ValueError(f"cannot compare a {a.shape} array with a {b.shape} array")
+        b = b.reshape(a.shape)
     scale = np.linalg.norm(b)
     return float(np.linalg.norm(a - b) / scale) if scale > 0 else float(np.linalg.norm(a - b))
 
