@@ -622,3 +622,14 @@ def test_a_continuous_joint_has_no_position_limits(tmp_path):
     assert (robot.dq_max[0], robot.tau_max[0]) == (2.0, 10.0)
     revolute = load_robot(write(tmp_path, text.replace('type="continuous"', 'type="revolute"'), "r.urdf"))
     assert (revolute.q_min[0], revolute.q_max[0]) == (-3.0, 3.0)
+
+
+def test_a_wrong_puma_tip_names_the_tip_not_the_model(tmp_path, capsys):
+    """Regression (review 5): the PUMA's tip refusal was a URDFError, so the scenario
+    line blamed ``robot.model`` and the flag line named no flag."""
+    out = tmp_path / "out"
+    assert main(["simulate", "paper", "--no-plots", "--out", str(out), "--set", "robot.tip=nolink"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: robot.tip: the PUMA 560's tip is 'wrist_centre', got 'nolink'" and not out.exists()
+    assert main(["robot", "puma560", "--tip", "nolink"]) == 2
+    assert capsys.readouterr().err.strip() == "error: --tip: the PUMA 560's tip is 'wrist_centre', got 'nolink'"

@@ -42,7 +42,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 
-from .urdf import Chain, URDFError, parse_chain, read_urdf
+from .urdf import Chain, TipError, URDFError, parse_chain, read_urdf
 
 __all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of"]
 
@@ -417,7 +417,7 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity, mass_scale) -
     from .puma560 import PUMA560_LINKS, Puma560
 
     if tip not in (None, PUMA_TIP):
-        raise URDFError(f"tip: the PUMA 560's tip is {PUMA_TIP!r}, got {tip!r}")
+        raise TipError(f"the PUMA 560's tip is {PUMA_TIP!r}, got {tip!r}")
     if base not in (None, "base"):
         raise URDFError(f"base: the PUMA 560's base is 'base', got {base!r}")
     if joints is not None and tuple(joints) != PUMA_JOINTS:
