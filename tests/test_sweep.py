@@ -49,6 +49,10 @@ def test_example_is_valid_and_its_draws_depend_only_on_the_seed():
     ('[grid]\n"controller.f_dd" = [1.0]', r"grid\.controller\.f_dd\[0\] = 1\.0: controller\.f_dd"),
     ('[grid]\n"controller.f_d" = [10.0, -1.0]', r"grid\.controller\.f_d\[1\] = -1\.0: controller\.f_d"),
     ('[grid]\n"controller.f_d" = { linspace = [1, 2] }', r"grid\.controller\.f_d: expected a list of values, \{ linspace"),
+    # review 5: a nan start or stop was reported as a bad n
+    ('[grid]\n"controller.f_d" = { linspace = [1, nan, 2] }',
+     r"grid\.controller\.f_d: linspace needs finite numbers for start and stop, got \[1, nan, 2\]"),
+    ('[grid]\n"controller.f_d" = { geomspace = [1, 2, 0] }', r"grid\.controller\.f_d: geomspace needs \[start, stop, n\] with n an"),
     ('[random]\n"sensor.noise_std" = { uniform = [0.0, 0.1] }', r"random\.samples: required"),
     ('[random]\nsamples = 2\n"sensor.noise_std" = { gauss = [0.0, 0.1] }', r"random\.sensor\.noise_std: expected"),
     # a random axis is validated over its whole range (both ends), not only on the draws it happens to make

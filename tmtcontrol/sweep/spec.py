@@ -367,8 +367,9 @@ def _generated_length(key: str, spec: dict) -> int:
         raise SweepError(f"grid.{key}: expected a list of values, {{ linspace = [a, b, n] }} or "
                          f"{{ geomspace = [a, b, n] }}, got {spec!r}")
     a, b, n = args
-    if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1) or \
-            not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (a, b)):
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (a, b)):
+        raise SweepError(f"grid.{key}: {kind} needs finite numbers for start and stop, got {args!r}")
+    if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1):
         raise SweepError(f"grid.{key}: {kind} needs [start, stop, n] with n an integer >= 1, got {args!r}")
     if kind == "geomspace" and not (a > 0 and b > 0):
         raise SweepError(f"grid.{key}: geomspace needs start, stop > 0, got {args!r}")
