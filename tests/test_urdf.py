@@ -633,3 +633,17 @@ def test_a_wrong_puma_tip_names_the_tip_not_the_model(tmp_path, capsys):
     assert err == "error: robot.tip: the PUMA 560's tip is 'wrist_centre', got 'nolink'" and not out.exists()
     assert main(["robot", "puma560", "--tip", "nolink"]) == 2
     assert capsys.readouterr().err.strip() == "error: --tip: the PUMA 560's tip is 'wrist_centre', got 'nolink'"
+
+
+@pytest.mark.parametrize("command", ["export", "simulate"])
+def test_an_arm_with_too_few_joints_is_refused_naming_robot_model(tmp_path, capsys, command):
+    """Regression (review 5): export said "error: 1 actuated joint: ..." without the key."""
+    path = tmp_path / "one.urdf"
+    path.write_text(ONE_JOINT)
+    out = tmp_path / "o"
+    extra = ["--no-plots"] if command == "simulate" else []
+    assert main([command, "paper", *extra, "--set", f'robot.model="{path}"', "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: robot.model: r has 1 actuated joint: the closed loop needs at least 3 (the tool " \
+                  "point's position)", err
+    assert not out.exists()

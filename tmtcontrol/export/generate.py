@@ -291,12 +291,12 @@ class Interface:
 def interface(scenario: Scenario, torque: bool) -> Interface:
     """The :class:`Interface` of ``scenario``'s controller, for its robot's task."""
     from ..simulation.geometry import surface_of
-    from ..simulation.simulator import robot_of
+    from ..simulation.simulator import robot_of, robot_task
 
     law = get_law(scenario.controller.law.kind)
     delay = scenario.controller.delay_samples
     model = robot_of(scenario, controller=True)
-    task = model.task
+    task = robot_task(model)
     surface = surface_of(scenario)
     hold = torque and scenario.controller.hold == "mid_period"
     return Interface(task, law, delay, torque, model, surface,

@@ -41,7 +41,7 @@ from .scenario import Scenario, ScenarioError, paper_scenario
 from .traces import SimulationTraces
 from .trajectory import path_extent, path_reference
 
-__all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS",
+__all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS", "robot_task",
            "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "structure",
            "structure_key", "normal_mass", "simulator_for"]
 
@@ -138,7 +138,9 @@ def robot_of(scenario: Scenario, controller: bool = False):
         raise ScenarioError(f"{key}: {exc}") from None
 
 
-def _task(robot):
+def robot_task(robot):
+    """``robot.task``, or a :class:`ScenarioError` naming ``robot.model`` (an arm
+    with fewer joints than the closed loop needs)."""
     try:
         return robot.task
     except ValueError as exc:
@@ -222,7 +224,7 @@ def path_of(robot, sc: Scenario) -> PosePath:
     key = (robot.key, repr(surface), tr.path, tr.radius, tr.period, tr.lanes, tr.direction_deg, R_d.tobytes(),
            seed.tobytes())
     if key not in _PATHS:
-        _task(robot)
+        robot_task(robot)
         t = np.arange(PATH_SAMPLES) * tr.period / PATH_SAMPLES
         ref = path_reference(t, tr)
         pts = surface.to_base(np.vstack([np.zeros(t.size), ref.pos]))
@@ -352,7 +354,7 @@ class Simulator:
         self.scenario = sc = scenario or paper_scenario()
         t0 = time.perf_counter()
         self.plant = robot_of(sc)
-        self.task = _task(self.plant)
+        self.task = robot_task(self.plant)
         self.model = robot_of(sc, controller=True)
         self.surface = surface_of(sc)
         self.law = get_law(sc.controller.law.kind)
