@@ -132,16 +132,19 @@ def test_non_utf8_files_are_named(tmp_path):
     ("0,1e3x\n4,2e3\n", False),                  # a malformed first data row is not a header
     ("t,1000\n4,2e3\n", False),                  # a 'header' holding a number is a broken row
     ("0,1e3\n4\n", False),
+    ("0;1e3\n", "row 1"),                        # review 5: another delimiter was taken as a header ("no data rows")
+    ("0;1e3\n4;2e3\n", "row 1"),                # ... and the error named row 2
 ])
 def test_table_first_row_is_header_only_without_numbers(tmp_path, rows, ok):
     (tmp_path / "k.csv").write_text(rows)
     path = tmp_path / "s.toml"
     path.write_text("[environment.stiffness]\nkind = 'table'\nfile = 'k.csv'\n")
-    if ok:
+    if ok is True:
         sc = load_scenario(path)
         assert sc.environment.stiffness.file == str(tmp_path / "k.csv")
     else:
-        with pytest.raises(ScenarioError, match=r"environment\.stiffness\.file: row \d of .* is not 't, k_e' numbers"):
+        row = ok if isinstance(ok, str) else r"row \d"
+        with pytest.raises(ScenarioError, match=rf"environment\.stiffness\.file: {row} of .* is not 't, k_e' numbers"):
             load_scenario(path)
 
 

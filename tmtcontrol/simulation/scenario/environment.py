@@ -61,8 +61,8 @@ class SinusoidalStiffness(Section):
 
 class TableStiffness(Section):
     """A CSV file of ``t, k_e`` rows (s, N/m), linear interpolation. A header
-    row is allowed only if it holds no number; a relative path is relative
-    to the scenario file."""
+    row (two cells) is allowed only if it holds no number; a relative path is
+    relative to the scenario file."""
     kind: Literal["table"] = "table"
     file: str = Field(..., min_length=1, description="CSV file of t, k_e rows")
 
@@ -79,7 +79,8 @@ StiffnessProfile = Annotated[
 
 def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
     """Read and validate a CSV table of ``t, k_e`` rows (s, N/m). A first row
-    with no number in it is a header; any other malformed row is an error."""
+    of two cells with no number in them is a header; any other malformed row
+    is an error."""
     import numpy as np
 
     try:
@@ -107,8 +108,8 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
         vals = [number(c) for c in row]
         if len(row) == 2 and None not in vals:
             data.append(vals)
-        elif i == 0 and all(v is None for v in vals):
-            continue  # header: no number in it
+        elif i == 0 and len(row) == 2 and all(v is None for v in vals):
+            continue  # header: two cells, no number in them ('0;5000', another delimiter, is a broken row)
         else:
             shown = repr(row)
             if len(shown) > 200:            # one short line, whatever the row
