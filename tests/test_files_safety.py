@@ -1009,3 +1009,16 @@ def test_a_link_or_a_fifo_in_the_staging_folder_is_refused_not_hashed(tmp_path, 
                 os.mkfifo(staging.path / "b")
             staging.commit()
     assert not out.exists()
+
+
+def test_an_out_below_a_file_says_the_file_is_not_a_folder(tmp_path, capsys):
+    """Regression (review 5): ``--out FILE/sub`` said "(File exists)"; the line names
+    the file on the way, which is left as it was."""
+    from tmtcontrol.cli import main
+
+    (tmp_path / "o").write_text("foreign")
+    assert main(["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke", "1000",
+                 "--plot", str(tmp_path / "o" / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"error: --plot: cannot write {tmp_path / 'o' / 'x'} ({tmp_path / 'o'} is not a folder)", err
+    assert (tmp_path / "o").read_text() == "foreign" and sorted(p.name for p in tmp_path.iterdir()) == ["o"]

@@ -429,6 +429,15 @@ def disk_full(exc: BaseException) -> str | None:
     return None
 
 
+def _file_on_the_way(path: pathlib.Path) -> pathlib.Path | None:
+    """The first of ``path``'s parents that exists and is not a folder (the
+    reason "File exists" or "Not a directory" alone would hide), else None."""
+    for parent in reversed(path.parents):
+        if parent.exists() and not parent.is_dir():
+            return parent
+    return None
+
+
 class OutputFolder:
     """A staging folder that becomes ``out`` on :meth:`commit`.
 
@@ -500,8 +509,9 @@ class OutputFolder:
             self.discard()
             if disk_full(exc):
                 raise OutputNotSaved(self._full_message(exc)) from None
-            raise OutputError(f"{flag}: cannot write {self.out} "
-                              f"({exc.strerror or exc.__class__.__name__})") from None
+            blocker = _file_on_the_way(pathlib.Path(self.out))
+            reason = f"{blocker} is not a folder" if blocker else exc.strerror or exc.__class__.__name__
+            raise OutputError(f"{flag}: cannot write {self.out} ({reason})") from None
         except BaseException:
             self.discard()
             raise
