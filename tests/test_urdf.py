@@ -647,3 +647,18 @@ def test_an_arm_with_too_few_joints_is_refused_naming_robot_model(tmp_path, caps
     assert err == "error: robot.model: r has 1 actuated joint: the closed loop needs at least 3 (the tool " \
                   "point's position)", err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flag, value, said", [
+    ("--joints", "", "--joints: expected joint names separated by commas, got ''"),
+    ("--joints", ",", "--joints: expected joint names separated by commas, got ','"),
+    ("--joints", "shoulder_pan_joint,,elbow_joint", "--joints: expected joint names separated by commas"),
+    ("--tip", "", "--tip: expected a link name, got ''"),
+    ("--base", " ", "--base: expected a link name, got ' '"),
+])
+def test_empty_chain_flags_are_refused_not_taken_as_the_default(capsys, flag, value, said):
+    """Regression (review 5): --joints '' and --tip '' ran the default chain and
+    exited 0; --joints , blamed the URDF."""
+    assert main(["robot", "ur5", flag, value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {said}") and len(err.splitlines()) == 1, err

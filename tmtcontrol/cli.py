@@ -725,7 +725,14 @@ def _robot(args) -> int:
         raise UsageError(f"--seed: must be >= 0, got {args.seed}")
     if not 1 <= args.samples <= 100_000:
         raise UsageError(f"--samples: must be between 1 and 100,000, got {args.samples}")
-    joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
+    for flag, value in (("--tip", args.tip), ("--base", args.base)):
+        if value is not None and not value.strip():
+            raise UsageError(f"{flag}: expected a link name, got {value!r}")
+    joints = None
+    if args.joints is not None:
+        joints = [j.strip() for j in args.joints.split(",")]
+        if not all(joints):
+            raise UsageError(f"--joints: expected joint names separated by commas, got {args.joints!r}")
     try:
         robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
     except TipError as exc:        # the file is fine; the flag is at fault
