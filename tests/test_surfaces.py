@@ -529,16 +529,48 @@ def test_a_sloped_height_maps_command_turns_from_its_own_frame_at_the_centre():
         assert np.abs(R_t @ R_d0 - expected).max() < 1e-12
 
 
-def test_beyond_its_grid_a_height_map_continues_flat_at_its_edge():
+def test_beyond_its_grid_a_height_map_of_a_plane_is_still_that_plane():
     """CasADi's B-spline is 0 beyond its grid: a cliff a plant excursion would
-    fall off. The part continues at its edge height instead (review finding)."""
+    fall off (first review). Beyond the grid a point lies on the tangent plane
+    of the nearest edge point, so the map of a tilted plane (reproduced
+    exactly by the spline) is that plane beyond its grid too: heights, depths
+    and normals against the plane in NumPy (closed form), to rounding
+    (1e-12 m on 0.2 m coordinates)."""
     from tmtcontrol.surface import HeightMap
 
-    s = HeightMap(R0, C0, _grid(lambda U, V: 0.1 * U, n=9, spacing=0.05), 0.05)
-    edge = s.height(0.2, 0.0)
-    assert abs(edge - 0.02) < 1e-12 and s.height(0.25, 0.0) == edge and abs(s.height(0.2, 0.5) - edge) < 1e-15
-    inside = s.to_base(np.array([0.0, 0.25, 0.0]))
-    assert abs(R0[:, 0] @ (inside - C0) + edge) < 1e-12          # the point beyond the edge: at the edge height
+    a, b = 0.1, -0.3
+    s = HeightMap(R0, C0, _grid(lambda U, V: a * U + b * V, n=9, spacing=0.05), 0.05)
+    n = (R0[:, 0] + a * R0[:, 1] + b * R0[:, 2]) / np.sqrt(1 + a * a + b * b)
+    for u, v in ((0.25, 0.0), (0.0, -0.3), (0.35, 0.5), (-0.6, 0.21)):      # beyond one edge, beyond a corner
+        assert abs(s.height(u, v) - (a * u + b * v)) < 1e-12
+        for depth in (0.0, 1e-3, -2e-3):
+            p = C0 + u * R0[:, 1] + v * R0[:, 2] - (a * u + b * v) * R0[:, 0] + depth * n
+            assert abs(s.from_base(p)[0] - depth) < 1e-12
+            assert np.abs(s.frame(p)[:, 0] - n).max() < 1e-12
+
+
+def test_a_height_maps_depth_and_force_are_continuous_across_its_grid_edge():
+    """Regression (surface review): the slope was set to 0 beyond the grid
+    while the height was held, so on a slope-1 map the depth of a point 1 mm
+    below the surface jumped from 0.707 mm (cos 45 deg) to 1.0 mm across the
+    edge (force +41 %, normal turned 45 deg). Either side of the edge by
+    1e-9 m, on a curved map (the slope varies along the edge), the depth, the
+    normal and the force agree to 1e-8 relative (the step is 2e-9 m: the
+    change over it is of order 1e-9 times the slope's rate)."""
+    from tmtcontrol.surface import HeightMap, contact_force
+
+    s = HeightMap(R0, C0, _grid(lambda U, V: U + 3 * U * U + 2 * V * V, n=5, spacing=0.01), 0.01)
+    edge = s.half_extent[0]
+    for v in (0.0, 0.013):
+        below = []
+        for u in (edge - 1e-9, edge + 1e-9):
+            on = C0 + u * R0[:, 1] + v * R0[:, 2] - s.height(u, v) * R0[:, 0]
+            p = on + 1e-3 * s.frame(on)[:, 0]
+            below.append((s.from_base(p)[0], s.frame(p)[:, 0]))
+        (d0, n0), (d1, n1) = below
+        assert abs(d0 - 1e-3) < 1e-5 and abs(d1 - d0) < 1e-8 * d0          # 1e-5: X_0^2 kappa, kappa < 10 1/m and np.abs(n1 - n0).max() < 1e-8
+        f0, f1 = (float(contact_force(d, 0.0, 1e4, 0.0)) for d in (d0, d1))
+        assert abs(f1 - f0) < 1e-8 * f0
 
 
 def test_a_line_on_the_pipe_is_a_helix():
@@ -699,3 +731,71 @@ def test_a_guarded_approach_finds_a_part_believed_elsewhere(s):
     # surface (mapped through the true part it was off by the offset)
     late = res.time > 1.5
     assert np.abs((res.command_position - plain.command_position)[:, late]).max() < 1e-9
+
+
+def _left_handed():
+    L = R0.copy()
+    L[:, 2] *= -1
+    return L
+
+
+@pytest.mark.parametrize("make", [lambda R, c: Plane(R, c), lambda R, c: Sphere(R, c, 0.2),
+                                  lambda R, c: Cylinder(R, c, 0.2, "inside"),
+                                  lambda R, c: __import__("tmtcontrol.surface", fromlist=["HeightMap"]).HeightMap(
+                                      R, c, _grid(lambda U, V: U * V, n=5), 0.01)],
+                         ids=["plane", "sphere", "cylinder", "heightmap"])
+def test_every_shape_refuses_a_left_handed_frame_and_a_non_finite_point(make):
+    """Regression (surface review): the plane and the height map took a
+    left-handed frame (the 6-D task's orientation and a curved frame's cross
+    products flip) and a NaN point c, which the sphere and the cylinder
+    refused; one check now serves every shape."""
+    with pytest.raises(ValueError, match="right-handed"):
+        make(_left_handed(), C0)
+    with pytest.raises(ValueError, match="point c must be finite"):
+        make(R0, [np.nan, 0.0, 0.0])
+    make(R0, C0)                                             # the right-handed frame and a finite point: accepted
+
+
+def test_a_curved_shape_without_a_radius_is_refused_naming_radius():
+    """Regression (surface review): ``make_surface("sphere", R, c)`` raised a
+    bare TypeError from math.isfinite(None)."""
+    from tmtcontrol.surface import make_surface
+
+    for kind in ("sphere", "cylinder"):
+        with pytest.raises(ValueError, match="^radius: a .* needs a radius"):
+            make_surface(kind, R0, C0)
+        with pytest.raises(ValueError, match="^radius:"):
+            make_surface(kind, R0, C0, radius="0.2")
+
+
+def test_the_frame_where_a_curved_shape_has_none_is_refused_not_nan():
+    """Regression (surface review): the frame at a sphere's centre or on a
+    cylinder's axis (no normal there) came back all NaN; it is refused, while
+    a NaN point (a diverged run's log) still gives NaN rather than raising."""
+    centre = C0 + 0.2 * R0[:, 0]
+    for cls in (Sphere, Cylinder):
+        s = cls(R0, C0, 0.2, "outside")
+        with pytest.raises(ValueError, match="no task frame"):
+            s.frame(centre)
+        assert np.all(np.isnan(s.normal(np.full(3, np.nan))))
+        F = s.frame(centre + 0.01 * R0[:, 1])                              # 1 cm off the centre: a frame
+        assert np.abs(F.T @ F - np.eye(3)).max() < 1e-12 and np.abs(F[:, 0] + R0[:, 1]).max() < 1e-12
+    with pytest.raises(ValueError, match="no task frame"):                 # on the cylinder's axis (rounding's 0/0)
+        Cylinder(R0, C0, 0.2, "outside").normal(centre + 0.05 * R0[:, 2])
+    # a sphere's pole (off its chart) has a normal, the closed form: away from the centre, outward
+    assert np.abs(Sphere(R0, C0, 0.2, "outside").normal(centre + 0.05 * R0[:, 2]) + R0[:, 2]).max() < 1e-12
+
+
+def test_the_contact_law_refuses_a_negative_stiffness_and_keeps_a_nan_depth():
+    """Regression (surface review): ``contact_force`` returned 0 N for a
+    negative k_e (a pull read as no contact) and for a NaN depth (a diverged
+    state read as no contact)."""
+    from tmtcontrol.surface import contact_force
+
+    assert float(contact_force(1e-3, 0.0, 1e4, 0.0)) == 10.0                 # k_e x: eq. (13)
+    assert float(contact_force(-1e-3, 0.0, 1e4, 0.0)) == 0.0                 # no contact above the surface
+    assert float(contact_force(1e-3, -1.0, 1e4, 50.0)) == 0.0                # unilateral: never pulls
+    for k_e, d in ((-1e4, 0.0), (1e4, -1.0), (np.nan, 0.0)):
+        with pytest.raises(ValueError, match="^(k_e|damping): must be finite and >= 0"):
+            contact_force(1e-3, 0.0, k_e, d)
+    assert np.isnan(contact_force(np.nan, 0.0, 1e4, 0.0)) and np.isnan(contact_force(1e-3, np.nan, 1e4, 1.0))

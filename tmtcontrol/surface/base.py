@@ -14,7 +14,7 @@ import abc
 import casadi as ca
 import numpy as np
 
-__all__ = ["Surface", "contact_force"]
+__all__ = ["Surface", "contact_force", "checked_frame"]
 
 
 def contact_force(x, dx, k_e, damping, x_e=0.0):
@@ -29,7 +29,29 @@ def contact_force(x, dx, k_e, damping, x_e=0.0):
     f = k_e * pen + damping * dx
     if isinstance(pen, (ca.SX, ca.MX, ca.DM)):
         return ca.if_else(pen > 0, ca.fmax(f, 0), 0)
-    return np.where(pen > 0, np.maximum(f, 0.0), 0.0)
+    for name, value in (("k_e", k_e), ("damping", damping)):
+        if not np.all(np.asarray(value, dtype=float) >= 0):     # NaN fails too
+            raise ValueError(f"{name}: must be finite and >= 0 (N/m, N s/m), got {value!r}")
+    # a NaN depth or rate (a diverged state) gives NaN, never "no contact"
+    return np.where(np.isnan(f), np.nan, np.where(pen > 0, np.maximum(f, 0.0), 0.0))
+
+
+def checked_frame(kind: str, R, c) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, c)`` as read-only arrays (a surface is shared: geometry.surface_of
+    builds each once), refused in one line naming ``kind`` unless R is a
+    finite right-handed rotation (columns: inward normal, tangents; a
+    left-handed frame would flip the cross products that build the frame
+    along a curved part and the 6-D task's orientation) and ``c`` a finite
+    point (m)."""
+    R = np.array(R, dtype=float).reshape(3, 3)
+    c = np.array(c, dtype=float).reshape(3)
+    if not (np.all(np.isfinite(R)) and np.allclose(R.T @ R, np.eye(3), atol=1e-9) and np.linalg.det(R) > 0):
+        raise ValueError(f"{kind}: the task frame must be a finite right-handed rotation matrix")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{kind}: the point c must be finite, got {c.tolist()}")
+    for a in (R, c):
+        a.setflags(write=False)
+    return R, c
 
 
 class Surface(abc.ABC):

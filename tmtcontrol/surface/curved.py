@@ -34,11 +34,12 @@ acceleration fed forward.
 from __future__ import annotations
 
 import math
+import numbers
 
 import casadi as ca
 import numpy as np
 
-from .base import Surface
+from .base import Surface, checked_frame
 
 __all__ = ["Sphere", "Cylinder", "SIDES"]
 
@@ -58,20 +59,12 @@ class _Curved(Surface):
     turns = True
 
     def __init__(self, R, c, radius: float, side: str = "outside"):
-        self.R = np.array(R, dtype=float).reshape(3, 3)
-        self.c = np.array(c, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)
-                and np.linalg.det(self.R) > 0):
-            raise ValueError(f"{self.kind}: the task frame must be a finite rotation matrix")
-        if not np.all(np.isfinite(self.c)):
-            raise ValueError(f"{self.kind}: the centre point must be finite")
-        if not (math.isfinite(radius) and radius > 0):
-            raise ValueError(f"radius: must be finite and > 0, got {radius!r}")
+        self.R, self.c = checked_frame(self.kind, R, c)
+        if not (isinstance(radius, numbers.Real) and math.isfinite(radius) and radius > 0):
+            raise ValueError(f"radius: a {self.kind} needs a radius, finite and > 0 (m), got {radius!r}")
         if side not in SIDES:
             raise ValueError(f"side: expected 'outside' or 'inside', got {side!r}")
         self.radius, self.side = float(radius), side
-        for arr in (self.R, self.c):        # a surface is shared (geometry.surface_of builds each once)
-            arr.setflags(write=False)
 
     # -- what a shape states -----------------------------------------------------------------
     @staticmethod
@@ -175,7 +168,11 @@ class _Curved(Surface):
         if point is None:
             return self.R.copy()
         p = np.asarray(point, dtype=float).reshape(3)
-        return np.array(self._fn("coordinates")(p, np.zeros(3), *self._vals())[0])
+        R = np.array(self._fn("coordinates")(p, np.zeros(3), *self._vals())[0])
+        # at the centre of curvature (or on the axis) the normal is 0/0: NaN, or rounding's arbitrary vectors
+        if np.all(np.isfinite(p)) and not (np.all(np.isfinite(R)) and np.allclose(R.T @ R, np.eye(3), atol=1e-9)):
+            raise ValueError(f"{self.kind}: no task frame at {p.tolist()} (the centre of curvature or the axis)")
+        return R
 
     def rates(self, X, dX) -> tuple[np.ndarray, np.ndarray]:
         """Numeric ``(v, omega)``: the base-frame velocity (m/s) and the task

@@ -19,8 +19,10 @@ projected onto the part along e_n), and the depth
 
 the height of the point below the surface, along e_n, times the cosine of
 the surface's slope: the distance along the local normal to first order
-(beyond the grid the part continues flat at its edge height: a plant
-excursion past the edge meets no cliff).
+(beyond the grid a point lies on the tangent plane of the nearest edge
+point, with that point's normal: height and slope are continuous across
+the edge, so a plant excursion past it meets neither a cliff nor a jump in
+depth or force).
 **Approximation:** it is exact on a plane and where the surface is flat over
 the depth; the error is of order ``X_0^2 kappa`` (kappa the surface's
 curvature), 1e-9 m at a millimetre's depth on a 1 m radius. The contact
@@ -36,6 +38,7 @@ import hashlib
 import casadi as ca
 import numpy as np
 
+from .base import checked_frame
 from .curved import _Curved
 
 __all__ = ["HeightMap", "MIN_POINTS", "MAX_POINTS"]
@@ -57,12 +60,7 @@ class HeightMap(_Curved):
     fields = (("R", 9), ("c", 3))
 
     def __init__(self, R, c, heights, spacing):
-        self.R = np.array(R, dtype=float).reshape(3, 3)
-        self.c = np.array(c, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
-            raise ValueError("heightmap: the task frame must be a finite rotation matrix")
-        for arr in (self.R, self.c):        # a surface is shared (geometry.surface_of builds each once)
-            arr.setflags(write=False)
+        self.R, self.c = checked_frame(self.kind, R, c)
         H = np.array(heights, dtype=float)
         if H.ndim != 2:
             raise ValueError(f"heightmap: expected a 2-D grid of heights, got {H.ndim} dimension(s)")
@@ -99,13 +97,11 @@ class HeightMap(_Curved):
     # -- the shape ----------------------------------------------------------------------------
     def _slope(self, u, v):
         """``(h, h_u, h_v)`` at (u, v), symbolic."""
-        # beyond the grid the part continues flat at its edge height (the spline itself drops to 0 there)
+        # beyond the grid: on the tangent plane of the nearest edge point (the spline itself drops to 0 there)
         uc = ca.fmin(ca.fmax(u, float(self.u[0])), float(self.u[-1]))
         vc = ca.fmin(ca.fmax(v, float(self.v[0])), float(self.v[-1]))
         h, g = self._hfn(ca.vertcat(uc, vc))
-        inside_u = ca.logic_and(u >= float(self.u[0]), u <= float(self.u[-1]))
-        inside_v = ca.logic_and(v >= float(self.v[0]), v <= float(self.v[-1]))
-        return h, ca.if_else(inside_u, g[0], 0), ca.if_else(inside_v, g[1], 0)
+        return h + g[0] * (u - uc) + g[1] * (v - vc), g[0], g[1]
 
     def _coords(self, p, par):
         F0 = ca.reshape(par["R"], 3, 3)
@@ -133,26 +129,30 @@ class HeightMap(_Curved):
         return {"R": self.R.ravel(order="F"), "c": self.c.copy()}
 
     def _point_np(self, X):
-        uv = np.vstack([np.clip(X[1], self.u[0], self.u[-1]), np.clip(X[2], self.v[0], self.v[-1])])
-        h, g = (np.array(m) for m in self._hfn(uv))         # every column at once: h (1 x k), dh (1 x 2k)
-        h, hu, hv = h.ravel(), g.ravel()[0::2], g.ravel()[1::2]
-        hu = np.where((X[1] >= self.u[0]) & (X[1] <= self.u[-1]), hu, 0.0)
-        hv = np.where((X[2] >= self.v[0]) & (X[2] <= self.v[-1]), hv, 0.0)
+        h, hu, hv = self._slope_np(X[1], X[2])
         e_n, t1, t2 = self.R[:, 0], self.R[:, 1], self.R[:, 2]
         s = X[0] * np.sqrt(1 + hu * hu + hv * hv) - h
         return self.c[:, None] + np.outer(t1, X[1]) + np.outer(t2, X[2]) + np.outer(e_n, s)
 
+    def _slope_np(self, u, v):
+        """:meth:`_slope` in NumPy for arrays of (u, v)."""
+        u, v = np.asarray(u, dtype=float).ravel(), np.asarray(v, dtype=float).ravel()
+        uc, vc = np.clip(u, self.u[0], self.u[-1]), np.clip(v, self.v[0], self.v[-1])
+        h, g = (np.array(m) for m in self._hfn(np.vstack([uc, vc])))   # every column at once: h (1 x k), dh (1 x 2k)
+        hu, hv = g.ravel()[0::2], g.ravel()[1::2]
+        return h.ravel() + hu * (u - uc) + hv * (v - vc), hu, hv
+
     def height(self, u, v) -> float:
         """The surface's height (m, along the outward normal) at (u, v) of the
-        tangent plane (beyond the grid: its edge height, the part continuing flat)."""
-        return float(self._h([np.clip(u, self.u[0], self.u[-1]), np.clip(v, self.v[0], self.v[-1])]))
+        tangent plane (beyond the grid: on the tangent plane of the nearest edge point)."""
+        return float(self._slope_np(u, v)[0][0])
 
     def curvatures(self, s) -> tuple[np.ndarray, np.ndarray]:
         """The principal curvatures ``(k_1, k_2)``, ``k_1 >= k_2`` (1/m), of
         the spline surface at tangential coordinates ``s`` (2 x k: u, v in m),
         positive where the surface bends towards the tool (away from the
         material: a valley, the inside of a bowl), 0 beyond the grid (the part
-        continues flat there). From the spline's own first and second
+        continues on its edge's tangent planes there). From the spline's own first and second
         derivatives: the surface is the graph ``z = h(u, v)`` along the
         outward normal, with first fundamental form ``I = [[1 + h_u^2, h_u
         h_v], [h_u h_v, 1 + h_v^2]]`` and second ``II = Hess(h) / sqrt(1 +

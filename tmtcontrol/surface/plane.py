@@ -16,7 +16,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from .base import Surface
+from .base import Surface, checked_frame
 
 __all__ = ["Plane", "tilt_frame", "normal_frame"]
 
@@ -61,12 +61,7 @@ class Plane(Surface):
         return "plane", self.c, self.R, None
 
     def __init__(self, R, c):
-        self.R = np.array(R, dtype=float).reshape(3, 3)
-        self.c = np.array(c, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(self.R)) and np.allclose(self.R.T @ self.R, np.eye(3), atol=1e-9)):
-            raise ValueError("plane: the task frame must be a finite rotation matrix")
-        for a in (self.R, self.c):          # a surface is shared (geometry.surface_of builds each once)
-            a.setflags(write=False)
+        self.R, self.c = checked_frame(self.kind, R, c)
 
     @classmethod
     def from_tilt(cls, tilt_deg: float, c) -> "Plane":

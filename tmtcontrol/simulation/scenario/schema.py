@@ -126,8 +126,8 @@ def _domain_problem(sc: Scenario) -> str | None:
     """The path within the curved part's domain, along each task axis by how
     far the path really reaches (:func:`..trajectory.path_extent`: a raster
     turned by ``direction_deg`` reaches beyond ``radius``): a height map's
-    grid less two spacings (beyond it the part continues flat: the tool
-    would ride an extension nobody measured); the chart of a sphere or
+    grid less two spacings (beyond it the part continues on its edge's
+    tangent planes: the tool would ride an extension nobody measured); the chart of a sphere or
     cylinder, regular within these angles from the path's centre (a sphere's
     latitude below pi/2, a cylinder's turn below pi; the same bound along
     both task axes: conservative along a sphere's longitude and a
