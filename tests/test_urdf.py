@@ -662,3 +662,20 @@ def test_empty_chain_flags_are_refused_not_taken_as_the_default(capsys, flag, va
     assert main(["robot", "ur5", flag, value]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"error: {said}") and len(err.splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("source, flag, value, said", [
+    ("ur5", "--joints", "a,b", "joint 'a' is not a movable joint between 'world' and 'tool0'"),
+    ("ur5", "--joints", "elbow_joint,elbow_joint", "a joint is named twice"),
+    ("ur5", "--base", "tool0", "no joint below the base link 'tool0'"),
+    ("ur5", "--base", "floor", "base link 'floor' does not exist"),
+    ("puma560", "--base", "floor", "the PUMA 560's base is 'base', got 'floor'"),
+    ("puma560", "--joints", "joint1", "the PUMA 560 actuates joint1, joint2, joint3"),
+])
+def test_a_chain_flag_the_arm_does_not_have_is_named(capsys, source, flag, value, said):
+    """Regression (review 5 leftover): a --joints or --base the file does not
+    have was refused describing the chain but naming no flag (only --tip was
+    named), so the line read as a fault of the file."""
+    assert main(["robot", source, flag, value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {flag}: ") and said in err and len(err.splitlines()) == 1, err

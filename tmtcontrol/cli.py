@@ -718,7 +718,7 @@ def _formats(text: str) -> tuple[str, ...]:
 
 def _robot(args) -> int:
     from .model.robot import load_robot
-    from .model.urdf import TipError
+    from .model.urdf import ChainError
     from .model.verify import check_robot, describe
 
     if args.seed < 0:
@@ -735,8 +735,8 @@ def _robot(args) -> int:
             raise UsageError(f"--joints: expected joint names separated by commas, got {args.joints!r}")
     try:
         robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
-    except TipError as exc:        # the file is fine; the flag is at fault
-        raise UsageError(f"--tip: {exc}") from None
+    except ChainError as exc:      # the file is fine; the flag is at fault
+        raise UsageError(f"--{exc.key}: {exc}") from None
     check = check_robot(robot, samples=args.samples, seed=args.seed)
     if "mujoco" in args.against:
         import dataclasses

@@ -42,7 +42,7 @@ from importlib import resources
 import casadi as ca
 import numpy as np
 
-from .urdf import Chain, TipError, URDFError, parse_chain, read_urdf
+from .urdf import Chain, ChainError, TipError, URDFError, parse_chain, read_urdf
 
 __all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of"]
 
@@ -419,9 +419,9 @@ def _puma(tip, base, joints, friction, armature, coulomb_velocity, mass_scale) -
     if tip not in (None, PUMA_TIP):
         raise TipError(f"the PUMA 560's tip is {PUMA_TIP!r}, got {tip!r}")
     if base not in (None, "base"):
-        raise URDFError(f"base: the PUMA 560's base is 'base', got {base!r}")
+        raise ChainError("base", f"the PUMA 560's base is 'base', got {base!r}")
     if joints is not None and tuple(joints) != PUMA_JOINTS:
-        raise URDFError(f"joints: the PUMA 560 actuates {', '.join(PUMA_JOINTS)}, got {list(joints)}")
+        raise ChainError("joints", f"the PUMA 560 actuates {', '.join(PUMA_JOINTS)}, got {list(joints)}")
     if armature not in (True, False):
         raise URDFError("armature: the PUMA 560 takes True (its rotor inertia G^2 Jm) or False")
     links = PUMA560_LINKS if mass_scale == 1.0 else tuple(   # as simulation.closedloop.controller_model

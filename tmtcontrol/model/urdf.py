@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["URDFError", "TipError", "ChainJoint", "Body", "Chain", "MAX_BYTES", "read_urdf", "parse_chain"]
+__all__ = ["URDFError", "ChainError", "TipError", "ChainJoint", "Body", "Chain", "MAX_BYTES", "read_urdf", "parse_chain"]
 
 MAX_BYTES = 20 * 1024 * 1024
 """Largest URDF read, bytes (the biggest arm descriptions are a few hundred kB)."""
@@ -55,8 +55,20 @@ class URDFError(ValueError):
     """A URDF that cannot be used; the message is one line."""
 
 
-class TipError(URDFError):
-    """The tip frame asked for is not a link below the base (the key at fault is the tip, not the file)."""
+class ChainError(URDFError):
+    """The chain asked for is not in the file: the key at fault (``key``:
+    ``"tip"``, ``"base"`` or ``"joints"``) is the request's, not the file's."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
+class TipError(ChainError):
+    """The tip frame asked for is not a link below the base."""
+
+    def __init__(self, message: str):
+        super().__init__("tip", message)
 
 
 @dataclass(frozen=True)
@@ -237,11 +249,11 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
     _no_cycle(roots[0], children, len(links), where)
     base = roots[0] if base is None else base
     if base not in links:
-        raise URDFError(f"{where}: base link {base!r} does not exist; links: {', '.join(links)}")
+        raise ChainError("base", f"{where}: base link {base!r} does not exist; links: {', '.join(links)}")
     below = _subtree(base, children)
     frames = [l for l in below if l != base]
     if not frames:
-        raise URDFError(f"{where}: no joint below the base link {base!r}")
+        raise ChainError("base", f"{where}: no joint below the base link {base!r}")
     if tip is None:
         leaves = [l for l in below if not children[l]]
         if len(leaves) != 1:
@@ -265,10 +277,10 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         actuated = list(joints)
         for name in actuated:
             if name not in on_path:
-                raise URDFError(f"{where}: joint {name!r} is not a movable joint between {base!r} and {tip!r}; "
+                raise ChainError("joints", f"{where}: joint {name!r} is not a movable joint between {base!r} and {tip!r}; "
                                 f"candidates: {', '.join(on_path)}")
         if len(set(actuated)) != len(actuated):
-            raise URDFError(f"{where}: joints: a joint is named twice")
+            raise ChainError("joints", f"{where}: a joint is named twice")
         actuated = [n for n in on_path if n in actuated]          # base-to-tip order
     if not actuated:
         raise URDFError(f"{where}: no revolute, continuous or prismatic joint between {base!r} and {tip!r}")
