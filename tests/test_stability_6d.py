@@ -112,7 +112,8 @@ def test_panda_guess_rests_where_its_null_space_posture_task_is_balanced():
     assert ok and projected(naive) > 1e-3
 
 
-def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():
+@pytest.mark.heavy      # 12 s (the UR5's tangent step compiled, its first-contact search); the same one loop's
+def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():     # sweep limits on the PUMA: test_limits_wiring.py
     """sweep --limits on a 6-D arm: the case's small-signal limit is the 1-D loop with the
     UR5's effective normal mass, and the first-contact limit the 6-D loop's own start
     (surface estimate 10 mm too close: bistable, below the small-signal limit). Checked
