@@ -595,6 +595,22 @@ def test_prune_keeps_the_most_recently_used_libraries_within_the_bound(tmp_path)
     assert prune(tmp_path, max_bytes=10**9, max_age_days=30, now=now) == [old]
 
 
+def test_cache_info_says_when_the_cache_is_a_file(tmp_path, monkeypatch, capsys):
+    """Regression (review 5 leftover): ``TMTCONTROL_CACHE`` naming a file gave
+    ``cache --info`` "0 libraries" as if it were an empty folder; it says the
+    path is not a folder, and the file is left as it was."""
+    f = tmp_path / "a-file"
+    f.write_text("mine")
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(f))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "no-fallback"))
+    assert main(["cache", "--info"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == f"cache: {f}: not a folder: nothing is cached there; compiled code goes to the per-user fallback"
+    assert f.read_text() == "mine"
+
+
 def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     """``tmtcontrol cache --info`` names the folder, counts the libraries and
     their size; ``--clear`` removes only tmtcontrol's files."""

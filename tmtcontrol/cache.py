@@ -678,7 +678,10 @@ def cache_info() -> dict:
                 size += path.stat().st_size
             except OSError:
                 pass
-        out.append({"path": str(folder), "libraries": len(libs), "results": len(results), "bytes": size})
+        entry = {"path": str(folder), "libraries": len(libs), "results": len(results), "bytes": size}
+        if folder.exists() and not folder.is_dir():
+            entry["problem"] = "not a folder"
+        out.append(entry)
     return {"folders": out, "max_bytes": MAX_BYTES, "max_results": MAX_RESULTS, "max_age_days": MAX_AGE_DAYS}
 
 
@@ -741,6 +744,10 @@ def format_cache_info(info: dict) -> str:
     lines = []
     for i, f in enumerate(info["folders"]):
         label = "cache" if i == 0 else "fallback (the cache was not writable)"
+        if f.get("problem"):
+            lines.append(f"{label}: {f['path']}: {f['problem']}: nothing is cached there; compiled code goes to "
+                         "the per-user fallback")
+            continue
         lines.append(f"{label}: {f['path']}: {f['libraries']} librar{'y' if f['libraries'] == 1 else 'ies'}, "
                      f"{f.get('results', 0)} analysis result{'' if f.get('results', 0) == 1 else 's'}, "
                      f"{_mib(f['bytes'])}")
