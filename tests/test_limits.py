@@ -31,6 +31,18 @@ def test_a_virtual_machine_tangent_step_does_not_serve_a_compiled_request(cheap_
     assert PeriodicModel(cheap_model.scenario, compile=False).rollout.how == "vm"
 
 
+@pytest.mark.parametrize("kw, said", [({"iters": 0}, "iters"), ({"iters": 2.5}, "iters"),
+                                      ({"tol": 0.0}, "tol"), ({"tol": float("nan")}, "tol")])
+def test_a_periodic_search_with_no_newton_step_or_no_tolerance_is_refused(cheap_model, kw, said):
+    """Regression: ``PeriodicModel.at(k_e, iters=0)`` ended in UnboundLocalError
+    (the shooting loop never ran, its monodromy was never set); a tolerance of 0
+    or NaN could never be met. Each is refused naming the argument."""
+    from tmtcontrol.stability.continuous import AnalysisError
+
+    with pytest.raises(AnalysisError, match=f"^{said}: must be"):
+        cheap_model.at(2e4, **kw)
+
+
 def test_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_period():
     """Closed form: with the path standing still (radius 0) the orbit is the frozen
     fixed point and Phi = A^N, so rho(Phi) = rho(A)^N. Tolerance 1e-6 relative: the

@@ -247,6 +247,10 @@ class PeriodicModel:
         and Newton again from there."""
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
+        if not (isinstance(iters, int) and iters >= 1):
+            raise AnalysisError(f"iters: must be a whole number >= 1, got {iters!r}")
+        if not (np.isfinite(tol) and tol > 0):
+            raise AnalysisError(f"tol: must be finite and > 0, got {tol!r}")
         U = self._inputs(float(k_e))
         start = self._start(float(k_e))
         s, Phi, F, residual, it = self._shoot(start, U, iters, tol)
