@@ -42,7 +42,7 @@ def test_a_torque_step_beyond_the_limit_is_one_excursion_with_its_time_value_and
     assert (e.kind, e.name, e.value, e.limit) == ("torque", "a", -14.0, -10.0)
     assert e.time == pytest.approx(0.30, abs=1e-12) and e.duration == pytest.approx(0.07, abs=1e-12)
     assert use.torque_margin[0] == pytest.approx(1 - 14.0 / 10.0) and use.torque_margin[1] == INF
-    assert "joint 1 (a) torque -14 N m beyond its limit -10 N m at 0.300 s (70 ms over)" == e.text
+    assert "joint 1 (a) torque -14 N m beyond its limit -10 N m by 4 N m at 0.300 s (70 ms over)" == e.text
 
 
 def test_a_rate_limit_counts_every_separate_run_and_the_margin_tightens_it():
@@ -53,7 +53,8 @@ def test_a_rate_limit_counts_every_separate_run_and_the_margin_tightens_it():
     use = limit_use(_limits(margin=0.1), t, q, dq, tau, 0.01)
     assert [(e.kind, round(e.time, 9), round(e.duration, 9), e.limit) for e in use.excursions] == [
         ("rate", 0.10, 0.02, 0.9), ("rate", 0.50, 0.03, -0.9)]
-    assert use.rate_margin[0] == pytest.approx(0.05)
+    # the margin is against the judged bound (0.9 rad/s), so it is negative exactly when over it (review 7)
+    assert use.rate_margin[0] == pytest.approx(1 - 0.95 / 0.9) and use.rate_margin[0] < 0
 
 
 def test_a_joint_position_beyond_either_end_and_a_prismatic_unit():
@@ -91,7 +92,7 @@ def test_the_ur5_switch_at_12_s_drives_joint_2_over_its_urdf_effort_and_the_segm
     assert res.limits.tau_max[1] == 150.0                               # the bundled URDF's effort
     segs = segment_metrics(res)
     assert [s.verdict for s in segs] == ["converged", "converged", "converged", "over_limit"]
-    assert "joint 2 (shoulder_lift_joint) torque -170.1 N m beyond its limit -150 N m at 12.000 s (2 ms over)" \
+    assert "joint 2 (shoulder_lift_joint) torque -170.1 N m beyond its limit -150 N m by 20.1 N m at 12.000 s (2 ms over)" \
         in segs[3].reason
     assert np.max(np.abs(res.tau[1, (res.time >= 4) & (res.time < 8)])) == pytest.approx(131.5, abs=0.05)
     assert segs[3].torque_margin == pytest.approx(1 - 170.1 / 150, abs=1e-3)
@@ -187,3 +188,112 @@ def test_the_pandas_null_space_drift_is_reported_and_a_stiffer_posture_task_hold
     stiff = Simulator(apply_overrides(sc, ["robot.posture_kp=400.0", "robot.posture_kd=40.0"])).run()
     assert stiff.posture_drift.max() < 0.5 * soft.posture_drift.max()
     assert ur5_runs[0].posture_drift is None
+
+
+# -- review 7 (an independent attack on the limit verdicts): each test failed on the code it found -------------
+
+def test_a_prismatic_joint_is_judged_in_newtons_and_metres(tmp_path):
+    """Regression: ``limits_of`` read ``robot.prismatic``, which Robot did not
+    have, so every joint was revolute (N m, rad/s, rad) whatever the URDF said.
+    The joint type is the URDF's (read here with xml.etree)."""
+    import importlib.resources as resources
+    import xml.etree.ElementTree as ET
+
+    from tmtcontrol.model.robot import load_robot
+    from tmtcontrol.simulation.limits import limits_of
+    from tmtcontrol.simulation.scenario import arm_scenario
+
+    tree = ET.parse(str(resources.files("tmtcontrol.model").joinpath("data", "ur5.urdf")))
+    (j,) = [j for j in tree.getroot().iter("joint") if j.get("name") == "wrist_3_joint"]
+    j.set("type", "prismatic")
+    j.find("limit").attrib.update(lower="-0.1", upper="0.1", effort="200", velocity="0.5")
+    path = str(tmp_path / "prismatic.urdf")
+    tree.write(path)
+    robot = load_robot(path, tip="tool0")
+    assert robot.prismatic == (False,) * 5 + (True,)
+    L = limits_of(robot, arm_scenario("ur5"))
+    assert [L.unit(k, 5) for k in ("torque", "rate", "position")] == ["N", "m/s", "m"]
+    assert [L.unit(k, 0) for k in ("torque", "rate", "position")] == ["N m", "rad/s", "rad"]
+    assert load_robot("puma560").prismatic == (False,) * 3
+
+
+def test_the_worst_sample_of_a_position_excursion_is_the_one_furthest_past_the_bound():
+    """Regression: the worst sample was the largest |q|, the least severe one
+    where a range does not straddle 0. The Panda's joint 4 ends at -0.0698 rad
+    (its URDF): q4 = -0.06, -0.01, -0.05 is worst at -0.01 (59.8 mrad past),
+    not -0.06 (9.8 mrad)."""
+    from tmtcontrol.model.robot import load_robot
+    from tmtcontrol.simulation.limits import limits_of
+    from tmtcontrol.simulation.scenario import arm_scenario
+
+    L = limits_of(load_robot("panda"), arm_scenario("panda"))
+    assert L.q_max[3] == pytest.approx(-0.0698)
+    q = np.tile(((L.q_min + L.q_max) / 2)[:, None], (1, 5))
+    q[3] = [-1.0, -0.06, -0.01, -0.05, -1.0]
+    z = np.zeros((7, 5))
+    (e,) = limit_use(L, np.arange(5) * 1e-3, q, z, z, 1e-3).excursions
+    assert (e.value, e.limit) == (-0.01, pytest.approx(-0.0698)) and e.excess == pytest.approx(0.0598)
+    assert e.time == pytest.approx(1e-3) and e.duration == pytest.approx(3e-3)
+    # a lower bound above 0 (shrunk by a margin): the sample furthest below it
+    L2 = JointLimits(("a",), (False,), np.array([INF]), np.array([INF]), np.array([2.0]), np.array([2.7]), 0.2)
+    (e,) = limit_use(L2, np.arange(3) * 1e-3, np.array([[2.06, 2.045, 2.069]]), np.zeros((1, 3)),
+                     np.zeros((1, 3)), 1e-3).excursions
+    assert e.limit == pytest.approx(2.07) and e.value == 2.045
+
+
+def test_an_excursion_says_how_far_past_its_bound():
+    """Regression: ``torque -10 N m beyond its limit -10 N m`` (a torque of
+    -10.004 at 4 significant digits): the text now says by how much."""
+    L = JointLimits(("a",), (False,), np.array([10.0]), np.array([INF]), np.array([-INF]), np.array([INF]))
+    (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -10.004]]),
+                     1e-3).excursions
+    assert "beyond its limit -10 N m by 0.004 N m at 0.001 s" in e.text
+
+
+def test_the_margins_are_against_the_judged_bound_so_negative_means_over():
+    """Regression: with ``robot.limit_margin`` a run over the judged bound had
+    a positive torque/rate margin (1 - peak/limit against the full limit),
+    while the docs, the sweep's columns and the report read negative as over."""
+    L = JointLimits(("a",), (False,), np.array([10.0]), np.array([1.0]), np.array([-1.0]), np.array([1.0]), 0.2)
+    use = limit_use(L, np.arange(2) * 1e-3, np.array([[0.0, 0.85]]), np.array([[0.0, 0.9]]),
+                    np.array([[0.0, 9.0]]), 1e-3)
+    assert [e.kind for e in use.excursions] == ["torque", "rate", "position"]
+    assert use.torque_margin[0] == pytest.approx(1 - 9 / 8) and use.rate_margin[0] == pytest.approx(1 - 0.9 / 0.8)
+    assert use.position_margin[0] == pytest.approx(0.8 - 0.85)        # the judged end: 1 - 0.2 x 1
+    assert use.torque_margin[0] < 0 and use.rate_margin[0] < 0 and use.position_margin[0] < 0
+
+
+def test_limit_use_of_an_empty_window_is_one_clear_error():
+    """Regression: a window with no sample raised NumPy's 'zero-size array to
+    reduction operation maximum'."""
+    L = JointLimits(("a",), (False,), np.array([1.0]), np.array([1.0]), np.array([-1.0]), np.array([1.0]))
+    with pytest.raises(ValueError, match="^limit_use: no samples in the window"):
+        limit_use(L, np.zeros(0), np.zeros((1, 0)), np.zeros((1, 0)), np.zeros((1, 0)), 1e-3)
+
+
+@pytest.mark.parametrize("verdict", ["beyond_limit", "limit_cycle", "diverged"])
+def test_a_worse_verdict_still_names_the_excursions(verdict):
+    """Regression: a segment ``beyond_limit`` or ``limit_cycle`` that also
+    crossed a joint limit kept a reason naming only the stiffness."""
+    from tmtcontrol.simulation.metrics import _limits_and_orientation
+
+    L = JointLimits(("a",), (False,), np.array([1.0]), np.array([INF]), np.array([-INF]), np.array([INF]))
+    use = limit_use(L, np.arange(3) * 1e-3, np.zeros((1, 3)), np.zeros((1, 3)), np.array([[0, 5.0, 0]]), 1e-3)
+    v, reason = _limits_and_orientation(verdict, "k_e reaches 2e5 N/m", use, 0.0, 1e-3)
+    assert v == verdict
+    assert reason.startswith("k_e reaches 2e5 N/m; also beyond the arm's limits: joint 1 (a) torque 5 N m"), reason
+
+
+def test_a_failing_segment_says_how_long_the_drive_sat_on_its_clip(tmp_path, capsys):
+    """Regression: with ``robot.saturate`` the UR5's wrist 1 clipped at 0.8 N m
+    sits on its clip for most of a 2 s run and the force misses f_d, but the
+    verdict's line blamed only the stiffness. The time on the clip is the
+    run's own (summary.json's limits table)."""
+    out = tmp_path / "o"
+    rc = main(["simulate", "ur5", "--no-plots", "--out", str(out), "--set", "trajectory.cycles=0.5",
+               "--set", "robot.tau_max=[150,150,150,0.8,28,28]", "--set", "robot.saturate=true"])
+    err = capsys.readouterr().err
+    d = json.loads((out / "summary.json").read_text())
+    sat = {r["joint"]: r["saturated"] for r in d["limits"]["joints"]}
+    assert rc == 1 and d["segments"][0]["verdict"] != "converged" and sat["wrist_1_joint"] > 1.0
+    assert f"the torque sat on its clip (robot.saturate): joint 4 (wrist_1_joint) {sat['wrist_1_joint']:.3g} s" in err

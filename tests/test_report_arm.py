@@ -87,6 +87,13 @@ def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
     _simulation(rep, sc, scenario_parameters(sc))
     lim = next(v for v in rep.verdicts if v.name.startswith("Within the arm's torque"))
     assert lim.passed is False and "joint 2 (shoulder_lift_joint) torque" in lim.value
+    # regression (review 7): the force tracked (its own verdict converged), so the tracking line passes and
+    # names the segment the limits' line fails, instead of failing a second time for the torque
+    (seg,) = rep.data["simulation"]["segments"]
+    assert seg.verdict == "over_limit" and seg.tracking_verdict == "converged"
+    tracking = next(v for v in rep.verdicts if v.name.startswith("Force tracking"))
+    assert tracking.passed is True, tracking
+    assert "every segment's force converged; over the arm's limits (judged below): segment 1" in tracking.check
 
 
 def test_the_pumas_report_has_no_orientation_figure(run_once):
@@ -138,3 +145,17 @@ def test_report_ur5_html(tmp_path):
     d = design_impedance(scenario_design_spec(load_scenario("ur5")))
     b = float(table(section(html, "design"), "Damping designs")[2][0][1].replace(",", ""))
     assert b == pytest.approx(d.b, rel=1e-3)                                               # 4 significant digits
+
+
+def test_the_limits_verdict_is_named_after_the_limits_judged():
+    """Regression (review 7): the PUMA with only ``robot.tau_max`` set had its
+    check titled 'torque, rate and joint limits' although only the torque was
+    judged (the PUMA's parameter set has no rate or joint limits)."""
+    from tmtcontrol.report.document import Report, _simulation
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = apply_overrides(load_scenario("paper"), ["trajectory.cycles=0.25", "robot.tau_max=[500,500,500]"])
+    rep = Report(sc, "test")
+    _simulation(rep, sc, scenario_parameters(sc))
+    names = [v.name for v in rep.verdicts]
+    assert "Within the arm's torque limits (simulation)" in names, names

@@ -218,6 +218,13 @@ class Robot:
         return len(self.joint_names)
 
     @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """Which actuated joints are prismatic (their units m, m/s, N; the rest rad, rad/s, N m)."""
+        if self.chain is None:
+            return (False,) * self.n
+        return tuple(j.type == "prismatic" for j in self.chain.joints)
+
+    @property
     def task(self) -> Task:
         """The task its closed loop controls (:func:`task_of`; ``ValueError`` below 3 joints)."""
         return task_of(self.n)

@@ -410,14 +410,18 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     worst = max(s.steady_state_error for s in segs)
     # the scenario's own tolerance judges the run (the segment verdicts use it too, plus the sensor noise)
     tol = sc.controller.force_tolerance
-    bad = [i for i, s in enumerate(segs, 1) if s.verdict != "converged"]
+    # the tracking alone: a segment over the arm's limits only fails the limits' own line (below)
+    bad = [i for i, s in enumerate(segs, 1) if (s.tracking_verdict or s.verdict) != "converged"]
     ok = bool(worst <= segs[0].tolerance and not bad)
+    over = [i for i, s in enumerate(segs, 1) if s.verdict == "over_limit" and i not in bad]
     rep.verdicts.append(Verdict(
         "Force tracking within tolerance (simulation)", ok,
         f"worst steady-state |f_e − f_d| {fmt.qty(worst, 'N')} (tolerance {fmt.qty(tol, 'N')})",
         f"{len(segs)} segments simulated, "
-        + ("; ".join(f"segment {i} {segs[i - 1].verdict}" for i in bad) + " (not converged)" if bad
-           else "every segment converged")))
+        + ("; ".join(f"segment {i} {segs[i - 1].tracking_verdict or segs[i - 1].verdict}" for i in bad)
+           + " (not converged)" if bad else "every segment's force converged")
+        + (f"; over the arm's limits (judged below): segment{'s' if len(over) > 1 else ''} "
+           f"{', '.join(map(str, over))}" if over else "")))
     fc = first_contact(res)
     blocks.append(Paragraph(
         f"{fmt.qty(res.time[-1] + res.Ts, 's')} of the closed loop at {fmt.qty(1 / res.Ts, 'Hz')}, compiled, "
@@ -509,8 +513,11 @@ def _limit_blocks(rep: Report, res) -> list:
         for r, s in zip(rows, use.saturated):
             r.append(fmt.qty(s, "s"))
     worst = min(use.excursions, key=lambda e: (e.kind != "torque", e.time), default=None)
-    rep.verdicts.append(Verdict(
-        "Within the arm's torque, rate and joint limits (simulation)", use.ok,
+    judged = [k for k, on in (("torque", np.any(np.isfinite(L.tau_max))), ("rate", np.any(np.isfinite(L.dq_max))),
+                              ("joint", np.any(np.isfinite(L.q_min) | np.isfinite(L.q_max)))) if on]
+    rep.verdicts.append(Verdict(                      # named after the limits judged (a PUMA with only tau_max)
+        f"Within the arm's {' and '.join([', '.join(judged[:-1]), judged[-1]] if len(judged) > 1 else judged)} "
+        "limits (simulation)", use.ok,
         f"least torque margin {pct(float(np.min(use.torque_margin)))}, least rate margin "
         f"{pct(float(np.min(use.rate_margin)))}" + (f"; {worst.text}" if worst else ""),
         f"every sample of the run against the limits less robot.limit_margin = {L.margin:g}"

@@ -100,17 +100,17 @@ def limits_of(robot, scenario) -> JointLimits:
         names = [robot.joint_names[j] for j in np.flatnonzero(~np.isfinite(tau))]
         raise ScenarioError(f"robot.saturate: no torque limit to clip at for {', '.join(names)} "
                             f"(set robot.tau_max)")
-    prismatic = tuple(bool(p) for p in getattr(robot, "prismatic", (False,) * robot.n))
-    return JointLimits(tuple(robot.joint_names), prismatic, tau, dq, np.asarray(robot.q_min, dtype=float),
+    return JointLimits(tuple(robot.joint_names), robot.prismatic, tau, dq, np.asarray(robot.q_min, dtype=float),
                        np.asarray(robot.q_max, dtype=float), float(r.limit_margin), bool(r.saturate))
 
 
 @dataclass(frozen=True)
 class Excursion:
     """One run of samples beyond a limit: ``kind``, ``joint`` (index) and
-    its ``name``, the worst ``value`` (signed, the kind's unit), the
-    ``limit`` it crossed (the judged bound, signed), the ``time`` it first
-    crossed (s) and ``duration`` (s, samples x Ts)."""
+    its ``name``, the worst ``value`` (signed, the kind's unit: the sample
+    furthest past the bound), the ``limit`` it crossed (the judged bound,
+    signed), the ``time`` it first crossed (s) and ``duration`` (s,
+    samples x Ts); :attr:`excess` how far past the bound (>= 0)."""
     kind: str
     joint: int
     name: str
@@ -121,9 +121,15 @@ class Excursion:
     unit: str
 
     @property
+    def excess(self) -> float:
+        """How far past the bound the worst sample is (the kind's unit; inf for a non-finite sample)."""
+        return abs(self.value - self.limit) if np.isfinite(self.value) else np.inf
+
+    @property
     def text(self) -> str:
         return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.4g} {self.unit} beyond its limit "
-                f"{self.limit:.4g} {self.unit} at {self.time:.3f} s ({self.duration * 1e3:.0f} ms over)")
+                f"{self.limit:.4g} {self.unit} by {self.excess:.3g} {self.unit} at {self.time:.3f} s "
+                f"({self.duration * 1e3:.0f} ms over)")
 
     def as_dict(self) -> dict:
         return {"kind": self.kind, "joint": self.name, "value": self.value, "limit": self.limit,
@@ -135,11 +141,13 @@ class LimitUse:
     """A run (or a time window of it) against :class:`JointLimits`.
 
     Per joint (arrays of n): ``peak_torque`` max |tau| (N m), ``peak_rate``
-    max |dq| (rad/s), ``torque_margin`` / ``rate_margin`` = 1 - peak/limit
-    (fraction of the limit left; negative: over; inf without a limit),
-    ``position_margin`` the least distance to either joint end (rad; inf
-    without limits), ``saturated`` the time the torque sat on its clip (s);
-    ``excursions`` every run beyond a judged bound, first first."""
+    max |dq| (rad/s), ``torque_margin`` / ``rate_margin`` = 1 - peak/bound
+    (fraction of the judged bound left, the bound being the limit less
+    ``robot.limit_margin``; negative: over it, as the excursions say; inf
+    without a limit), ``position_margin`` the least distance to either
+    judged end of the range (rad; negative: beyond it; inf without limits),
+    ``saturated`` the time the torque sat on its clip (s); ``excursions``
+    every run beyond a judged bound, first first."""
     limits: JointLimits
     peak_torque: np.ndarray
     peak_rate: np.ndarray
@@ -182,6 +190,8 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
     (n x N each; a non-finite sample counts as beyond every finite limit)."""
     series = {"torque": np.asarray(tau, float), "rate": np.asarray(dq, float), "position": np.asarray(q, float)}
     time = np.asarray(time, float)
+    if time.size == 0:
+        raise ValueError("limit_use: no samples in the window (start and end hold no sample of the run)")
     excursions = []
     for kind in KINDS:
         x = series[kind]
@@ -195,7 +205,10 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
                 continue
             for i0, i1 in _runs(beyond):
                 seg = xj[i0:i1]
-                k = i0 + int(np.nanargmax(np.abs(seg))) if np.any(np.isfinite(seg)) else i0
+                # the sample furthest past its bound (a non-finite one first), not the largest |x|: a range
+                # need not straddle 0
+                past = np.where(np.isfinite(seg), np.maximum(lo[j] - seg, seg - hi[j]), np.inf)
+                k = i0 + int(np.argmax(past))
                 up = xj[k] > hi[j] or not (xj[k] < lo[j])
                 excursions.append(Excursion(kind, j, limits.names[j], float(xj[k]), float(hi[j] if up else lo[j]),
                                             float(time[i0]), (i1 - i0) * Ts, limits.unit(kind, j)))
@@ -203,10 +216,12 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
     with np.errstate(invalid="ignore", divide="ignore"):
         peak_tau = np.max(np.abs(series["torque"]), axis=1)
         peak_dq = np.max(np.abs(series["rate"]), axis=1)
-        t_margin = np.where(np.isfinite(limits.tau_max), 1.0 - peak_tau / limits.tau_max, np.inf)
-        r_margin = np.where(np.isfinite(limits.dq_max), 1.0 - peak_dq / limits.dq_max, np.inf)
+        tau_hi, dq_hi = limits.bounds("torque")[1], limits.bounds("rate")[1]
+        t_margin = np.where(np.isfinite(tau_hi), 1.0 - peak_tau / tau_hi, np.inf)
+        r_margin = np.where(np.isfinite(dq_hi), 1.0 - peak_dq / dq_hi, np.inf)
         qq = series["position"]
-        p_margin = np.min(np.minimum(qq - limits.q_min[:, None], limits.q_max[:, None] - qq), axis=1)
+        q_lo, q_hi = limits.bounds("position")
+        p_margin = np.min(np.minimum(qq - q_lo[:, None], q_hi[:, None] - qq), axis=1)
         on_clip = np.abs(np.abs(series["torque"]) - limits.tau_max[:, None]) <= SATURATION_RTOL * limits.tau_max[:, None]
     saturated = (np.count_nonzero(on_clip, axis=1) * Ts if limits.saturate else np.zeros(len(limits.names)))
     return LimitUse(limits, peak_tau, peak_dq, t_margin, r_margin, p_margin, saturated.astype(float),

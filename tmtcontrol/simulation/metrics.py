@@ -185,6 +185,9 @@ class SegmentMetrics:
     rate_margin: float = math.inf
     position_margin: float = math.inf
     orientation_error: float = 0.0
+    tracking_verdict: str = ""
+    """The verdict without the arm's limits (the force and the tool's
+    orientation alone): what an ``over_limit`` segment's tracking did."""
 
     def as_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
@@ -516,6 +519,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         use = None if limits is None else limit_use(limits, t, result.q[:, i0:i1], result.dq[:, i0:i1],
                                                      result.tau[:, i0:i1], result.Ts)
         e_o = 0.0 if e_rot is None else float(np.max(np.linalg.norm(e_rot[:, i0:i1][:, ss], axis=0)))
+        tracking = _limits_and_orientation(verdict, reason, None, e_o, sc.controller.orientation_tolerance)[0]
         verdict, reason = _limits_and_orientation(verdict, reason, use, e_o, sc.controller.orientation_tolerance)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
@@ -533,19 +537,29 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             torque_margin=float(np.min(use.torque_margin)) if use else math.inf,
             rate_margin=float(np.min(use.rate_margin)) if use else math.inf,
             position_margin=float(np.min(use.position_margin)) if use else math.inf,
-            orientation_error=e_o,
+            orientation_error=e_o, tracking_verdict=tracking,
         ))
     return out
 
 
 def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, tolerance: float) -> tuple[str, str]:
     """A segment that tracks its force (``converged`` or ``off_target``) but
-    crosses a limit is ``over_limit``; one ``converged`` whose tool orientation
-    error ``e_o`` (rad) exceeds ``tolerance`` is ``off_target``."""
-    if use is not None and use.excursions and _RANK[verdict] < _RANK["over_limit"]:
+    crosses a limit is ``over_limit`` (a worse verdict stays, its reason
+    naming the excursions too); one ``converged`` whose tool orientation
+    error ``e_o`` (rad) exceeds ``tolerance`` is ``off_target``. A failing
+    segment's reason says how long the torque sat on its clip
+    (``robot.saturate``)."""
+    if use is not None and verdict != "converged" and np.any(use.saturated > 0):
+        # the drive's clip (robot.saturate) shapes the force: say so beside what the verdict blames
+        on = [f"joint {j + 1} ({use.limits.names[j]}) {use.saturated[j]:.3g} s"
+              for j in np.flatnonzero(use.saturated > 0)]
+        reason = f"{reason}; the torque sat on its clip (robot.saturate): {', '.join(on)}"
+    if use is not None and use.excursions:
         shown = "; ".join(e.text for e in use.excursions[:3])
         more = f" (and {len(use.excursions) - 3} more)" if len(use.excursions) > 3 else ""
-        return "over_limit", f"{shown}{more}; the force tracking alone: {verdict}"
+        if _RANK[verdict] < _RANK["over_limit"]:
+            return "over_limit", f"{shown}{more}; the force tracking alone: {verdict}"
+        return verdict, f"{reason}; also beyond the arm's limits: {shown}{more}"     # the worse verdict stays
     if verdict == "converged" and e_o > tolerance:
         return "off_target", (f"tool orientation error {e_o * 1e3:.3g} mrad over the last quarter, above "
                               f"controller.orientation_tolerance = {tolerance * 1e3:.3g} mrad")
