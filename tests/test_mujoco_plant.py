@@ -365,3 +365,127 @@ def test_the_built_in_arms_converge_on_mujoco_contact(arm):
     for m in segment_metrics(simulate_on_mujoco(sc)):
         assert m.steady_state_error < 1e-2, (arm, m.start, m.steady_state_error)
         assert m.verdict == "converged" or m.reason.endswith("the force tracking alone: converged"), m.reason
+
+
+# -- review 8 (an independent attack on the MuJoCo plant): each test failed on the code it found -----------------
+
+def _plant_scaled(monkeypatch, gravity=1.0, mass=1.0):
+    """MuJoCo's plant made to differ from eq. (1) (its gravity or its masses
+    scaled, the plant's model only): what the cross-check exists to catch."""
+    import tmtcontrol.model.against_mujoco as am
+
+    original = am.mujoco_model
+
+    def scaled(robot, lock_held=False, edit=None):
+        mj, m, d = original(robot, lock_held, edit)
+        if lock_held:                       # the plant's model (the model check builds its own)
+            m.opt.gravity[:] *= gravity
+            m.body_mass[:] *= mass
+            m.body_inertia[:] *= mass
+        return mj, m, d
+
+    monkeypatch.setattr(am, "mujoco_model", scaled)
+
+
+def test_noise_on_mujoco_is_judged_against_mujocos_noise_free_run(monkeypatch):
+    """Regression: a noisy MuJoCo run's noise-free twin ran on the built-in
+    plant, so the plants' difference counted as noise and widened the
+    tolerance: with MuJoCo's gravity 0.5 % strong (a ~15 mN steady gap,
+    off_target), 0.1 mN of sensor noise made the run 'converged'. Noise can
+    never make a verdict better than the noise-free run's."""
+    _plant_scaled(monkeypatch, gravity=1.005)
+    base = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.25"])
+    clean = segment_metrics(simulate_on_mujoco(apply_overrides(base, ["sensor.noise_std=0"])))[0]
+    noisy = segment_metrics(simulate_on_mujoco(apply_overrides(base, ["sensor.noise_std=1e-4"])))[0]
+    assert clean.verdict == "off_target" and clean.steady_state_error > 0.01
+    assert noisy.verdict == "off_target" and noisy.tolerance < 0.011      # 10 mN + 6 sigma of 0.1 mN noise's effect
+
+
+def test_crosscheck_compares_the_forces_not_the_sizes_of_their_errors(monkeypatch, ur5_short):
+    """Regression: 'agree' compared the two steady-state errors (max |f_e - f_d|),
+    so two forces on opposite sides of f_d agreed whatever their distance. A
+    MuJoCo force mirrored about f_d over the steady-state window has the same
+    steady-state error as the built-in one and is twice that error away from
+    it: it must not agree with a tolerance of one error."""
+    import dataclasses
+
+    import tmtcontrol.simulation.crosscheck as xc
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.simulation.metrics import segments
+
+    _, builtin = ur5_short
+    (i0, i1), = segments(builtin)
+    w = slice(i0 + int((i1 - i0) * (1 - STEADY_FRACTION)), i1)
+    f_d = builtin.scenario.controller.f_d
+    f = builtin.contact_force.copy()
+    f[w] = 2 * f_d - f[w]
+    mirrored = dataclasses.replace(builtin, contact_force=f)
+    err = segment_metrics(builtin)[0].steady_state_error
+    assert segment_metrics(mirrored)[0].steady_state_error == pytest.approx(err, rel=1e-12)
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: mirrored)
+    monkeypatch.setattr(xc, "agreement_tolerance", lambda sc: 1.5 * err)
+    c = xc.crosscheck(builtin.scenario)
+    assert c.segments[0]["steady_force_difference"] == pytest.approx(2 * err, rel=1e-9)
+    assert not c.agree
+
+
+def test_crosscheck_names_the_plant_a_run_diverged_on(monkeypatch, tmp_path, capsys):
+    """Regression: with MuJoCo's arm 100 times too light only MuJoCo's run
+    diverges; the line said 'simulation diverged' without saying which plant."""
+    _plant_scaled(monkeypatch, mass=0.01)
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "x"
+    assert main(["crosscheck", "ur5", "--no-plots", "--set", "trajectory.cycles=0.1", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [err[-1]] and err[-1].startswith("error: on MuJoCo's plant: simulation diverged"), err
+    assert "(MuJoCo: Nan, Inf or huge value in" in err[-1]
+    # nothing written: no output folder, and no MUJOCO_LOG.TXT in the working folder (MuJoCo's own warning
+    # handler appends one there; tmtcontrol keeps the warning instead and quotes it)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mujocos_plant_has_no_joint_stops_as_eq_1_has_none():
+    """Regression: MuJoCo enforced the URDF's joint ranges (a constraint eq. (1)
+    does not have): the Panda at rest 50 mrad past joint 4's end under gravity
+    compensation moved at 0.118 rad/s after 1 ms; eq. (1) keeps it at rest."""
+    from tmtcontrol.simulation.mujoco_plant import MujocoPlant
+
+    sc = apply_overrides(load_scenario("panda"), ["trajectory.cycles=0.1"])
+    sim = Simulator(sc, compile=False)
+    robot, n = sim.plant, sim.plant.n
+    plant = MujocoPlant(robot, sim.surface, sc.controller.Ts, 0.0)
+    q = (robot.q_min + robot.q_max) / 2
+    q[3] = robot.q_max[3] + 0.05
+    tau = np.asarray(robot.bias(q, np.zeros(n))).ravel()              # g(q): no acceleration in eq. (1)
+    z = plant.advance(np.r_[q, np.zeros(n)], tau, 0.0)
+    assert np.abs(z[n:]).max() < 1e-6
+
+
+def test_joint_friction_on_mujoco_is_refused_before_anything_runs(tmp_path, capsys):
+    """Regression: ``report ur5 --plant mujoco --set robot.friction=true`` ran
+    seven report stages (about 75 s) before its one-line refusal."""
+    out = tmp_path / "r"
+    assert main(["report", "ur5", "--plant", "mujoco", "--set", "robot.friction=true", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: robot.friction: the MuJoCo plant has no model") and len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_crosscheck_help_states_both_tolerances(capsys):
+    """Regression: ``crosscheck --help`` said the spring's tolerance was
+    controller.force_tolerance (it is 1e-4 f_d)."""
+    with pytest.raises(SystemExit):
+        main(["crosscheck", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "by more than 1e-4 f_d with the spring, controller.force_tolerance with MuJoCo's contact" in text
+
+
+def test_an_integrator_flag_with_the_mujoco_plant_is_refused(tmp_path, capsys):
+    """Regression (review 8): ``simulate --plant mujoco --integrator cvodes``
+    ran MuJoCo's RK4 and ignored the flag silently."""
+    out = tmp_path / "o"
+    assert main(["simulate", "ur5", "--plant", "mujoco", "--integrator", "cvodes", "--no-plots",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --integrator: the MuJoCo plant integrates with MuJoCo's RK4") and "\n" not in err
+    assert not out.exists()

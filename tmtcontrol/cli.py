@@ -83,10 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("crosscheck", help="the scenario on tmtcontrol's plant and on MuJoCo's, segment by segment",
                        formatter_class=_RAW,
                        description="Runs the scenario's controller on the built-in plant and on MuJoCo's dynamics of "
-                                   "the same URDF (ideal spring contact),\nand compares each segment's steady-state "
-                                   "error and verdict. Exit 1 if the plants disagree (a verdict differs, or a\n"
-                                   "steady-state error by more than controller.force_tolerance). Needs the mujoco "
-                                   "extra and an arm with a URDF.",
+                                   "the same URDF (simulation.mujoco_contact:\nthe ideal spring, or MuJoCo's own "
+                                   "contact), and compares each segment's verdict and contact force. Exit 1 if the\n"
+                                   "plants disagree: a verdict differs, or the two forces differ over a segment's "
+                                   "steady-state window (its last\nquarter) by more than 1e-4 f_d with the spring, "
+                                   "controller.force_tolerance with MuJoCo's contact. Needs the\nmujoco extra and an "
+                                   "arm with a URDF.",
                        epilog="example:\n  tmtcontrol crosscheck ur5 --out ur5-crosscheck")
     _add_scenario_args(p, "tmt-crosscheck")
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
@@ -277,6 +279,9 @@ def _simulate_with(args, workers) -> int:
     check_run_size(sc, args.max_steps)
     controller = None
     if args.plant == "mujoco":
+        if getattr(args, "integrator", None):
+            raise UsageError("--integrator: the MuJoCo plant integrates with MuJoCo's RK4 (10 steps per control "
+                             "period); --integrator chooses the built-in plant's")
         _mujoco_ready(sc, "--plant mujoco")
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController

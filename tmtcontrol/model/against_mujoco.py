@@ -51,7 +51,21 @@ def import_mujoco():
         raise MujocoMissing(f"MuJoCo did not load with MUJOCO_GL={os.environ.get('MUJOCO_GL', 'unset')} "
                             f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); set MUJOCO_GL to a "
                             "backend this machine has (egl, osmesa or glfw)") from None
+    if mujoco.get_mju_user_warning() is None:
+        # MuJoCo's own handler prints to stdout and appends to MUJOCO_LOG.TXT in the working folder (a file
+        # tmtcontrol must not write); its warnings are kept here instead (a diverged run quotes the first)
+        mujoco.set_mju_user_warning(_keep_warning)
     return mujoco
+
+
+MUJOCO_WARNINGS: list[str] = []
+"""MuJoCo's warnings in this process, oldest first (at most 100): e.g. 'Nan,
+Inf or huge value in QACC at DOF 1' where a run diverges."""
+
+
+def _keep_warning(message: str) -> None:
+    if len(MUJOCO_WARNINGS) < 100:
+        MUJOCO_WARNINGS.append(str(message).strip())
 
 
 def base_id(model, robot) -> int:

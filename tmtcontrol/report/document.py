@@ -594,14 +594,15 @@ def _independent_plant(rep: Report, sc: Scenario):
             for i, r in enumerate(c.segments, 1)]
     value = f"largest force difference {fmt.qty(c.max_force_difference, 'N')} at {c.time_of_max:.3f} s"
     rep.verdicts.append(Verdict("The built-in and MuJoCo plants agree", c.agree, value,
-                                "simulation.crosscheck (same verdicts, steady-state errors within "
-                                f"{fmt.qty(agreement_tolerance(sc), 'N')})"))
+                                "simulation.crosscheck (same verdicts, the forces over each segment's steady-state "
+                                f"window within {fmt.qty(agreement_tolerance(sc), 'N')})"))
     rep.data["crosscheck"] = c.as_dict()
     return Section("mujoco", "Independent plant: MuJoCo", [
         Paragraph(f"The scenario's controller against MuJoCo {info.get('mujoco', '')}'s dynamics of the same URDF "
                   f"({info['plant'][len('mujoco ('):-1]}; {info['integrator']}), judged by the same rules as the "
                   "built-in run. The plants agree when every segment has the same verdict on both and their "
-                  f"steady-state errors differ by at most {fmt.qty(agreement_tolerance(sc), 'N')} "
+                  "contact forces over its steady-state window (the last quarter) differ by at most "
+                  f"{fmt.qty(agreement_tolerance(sc), 'N')} "
                   "(docs/mujoco.md). " + value + "."),
         Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
                                           "steady-state error, MuJoCo", "peak force, built-in / MuJoCo",

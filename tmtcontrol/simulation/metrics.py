@@ -425,18 +425,26 @@ _TWINS: dict = {}
 
 def noise_free_twin(result: SimulationResult) -> SimulationResult:
     """``result``'s scenario run again with ``sensor.noise_std = 0`` (same
-    arm, path, stiffness and law; the built-in loop); kept for the last few
-    scenarios, so judging one run several times simulates its twin once."""
-    from .simulator import simulator_for
+    arm, path, stiffness and law) on the same plant (the built-in loop, or
+    MuJoCo's for a run on MuJoCo: a twin on another plant would count the
+    plants' difference as noise); kept for the last few scenarios, so
+    judging one run several times simulates its twin once."""
     from .scenario import apply_overrides
+    from .simulator import simulator_for
 
     sc0 = apply_overrides(result.scenario, ["sensor.noise_std=0"])
-    key = sc0.model_dump_json()
+    on_mujoco = str(getattr(result, "info", {}).get("plant", "")).startswith("mujoco")
+    key = (on_mujoco, sc0.model_dump_json())
     if key not in _TWINS:
         if len(_TWINS) >= 4:
             _TWINS.pop(next(iter(_TWINS)))
         # as long as the run itself (its own --max-steps was checked before it ran)
-        _TWINS[key] = simulator_for(sc0).run(max_steps=len(result.time) + 1)
+        if on_mujoco:
+            from .mujoco_plant import simulate_on_mujoco
+
+            _TWINS[key] = simulate_on_mujoco(sc0, max_steps=len(result.time) + 1)
+        else:
+            _TWINS[key] = simulator_for(sc0).run(max_steps=len(result.time) + 1)
     return _TWINS[key]
 
 

@@ -171,6 +171,9 @@ class MujocoPlant:
         m.opt.integrator = mj.mjtIntegrator.mjINT_RK4
         m.dof_damping[:] = 0.0
         m.dof_frictionloss[:] = 0.0
+        # eq. (1) has no joint stops (the arm's limits are judged, not enforced), and a diverging run must end
+        # as one (the loop's own check), not be reset silently to qpos0 by MuJoCo
+        m.opt.disableflags |= mj.mjtDisableBit.mjDSBL_LIMIT | getattr(mj.mjtDisableBit, "mjDSBL_AUTORESET", 0)
         self.robot, self.surface, self.d_e, self.substeps = robot, surface, float(d_e), substeps
         self.act = np.array([m.jnt_dofadr[m.joint(name).id] for name in robot.joint_names])
         self.qadr = np.array([m.jnt_qposadr[m.joint(name).id] for name in robot.joint_names])
@@ -250,9 +253,12 @@ class MujocoPlant:
 
 
 def check_contact(scenario, surface) -> None:
-    """Refuse in one line (:class:`ScenarioError` naming the key) a contact
-    model the scenario cannot have on MuJoCo: friction on the spring, or
-    MuJoCo's contact on a part it has no primitive for."""
+    """Refuse in one line (:class:`ScenarioError` naming the key) what the
+    scenario cannot have on MuJoCo: eq. (1)'s joint friction, friction on
+    the spring, or MuJoCo's contact on a part it has no primitive for."""
+    if scenario.robot.friction:
+        raise ScenarioError("robot.friction: the MuJoCo plant has no model of eq. (1)'s joint friction; "
+                            "set robot.friction = false to run on MuJoCo")
     s = scenario.simulation
     if s.mujoco_friction > 0 and s.mujoco_contact != "contact":
         raise ScenarioError("simulation.mujoco_friction: only MuJoCo's own contact has friction; set "
@@ -265,9 +271,6 @@ def mujoco_plant_for(sim, scenario) -> tuple[MujocoPlant, dict]:
     """The :class:`MujocoPlant` of ``scenario`` (its Simulator ``sim``) and the
     run's ``info`` entries; a scenario MuJoCo cannot run is refused in one
     line (:class:`ScenarioError`)."""
-    if scenario.robot.friction:
-        raise ScenarioError("robot.friction: the MuJoCo plant has no model of eq. (1)'s joint friction; "
-                            "set robot.friction = false to run on MuJoCo")
     s = scenario.simulation
     check_contact(scenario, sim.surface)
     try:
@@ -289,12 +292,19 @@ def simulate_on_mujoco(scenario, max_steps: int | None = None):
     (spring contact)"``, judged by the same rules as the built-in run (the
     exported C against MuJoCo: :func:`tmtcontrol.export.sil.simulate_with_controller`
     with ``plant="mujoco"``)."""
-    from .simulator import Simulator, check_run_size
+    from ..model.against_mujoco import MUJOCO_WARNINGS
+    from .simulator import SimulationError, Simulator, check_run_size
 
     check_run_size(scenario, max_steps)
     t0 = time.perf_counter()
     sim = Simulator(scenario, compile=False)
     plant, info = mujoco_plant_for(sim, scenario)
     control, n_cmd = builtin_controller(sim, scenario)
-    return run_split(sim, scenario, control, plant,
-                     {**info, "code": f"mujoco {info['mujoco']}", "build_time_s": time.perf_counter() - t0}, n_cmd)
+    seen = len(MUJOCO_WARNINGS)
+    try:
+        return run_split(sim, scenario, control, plant,
+                         {**info, "code": f"mujoco {info['mujoco']}", "build_time_s": time.perf_counter() - t0}, n_cmd)
+    except SimulationError as exc:
+        if len(MUJOCO_WARNINGS) > seen:         # what MuJoCo said about it (its warning, kept off the console)
+            raise SimulationError(f"{exc} (MuJoCo: {MUJOCO_WARNINGS[seen]})") from None
+        raise
