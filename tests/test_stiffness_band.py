@@ -268,3 +268,27 @@ def test_the_limit_with_contact_damping_matches_a_simulator_bisection():
     simulated = simulated_limit(sc, 0.9 * limit, 1.2 * limit, rtol=1e-3)
     assert 0.96 * simulated < limit < simulated
     assert simulated == pytest.approx(7.27e5, rel=5e-3)
+
+
+def test_a_sampling_resonance_window_ends_the_band():
+    """Regression (review 9): where the contact mode turns pi per period, k_1 =
+    m_p (pi/Ts)^2 (2.96e6 N/m at m_p = 0.3 kg, 1 kHz), the loop is unstable in a
+    window 2.4 % wide just below k_1, which the 121-point grid stepped over:
+    the limit read 4.7e7 N/m and a range across the window 'stable'. Known
+    independently: Jury's test on the characteristic polynomial (above), its
+    sign change found by brentq between a stable point and one inside."""
+    m_p = 0.3
+    k_1 = m_p * (math.pi / TS) ** 2
+    assert _jury_margin(2.95e6, 0.0, m_p) < 0                                  # the review's unstable point
+    assert _jury_margin(0.95 * k_1, 0.0, m_p) > 0 and _jury_margin(k_1 * (1 - 1e-6), 0.0, m_p) < 0
+    edge = brentq(lambda x: _jury_margin(x, 0.0, m_p), 0.95 * k_1, k_1 * (1 - 1e-6), rtol=1e-12)
+    assert max_stable_stiffness(M, B, K, TS, m_p) == pytest.approx(edge, rel=3e-6)
+    # the grid alone steps over the window: its band reaches far above k_1
+    plain = stable_band(lambda ke: spectral_radius(M, B, K, ke, TS, m_p) < 1.0, 10.0, 1e10, 1e-6, 121,
+                        scan=lambda g: spectral_radii(M, B, K, g, TS, m_p) < 1.0)
+    assert plain.limit > 10 * k_1
+    # a range across the window is not sampled-stable; its limit is the window's edge
+    out = analyze(M, B, K, k_e_min=2e6, k_e_max=1e7, Ts=TS, m_p=(m_p, m_p))
+    assert out["sampled_stable"] is False and out["max_stable_stiffness"] == pytest.approx(edge, rel=3e-6)
+    # the paper's loop (m_p 3.7 kg) is unchanged: its first resonance, 3.7e7 N/m, is far above its limit
+    assert max_stable_stiffness(M, B, K, TS, MP) < 0.01 * MP * (math.pi / TS) ** 2

@@ -105,7 +105,8 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 rho = max(spectral_radius(m, b, k, ke, Ts, mp, **kw) for ke in grid for mp in masses)
             else:
                 radius = lambda ke, mp: spectral_radius(m, k=k, k_e=ke, Ts=Ts, m_p=mp, **{**kw, **bk(ke)})
-                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6, within=lo) for mp in masses]
+                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-6, within=lo, resonance=(mp, Ts))
+                         for mp in masses]
                 rho = max(radius(ke, mp) for ke in grid for mp in masses)
                 b, kw["kd"] = bk(hi)["b"], bk(hi)["kd"]
             out["systems"]["sampled"] = sampled_closed_loop(m, b, k, hi, Ts, max(masses), **kw).sys
@@ -122,7 +123,8 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
             else:
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **{**kw, **bk(ke)}).spectral_radius
-                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4, within=lo) for mp in masses]
+                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4, within=lo, resonance=(mp, Ts))
+                         for mp in masses]
             rho = max(radius(ke, mp) for ke in grid[::3] for mp in masses)
             model = "the law's 1-D loop (stability.lawloop)"
         if damping is not None:

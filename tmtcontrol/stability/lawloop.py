@@ -203,7 +203,8 @@ def law_stiffness_band(law: Law, params: LawParameters | None = None, *, k_lo: f
     def stable(ke):
         return law_loop(law, params, k_e=ke, **kw).spectral_radius < 1.0
 
-    return stable_band(stable, k_lo, k_hi, rtol, within=within)
+    resonance = (kw["m_p"], kw["Ts"]) if "m_p" in kw and "Ts" in kw else None    # the sampling resonances
+    return stable_band(stable, k_lo, k_hi, rtol, within=within, resonance=resonance)
 
 
 def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,

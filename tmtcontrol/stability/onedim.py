@@ -99,7 +99,8 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
             return min(max_stable_stiffness(p["m"], p["b"], p["k"], p["Ts"], mp, within=p["k_e_min"], **kw)
                        for mp in (p["m_p_min"], p["m_p_max"]))
         return min(largest_stable(lambda ke: spectral_radius(p["m"], k=p["k"], k_e=ke, Ts=p["Ts"], m_p=mp,
-                                                     **{**kw, **bk(ke)}) < 1.0, within=p["k_e_min"])
+                                                     **{**kw, **bk(ke)}) < 1.0, within=p["k_e_min"],
+                                  resonance=(mp, p["Ts"]))
                    for mp in (p["m_p_min"], p["m_p_max"]))
     kw = dict(m=p["m"], b=p["b"], k=p["k"], Ts=p["Ts"], f_d=p["f_d"], kd=p["kd"], kp=p["kp"], alpha=p["alpha"],
               d_e=p["d_e"], delta=p["x_e_error"], delay=scenario.controller.delay_samples)
@@ -110,7 +111,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
 
     return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
                                           **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4,
-                              within=p["k_e_min"])
+                              within=p["k_e_min"], resonance=(mp, p["Ts"]))
                for mp in (p["m_p_min"], p["m_p_max"]))
 
 

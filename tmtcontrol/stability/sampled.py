@@ -208,8 +208,33 @@ def _bisect_edge(stable, good: float, bad: float, rtol: float) -> float:
     return lo if good < bad else hi
 
 
+RESONANCE_OFFSETS = np.array([1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3])
+"""Where a sampling resonance's window is probed: k_n (1 - offset). Where
+the contact mode sqrt(k_e / m_p) turns n pi per period (k_n = m_p (n pi /
+Ts)^2) the zero-order hold cannot see it; the loop is unstable in a window
+just below k_n (2.4 % wide for n = 1 with the paper's gains, narrowing as
+1/n^2, always reaching k_n (1 - 1e-9): measured), narrower than any log
+grid's step, so each window is probed at k_n itself (review 9: a
+121-point grid stepped over the window at 2.9e6 N/m with m_p = 0.3 kg)."""
+
+
+def resonances(m_p: float, Ts: float, k_lo: float, k_hi: float, most: int = 2000) -> np.ndarray:
+    """The probe points (N/m, ascending) of the sampling resonances k_n =
+    m_p (n pi / Ts)^2 in (k_lo, k_hi) (:data:`RESONANCE_OFFSETS`; at most
+    ``most`` resonances)."""
+    n0 = max(1, math.ceil(Ts / math.pi * math.sqrt(max(k_lo, 0.0) / m_p)))
+    top = Ts / math.pi * math.sqrt(k_hi / m_p) if math.isfinite(k_hi) else math.inf
+    n1 = int(min(n0 + most, math.floor(top) + 1))
+    if n1 < n0:
+        return np.zeros(0)
+    k_n = m_p * (np.arange(n0, n1 + 1) * math.pi / Ts) ** 2
+    pts = np.sort((k_n[:, None] * (1.0 - RESONANCE_OFFSETS[::-1][None, :])).ravel())
+    return pts[(pts > k_lo) & (pts < k_hi)]
+
+
 def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49,
-                within: float | None = None, scan=None) -> StiffnessBand:
+                within: float | None = None, scan=None, resonance: tuple[float, float] | None = None
+                ) -> StiffnessBand:
     """The band of k_e (N/m) in which ``stable(k_e)`` holds: a ``points``-
     point log grid from ``k_lo`` (or ``within`` if smaller) to ``k_hi``, then
     bisection of each edge in log k_e to ``rtol``.
@@ -226,7 +251,9 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
     searched and the band above it. Grid points are evaluated lazily
     (downward from ``within`` and upward to the band's end), unless ``scan``,
     a vectorised ``stable`` (array in, boolean array out), gives the whole
-    grid at once. The package's one grid-and-bisection stiffness search:
+    grid at once. ``resonance = (m_p, Ts)`` (kg, s): below the band's upper
+    edge the sampling resonances are probed too (:func:`resonances`), and
+    the first unstable one ends the band. The package's one grid-and-bisection stiffness search:
     :func:`largest_stable`, :func:`max_stable_stiffness`,
     ``stability.lawloop.law_stiffness_limit`` and ``stability.analysis``
     call it."""
@@ -240,9 +267,27 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
             known[i] = bool(stable(grid[i]))
         return known[i]
 
+    def window(seed, bound):
+        # the first unstable resonance probe in (seed, bound) and the largest stable point below it
+        if resonance is None:
+            return None
+        probes = resonances(*resonance, seed, bound)
+        if not probes.size:
+            return None
+        flags = np.asarray(scan(probes), dtype=bool) if scan is not None else None
+        below = seed
+        for j, kr in enumerate(probes):
+            if not (flags[j] if flags is not None else stable(kr)):
+                return kr, max([below, *(g for g in grid[:int(np.searchsorted(grid, kr))] if g > below)])
+            below = kr
+        return None
+
     def upper_edge(i0, seed):
         # the first unstable grid point from index i0 (the first above the stable seed)
         i = next((i for i in range(i0, points) if not ok(i)), None)
+        hit = window(seed, grid[i] if i is not None else k_hi)
+        if hit is not None:                 # a sampling resonance's window before it
+            return _bisect_edge(stable, hit[1], hit[0], rtol)
         if i is None:
             return float("inf")
         # bracket from the stable grid point before it (a plain upward scan's), else from the seed
@@ -283,14 +328,14 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
 
 
 def largest_stable(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-6, points: int = 49,
-                   within: float | None = None) -> float:
+                   within: float | None = None, resonance: tuple[float, float] | None = None) -> float:
     """Largest k_e (N/m) with ``stable(k_e)``: :func:`stable_band`'s
     ``limit`` (``inf`` if stable up to ``k_hi``; the upper edge of the band
     that contains ``within``, or without it of the lowest stable band of the
     scan; 0 if no band starts at or below ``within``). For a stability
     test without a vectorised form (the law loops, the scenario's 1-D
     loops)."""
-    return stable_band(stable, k_lo, k_hi, rtol, points, within).limit
+    return stable_band(stable, k_lo, k_hi, rtol, points, within, resonance=resonance).limit
 
 
 def stiffness_band(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **kw) -> StiffnessBand:
@@ -302,7 +347,7 @@ def stiffness_band(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **kw) ->
     surface that would need 1 m of penetration for 10 N is not the limit
     sought."""
     return stable_band(lambda ke: spectral_radius(m, b, k, ke, Ts, m_p, **kw) < 1.0, k_lo, k_hi, 1e-6, 121,
-                       within, scan=lambda g: spectral_radii(m, b, k, g, Ts, m_p, **kw) < 1.0)
+                       within, scan=lambda g: spectral_radii(m, b, k, g, Ts, m_p, **kw) < 1.0, resonance=(m_p, Ts))
 
 
 def max_stable_stiffness(m, b, k, Ts, m_p, k_lo=10.0, k_hi=1e10, within=None, **kw) -> float:
