@@ -394,3 +394,23 @@ def test_the_step_overshoot_is_the_second_order_closed_form(zeta):
     e = np.exp(-zeta * w_n * t) * (np.cos(w_d * t) + r * np.sin(w_d * t))
     settled = t[np.flatnonzero(np.abs(e) > 0.02)[-1] + 1]
     assert a.settling_time == pytest.approx(settled, rel=2e-3)
+
+
+def test_an_undamped_impedance_is_judged_unstable_not_refused(tmp_path, capsys):
+    """Regression (review 9): b = 0 (the schema allows it) was refused by the
+    law loop's strict check: ``analyze --scenario`` then said the equilibrium
+    lay outside the robot's workspace (exit 2), and the flag form accepted
+    --b 0 without a delay (exit 1) but refused it with --delay 1 (exit 2). An
+    undamped loop is a verdict: unstable, exit 1."""
+    from tmtcontrol.cli import main
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.scenario.tomlio import dump_scenario
+
+    for extra in ([], ["--delay", "1"]):
+        assert main(["analyze", "--m", "1", "--b", "0", "--k", "100", "--ke", "1000", "--ts", "0.001", *extra]) == 1
+        assert "sampled stable       NO" in capsys.readouterr().out
+    path = tmp_path / "b0.toml"
+    path.write_text(dump_scenario(apply_overrides(paper_scenario(), ["impedance.b=[0.0, 20.0, 20.0]"])))
+    assert main(["analyze", "--scenario", str(path)]) == 1
+    captured = capsys.readouterr()
+    assert "workspace" not in captured.err and "sampled stable       NO" in captured.out

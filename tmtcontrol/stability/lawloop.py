@@ -140,8 +140,9 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     iterating the map for ``settle`` seconds from contact at rest (when that
     stays finite) and refining by Newton.
     """
-    for name, val in (("m", m), ("b", b), ("k", k), ("k_e", k_e), ("Ts", Ts), ("m_p", m_p), ("f_d", f_d)):
+    for name, val in (("m", m), ("k", k), ("k_e", k_e), ("Ts", Ts), ("m_p", m_p), ("f_d", f_d)):
         _pos(name, val)
+    _pos("b", b, strict=False)          # an undamped impedance is a loop to judge (unstable), not bad input
     if not isinstance(delay, (int, np.integer)) or delay < 0:
         raise AnalysisError(f"delay: expected an integer >= 0 samples, got {delay!r}")
     params = law.parameters() if params is None else params
