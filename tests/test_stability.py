@@ -414,3 +414,31 @@ def test_an_undamped_impedance_is_judged_unstable_not_refused(tmp_path, capsys):
     assert main(["analyze", "--scenario", str(path)]) == 1
     captured = capsys.readouterr()
     assert "workspace" not in captured.err and "sampled stable       NO" in captured.out
+
+
+@pytest.mark.parametrize("k_e, delta, expected", [
+    (50.0, 0.0, 50 * (0.1 + 10 * 0.01) / (1 + 50 / 100)),          # softer than min_stiffness: c on its clip
+    (2000.0, -0.097, 2000 * (-0.097 + 0.1 + 0.1) / (1 + 2000 / 100)),  # believed 97 mm too close: c clipped
+    (2000.0, -0.15, 0.0),                                            # the approach's reference never reaches it
+    (2000.0, 0.002, 10.0), (2e4, 0.0, 10.0)])                      # inside the clip: eqs. 23-24
+def test_the_steady_force_claimed_is_the_implemented_laws(k_e, delta, expected):
+    """Regression (review 9): ``analyze`` claimed f_e = f_d (eqs. 23-24)
+    whatever the law's clips: the TMT's compliance estimate c = 1/k_e -
+    delta/f_d is clipped to [0, 1/min_stiffness] (100 N/m), and where it sits
+    on the clip f_e = k_eff (delta + f_d/k + f_d c*), closed form with k = 100
+    N/m, f_d = 10 N; the known-stiffness law settles at f_d k_eff(k_e) /
+    k_eff(k_e assumed) (eqs. 11-12), quoted at the end of the range furthest
+    from f_d."""
+    from tmtcontrol.stability.analysis import analyze
+
+    out = analyze(1.0, 60.0, 100.0, k_e=k_e, x_e_error=delta)
+    assert out["steady_state_force"] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    assert out["steady_state_force_eq22"] == pytest.approx(10.0, rel=1e-12)
+    from tmtcontrol.control.laws import get_law
+
+    known = get_law("known")
+    params = known.parameters().model_copy(update={"assumed_stiffness": 5000.0})
+    keff = lambda x: 100 * x / (100 + x)
+    got = analyze(1.0, 60.0, 100.0, k_e_min=2000.0, k_e_max=20000.0, law="known", law_params=params)
+    # the worst end of the range: 9.714 N at 2,000 N/m (10.149 N at 20,000 N/m is nearer f_d)
+    assert got["steady_state_force"] == pytest.approx(10 * keff(2000) / keff(5000), rel=1e-12)

@@ -97,10 +97,23 @@ def _update(y, p, s):
 
 
 def _steady_force(params, f_d, k, k_e, delta):
-    """f_e = f_d (eqs. 23-24) while the compliance estimate at f_d is
-    non-negative, i.e. delta < f_d/k_e; beyond, it is clipped at 0 and the
-    reference is x_e_hat + f_d/k, so f_e = k_eff (delta + f_d/k)."""
-    return f_d if delta < f_d / k_e else k_eff(k, k_e) * (delta + f_d / k)
+    """f_e = f_d (eqs. 23-24) while the compliance estimate at f_d, c = 1/k_e
+    - delta/f_d, lies within its clip [0, 1/min_stiffness]; beyond, it sits
+    on the clip c* (0, or 1/min_stiffness: a surface softer than
+    min_stiffness, or one believed far too deep), the reference is x_e_hat +
+    f_d (1/k + c*), and f_e = k_eff (delta + f_d/k + f_d c*); 0 where the
+    free-space reference x_e_hat + f_d/k (eq. 18's f_e = 0 branch, the
+    approach) lies outside the surface: the tool never reaches it. Review 9:
+    the upper clip and the contact loss were missing (10 N claimed for
+    6.67 N on a 50 N/m surface, and for 0 N with the surface believed 15 cm
+    too close)."""
+    if delta + f_d / k <= 0.0:
+        return 0.0
+    c, c_max = 1.0 / k_e - delta / f_d, 1.0 / params.min_stiffness
+    if 0.0 <= c <= c_max:
+        return f_d
+    clip = 0.0 if c < 0.0 else c_max
+    return max(0.0, k_eff(k, k_e) * (delta + f_d / k + f_d * clip))
 
 
 def eq22_polynomial(params, m, b, k, k_e, f_d=10.0, delta=0.0):
