@@ -238,21 +238,49 @@ def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
     stable = bibo_stable(S)
     if stable:
         zeta = damping_ratio(m, b, k, k_e)
-        # eq. (22) is w_n^2 / (s^2 + 2 zeta w_n s + w_n^2): its step overshoot in closed form; the 2 % settling
-        # time from python-control on a time grid fine enough for it (step_info's default grid is too coarse
-        # near the peaks: 72.5 % for the exact 72.9 % at zeta = 0.1)
+        # eq. (22) is w_n^2 / (s^2 + 2 zeta w_n s + w_n^2): its step overshoot and 2 % settling time in closed
+        # form (python-control's step_info reads them off a time grid, too coarse near the peaks: 72.5 % for
+        # the exact 72.9 % at zeta = 0.1)
         overshoot = 100.0 * math.exp(-math.pi * zeta / math.sqrt(1.0 - zeta * zeta)) if zeta < 1.0 else 0.0
-        slowest = float(np.min(np.abs(poles.real)))
-        t_end = 10.0 / slowest
-        cycles = t_end * float(np.max(np.abs(poles.imag))) / (2 * math.pi)
-        T = np.linspace(0.0, t_end, int(min(200_001, max(4_001, 40 * cycles))))
-        settling = float(ct.step_info(G, T=T)["SettlingTime"])
+        settling = settling_time_2nd_order(zeta, wn)
         ss_force = f_d * float(np.real(ct.dcgain(S)))
     else:
         overshoot = settling = float("nan")
         ss_force = float("nan")
     return ContinuousAnalysis(m, b, k, k_e, f_d, poles, wn, damping_ratio(m, b, k, k_e),
                               stable, ss_force, critical_damping(m, k, k_e), overshoot, settling)
+
+
+def settling_time_2nd_order(zeta: float, w_n: float, band: float = 0.02) -> float:
+    """The last time (s) the unit step response of w_n^2 / (s^2 + 2 zeta w_n
+    s + w_n^2) is ``band`` away from 1, exactly: its error is e(t) =
+    e^(-zeta w_n t) (cos w_d t + zeta/sqrt(1 - zeta^2) sin w_d t) below
+    critical damping, whose extrema at k pi / w_d are e^(-zeta w_n k pi /
+    w_d), so the last crossing lies between the last extremum above the
+    band and the next zero (root-found there); above it the error falls
+    monotonically and is root-found on its own."""
+    from scipy.optimize import brentq
+
+    if zeta < 1.0:
+        w_d, r = w_n * math.sqrt(1.0 - zeta * zeta), zeta / math.sqrt(1.0 - zeta * zeta)
+        sigma = zeta * w_n
+        err = lambda t: math.exp(-sigma * t) * (math.cos(w_d * t) + r * math.sin(w_d * t))
+        # the last extremum k pi / w_d whose size e^(-sigma k pi / w_d) exceeds the band (k = 0: the start)
+        k = max(0, math.ceil(math.log(1.0 / band) * w_d / (sigma * math.pi)) - 1) if sigma > 0 else 0
+        t0 = k * math.pi / w_d
+        zero = (math.pi - math.atan2(1.0, r)) / w_d          # the first zero of e after 0; one every pi / w_d
+        t1 = zero + k * math.pi / w_d
+        return float(brentq(lambda t: abs(err(t)) - band, t0, t1, xtol=1e-14 * t1, rtol=1e-12))
+    if zeta == 1.0:
+        err = lambda t: math.exp(-w_n * t) * (1.0 + w_n * t)
+    else:
+        q = math.sqrt(zeta * zeta - 1.0)
+        p1, p2 = w_n * (zeta - q), w_n * (zeta + q)          # the slow and the fast pole's magnitudes
+        err = lambda t: (p2 * math.exp(-p1 * t) - p1 * math.exp(-p2 * t)) / (p2 - p1)
+    hi = 1.0 / w_n
+    while err(hi) > band:
+        hi *= 2.0
+    return float(brentq(lambda t: err(t) - band, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12))
 
 
 def damping_for_range(m, k, k_e_min, k_e_max, zeta=1.0) -> float:
