@@ -258,3 +258,46 @@ def test_the_limit_family_of_a_damped_contact_includes_the_smallest_stiffness():
     assert _family_key(soft, 1e2) == _family_key(stiff, 1e4)
     soft, stiff = (apply_overrides(s, ["environment.damping=1500"]) for s in (soft, stiff))
     assert _family_key(soft, 1e2) != _family_key(stiff, 1e4)
+
+
+# -- review 10 (an independent attack on the sweep): each test failed on the code it found -------------------------
+
+def test_a_grid_over_profiles_of_different_lengths_writes_one_text_column(tmp_path):
+    """Regression: a one-element profile was stored as its number and a longer
+    one as JSON text, so the column mixed types and the table failed to write
+    after every case had run (ArrowTypeError, a traceback, OUT.partial left).
+    The whole axis is text when any of its values is a longer list."""
+    sweep = sweep_from_dict(tomllib.loads('scenario = "paper"\n[grid]\n'
+                                          '"environment.stiffness.values" = [[2000.0], [2000.0, 20000.0]]\n'
+                                          '"trajectory.cycles" = [0.25]\n'))
+    summary = save_sweep(sweep, tmp_path / "o", plots=False, limits=False)
+    df = pq.read_table(tmp_path / "o" / "results.parquet").to_pandas()
+    assert df["environment.stiffness.values"].tolist() == ["[2000.0]", "[2000.0, 20000.0]"]
+    assert summary["run"]["verdicts_against_the_loops_limit"] is False
+    assert not (tmp_path / "o.partial").exists()
+
+
+def test_resume_refuses_another_limits_or_max_steps_setting(small, tmp_path):
+    """Regression: a sweep interrupted with the limits on and resumed with
+    --limits off committed a table whose first rows had limits (and verdicts
+    judged against them) and whose others had none."""
+    out = tmp_path / "o"
+    PartialFolder(out.resolve(), small, resume=False, options={"limits": True, "max_steps": None})
+    with pytest.raises(ValueError, match=r"^--resume: --limits was on, now off \("):
+        save_sweep(small, out, resume=True, plots=False, limits=False)
+    with pytest.raises(ValueError, match=r"^--resume: --max-steps was not given, now 1000 \("):
+        save_sweep(small, out, resume=True, plots=False, limits=True, max_steps=1000)
+
+
+def test_the_end_of_a_resumed_sweep_keeps_a_file_it_did_not_write(small, tmp_path, capsys):
+    """Regression: the partial folder was removed whole once the results were
+    written, a user's note inside it with it."""
+    out = tmp_path / "o"
+    partial = PartialFolder(out.resolve(), small, resume=False, options={"limits": False, "max_steps": None})
+    partial.write([case_row(small.base, c, limits=False) for c in small.cases[:2]])
+    note = partial.path / "my-notes.txt"
+    note.write_text("why this sweep was stopped\n")
+    save_sweep(small, out, resume=True, plots=False, limits=False)
+    assert note.read_text() == "why this sweep was stopped\n"
+    assert sorted(p.name for p in partial.path.iterdir()) == ["my-notes.txt"]
+    assert f"sweep: kept {partial.path}: it holds files tmtcontrol did not write" in capsys.readouterr().err

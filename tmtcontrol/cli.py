@@ -305,7 +305,8 @@ def _simulate_with(args, workers) -> int:
         else:
             res = simulator_for(sc).run(max_steps=args.max_steps)
         memo: dict = {}                           # the deciding limit, computed once for the run and its message
-        res = with_stiffness_limit(res, memo=memo)   # a segment beyond the loop's limit is not stable
+        # a segment beyond the loop's limit is not stable; a failing one's line quotes the limit summary.json holds
+        res = with_stiffness_limit(res, memo=memo, quote=True)
         # without figures the second core is free for half of the CSV
         save_simulation(res, out.path, plots=not args.no_plots, workers=workers,
                         csv_processes=2 if args.no_plots else 1)

@@ -239,7 +239,8 @@ def _has_surface_error(scenario) -> bool:
     return ctl.x_e_error < 0.0 or any(v != 0.0 for v in ctl.part_offset)
 
 
-def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = None, memo: dict | None = None):
+def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = None, memo: dict | None = None,
+                         quote: bool = False):
     """``result`` (a simulation) with the scenario's limit attached as
     ``info["stiffness_limit"]`` (N/m) and ``info["stiffness_limit_from"]``:
     its segment verdicts (``simulation.metrics.segment_metrics``) then call a
@@ -260,7 +261,11 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
     figure is only the gate). Where the deciding limit fails, the 1-D figure
     is attached and its source says why. A loop unstable at its smallest
     stiffness gets limit 0 (every segment is beyond it). Unchanged for a law
-    without a linear verdict."""
+    without a linear verdict. ``quote``: the caller quotes the deciding
+    limit for a failing segment (``simulate``'s line), so it is computed
+    wherever a segment fails, even one whose verdict it cannot change, and
+    the result carries the figure the line quotes (review 10: summary.json
+    held the 1-D figure beside a line quoting the periodic limit)."""
     if isinstance(limit, ScenarioLimit):
         return _attached(result, float(limit.limit), limit.limit_from)
     from ..control.laws import get_law
@@ -276,7 +281,8 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
         return _attached(result, 0.0, "unstable at the smallest stiffness")
     if limit is None:
         gate = 0.0 if error else guess
-        if not (np.max(result.stiffness) > gate and _limit_can_matter(result, gate)):
+        if not (np.max(result.stiffness) > gate and _limit_can_matter(result, gate)) \
+                and not (quote and _fails(result)):
             return result if small is None else _attached(result, small, "1-D small-signal")
         try:
             limit = deciding_limit(sc, memo=memo)
@@ -290,6 +296,13 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
         return result
     return _attached(result, small, "1-D small-signal; the loop's own limit failed: "
                      + (str(limit).splitlines() or [type(limit).__name__])[0])
+
+
+def _fails(result) -> bool:
+    """Some segment ends worse than ``over_limit`` (a verdict whose line quotes the loop's limit)."""
+    from ..simulation.metrics import segment_metrics
+
+    return any(m.verdict not in ("converged", "over_limit") for m in segment_metrics(result))
 
 
 def _attached(result, value: float, source: str):

@@ -194,12 +194,13 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
     check_dask(dask)                               # a scheduler address that answers nothing: refused first
     folder = OutputFolder(out, "--out")            # checked before anything runs
     with folder:
-        partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume)
-        done = partial.done()
-        todo = sweep.cases.without(done)           # a view: the cases are generated as they run
         why = None
         if limits is None:
             limits, why = limits_by_default(sweep)
+        partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume,
+                                {"limits": bool(limits), "max_steps": max_steps})
+        done = partial.done()
+        todo = sweep.cases.without(done)           # a view: the cases are generated as they run
         print(sweep.plan(len(todo), workers, limits), file=sys.stderr, flush=True)
         if why is not None:
             print(why, file=sys.stderr, flush=True)
@@ -220,7 +221,9 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         predicted = sweep_prediction(sweep, df)
         summary = sweep_summary(sweep, df, predicted)
         summary.update({"run": {"workers": workers, "engine": dask or "local", "seconds": time.perf_counter() - t0,
-                                "resumed_cases": len(done), "command": command_line},
+                                "resumed_cases": len(done), "command": command_line,
+                                # without them a case's verdict is its run's alone (docs/sweeps.md)
+                                "limits": bool(limits), "verdicts_against_the_loops_limit": bool(limits)},
                         "sweep": {"grid": sweep.grid, "random": sweep.random, "samples": sweep.samples,
                                   "seed": sweep.seed, "fingerprint": sweep.fingerprint}})
         if plots:

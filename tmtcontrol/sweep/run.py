@@ -25,7 +25,6 @@ import json
 import math
 import os
 import pathlib
-import shutil
 import sys
 import time
 from typing import Any, Callable
@@ -247,13 +246,22 @@ class PartialFolder:
         out = pathlib.Path(out).expanduser().resolve()
         return out.parent / (out.name + ".partial")
 
-    def __init__(self, out: pathlib.Path, sweep: Sweep, resume: bool):
+    def __init__(self, out: pathlib.Path, sweep: Sweep, resume: bool, options: dict | None = None):
         self.path = self.path_for(out)
         self.fresh = False                   # True if this run created it
+        # what else shapes a row: a resumed sweep must run its cases as the interrupted one did
+        self.options = dict(options or {})
+        # an axis whose values include a list that is not one number: every cell of it is JSON text (a column
+        # mixing numbers and text cannot be written; review 10)
+        self.text_axes = {a: all(isinstance(v, list) for v in vals) for a, vals in sweep.grid.items()
+                          if any(isinstance(v, (list, dict)) and not (isinstance(v, list) and len(v) == 1
+                                                                      and isinstance(v[0], (int, float)))
+                                 for v in vals)}
         mark = self.path / self.MARK
         if self.path.exists():
             try:
-                fp = json.loads(mark.read_text())["fingerprint"]
+                stored = json.loads(mark.read_text())
+                fp = stored["fingerprint"]
             except (OSError, ValueError, KeyError, TypeError):
                 raise OutputError(f"--out: {self.path} exists and is not a tmtcontrol sweep's; "
                                   "move it or choose another --out") from None
@@ -262,11 +270,19 @@ class PartialFolder:
                                   "(or remove that folder)")
             if fp != sweep.fingerprint:
                 raise OutputError(f"--resume: {self.path} holds a different sweep (other base scenario or cases)")
+            before = stored.get("options", {})
+            # (a mark without options, an older tmtcontrol's, is not checked for them)
+            changed = [k for k in sorted(before) if before.get(k) != self.options.get(k)]
+            if changed:
+                raise OutputError("--resume: " + ", ".join(f"--{k.replace('_', '-')} was {_said(before.get(k))}"
+                                                           f", now {_said(self.options.get(k))}" for k in changed)
+                                  + f" ({self.path}); resume with the same, or the rows would mix")
         else:
             try:
                 self.path.mkdir(parents=False)
                 self.fresh = True
-                mark.write_text(json.dumps({"fingerprint": sweep.fingerprint, "cases": len(sweep.cases)}) + "\n")
+                mark.write_text(json.dumps({"fingerprint": sweep.fingerprint, "cases": len(sweep.cases),
+                                            "options": self.options}) + "\n")
             except OSError as exc:
                 raise OutputError(f"--out: cannot create {self.path} ({exc.strerror})") from None
 
@@ -291,6 +307,11 @@ class PartialFolder:
 
         first = min(r["case"] for r in rows)
         tmp = self.path / f".part-{first:07d}.tmp"
+        for r in rows:
+            for axis, listed in self.text_axes.items():
+                v = r.get(axis)
+                if axis in r and not isinstance(v, str):      # a one-number list, stored as its number by case_row
+                    r[axis] = json.dumps([v] if listed else v)
         pq.write_table(pa.Table.from_pylist(_uniform(rows)), tmp)
         os.replace(tmp, self.path / f"part-{first:07d}.parquet")
 
@@ -303,7 +324,17 @@ class PartialFolder:
         return t.sort_by("case")
 
     def remove(self) -> None:
-        shutil.rmtree(self.path, ignore_errors=True)
+        """Remove what the sweep wrote here (its mark and its chunks), and the
+        folder if that empties it; a file someone else put there stays, with
+        the folder (review 10: the folder was removed whole)."""
+        for f in [self.path / self.MARK, *self.path.glob("part-*.parquet"), *self.path.glob(".part-*.tmp")]:
+            f.unlink(missing_ok=True)
+        try:
+            self.path.rmdir()
+        except FileNotFoundError:
+            pass
+        except OSError:
+            print(f"sweep: kept {self.path}: it holds files tmtcontrol did not write", file=sys.stderr)
 
 
 def kept_note(out) -> str | None:
@@ -322,6 +353,10 @@ def kept_note(out) -> str | None:
         pass
     return (f"{n} finished case{'s' if n != 1 else ''} kept in {path}/; "
             "run the same command with --resume to continue")
+
+
+def _said(value) -> str:
+    return "not given" if value is None else "on" if value is True else "off" if value is False else str(value)
 
 
 def _uniform(rows: list[dict]) -> list[dict]:
