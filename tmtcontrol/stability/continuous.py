@@ -231,7 +231,6 @@ def analyze_continuous(m, b, k, k_e, f_d=10.0) -> ContinuousAnalysis:
     _check(m, b, k, k_e, f_d)       # before importing python-control (~1 s): bad input is refused at once
     import control as ct
 
-    G = tmt_error_tf(m, b, k, k_e)
     S = tmt_error_ss(m, b, k, k_e)
     poles = np.sort_complex(np.linalg.eigvals(S.A))
     wn = math.sqrt((k + k_e) / m)
