@@ -89,9 +89,9 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         lo, hi = k_e_min, k_e_max
     lw = get_law(law)
     params = lw.parameters() if law_params is None else law_params
-    if lw.steady_force is not None:
+    if lw.steady_force is not None and np.isfinite(out["steady_state_force"]):
         # the law as implemented (its clips, its assumed stiffness, the x_e error), at the worst end of the range;
-        # eq. (22)'s own claim (f_d) stays under steady_state_force_eq22
+        # eq. (22)'s own claim (f_d) stays under steady_state_force_eq22; an unstable loop has no steady force
         worst = max((lw.steady_force(params, f_d, k, ke, x_e_error) for ke in (lo, hi)),
                     key=lambda f: abs(f - f_d))
         out.update({"steady_state_force_eq22": out["steady_state_force"], "steady_state_force": float(worst)})
