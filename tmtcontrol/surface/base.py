@@ -29,11 +29,15 @@ def contact_force(x, dx, k_e, damping, x_e=0.0):
     f = k_e * pen + damping * dx
     if isinstance(pen, (ca.SX, ca.MX, ca.DM)):
         return ca.if_else(pen > 0, ca.fmax(f, 0), 0)
-    for name, value in (("k_e", k_e), ("damping", damping)):
-        if not np.all(np.asarray(value, dtype=float) >= 0):     # NaN fails too
-            raise ValueError(f"{name}: must be finite and >= 0 (N/m, N s/m), got {value!r}")
+    try:
+        ok = k_e >= 0 and damping >= 0          # numbers (a plant's every step): no array built; NaN fails
+    except ValueError:                          # arrays
+        ok = bool(np.all(np.asarray(k_e) >= 0) and np.all(np.asarray(damping) >= 0))
+    if not ok:
+        name, value = ("k_e", k_e) if not np.all(np.asarray(k_e) >= 0) else ("damping", damping)
+        raise ValueError(f"{name}: must be finite and >= 0 (N/m, N s/m), got {value!r}")
     # a NaN depth or rate (a diverged state) gives NaN, never "no contact"
-    return np.where(np.isnan(f), np.nan, np.where(pen > 0, np.maximum(f, 0.0), 0.0))
+    return np.where(pen > 0, np.maximum(f, 0.0), np.where(np.isnan(f), np.nan, 0.0))
 
 
 def checked_frame(kind: str, R, c) -> tuple[np.ndarray, np.ndarray]:
