@@ -489,9 +489,9 @@ def _limit_blocks(rep: Report, res) -> list:
     if use is None:
         return []
     L = use.limits
-    stated = bool(np.any(np.isfinite(L.tau_max)) or np.any(np.isfinite(L.dq_max))
-                  or np.any(np.isfinite(L.q_min) | np.isfinite(L.q_max)))
-    if not stated:
+    judged = [k for k, on in (("torque", np.any(np.isfinite(L.tau_max))), ("rate", np.any(np.isfinite(L.dq_max))),
+                              ("joint", np.any(np.isfinite(L.q_min) | np.isfinite(L.q_max)))) if on]
+    if not judged:
         peaks = ", ".join(fmt.qty(v, "N m") for v in use.peak_torque)
         return [Paragraph(f"The robot states no torque, rate or joint limits (the paper's PUMA parameter set has "
                           f"none), so none is judged; peak |tau| per joint {peaks}. Set robot.tau_max and "
@@ -513,8 +513,6 @@ def _limit_blocks(rep: Report, res) -> list:
         for r, s in zip(rows, use.saturated):
             r.append(fmt.qty(s, "s"))
     worst = min(use.excursions, key=lambda e: (e.kind != "torque", e.time), default=None)
-    judged = [k for k, on in (("torque", np.any(np.isfinite(L.tau_max))), ("rate", np.any(np.isfinite(L.dq_max))),
-                              ("joint", np.any(np.isfinite(L.q_min) | np.isfinite(L.q_max)))) if on]
     rep.verdicts.append(Verdict(                      # named after the limits judged (a PUMA with only tau_max)
         f"Within the arm's {' and '.join([', '.join(judged[:-1]), judged[-1]] if len(judged) > 1 else judged)} "
         "limits (simulation)", use.ok,

@@ -193,9 +193,10 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
     if time.size == 0:
         raise ValueError("limit_use: no samples in the window (start and end hold no sample of the run)")
     excursions = []
+    bounds = {kind: limits.bounds(kind) for kind in KINDS}       # judged bounds: the excursions' and the margins'
     for kind in KINDS:
         x = series[kind]
-        lo, hi = limits.bounds(kind)
+        lo, hi = bounds[kind]
         for j in range(x.shape[0]):
             if not (np.isfinite(lo[j]) or np.isfinite(hi[j])):
                 continue
@@ -216,11 +217,11 @@ def limit_use(limits: JointLimits, time, q, dq, tau, Ts: float) -> LimitUse:
     with np.errstate(invalid="ignore", divide="ignore"):
         peak_tau = np.max(np.abs(series["torque"]), axis=1)
         peak_dq = np.max(np.abs(series["rate"]), axis=1)
-        tau_hi, dq_hi = limits.bounds("torque")[1], limits.bounds("rate")[1]
+        tau_hi, dq_hi = bounds["torque"][1], bounds["rate"][1]
         t_margin = np.where(np.isfinite(tau_hi), 1.0 - peak_tau / tau_hi, np.inf)
         r_margin = np.where(np.isfinite(dq_hi), 1.0 - peak_dq / dq_hi, np.inf)
         qq = series["position"]
-        q_lo, q_hi = limits.bounds("position")
+        q_lo, q_hi = bounds["position"]
         p_margin = np.min(np.minimum(qq - q_lo[:, None], q_hi[:, None] - qq), axis=1)
         on_clip = np.abs(np.abs(series["torque"]) - limits.tau_max[:, None]) <= SATURATION_RTOL * limits.tau_max[:, None]
     saturated = (np.count_nonzero(on_clip, axis=1) * Ts if limits.saturate else np.zeros(len(limits.names)))

@@ -40,6 +40,11 @@ def contact_force(x, dx, k_e, damping, x_e=0.0):
     return np.where(pen > 0, np.maximum(f, 0.0), np.where(np.isnan(f), np.nan, 0.0))
 
 
+def orthonormal(R) -> bool:
+    """Whether the 3 x 3 ``R`` is finite with orthonormal columns (to 1e-9)."""
+    return bool(np.all(np.isfinite(R)) and np.allclose(R.T @ R, np.eye(3), atol=1e-9))
+
+
 def checked_frame(kind: str, R, c) -> tuple[np.ndarray, np.ndarray]:
     """``(R, c)`` as read-only arrays (a surface is shared: geometry.surface_of
     builds each once), refused in one line naming ``kind`` unless R is a
@@ -49,7 +54,7 @@ def checked_frame(kind: str, R, c) -> tuple[np.ndarray, np.ndarray]:
     point (m)."""
     R = np.array(R, dtype=float).reshape(3, 3)
     c = np.array(c, dtype=float).reshape(3)
-    if not (np.all(np.isfinite(R)) and np.allclose(R.T @ R, np.eye(3), atol=1e-9) and np.linalg.det(R) > 0):
+    if not (orthonormal(R) and np.linalg.det(R) > 0):
         raise ValueError(f"{kind}: the task frame must be a finite right-handed rotation matrix")
     if not np.all(np.isfinite(c)):
         raise ValueError(f"{kind}: the point c must be finite, got {c.tolist()}")

@@ -39,7 +39,7 @@ import numbers
 import casadi as ca
 import numpy as np
 
-from .base import Surface, checked_frame
+from .base import Surface, checked_frame, orthonormal
 
 __all__ = ["Sphere", "Cylinder", "SIDES"]
 
@@ -170,7 +170,7 @@ class _Curved(Surface):
         p = np.asarray(point, dtype=float).reshape(3)
         R = np.array(self._fn("coordinates")(p, np.zeros(3), *self._vals())[0])
         # at the centre of curvature (or on the axis) the normal is 0/0: NaN, or rounding's arbitrary vectors
-        if np.all(np.isfinite(p)) and not (np.all(np.isfinite(R)) and np.allclose(R.T @ R, np.eye(3), atol=1e-9)):
+        if np.all(np.isfinite(p)) and not orthonormal(R):
             raise ValueError(f"{self.kind}: no task frame at {p.tolist()} (the centre of curvature or the axis)")
         return R
 
