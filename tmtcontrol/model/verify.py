@@ -104,7 +104,7 @@ def random_states(robot, samples: int, seed: int = 0):
     rng = np.random.default_rng(seed)
     n = robot.n
     lo, hi = robot.q_min.copy(), robot.q_max.copy()
-    prismatic = np.array([j.type == "prismatic" for j in robot.chain.joints]) if robot.chain else np.zeros(n, bool)
+    prismatic = np.array(robot.prismatic, dtype=bool)
     span = np.where(prismatic, 0.5, math.pi)
     lo = np.where(np.isfinite(lo), lo, -span)
     hi = np.where(np.isfinite(hi), hi, span)
