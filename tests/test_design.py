@@ -211,3 +211,29 @@ def test_a_zero_overshoot_bound_is_met_to_the_solvers_tolerance(capsys):
                       m_p=paper_effective_mass(worst=True))
     ok = check_impedance(spec, 283.55, verify_points=8)
     assert ok.passed and ok.worst_overshoot <= OVERSHOOT_SLACK
+
+
+def test_a_range_below_the_tmts_clip_fails_the_verification():
+    """Regression (review 9, left open then): ``design --ke-min 50`` was
+    "verified" although the TMT's stiffness estimate sits on its clip
+    1/min_stiffness below min_stiffness = 100 N/m and the force never reaches
+    f_d there. Closed form of that equilibrium: the reference x_e + f_d (1/k +
+    1/min_stiffness) against the series springs k and k_e, f = k k_e/(k + k_e)
+    f_d (1/k + 1/min_stiffness) = 6.667 N at k_e = 50, k = 100 (to 4 digits,
+    as printed). A range at or above the clip keeps its verdict; the spec
+    carries the scenario's own clip."""
+    from tmtcontrol.stability.design import check_impedance, scenario_design_spec
+
+    base = dict(m=1.0, k=100.0, k_e_max=2e4, Ts=1e-3, m_p=3.72)
+    want = 100 * 50 / 150 * 10 * (1 / 100 + 1 / 100)
+    low = check_impedance(DesignSpec(k_e_min=50.0, **base), 300.0, verify_points=4)
+    assert not low.passed
+    (msg,) = [v for v in low.violations if "min_stiffness" in v]
+    assert f"settles at {want:.4g} N" in msg and "k_e_min 50 N/m" in msg
+    assert check_impedance(DesignSpec(k_e_min=100.0, **base), 300.0, verify_points=4).passed
+    assert check_impedance(DesignSpec(k_e_min=50.0, min_stiffness=40.0, **base), 300.0, verify_points=4).passed
+    sc = apply_overrides(paper_scenario(), ["controller.law.min_stiffness=40.0"])
+    assert scenario_design_spec(sc).min_stiffness == 40.0
+    assert scenario_design_spec(paper_scenario()).min_stiffness == 100.0
+    with pytest.raises(DesignError, match="min_stiffness"):
+        DesignSpec(k_e_min=50.0, min_stiffness=0.0, **base)

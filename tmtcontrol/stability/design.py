@@ -46,6 +46,7 @@ import casadi as ca
 import numpy as np
 from scipy.linalg import solve_continuous_lyapunov
 
+from ..control.laws.tmt import TmtParameters
 from ..files import VerdictFailed
 from .continuous import AnalysisError, _pos
 from .sampled import spectral_radius
@@ -79,6 +80,28 @@ underestimated by up to 7.6 % of its amplitude: at 5 ms, [5e3, 5e4] N/m,
 while b in about 309.1-360 N s/m meets the bound)."""
 
 
+TMT_MIN_STIFFNESS = TmtParameters().min_stiffness
+"""The TMT's default ``min_stiffness`` (N/m): :class:`DesignSpec`'s unless
+the scenario's law states another."""
+
+
+def _clip_violation(spec: DesignSpec, k: float) -> list[str]:
+    """The TMT cannot track f_d on a surface softer than its ``min_stiffness``:
+    its compliance estimate sits on the clip 1/min_stiffness there and the
+    force settles at the law's ``steady_force`` (eqs. 23-24 with the clip),
+    not f_d, whatever b (review: ``design --ke-min 50`` was "verified" while
+    its force settled at 6.7 N for 10 N). Empty when the range is above it."""
+    from ..control.laws import get_law
+
+    if spec.k_e_min >= spec.min_stiffness:
+        return []
+    law = get_law("tmt")
+    f = law.steady_force(law.parameters(min_stiffness=spec.min_stiffness), spec.f_d, k, spec.k_e_min, 0.0)
+    return [f"k_e_min {spec.k_e_min:.4g} N/m is below the TMT's min_stiffness {spec.min_stiffness:.4g} N/m: "
+            f"its stiffness estimate sits on that clip and the force settles at {f:.4g} N, not f_d = "
+            f"{spec.f_d:g} N"]
+
+
 class DesignError(ValueError):
     """Invalid design specification (the message names the parameter)."""
 
@@ -107,6 +130,7 @@ class DesignSpec:
     delay: int = 0                   # computation delay, samples
     alpha: float = 0.0               # force-filter pole (0: no filter)
     intersample: int = INTERSAMPLE   # points per period where the continuous force is bounded (0: samples only)
+    min_stiffness: float = TMT_MIN_STIFFNESS  # N/m, the TMT's clip of its stiffness estimate (the law's parameter)
 
     def __post_init__(self):
         try:
@@ -114,6 +138,7 @@ class DesignSpec:
                 _pos(name, getattr(self, name))
             _pos("max_overshoot", self.max_overshoot, strict=False)
             _pos("stiffness_margin", self.stiffness_margin)
+            _pos("min_stiffness", self.min_stiffness)
         except AnalysisError as exc:
             raise DesignError(str(exc)) from None
         if self.k_e_min > self.k_e_max:
@@ -162,7 +187,7 @@ class DesignResult:
     @property
     def violations(self) -> list[str]:
         """Bounds the design's own verification finds violated (empty: verified)."""
-        s, out = self.spec, []
+        s, out = self.spec, _clip_violation(self.spec, self.k)
         if self.worst_overshoot > s.max_overshoot + OVERSHOOT_SLACK:
             out.append(f"first-contact overshoot {self.worst_overshoot:.4g} % > max_overshoot {s.max_overshoot:g} %")
         if not self.sampled_limit >= s.stiffness_margin * s.k_e_max:
@@ -247,7 +272,7 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
 
     law = get_law("tmt")
     b, k = ca.SX.sym("b"), ca.SX.sym("k")
-    F, _ = _step_function(law, law.parameters(), m=spec.m, b=b, k=k, k_e=k_e, Ts=spec.Ts, m_p=spec.m_p,
+    F, _ = _step_function(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, k_e=k_e, Ts=spec.Ts, m_p=spec.m_p,
                           f_d=spec.f_d, delta=0.0, kd=b / spec.m, kp=k / spec.m, alpha=spec.alpha, d_e=0.0,
                           delay=spec.delay, inputs=(b, k))
     n = max(2, int(math.ceil(duration / spec.Ts)))
@@ -640,7 +665,8 @@ def _limit(spec: DesignSpec, b: float, k: float) -> float:
     from .lawloop import law_stiffness_limit
 
     # scanned from k_e_min/10: far below it the TMT estimate sits on its min_stiffness clip
-    return law_stiffness_limit(get_law("tmt"), m=spec.m, b=b, k=k, Ts=spec.Ts, m_p=spec.m_p, f_d=spec.f_d,
+    law = get_law("tmt")
+    return law_stiffness_limit(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, Ts=spec.Ts, m_p=spec.m_p, f_d=spec.f_d,
                                alpha=spec.alpha, delay=spec.delay, k_lo=spec.k_e_min / 10)
 
 
@@ -696,7 +722,9 @@ def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> D
     Ts = kw.get("Ts", p["Ts"])
     alpha = p["alpha"] if Ts == p["Ts"] else scenario.sensor.pole(Ts)
     base = dict(m=p["m"], k=p["k"], k_e_min=p["k_e_min"], k_e_max=p["k_e_max"], Ts=Ts,
-                max_overshoot=overshoot_bound(scenario), f_d=p["f_d"], m_p=p["m_p_max"], delay=p["delay"], alpha=alpha)
+                max_overshoot=overshoot_bound(scenario), f_d=p["f_d"], m_p=p["m_p_max"], delay=p["delay"], alpha=alpha,
+                min_stiffness=(scenario.controller.law.min_stiffness if scenario.controller.law.kind == "tmt"
+                               else TMT_MIN_STIFFNESS))
     return DesignSpec(**{**base, **kw})
 
 
