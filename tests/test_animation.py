@@ -204,3 +204,26 @@ def test_mujocos_renderer_aborting_while_drawing_is_one_line_and_the_process_liv
         _in_child(lambda: (_ for _ in ()).throw(RenderUnavailable("no GL here")))
     frames = _in_child(lambda n: [np.full((2, 3, 3), i, dtype=np.uint8) for i in range(n)], 4)
     assert [int(f[0, 0, 0]) for f in frames] == [0, 1, 2, 3] and frames[0].shape == (2, 3, 3)
+
+
+def test_the_renderer_probe_keeps_mujocos_warnings_out_of_the_users_folder(tmp_path):
+    """Regression: the renderer probe's child process ran MuJoCo with its
+    default warning handler, which appends every warning to MUJOCO_LOG.TXT
+    in the working folder (the user's: a file tmtcontrol did not need to
+    write). The probe starts with a handler that prints to stderr: a
+    warning raised after it (a NaN velocity stepped) leaves no file; the same
+    step without it writes one (the control: that the step warns at all)."""
+    from tmtcontrol.simulation.mujoco_render import _PROBE, _QUIET_WARNINGS
+
+    assert _PROBE.startswith(_QUIET_WARNINGS)
+    warn = ("import mujoco, numpy\n"
+            "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><joint/><geom size=\"0.1\"/></body>"
+            "</worldbody></mujoco>')\n"
+            "d = mujoco.MjData(m)\nd.qvel[:] = numpy.nan\nmujoco.mj_step(m, d)\n")
+    quiet, loud = tmp_path / "quiet", tmp_path / "loud"
+    for folder, code in ((quiet, _QUIET_WARNINGS + warn), (loud, warn)):
+        folder.mkdir()
+        r = subprocess.run([sys.executable, "-c", code], cwd=folder, capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+    assert list(quiet.iterdir()) == []
+    assert [p.name for p in loud.iterdir()] == ["MUJOCO_LOG.TXT"]

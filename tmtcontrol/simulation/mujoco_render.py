@@ -43,7 +43,12 @@ PROBE_TIMEOUT = 60.0
 """Seconds the child process of :func:`renderer_problem` may take to start
 MuJoCo's renderer and draw one frame (it takes about 1 s)."""
 
-_PROBE = ("import mujoco\n"
+_QUIET_WARNINGS = ("import sys\nimport mujoco\n"
+                   "mujoco.set_mju_user_warning(lambda message: print(message, file=sys.stderr))\n")
+"""The probe's first lines: MuJoCo's default warning handler would print to
+stdout and append to MUJOCO_LOG.TXT in the working folder (the user's)."""
+
+_PROBE = (_QUIET_WARNINGS +
           "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><light pos=\"0 0 1\"/><geom size=\"0.1\"/>"
           "</worldbody></mujoco>')\n"
           "r = mujoco.Renderer(m, 8, 8)\n"
