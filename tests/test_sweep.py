@@ -127,6 +127,9 @@ def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, 
     assert summary["verdicts"] == {"converged": 2, "off_target": 0, "over_limit": 0, "beyond_limit": 0,
                                    "limit_cycle": 2, "diverged": 0}
     assert summary["worst"][0]["verdict"] == "limit_cycle"
+    # the boundary's values carry their axes' units (the schema's: stiffness in N/m, noise in N, cycles none)
+    assert summary["units"] == {"environment.stiffness.values": "N/m", "trajectory.cycles": "",
+                                "sensor.noise_std": "N", "max_steady_error": "N", "predicted_stiffness_limit": "N/m"}
     # the analysis' limit for the paper loop lies between the converged and the failing stiffness
     (pred,) = summary["predicted_stiffness_limit"]
     assert 5000.0 < pred["limit"] < 300000.0

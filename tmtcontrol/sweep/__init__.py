@@ -83,7 +83,8 @@ def sweep_prediction(sweep: Sweep, df) -> dict | None:
 
 def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
     """Counts per verdict, the five worst cases and the boundary found along
-    the first axis (per value of the second)."""
+    the first axis (per value of the second), with the SI unit of each axis
+    and figure (``units``)."""
     import numpy as np
 
     from ..simulation.metrics import VERDICTS
@@ -115,7 +116,9 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
         boundary.append({**{a: _plain(v) for a, v in zip(others, values)},
                          f"largest {first} with every case converged": _plain(last_ok),
                          f"smallest {first} with a case not converged": _plain(first_bad)})
-    out = {"cases": int(len(df)), "axes": axes, "verdicts": counts, "worst": worst, "boundary": boundary}
+    out = {"cases": int(len(df)), "axes": axes, "verdicts": counts, "worst": worst, "boundary": boundary,
+           # SI units of the axes (and so of the boundary values) and of the numbers quoted
+           "units": {**sweep.units, "max_steady_error": "N", "predicted_stiffness_limit": "N/m"}}
     if predicted:
         out["predicted_stiffness_limit"] = [{"value": list(k) if isinstance(k, tuple) else k, "limit": v}
                                             for k, v in predicted.items()]
