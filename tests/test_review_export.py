@@ -331,3 +331,29 @@ def test_the_makefile_builds_from_a_copy_twice_and_cleans(tmp_path):
     _run(["./example_loop", "5"], copy)
     _run(["make", "clean"], copy)
     assert {p.name for p in copy.iterdir()} == exported
+
+
+@pytest.mark.parametrize("edit", ["kd[0]=nan", "kp[0]=nan", "kp[0]=inf", "tau_max[0]=nan", "tau_max[1]=-5.0",
+                                  "dq[1]=nan"])
+def test_a_bad_input_behind_the_torque_clip_is_refused(built, edit):
+    """Regression (review 11): with the torque clip on, a NaN or infinite gain made every torque NaN,
+    which the clip's fmin/fmax turned into +-tau_max: full reverse torque on joint 2 with return code 0
+    (a NaN tau_max removed the clip, a negative one pinned the torque). The inputs are checked now:
+    that period returns TMT_E_NONFINITE (-1) and leaves the command as it was. The same edit without
+    the bad value (the clip at [5, 18, 10] N m, engaged) steps with 0 and a torque within the clip."""
+    _, ctl = built
+    p = ctl.default_params()
+    s, m, c = ctl.new_state(p), ctl.Measurement(), ctl.Command()
+    m.q[0], m.q[1], m.q[2] = 0.0, -0.5, 0.8
+    normal = np.array(p.R[:]).reshape(3, 3, order="F")[:, 0]
+    m.force[0], m.force[1], m.force[2] = (-normal * 10.0).tolist()
+    p.tau_max[0], p.tau_max[1], p.tau_max[2] = 5.0, 18.0, 10.0
+    assert ctl.step(p, s, m, c) == 0
+    tau = np.array(c.tau[:])
+    assert np.all(np.abs(tau) <= [5.0, 18.0, 10.0]) and np.any(np.abs(tau) == [5.0, 18.0, 10.0])  # it engaged
+    field, value = edit.split("=")
+    name, index = field[:-3], int(field[-2])
+    getattr(m if name == "dq" else p, name)[index] = float(value)
+    before = bytes(c)
+    assert ctl.step(p, s, m, c) == -1
+    assert bytes(c) == before

@@ -428,6 +428,35 @@ def _copy_in(fields, src: str, dst: str) -> str:
     return "\n".join(lines)
 
 
+UNBOUNDED_PARAMS = ("tau_max",)
+"""Parameters whose ``INFINITY`` means "no limit" (the torque clip); every
+other parameter and every measurement must be finite."""
+
+
+def _check_in(params, meas) -> str:
+    """The fixed-count check of ``tmt_step``'s inputs, before the generated
+    function runs: a NaN anywhere, or an infinite value other than a limit of
+    :data:`UNBOUNDED_PARAMS` (which must be >= 0 instead), sets ``bad``. The
+    results' own check cannot see every bad input: the torque clip
+    (``fmin``/``fmax``) turns a NaN torque into +-tau_max (review 11: a NaN
+    gain commanded full reverse torque with return code 0)."""
+    runs, i = [], 0           # [first, stop, unbounded?]: contiguous parameters checked alike
+    for f in params:
+        kind = f.name in UNBOUNDED_PARAMS
+        if runs and runs[-1][2] == kind:
+            runs[-1][1] = i + f.size
+        else:
+            runs.append([i, i + f.size, kind])
+        i += f.size
+    lines = [f"    for (i = 0; i < {sum(f.size for f in meas)}; ++i) {{", "        bad |= !isfinite(state->y[i]);",
+             "    }"]
+    for first, stop, unbounded in runs:
+        lines += [f"    for (i = {first}; i < {stop}; ++i) {{"
+                  + ("        /* a limit: INFINITY is none, a NaN or a negative one refused */" if unbounded else ""),
+                  f"        bad |= {'!(state->p[i] >= 0.0)' if unbounded else '!isfinite(state->p[i])'};", "    }"]
+    return "\n".join(lines)
+
+
 def _copy_out(fields, src: str, dst: str, offset: int = 0) -> str:
     lines, i = [], offset
     for f in fields:
@@ -496,6 +525,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(mf),
         "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(df),
         "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(mf, "meas", "state->y"),
+        "CHECK_INPUTS": _check_in(pf, mf),
         "UNPACK_CMD": _copy_out(cf, "state->out", "cmd"),
         "UNPACK_DIAG": _copy_out(df, "state->out", "cmd", n_cmd),
         "DEFAULT_PARAMS": _defaults(pf, p0),

@@ -60,12 +60,15 @@ int tmt_init(const tmt_params *params, tmt_state *state)
 
 /* A non-finite measurement or parameter (a NaN force reading, say) would make
  * the state non-finite for good: tmt_step refuses that period instead, leaving
- * the state and the command as they were (fixed-count checks, no early exit). */
+ * the state and the command as they were (fixed-count checks, no early exit).
+ * The inputs are checked as well as the results: the torque clip turns a NaN
+ * torque into +-tau_max, a finite result. */
 int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *meas, tmt_command *cmd)
 {
     int i, rc, bad = 0;
 @PACK_PARAMS@
 @PACK_MEAS@
+@CHECK_INPUTS@
     state->arg[0] = state->s;
     state->arg[1] = state->y;
     state->arg[2] = state->p;

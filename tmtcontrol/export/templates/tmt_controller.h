@@ -87,8 +87,9 @@ void tmt_default_params(tmt_params *params);
 int tmt_init(const tmt_params *params, tmt_state *state);
 
 /* One control period: reads meas, writes cmd, advances state. Returns 0 on
- * success; TMT_E_NONFINITE if a result would be NaN or infinite (a NaN or
- * infinite measurement or parameter), or the generated function's non-zero
+ * success; TMT_E_NONFINITE if a result would be NaN or infinite, or an input
+ * is (a NaN or infinite measurement or parameter; tau_max may be INFINITY, no
+ * clip, but not NaN or negative), or the generated function's non-zero
  * return code: then state and cmd are left as they were (the last good
  * command; stop the robot safely) and the next call starts from that state.
  * Call tmt_init() before the first call. */
