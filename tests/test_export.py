@@ -25,7 +25,7 @@ import pytest
 from tmtcontrol import Simulator, apply_overrides, paper_scenario
 from tmtcontrol.cli import main
 from tmtcontrol.export import generate
-from tmtcontrol.export.generate import ExportError, export_controller
+from tmtcontrol.export.generate import ExportError, check_prefix, export_controller
 from tmtcontrol.export.sil import CompiledController, read_commands, simulate_with_controller, write_measurements
 from tmtcontrol.files import MANIFEST
 
@@ -716,3 +716,18 @@ def test_the_replay_measurements_press_on_the_surface(paper_result):
     pressed = -inward @ force
     np.testing.assert_allclose(pressed, paper_result.contact_force, rtol=0, atol=1e-12)
     assert pressed.max() > 5.0
+
+
+@pytest.mark.parametrize("prefix", ["pthread_attr", "sem", "mtx", "cnd", "thrd", "atomic", "strx", "memo", "wcsy"])
+def test_a_prefix_in_a_system_namespace_is_refused(tmp_path, capsys, prefix):
+    """Regression (review 11): ``--prefix pthread_attr`` was accepted and defined pthread_attr_init, so a
+    program including <pthread.h> failed to compile (conflicting types); likewise sem_init (POSIX),
+    mtx_init, cnd_init, thrd_*, atomic_init (C11 threads and atomics) and C's reserved str*, mem*, wcs*.
+    One line naming the flag, exit 2, nothing written; a prefix that only shares letters is accepted."""
+    out = tmp_path / "x"
+    assert main(["export", "paper", "--prefix", prefix, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --prefix:") and "reserves" in err[0]
+    assert not out.exists()
+    check_prefix("semantic")
+    check_prefix("pthreads")

@@ -434,3 +434,23 @@ def test_exported_c_runs_against_mujoco_as_the_built_in_controller_does(exported
     ref = simulate_on_mujoco(sc)
     assert c.info["plant"] == ref.info["plant"] == "mujoco (spring contact)" and c.info["code"] == "exported C (SIL)"
     _assert_same_signals(c, ref, ("contact_force", "q", "dq", "tau", "command_task", "position"))
+
+
+def test_a_cylinders_axis_is_column_3_of_the_exported_R():
+    """The parameter table says which column of R is a cylinder's axis (review 11: it said only that
+    column 1 is the normal; turning R about the normal moved the depth by 24 mm in the C). On the
+    built-in pipe (axis along base y, the normal straight down into it) the exported default R has
+    the scenario's axis as column 3 and its normal as column 1."""
+    from tmtcontrol import load_scenario
+    from tmtcontrol.export.generate import interface, scenario_values
+
+    sc = load_scenario("ur5-pipe")
+    p0, _ = scenario_values(sc, False)
+    start = 0
+    for f in interface(sc, False).param_fields:
+        if f.name == "R":
+            assert "axis is column 3" in f.doc
+            R = np.reshape(p0[start:start + 9], (3, 3), order="F")
+        start += f.size
+    axis = np.asarray(sc.environment.axis) / np.linalg.norm(sc.environment.axis)
+    assert abs(abs(R[:, 2] @ axis) - 1.0) < 1e-15 and np.allclose(R[:, 0], sc.environment.normal, atol=1e-15)

@@ -76,13 +76,24 @@ class ExportError(ValueError):
     """A controller that cannot be exported; the message names the setting."""
 
 
+SYSTEM_PREFIX = r"(pthread|sem|mtx|cnd|thrd|tss|atomic|sched|sig|posix|timer|clock|aio|lio|mq)(_|$)|(str|mem|wcs)[a-z]"
+"""Prefixes whose names the C library or POSIX uses or reserves (``sem`` +
+``_init`` is POSIX's ``sem_init``; C11 7.31.13 reserves ``str``, ``mem``
+and ``wcs`` followed by a letter): a program including the system header
+would not compile (review 11: ``--prefix pthread_attr``)."""
+
+
 def check_prefix(prefix: str, flag: str = "--prefix") -> str:
     """``prefix`` if it can name C symbols (:data:`PREFIX_PATTERN`, no ``__``,
-    not CasADi's own ``casadi``); else :class:`ExportError` naming ``flag``."""
+    not CasADi's own ``casadi``, not a system namespace :data:`SYSTEM_PREFIX`);
+    else :class:`ExportError` naming ``flag``."""
     if not isinstance(prefix, str) or not re.fullmatch(PREFIX_PATTERN, prefix) or "__" in prefix \
             or prefix.startswith("casadi"):
         raise ExportError(f"{flag}: {prefix!r} is not a C name prefix (lower-case letters, digits and single "
                           "underscores, starting with a letter, at most 24 characters, not 'casadi...')")
+    if re.match(SYSTEM_PREFIX, prefix):
+        raise ExportError(f"{flag}: {prefix!r} starts names the C library or POSIX uses or reserves "
+                          f"({prefix}_init, {prefix}_step ...); choose another prefix")
     return prefix
 
 
@@ -194,7 +205,7 @@ _PARAM_DOCS = {
                 "estimate becomes the contact point plus this"),
     "alpha": ("1", "-", "force-filter pole: f_m = alpha f_m,prev + (1 - alpha) f (0: no filter)"),
     "R": ("1", "base <- task", "task-frame rotation, column-major; column 1 the surface normal pointing "
-          "into the surface"),
+          "into the surface, columns 2 and 3 the tangent task axes 1 and 2 (a cylinder's axis is column 3)"),
     "c": ("m", "base", "task-frame origin (the estimated surface point at the path centre)"),
     "radius": ("m", "-", "sphere's or cylinder's radius (its tangent plane at c is R's)"),
     "side": ("1", "-", "sphere or cylinder: +1 the tool on the outside (convex), -1 on the inside (concave)"),
