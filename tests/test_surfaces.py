@@ -799,3 +799,25 @@ def test_the_contact_law_refuses_a_negative_stiffness_and_keeps_a_nan_depth():
         with pytest.raises(ValueError, match="^(k_e|damping): must be finite and >= 0"):
             contact_force(1e-3, 0.0, k_e, d)
     assert np.isnan(contact_force(np.nan, 0.0, 1e4, 0.0)) and np.isnan(contact_force(1e-3, np.nan, 1e4, 1.0))
+
+
+def test_a_position_export_whose_command_passes_the_parts_centre_is_refused(tmp_path, capsys):
+    """Regression (review 11): the exported position command p_c is the surface's point of X_c; on a
+    convex part X_c's depth runs to the free-space f_d/K, and where that reaches the radius the chart
+    comes out on the far side (the built-in pipe: f_d/K = r = 0.1 m, p_c crossed the axis). The
+    position export is refused naming impedance.k; with K above f_d/r, or the torque command
+    (--inner-loop, task coordinates), it is written. The chart's fold (closed form: the outside's
+    point at depth X_0 lies r - X_0 from the centre) is where depth_limit says."""
+    from tmtcontrol.cli import main
+    from tmtcontrol.surface import make_surface
+
+    out = tmp_path / "x"
+    assert main(["export", "ur5-pipe", "--out", str(out)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: impedance.k:") and "0.1 m" in line and not out.exists()
+    assert main(["export", "ur5-pipe", "--set", "impedance.k=[101.0, 100.0, 100.0]", "--out", str(out)]) == 0
+    s = make_surface("sphere", R0, C0, radius=0.05)
+    centre = C0 + 0.05 * R0[:, 0]
+    assert s.depth_limit() == 0.05 and make_surface("sphere", R0, C0, radius=0.05, side="inside").depth_limit() == np.inf
+    for depth in (0.01, 0.049):
+        assert abs(np.linalg.norm(s.to_base(np.array([depth, 0.01, 0.0])) - centre) - (0.05 - depth)) < 1e-15

@@ -330,7 +330,28 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
                           f"expand to CasADi SX ({str(exc).splitlines()[0][:160]})") from None
     check_exportable(fn, law)
     _check_layouts(fn, iface)
+    if not torque:
+        _check_position_depth(scenario, iface.surface)
     return fn, law
+
+
+def _check_position_depth(scenario: Scenario, surface) -> None:
+    """The position command ``p_c`` is the surface's point of X_c
+    (:meth:`.surface.base.Surface.point`). Before the force builds up X_c's
+    depth goes to the free-space reference's f_d/k (eq. 18's f_e = 0
+    branch); where that reaches the chart's :meth:`depth_limit` (the radius
+    on a convex sphere or cylinder) ``p_c`` and ``q_c`` pass the centre of
+    curvature and point through the part (review 11: on the built-in pipe,
+    f_d/k = r = 0.1 m, p_c crossed its axis). Refused, naming
+    ``impedance.k``; the torque command (``--inner-loop``) acts in task
+    coordinates and is not affected."""
+    f_d, k = scenario.controller.f_d, scenario.impedance.k[0]
+    limit = surface.depth_limit()
+    if f_d / k >= limit:
+        raise ExportError(f"impedance.k: the position command's free-space depth f_d/k = {f_d / k:.4g} m reaches "
+                          f"the {surface.kind}'s radius {limit:.4g} m, where p_c and q_c would pass its centre "
+                          f"and point through the part; use k > f_d/radius = {f_d / limit:.4g} N/m, or export "
+                          "the torque command (--inner-loop)")
 
 
 def check_exportable(fn: ca.Function, law: Law) -> None:

@@ -10,6 +10,7 @@ controller's belief of where the surface is.
 from __future__ import annotations
 
 import abc
+import math
 
 import casadi as ca
 import numpy as np
@@ -167,6 +168,13 @@ class Surface(abc.ABC):
         the rims of the hollow, not at the tool point). The default: nowhere
         concave."""
         return np.full(np.asarray(s, dtype=float).reshape(2, -1).shape[1], np.inf)
+
+    def depth_limit(self) -> float:
+        """The depth X_0 (m) beyond which :meth:`point` has no point of its
+        own: on the outside of a sphere or a cylinder its radius, where the
+        chart reaches the centre of curvature (deeper, it comes out the far
+        side); ``inf`` on a chart without one (the default)."""
+        return math.inf
 
     def primitive(self):
         """The part as a solid primitive, for a physics engine or a renderer

@@ -187,6 +187,11 @@ class _Curved(Surface):
         k = np.asarray(s, dtype=float).reshape(2, -1).shape[1]
         return np.full(k, self.radius if self.side == "inside" else np.inf)
 
+    def depth_limit(self) -> float:
+        """:meth:`.base.Surface.depth_limit`: the radius on the outside (the
+        centre of curvature lies ``r`` deep), ``inf`` on the inside."""
+        return self.radius if self.side == "outside" else math.inf
+
     def shifted(self, offset: float):
         return type(self)(self.R, self.c + offset * self.R[:, 0], self.radius, self.side)
 
