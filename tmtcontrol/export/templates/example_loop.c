@@ -7,7 +7,7 @@
  * next deadline: that deadline is skipped, not caught up). For hard real time
  * run it under SCHED_FIFO with locked memory (mlockall) on an isolated core.
  *
- * usage: ./example_loop [periods]     (default: 1000 periods of TMT_TS)
+ * usage: ./example_loop [periods]     (default: 1000 periods of params.Ts)
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
@@ -50,11 +50,13 @@ int main(int argc, char **argv)
     static tmt_measurement meas;
     static tmt_command cmd;
     long periods = argc > 1 ? strtol(argv[1], NULL, 10) : 1000;
-    long period_ns = (long)(TMT_TS * 1e9 + 0.5);
+    long period_ns;
     long k, overruns = 0, failures = 0;
     struct timespec next, now;
 
     tmt_default_params(&params);@EXAMPLE_START@
+    /* the period the controller is discretised with: params.Ts, not the exported TMT_TS (edited with it) */
+    period_ns = (long)(params.Ts * 1e9 + 0.5);
     tmt_init(&params, &state);
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (k = 0; k < periods; ++k) {
