@@ -85,11 +85,26 @@ class _Curved(Surface):
 
     @staticmethod
     def _local(p, par):
-        """``(x, y, z, r, sigma)``: ``p`` from the centre of curvature along
-        ``u0``, ``t1`` and ``t2``, the radius and the side's sign."""
+        """``(x, y, z, q_a, r, sigma)``: ``p`` from the centre of curvature
+        along ``u0``, ``t1`` and ``t2``, its offset from the path's centre
+        along the normal ``q_a = (p - c).a``, the radius and the side's
+        sign. Taken from ``q = p - c`` (``x = r - sigma q_a``): the point
+        minus a far centre would carry r eps of rounding into y and z."""
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
-        w = p - centre
-        return ca.dot(w, u0), ca.dot(w, t1), ca.dot(w, t2), r, sigma
+        q = p - par["c"]
+        q_a = ca.dot(q, a)
+        return r - sigma * q_a, ca.dot(q, t1), ca.dot(q, t2), q_a, r, sigma
+
+    @staticmethod
+    def _depth(q_a, d2, dist, r, sigma):
+        """The depth ``sigma (r - dist)`` (``dist`` the distance from the
+        centre of curvature, or from the axis) without subtracting two
+        numbers near r: ``r^2 - dist^2 = sigma q_a (2 r - sigma q_a) - d2``
+        (``d2`` the squared distance across the normal line: y^2 + z^2 on
+        a sphere, y^2 on a cylinder). Review 12: on a sphere of radius 1e7 m
+        the subtraction left 1e-9 m of noise in the depth, the periodic orbit
+        did not converge and its limit read 25 % low."""
+        return (q_a * (2 * r - sigma * q_a) - sigma * d2) / (r + dist)
 
     @staticmethod
     def _frame(X, par):
@@ -152,11 +167,6 @@ class _Curved(Surface):
         tests/test_surfaces.py checks it against the symbolic chart)."""
         raise NotImplementedError
 
-    def _axes_np(self):
-        a, t1, t2 = self.R[:, 0], self.R[:, 1], self.R[:, 2]
-        sigma = SIDES[self.side]
-        return t1, t2, -sigma * a, self.c + sigma * self.radius * a, self.radius, sigma
-
     def from_base(self, p) -> np.ndarray:
         p = np.asarray(p, dtype=float)
         flat = p.reshape(3, -1)
@@ -215,9 +225,10 @@ class Sphere(_Curved):
 
     @staticmethod
     def _coords(p, par):
-        x, y, z, r, sigma = _Curved._local(p, par)
+        x, y, z, q_a, r, sigma = _Curved._local(p, par)
         rho = ca.sqrt(x * x + y * y)
-        return ca.vertcat(sigma * (r - ca.sqrt(rho * rho + z * z)), r * ca.atan2(y, x), r * ca.atan2(z, rho))
+        depth = _Curved._depth(q_a, y * y + z * z, ca.sqrt(rho * rho + z * z), r, sigma)
+        return ca.vertcat(depth, r * ca.atan2(y, x), r * ca.atan2(z, rho))
 
     @staticmethod
     def _unit(X, par):
@@ -227,14 +238,22 @@ class Sphere(_Curved):
 
     @staticmethod
     def point(X, par):
+        # centre + (r - sigma X_0) u, written from c: along the normal a,
+        # sigma r (1 - cos(ph) cos(th)) + X_0 cos(ph) cos(th), with 1 - cos(ph) cos(th) =
+        # 2 sin^2(ph/2) + 2 cos(ph) sin^2(th/2) (no difference of numbers near r)
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
-        return centre + (r - sigma * X[0]) * Sphere._unit(X, par)
+        th, ph = X[1] / r, X[2] / r
+        cc, one_minus = ca.cos(ph) * ca.cos(th), 2 * ca.sin(ph / 2) ** 2 + 2 * ca.cos(ph) * ca.sin(th / 2) ** 2
+        return (par["c"] + (sigma * r * one_minus + X[0] * cc) * a
+                + (r - sigma * X[0]) * (ca.cos(ph) * ca.sin(th) * t1 + ca.sin(ph) * t2))
 
     def _point_np(self, X):
-        t1, t2, u0, centre, r, sigma = self._axes_np()
+        a, t1, t2 = (self.R[:, i, None] for i in range(3))
+        r, sigma = self.radius, SIDES[self.side]
         th, ph = X[1] / r, X[2] / r
-        u = np.cos(ph) * (np.cos(th) * u0[:, None] + np.sin(th) * t1[:, None]) + np.sin(ph) * t2[:, None]
-        return centre[:, None] + (r - sigma * X[0]) * u
+        cc, one_minus = np.cos(ph) * np.cos(th), 2 * np.sin(ph / 2) ** 2 + 2 * np.cos(ph) * np.sin(th / 2) ** 2
+        return (self.c[:, None] + (sigma * r * one_minus + X[0] * cc) * a
+                + (r - sigma * X[0]) * (np.cos(ph) * np.sin(th) * t1 + np.sin(ph) * t2))
 
     def _frame_at(self, p, X, par):
         # the same frame as _frame(X), from the radial direction u without trigonometry:
@@ -273,20 +292,23 @@ class Cylinder(_Curved):
 
     @staticmethod
     def _coords(p, par):
-        x, y, z, r, sigma = _Curved._local(p, par)
-        return ca.vertcat(sigma * (r - ca.sqrt(x * x + y * y)), r * ca.atan2(y, x), z)
+        x, y, z, q_a, r, sigma = _Curved._local(p, par)
+        return ca.vertcat(_Curved._depth(q_a, y * y, ca.sqrt(x * x + y * y), r, sigma), r * ca.atan2(y, x), z)
 
     @staticmethod
     def point(X, par):
+        # centre + (r - sigma X_0) u + X_2 t2 written from c, as the sphere's: 1 - cos(th) = 2 sin^2(th/2)
         a, t1, t2, u0, centre, r, sigma = _Curved._axes(par)
         th = X[1] / r
-        return centre + (r - sigma * X[0]) * (ca.cos(th) * u0 + ca.sin(th) * t1) + X[2] * t2
+        return (par["c"] + (2 * sigma * r * ca.sin(th / 2) ** 2 + X[0] * ca.cos(th)) * a
+                + (r - sigma * X[0]) * ca.sin(th) * t1 + X[2] * t2)
 
     def _point_np(self, X):
-        t1, t2, u0, centre, r, sigma = self._axes_np()
+        a, t1, t2 = (self.R[:, i, None] for i in range(3))
+        r, sigma = self.radius, SIDES[self.side]
         th = X[1] / r
-        u = np.cos(th) * u0[:, None] + np.sin(th) * t1[:, None]
-        return centre[:, None] + (r - sigma * X[0]) * u + X[2] * t2[:, None]
+        return (self.c[:, None] + (2 * sigma * r * np.sin(th / 2) ** 2 + X[0] * np.cos(th)) * a
+                + (r - sigma * X[0]) * np.sin(th) * t1 + X[2] * t2)
 
     def _frame_at(self, p, X, par):
         # from the radial direction u without trigonometry: e_1 = -sigma t2 x u, e_2 = t2
