@@ -24,8 +24,11 @@ point, with that point's normal: height and slope are continuous across
 the edge, so a plant excursion past it meets neither a cliff nor a jump in
 depth or force).
 **Approximation:** it is exact on a plane and where the surface is flat over
-the depth; the error is of order ``X_0^2 kappa`` (kappa the surface's
-curvature), 1e-9 m at a millimetre's depth on a 1 m radius. The contact
+the depth. It is taken at the point's own (u, v), its projection along e_n,
+which lies X_0 s from the closest surface point's (s the slope): the error
+is about ``X_0^2 kappa s^2 / 2`` (kappa the surface's curvature), 5e-9 m at
+a millimetre's depth on a 1 m radius at slope 0.1, and the normal is off
+the closest point's by about ``X_0 kappa s`` rad. The contact
 force is ``k_e X_0`` along the local inward normal ``n = (e_n + h_u t_1 +
 h_v t_2) / sqrt(1 + h_u^2 + h_v^2)``. The task frame is ``[n, e_1, n x
 e_1]``, e_1 the unit tangent ``S_u / |S_u|``.
