@@ -284,3 +284,29 @@ def test_a_signal_raised_inside_a_c_extension_is_an_interruption_not_a_traceback
     monkeypatch.setattr(cli, "_cache", a_real_system_error)
     with pytest.raises(SystemError, match="a bug"):
         cli.main(["cache"])
+
+
+def test_a_ctrl_c_after_the_commit_says_what_was_written(tmp_path, capsys, monkeypatch):
+    """Regression (review 13): simulate commits its folder, then prints the results; a Ctrl-C during
+    that printing said "nothing was written" (exit 130) of a folder it had just written, replacing
+    the previous output. Now the line names the folder, written in full (a commit is atomic); a
+    Ctrl-C before the commit still says nothing was written, and the target is as it was."""
+    import tmtcontrol.simulation.metrics as metrics
+    from tmtcontrol.cli import main
+    from tmtcontrol.files import MANIFEST
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "o"
+    run = ["simulate", "--no-plots", "--set", "trajectory.cycles=0.05", "--out", str(out)]
+    monkeypatch.setattr(metrics, "format_table", interrupted)          # printed after the commit
+    assert main(run) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"interrupted (Ctrl-C): {out} had been written in full before it"]
+    assert (out / MANIFEST).is_file()
+    before = (out / MANIFEST).read_bytes()
+    monkeypatch.setattr(metrics, "segment_metrics", interrupted)      # the limit's check runs before the commit
+    assert main(run) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["interrupted (Ctrl-C): nothing was written"]
+    assert (out / MANIFEST).read_bytes() == before

@@ -812,11 +812,24 @@ def _interrupted_by(exc: BaseException) -> int | None:
     return None
 
 
+def _kept(exc: BaseException) -> str:
+    """What an interrupted command leaves: the exception's own account
+    (``kept``: a sweep's finished cases), else the output folders it had
+    committed before the signal came (complete: a commit is atomic; review
+    13: a Ctrl-C while simulate printed its results said "nothing was
+    written" of the folder it had just replaced), else nothing."""
+    from .files import committed_outputs
+
+    done = committed_outputs()
+    return getattr(exc, "kept", None) or (f"{' and '.join(done)} had been written in full before it" if done
+                                          else "nothing was written")
+
+
 def main(argv: list[str] | None = None) -> int:
     import threading
 
-    from .files import (NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, install_signal_handlers,
-                        restore_signal_handlers, staging_removed_on_exit)
+    from .files import (NOT_SAVED_EXIT, Interrupted, OutputNotSaved, VerdictFailed, committed_outputs,
+                        install_signal_handlers, restore_signal_handlers, staging_removed_on_exit)
     from .processes import defer_in_finalizers
 
     import warnings
@@ -828,6 +841,7 @@ def main(argv: list[str] | None = None) -> int:
         previous = install_signal_handlers()
         defer_in_finalizers()          # never raised inside a weakref callback or __del__
     parser = build_parser()
+    committed_outputs(reset=True)
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -839,11 +853,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:
-        print(f"interrupted ({'SIGTERM' if exc.exit_code == 143 else 'Ctrl-C'}): "
-              f"{getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
+        print(f"interrupted ({'SIGTERM' if exc.exit_code == 143 else 'Ctrl-C'}): {_kept(exc)}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt as exc:
-        print(f"interrupted (Ctrl-C): {getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
+        print(f"interrupted (Ctrl-C): {_kept(exc)}", file=sys.stderr)
         return 130
     except SystemError as exc:
         # a signal's exception raised inside a C extension's call (CasADi checks for Ctrl-C while it
@@ -851,8 +864,7 @@ def main(argv: list[str] | None = None) -> int:
         code = _interrupted_by(exc)
         if code is None:
             raise
-        print(f"interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}): "
-              f"{getattr(exc, 'kept', None) or 'nothing was written'}", file=sys.stderr)
+        print(f"interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'}): {_kept(exc)}", file=sys.stderr)
         return code
     except VerdictFailed as exc:   # computed verdicts (diverged simulation, infeasible design): exit 1
         print(f"error: {exc}", file=sys.stderr)
@@ -885,7 +897,7 @@ def run() -> None:
         blas_env_defaults()
         code = main()
     except KeyboardInterrupt:
-        print("interrupted (Ctrl-C): nothing was written", file=sys.stderr)
+        print(f"interrupted (Ctrl-C): {_kept(KeyboardInterrupt())}", file=sys.stderr)
         code = 130
     sys.stdout.flush()
     gc.freeze()

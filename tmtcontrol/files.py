@@ -52,7 +52,7 @@ except ImportError:                   # pragma: no cover
 
 __all__ = ["MANIFEST", "MANIFEST_FORMAT", "NOT_SAVED_EXIT", "OutputError", "OutputNotSaved", "OutputFolder",
            "Interrupted", "VerdictFailed", "install_signal_handlers", "restore_signal_handlers", "check_interrupt",
-           "versions", "jsonable", "write_json", "disk_full"]
+           "versions", "jsonable", "write_json", "disk_full", "committed_outputs"]
 
 MANIFEST = ".tmtcontrol-output.json"
 """The file that marks a folder as written by tmtcontrol, listing its files."""
@@ -163,6 +163,19 @@ def _signals_deferred():
 
 _unsaved: set[pathlib.Path] = set()
 """The staging folders this process made and has neither committed nor removed."""
+
+_committed: list[str] = []
+"""The output folders this process has committed (as the user named them),
+in order: what a Ctrl-C after a commit must not call "nothing was written"."""
+
+
+def committed_outputs(reset: bool = False) -> list[str]:
+    """The output folders committed so far (:data:`_committed`); ``reset``
+    empties the record (each command line starts from none)."""
+    out = list(_committed)
+    if reset:
+        _committed.clear()
+    return out
 
 
 @contextlib.contextmanager
@@ -582,6 +595,7 @@ class OutputFolder:
                             raise OutputNotSaved(f"{self.flag}: cannot write {self.shown} ({exc.strerror}); the "
                                                  "results were not saved") from None
                         self.committed = True
+                        _committed.append(self.shown)
                         _unsaved.discard(self.path)
                 finally:
                     if self.committed:        # also when a deferred signal is raised just now
