@@ -310,3 +310,16 @@ def test_a_ctrl_c_after_the_commit_says_what_was_written(tmp_path, capsys, monke
     assert main(run) == 130
     assert capsys.readouterr().err.strip().splitlines() == ["interrupted (Ctrl-C): nothing was written"]
     assert (out / MANIFEST).read_bytes() == before
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/dev/full"), reason="needs Linux's /dev/full")
+@pytest.mark.parametrize("args", [["scenario", "paper"], ["cache", "--info"]])
+def test_a_full_standard_output_is_one_line_and_exit_3(args):
+    """Regression (review 13): ``tmtcontrol scenario paper > my.toml`` on a full disk ended in an
+    OSError traceback, exit 1. Now one line on stderr and exit 3 (the code of an output not saved)."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", *args], stdout=full, stderr=subprocess.PIPE,
+                           text=True)
+    assert r.returncode == 3
+    assert r.stderr.strip().splitlines() == ["error: writing the standard output: No space left on device; "
+                                             "what it shows is incomplete"]

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
+import os
 import sys
 
 from . import __version__
@@ -812,6 +814,26 @@ def _interrupted_by(exc: BaseException) -> int | None:
     return None
 
 
+_STREAM_ERRORS = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC), errno.EIO, errno.EFBIG)
+"""Errors of a write to the standard output or error (a full disk behind
+``> file``, ``/dev/full``): every file tmtcontrol writes itself is staged
+and reports its own (:class:`.files.OutputNotSaved`)."""
+
+
+def _stream_failed(exc: OSError) -> int:
+    """One line for a failed write to the standard output (review 13: ``scenario paper > file`` on a full
+    disk ended in a traceback), the folders committed before it named; exit 3, as for a file not saved."""
+    from .files import NOT_SAVED_EXIT, committed_outputs
+
+    done = committed_outputs()
+    try:
+        print(f"error: writing the standard output: {exc.strerror}; what it shows is incomplete"
+              + (f" ({' and '.join(done)} was written in full)" if done else ""), file=sys.stderr)
+    except OSError:
+        pass                                           # the standard error fails too: the exit code says it
+    return NOT_SAVED_EXIT
+
+
 def _kept(exc: BaseException) -> str:
     """What an interrupted command leaves: the exception's own account
     (``kept``: a sweep's finished cases), else the output folders it had
@@ -872,6 +894,10 @@ def main(argv: list[str] | None = None) -> int:
     except OutputNotSaved as exc:  # a full disk, or the target changed during the run: exit 3
         print(f"error: {exc}", file=sys.stderr)
         return NOT_SAVED_EXIT
+    except OSError as exc:
+        if exc.filename is not None or exc.errno not in _STREAM_ERRORS:
+            raise
+        return _stream_failed(exc)
     finally:
         warnings.showwarning = shown
         if previous is not None:
@@ -899,7 +925,11 @@ def run() -> None:
     except KeyboardInterrupt:
         print(f"interrupted (Ctrl-C): {_kept(KeyboardInterrupt())}", file=sys.stderr)
         code = 130
-    sys.stdout.flush()
+    try:
+        sys.stdout.flush()
+    except OSError as exc:                         # what the command printed did not all reach a full disk
+        code = _stream_failed(exc) if code == 0 else code
+        sys.stdout = open(os.devnull, "w")         # the interpreter's own final flush would fail again
     gc.freeze()
     sys.exit(code)
 
