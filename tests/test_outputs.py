@@ -1,6 +1,7 @@
 """Outputs never destroy a user's files; unwritable targets, interrupts and huge
 runs fail with one line; the compile cache survives damage."""
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -323,3 +324,49 @@ def test_a_full_standard_output_is_one_line_and_exit_3(args):
     assert r.returncode == 3
     assert r.stderr.strip().splitlines() == ["error: writing the standard output: No space left on device; "
                                              "what it shows is incomplete"]
+
+
+def test_a_cvodes_run_that_fails_is_one_line_and_exit_1(tmp_path, capfd):
+    """Regression (review 13): a run whose CVODES integrator stopped (here f_d = 1e308 N: an infinite
+    force at the first right-hand side) ended in a RuntimeError traceback after 96 lines of SUNDIALS
+    and CasADi warnings and input dumps on the terminal (exit 1 by accident); a sweep over such a
+    case aborted. Now it is the simulator's 'diverged' verdict: one line naming CVODES' flag, exit 1."""
+    from tmtcontrol.cli import main
+
+    out = tmp_path / "o"
+    assert main(["simulate", "--integrator", "cvodes", "--set", "controller.f_d=1e308", "--set",
+                 "trajectory.cycles=0.05", "--no-plots", "--out", str(out)]) == 1
+    err = capfd.readouterr().err.strip().splitlines()
+    assert err == ["error: simulation diverged: the CVODES integrator stopped (CV_FIRST_RHSFUNC_ERR); check the "
+                   "stiffness, gains, control rate and simulation.tol"]
+    assert not out.exists()
+
+
+def test_a_ctrl_c_inside_cvodes_is_an_interrupt(tmp_path, capsys, monkeypatch):
+    """Regression (review 13): a Ctrl-C while CVODES evaluated its right-hand side became a solver
+    failure (CasADi catches the KeyboardInterrupt: 'rhs failed', CV_RHSFUNC_FAIL) and the command
+    ended in a traceback with exit 1. The signal the handlers recorded makes it an interrupt: exit 130,
+    one line. Emulated here exactly as CasADi does it: the signal lands inside the evaluation, whose
+    exception becomes a RuntimeError."""
+    import signal
+
+    import tmtcontrol.simulation.rollout as rollout
+    from tmtcontrol.cli import main
+
+    def swallowed(self, *args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):
+                pass                                   # the handler runs at a bytecode boundary in here
+        except BaseException as exc:                   # what CasADi's evaluation does with it
+            raise RuntimeError(f'rhs failed: {type(exc).__name__}\nCVode returned "CV_RHSFUNC_FAIL"') from None
+        raise AssertionError("the signal did not arrive")
+
+    for name in ("Rollout", "CompiledRollout"):
+        if hasattr(rollout, name):
+            monkeypatch.setattr(getattr(rollout, name), "run", swallowed)
+    out = tmp_path / "o"
+    assert main(["simulate", "--integrator", "cvodes", "--set", "trajectory.cycles=0.05", "--no-plots",
+                 "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["interrupted (Ctrl-C): nothing was written"]
+    assert not out.exists()

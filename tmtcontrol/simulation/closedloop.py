@@ -297,7 +297,10 @@ def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, cont
 
     if integrator == "cvodes":
         flow = ca.integrator("plant", "cvodes", {"x": z, "p": pz, "ode": ode(z)[0]}, 0.0, 1.0,
-                             {"abstol": tol, "reltol": tol, "max_num_steps": 100000})
+                             {"abstol": tol, "reltol": tol, "max_num_steps": 100000,
+                              # a failure is the simulator's SimulationError, one line (not CasADi's and
+                              # SUNDIALS' warnings and input dumps on the terminal)
+                              "show_eval_warnings": False, "disable_internal_warnings": True})
         return None, None, flow
     if integrator != "fixed":
         raise ValueError(f"integrator: expected 'fixed' or 'cvodes', got {integrator!r}")

@@ -22,6 +22,8 @@ loop interface: :attr:`Simulator.layout`, :attr:`Simulator.log`,
 from __future__ import annotations
 
 import functools
+import os
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -113,6 +115,49 @@ def check_run_size(scenario: Scenario, max_steps: int | None = None) -> int:
             f"{scenario.controller.rate:g} Hz, about {steps * _BYTES_PER_STEP / 2**30:,.1f} GiB) exceed the "
             f"limit of {limit:,}; shorten the run or raise the limit with --max-steps")
     return int(round(steps))
+
+
+def _cvodes_run(rollout, s0, inputs, params):
+    """``rollout.run`` with CVODES inside: its failure (the state running
+    away, a tolerance it cannot meet) is a :class:`SimulationError` naming
+    CVODES' flag, and a Ctrl-C inside its right-hand side (which CasADi turns
+    into a solver failure) an interrupt; SUNDIALS' and CasADi's messages and
+    input dumps, written to the process' standard error, are kept off the
+    terminal while it runs (review 13: 130 lines and a traceback) and shown
+    after a run that succeeded."""
+    import re
+    import tempfile
+
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):        # no real standard error (captured): nothing to keep off
+        fd = None
+    with tempfile.TemporaryFile() as kept:
+        saved = None
+        if fd is not None:
+            sys.stderr.flush()
+            saved = os.dup(fd)
+            os.dup2(kept.fileno(), fd)
+        try:
+            out = rollout.run(s0, inputs, params)
+        except RuntimeError as exc:
+            failure = exc
+        else:
+            failure = None
+        finally:
+            if saved is not None:
+                os.dup2(saved, fd)
+                os.close(saved)
+        if failure is None:
+            kept.seek(0)
+            text = kept.read().decode(errors="replace")
+            if text:
+                sys.stderr.write(text)
+            return out
+    check_interrupt()
+    flag = re.findall(r'CVode returned "(\w+)"', str(failure))
+    raise SimulationError("simulation diverged: the CVODES integrator stopped" + (f" ({flag[-1]})" if flag else "")
+                          + "; check the stiffness, gains, control rate and simulation.tol")
 
 
 class SimulationError(VerdictFailed):
@@ -416,7 +461,10 @@ class Simulator:
         path = path_of(self.plant, sc)
         inputs, params, s0, t = self._inputs(sc, path)
         t0 = time.perf_counter()
-        S, L = self.rollout.run(s0, inputs, params)
+        if sc.simulation.integrator == "cvodes":
+            S, L = _cvodes_run(self.rollout, s0, inputs, params)
+        else:
+            S, L = self.rollout.run(s0, inputs, params)
         check_interrupt()            # CasADi may swallow Ctrl-C inside a long evaluation
         run_time = time.perf_counter() - t0
         self._check_finite(S, L, t, self.task.n)

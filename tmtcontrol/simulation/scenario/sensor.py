@@ -39,7 +39,8 @@ class SimulationSettings(Section):
     substeps: StrictInt = Field(1, ge=1, le=1000, description="RK4 steps per control period (fixed)")
     contact_refine: StrictInt = Field(4, ge=1, le=64, description=(
         "RK4 steps per substep in a period where the contact force switches on or off (fixed; 1: off)"))
-    tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", gt=0, le=1e-2)
+    # below 1e-14 CVODES stops at once ("too much accuracy requested": double precision's limit)
+    tol: float = num(1e-10, "1", "relative and absolute tolerance (cvodes)", ge=1e-14, le=1e-2)
     mujoco_contact: Literal["spring", "contact"] = Field("spring", description=(
         "with --plant mujoco: the ideal k_e spring along the normal (spring) or MuJoCo's own soft contact "
         "calibrated to k_e (contact; docs/mujoco.md)"))
