@@ -237,3 +237,19 @@ def test_a_range_below_the_tmts_clip_fails_the_verification():
     assert scenario_design_spec(paper_scenario()).min_stiffness == 100.0
     with pytest.raises(DesignError, match="min_stiffness"):
         DesignSpec(k_e_min=50.0, min_stiffness=0.0, **base)
+
+
+def test_a_response_too_long_to_unroll_is_refused_naming_the_flag(capsys):
+    """Regression (review 13): ``design --m 1e4`` (a mass the flag accepts) unrolled 30,000 samples of
+    the first-contact response at each grid stiffness and ran over 12 minutes in IPOPT, deaf to
+    SIGTERM. 10/omega_n at k_e_min is known before anything is built: sqrt(1e4 / 1100) * 10 = 30.15 s,
+    30,151 samples at 1 ms. Refused in one line naming --ke-min (exit 2); the paper's 218 samples pass."""
+    from tmtcontrol.cli import main
+    from tmtcontrol.stability.design import MAX_RESPONSE_SAMPLES
+
+    assert main(["design", "--m", "1e4", "--k", "100", "--ke-min", "1000", "--ke-max", "20000", "--ts", "0.001",
+                 "--max-overshoot", "5"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: --ke-min:") and "30,151 samples" in line
+    assert 10 * math.sqrt(1 / 2100) / 1e-3 < MAX_RESPONSE_SAMPLES < 30151
+    DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3)

@@ -102,6 +102,13 @@ def _clip_violation(spec: DesignSpec, k: float) -> list[str]:
             f"{spec.f_d:g} N"]
 
 
+MAX_RESPONSE_SAMPLES = 5000
+"""Samples of the first-contact response the design unrolls symbolically at
+most (10/omega_n at k_e_min over Ts; the paper's loop needs 218): review
+13's m = 1e4 kg needed 30,000 at each grid stiffness, and IPOPT ran for
+over 12 minutes without returning to Python (a signal waited)."""
+
+
 class DesignError(ValueError):
     """Invalid design specification (the message names the parameter)."""
 
@@ -157,6 +164,13 @@ class DesignSpec:
             raise DesignError(f"intersample: expected an integer >= 0 points per period, got {self.intersample!r}")
         if not 0.0 <= self.alpha < 1.0:
             raise DesignError(f"alpha: the force-filter pole must be in [0, 1), got {self.alpha!r}")
+        k_lo = self.k_bounds[0] if self.optimize_k else self.k
+        horizon = _overshoot_horizon(self.m, k_lo, self.k_e_min)
+        if horizon / self.Ts > MAX_RESPONSE_SAMPLES:
+            raise DesignError(
+                f"k_e_min: the first-contact response at k_e_min = {self.k_e_min:.4g} N/m rings for 10/omega_n = "
+                f"{horizon:.3g} s, {horizon / self.Ts:,.0f} samples of Ts = {self.Ts:g} s (m = {self.m:g} kg); the "
+                f"design unrolls at most {MAX_RESPONSE_SAMPLES:,}: raise k_e_min or Ts, or lower m")
 
     @property
     def stiffness_grid(self) -> np.ndarray:
