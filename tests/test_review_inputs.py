@@ -115,7 +115,10 @@ _DESIGN = ["design", "--m", "1", "--k", "100", "--ke-min", "2000", "--ke-max", "
 
 @pytest.mark.parametrize("flag, value", [("--max-overshoot", "nan"), ("--max-overshoot", "-1"),
                                          ("--margin", "nan"), ("--margin", "0"), ("--margin", "0.5"),
-                                         ("--mp", "nan"), ("--mp", "-5"), ("--ke-min", "30000")])
+                                         ("--mp", "nan"), ("--mp", "-5"), ("--ke-min", "30000"),
+                                         # review 13: accepted, then an unnamed overflow, a traceback or a hang
+                                         ("--mp", "1e-300"), ("--margin", "1e300"), ("--fd", "1e300"),
+                                         ("--k", "1e-300"), ("--max-overshoot", "5000")])
 def test_design_refusals_name_the_flag(capsys, tmp_path, flag, value):
     # the messages named the library's fields (max_overshoot, stiffness_margin, m_p, k_e_min)
     args = list(_DESIGN)
@@ -129,7 +132,13 @@ def test_design_refusals_name_the_flag(capsys, tmp_path, flag, value):
 
 @pytest.mark.parametrize("extra, flag", [(["--ke", "5000", "--ts", "0.001", "--mp", "nan"], "--mp"),
                                          (["--ke", "5000", "--ts", "0.001", "--mp", "0"], "--mp"),
-                                         (["--ke-min", "30000", "--ke-max", "20000"], "--ke-min")])
+                                         (["--ke-min", "30000", "--ke-max", "20000"], "--ke-min"),
+                                         # review 13: an unnamed overflow, or a "stable" verdict on 1e301 N
+                                         (["--ke", "5000", "--ts", "0.001", "--mp", "1e-100"], "--mp"),
+                                         (["--ke", "5000", "--ts", "0.001", "--mp", "1e308"], "--mp"),
+                                         (["--ke", "5000", "--x-e-error", "1e300"], "--x-e-error"),
+                                         (["--ke", "5000", "--fd", "1e300"], "--fd"),
+                                         (["--ke", "1e-300", "--ts", "0.001"], "--ke")])
 def test_analyze_refusals_name_the_flag(capsys, tmp_path, extra, flag):
     line = _refused(capsys, tmp_path, flag, "analyze", "--m", "1", "--b", "60", "--k", "100", *extra)
     assert line.startswith(f"error: {flag}: "), line
@@ -167,3 +176,16 @@ def test_a_malformed_wide_csv_row_is_quoted_short(capsys, tmp_path):
     (tmp_path / "s.toml").write_text('[environment.stiffness]\nkind = "table"\nfile = "k.csv"\n')
     line = _refused(capsys, tmp_path, "row 2", "simulate", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"))
     assert len(line) < 400 and "200000 fields" in line, line[:500]
+
+
+@pytest.mark.parametrize("key, value", [("controller.f_d", "1e308"), ("controller.x_e_error", "1e300"),
+                                        ("environment.damping", "1e300"), ("sensor.noise_std", "1e300"),
+                                        ("controller.contact_threshold", "1e300"), ("impedance.k", "[1e-300, 1.0, 1.0]"),
+                                        ("environment.stiffness.values", "[1e-300]"), ("simulation.tol", "1e-300")])
+def test_a_setting_beyond_what_an_arm_means_is_refused_naming_the_key(capsys, tmp_path, key, value):
+    """Regression (review 13): these had no upper (or a zero lower) bound: f_d = 1e308 N or an
+    x_e_error of 1e300 m ran and 'diverged at t = 0' (exit 1, a verdict on bad input), or overflowed
+    an analysis. Now one line naming the key, exit 2, nothing written."""
+    line = _refused(capsys, tmp_path, "--set", "simulate", "--set", f"{key}={value}", "--no-plots",
+                    "--out", str(tmp_path / "o"))
+    assert line.startswith(f"error: {key}") and "(in --set)" in line, line      # a list's element: key[0]

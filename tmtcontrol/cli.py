@@ -517,6 +517,9 @@ def _check_numbers(args) -> None:
                       ("x_e_error", "controller.x_e_error")):
         if getattr(args, flag, None) is not None:
             check_setting(f"--{flag.replace('_', '-')}", key, getattr(args, flag))
+    mp = getattr(args, "mp", None)
+    if mp is not None and not 1e-3 <= mp <= 1e4:     # the impedance mass's range (review 13: 1e-100 overflowed)
+        raise UsageError(f"--mp: the effective normal mass must be >= 0.001 and <= 10000 kg, got {mp:g}")
     if getattr(args, "ts", None) is not None:
         check_period("--ts", args.ts)
         if getattr(args, "filter_hz", None) is not None:

@@ -150,8 +150,10 @@ class DesignSpec:
             raise DesignError(str(exc)) from None
         if self.k_e_min > self.k_e_max:
             raise DesignError(f"k_e_min: must be <= k_e_max ({self.k_e_max:g}), got {self.k_e_min:g}")
-        if self.stiffness_margin < 1:
-            raise DesignError(f"stiffness_margin: must be >= 1, got {self.stiffness_margin:g}")
+        if not 1 <= self.stiffness_margin <= 1e3:
+            raise DesignError(f"stiffness_margin: must be >= 1 and <= 1000, got {self.stiffness_margin:g}")
+        if self.max_overshoot > 1000:
+            raise DesignError(f"max_overshoot: must be <= 1000 (percent of f_d), got {self.max_overshoot:g}")
         for name in ("b_bounds", "k_bounds"):
             lo, hi = getattr(self, name)
             if not (0 < lo < hi and math.isfinite(hi)):

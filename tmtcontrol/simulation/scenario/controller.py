@@ -21,7 +21,7 @@ Vec3NonNeg = tuple[NonNeg, NonNeg, NonNeg]
 _Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=1e4)]
 _Damping = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=1e6)]
 _Offset = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-1.0, le=1.0)]
-_Stiffness = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=1e8)]
+_Stiffness = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=1e8)]
 
 
 class ImpedanceSettings(Section):
@@ -94,9 +94,11 @@ class ControllerSettings(Section):
     law (``controller.law``, with its parameters) and normal damping."""
     rate: float = num(1000.0, "Hz", "control rate 1/Ts (at most 10 kHz, the fastest force-control loops of "
                       "robot arms)", gt=0, le=1e4)
-    f_d: float = num(10.0, "N", "desired normal force", gt=0)
+    # upper bounds: what an arm can mean, and what the analyses can compute (review 13: f_d = 1e308 N
+    # overflowed the design's cost, x_e_error = 1e300 m gave a "stable" verdict and a 1e301 N force)
+    f_d: float = num(10.0, "N", "desired normal force", gt=0, le=1e4)
     x_e_error: float = num(0.0, "m", "error of the controller's surface location along the normal "
-                           "(positive: believed deeper than it is)")
+                           "(positive: believed deeper than it is)", ge=-1.0, le=1.0)
     part_offset: tuple[_Offset, _Offset, _Offset] = Field((0.0, 0.0, 0.0), description=(
         "error of the controller's part position: it believes the part displaced by this vector, base frame "
         "(docs/surfaces.md) [m]"), json_schema_extra={"unit": "m"})
@@ -108,7 +110,7 @@ class ControllerSettings(Section):
     approach_speed: float = num(0.01, "m/s", "guarded approach from trajectory.approach_gap: the command "
                                 "advances toward the surface at this speed until contact is detected; "
                                 "0 = the law acts from the start", ge=0, le=1.0)
-    contact_threshold: float = num(1.0, "N", "measured force that ends the guarded approach", gt=0)
+    contact_threshold: float = num(1.0, "N", "measured force that ends the guarded approach", gt=0, le=1e4)
     force_ramp: float = num(0.25, "s", "after a guarded approach, f_d rises linearly from 0 over this time",
                             gt=0, le=100)
     force_tolerance: float = num(0.01, "N", "tracking tolerance of the segment verdicts: a segment is "

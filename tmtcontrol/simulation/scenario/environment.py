@@ -242,7 +242,7 @@ class EnvironmentSettings(Section):
     point: tuple[F, F, F] | None = Field(None, description=(
         "a point of the plane, base frame; default: trajectory.center (the circle's centre must lie on the "
         "plane)"), json_schema_extra={"unit": "m"})
-    damping: float = num(0.0, "N s/m", "contact damping", ge=0)
+    damping: float = num(0.0, "N s/m", "contact damping", ge=0, le=1e6)
     stiffness: StiffnessProfile = Field(default_factory=PiecewiseConstantStiffness,
                                         description="stiffness profile k_e(t), a table with its kind")
 

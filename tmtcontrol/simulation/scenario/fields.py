@@ -40,7 +40,7 @@ MIN_PERIODS = 10
 """A path period, a stiffness segment and a stiffness sinusoid's period are at
 least this many control periods (fewer samples cannot resolve them)."""
 
-Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_STIFFNESS)]
+Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=MAX_STIFFNESS)]
 
 
 class Section(BaseModel):

@@ -20,7 +20,7 @@ def filter_pole(cutoff: float, Ts: float) -> float:
 
 class SensorSettings(Section):
     """Force sensor along the normal."""
-    noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0)
+    noise_std: float = num(0.0, "N", "Gaussian noise, 1 sigma", ge=0, le=1e4)
     seed: StrictInt = Field(0, ge=0, description="seed of the noise generator (an integer)")
     filter_cutoff: float = num(0.0, "Hz", "first-order low-pass cut-off, below the Nyquist frequency "
                                "controller.rate/2; 0 = off", ge=0)
