@@ -67,7 +67,7 @@ def test_scenario_command_round_trips(tmp_path):
     ("[controller]\nf_d = \"x\"\n", [], "controller.f_d: expected a number"),
     ("[controller]\nf_d = nan\n", [], "controller.f_d: must be finite"),
     ("[impedance]\nm = [-1, 1, 1]\n", [], "impedance.m[0]: must be >= 0.001"),
-    ("[environment.stiffness]\nvalues = [0]\n", [], "environment.stiffness.values[0]: must be > 0"),
+    ("[environment.stiffness]\nvalues = [0]\n", [], "environment.stiffness.values[0]: must be >= 0.001"),
     ("[environment]\ndamping = -2\n", [], "environment.damping: must be >= 0"),
     ("[controller]\nrate = 0\n", [], "controller.rate: must be > 0"),
     ("[environment.stiffness]\nvalues = []\n", [], "environment.stiffness.values: empty list"),

@@ -380,10 +380,11 @@ def test_truncated_normal_draws_match_the_closed_form():
 
     phi = lambda x: exp(-x * x / 2) / sqrt(2 * pi)
     Phi = lambda x: 0.5 * (1 + erf(x / sqrt(2)))
+    sigma = 0.1                     # x_e_error lies in [-1, 1] m: the standard normal's draws scaled by 0.1
     for lo, hi in ((0.0, 10.0), (5.0, 6.0), (-6.0, -5.0)):
-        sweep = sweep_from_dict({"random": {"samples": 4096, "seed": 3,
-                                            "controller.x_e_error": {"normal": [0.0, 1.0], "bounds": [lo, hi]}}})
-        x = np.array([sweep.cases.draw(s)["controller.x_e_error"] for s in range(4096)])
+        sweep = sweep_from_dict({"random": {"samples": 4096, "seed": 3, "controller.x_e_error": {
+            "normal": [0.0, sigma], "bounds": [lo * sigma, hi * sigma]}}})
+        x = np.array([sweep.cases.draw(s)["controller.x_e_error"] for s in range(4096)]) / sigma
         assert x.min() >= lo and x.max() <= hi
         mean = (phi(lo) - phi(hi)) / (Phi(hi) - Phi(lo))              # the truncated normal's mean
         var = 1 + (lo * phi(lo) - hi * phi(hi)) / (Phi(hi) - Phi(lo)) - mean ** 2
@@ -460,13 +461,16 @@ def test_a_random_range_wider_than_the_largest_float_is_refused():
     # a normal draws mean + std * z, clipped: its +-10 std span must be numbers, its width need not
     with pytest.raises(SweepError, match=r"^random\.controller\.x_e_error: range \[-inf, inf\]"):
         sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"normal": [0.0, 1e308]}}})
-    for spec in ({"normal": [0.0, 1e307]}, {"normal": [0.0, 1e-3], "bounds": [-1e308, 1e308]}):
-        sweep = sweep_from_dict({"random": {"samples": 20, "controller.x_e_error": spec}})
-        assert all(np.isfinite([case.values["controller.x_e_error"] for case in sweep.cases])), spec
-    # just under the limit (width 1.6e308): accepted, and every draw is a finite number inside it
-    sweep = sweep_from_dict({"random": {"samples": 20, "controller.x_e_error": {"uniform": [-8e307, 8e307]}}})
-    draws = [case.values["controller.x_e_error"] for case in sweep.cases]
-    assert all(np.isfinite(draws)) and min(draws) >= -8e307 and max(draws) <= 8e307 and len(set(draws)) == 20
+    # review 13 bounded x_e_error to [-1, 1] m: such ranges are refused for that too, naming the bound
+    with pytest.raises(SweepError, match=r"controller\.x_e_error: must be >= -1"):
+        sweep_from_dict({"random": {"samples": 2, "controller.x_e_error": {"normal": [0.0, 1e-3],
+                                                                           "bounds": [-1e308, 1e308]}}})
+    # just under the limit (width 1.6e308) on a key bounded only below (a stiffness segment, s): accepted,
+    # and every draw is a finite number inside it
+    key = "environment.stiffness.segment"
+    sweep = sweep_from_dict({"random": {"samples": 20, key: {"uniform": [1.0, 1.6e308]}}})
+    draws = [case.values[key] for case in sweep.cases]
+    assert all(np.isfinite(draws)) and min(draws) >= 1.0 and max(draws) <= 1.6e308 and len(set(draws)) == 20
 
 
 @pytest.mark.parametrize("grid", [

@@ -327,17 +327,19 @@ def test_a_full_standard_output_is_one_line_and_exit_3(args):
 
 
 def test_a_cvodes_run_that_fails_is_one_line_and_exit_1(tmp_path, capfd):
-    """Regression (review 13): a run whose CVODES integrator stopped (here f_d = 1e308 N: an infinite
-    force at the first right-hand side) ended in a RuntimeError traceback after 96 lines of SUNDIALS
-    and CasADi warnings and input dumps on the terminal (exit 1 by accident); a sweep over such a
-    case aborted. Now it is the simulator's 'diverged' verdict: one line naming CVODES' flag, exit 1."""
+    """Regression (review 13): a run whose CVODES integrator stopped (here a reference f_d/k = 1e7 m
+    deep on a 1e8 N/m surface: the state runs away and CVODES gives up) ended in a RuntimeError
+    traceback after ~100 lines of SUNDIALS and CasADi warnings and input dumps on the terminal (exit 1
+    by accident); a sweep over such a case aborted. Now it is the simulator's 'diverged' verdict: one
+    line naming CVODES' flag, exit 1."""
     from tmtcontrol.cli import main
 
     out = tmp_path / "o"
-    assert main(["simulate", "--integrator", "cvodes", "--set", "controller.f_d=1e308", "--set",
+    assert main(["simulate", "--integrator", "cvodes", "--set", "environment.stiffness.values=[1e8]", "--set",
+                 "impedance.k=[0.001, 100.0, 100.0]", "--set", "controller.f_d=1e4", "--set",
                  "trajectory.cycles=0.05", "--no-plots", "--out", str(out)]) == 1
     err = capfd.readouterr().err.strip().splitlines()
-    assert err == ["error: simulation diverged: the CVODES integrator stopped (CV_FIRST_RHSFUNC_ERR); check the "
+    assert err == ["error: simulation diverged: the CVODES integrator stopped (CV_TOO_MUCH_WORK); check the "
                    "stiffness, gains, control rate and simulation.tol"]
     assert not out.exists()
 

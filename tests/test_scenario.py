@@ -47,7 +47,7 @@ def test_frozen():
     ("[impedance]\nb = [60, -1, 20]\n", r"impedance\.b\[1\]: must be >= 0"),
     ("[impedance]\nk = [100, 100]\n", r"impedance\.k: expected a list of 3 numbers"),
     ("[environment.stiffness]\nvalues = []\n", r"environment\.stiffness\.values: empty list"),
-    ("[environment.stiffness]\nvalues = [1e3, -2]\n", r"environment\.stiffness\.values\[1\]: must be > 0"),
+    ("[environment.stiffness]\nvalues = [1e3, -2]\n", r"environment\.stiffness\.values\[1\]: must be >= 0.001"),
     ("[environment]\ndamping = -1\n", r"environment\.damping: must be >= 0"),
     ("[controller]\nlaw = \"magic\"\n", r"controller\.law: expected kind one of 'tmt', 'known'"),
     ("[simulation]\nsubsteps = 2.5\n", r"simulation\.substeps: expected an integer"),

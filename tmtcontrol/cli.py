@@ -519,7 +519,7 @@ def _check_numbers(args) -> None:
             check_setting(f"--{flag.replace('_', '-')}", key, getattr(args, flag))
     mp = getattr(args, "mp", None)
     if mp is not None and not 1e-3 <= mp <= 1e4:     # the impedance mass's range (review 13: 1e-100 overflowed)
-        raise UsageError(f"--mp: the effective normal mass must be >= 0.001 and <= 10000 kg, got {mp:g}")
+        raise UsageError(f"--mp: must be >= 0.001 and <= 10000 (the effective normal mass, kg), got {mp:g}")
     if getattr(args, "ts", None) is not None:
         check_period("--ts", args.ts)
         if getattr(args, "filter_hz", None) is not None:
@@ -843,9 +843,8 @@ def _kept(exc: BaseException) -> str:
     committed before the signal came (complete: a commit is atomic; review
     13: a Ctrl-C while simulate printed its results said "nothing was
     written" of the folder it had just replaced), else nothing."""
-    from .files import committed_outputs
-
-    done = committed_outputs()
+    files = sys.modules.get(f"{__package__}.files")      # not imported yet: a Ctrl-C during the first imports
+    done = files.committed_outputs() if files is not None else []
     return getattr(exc, "kept", None) or (f"{' and '.join(done)} had been written in full before it" if done
                                           else "nothing was written")
 
