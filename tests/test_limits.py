@@ -87,6 +87,7 @@ def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobia
     assert per.spectral_radius == pytest.approx(np.max(np.abs(np.linalg.eigvals(want))), rel=1e-9)
 
 
+@pytest.mark.heavy   # a bisection in the simulator (5.5 s): the cross-check runs in CI's heavy step
 def test_periodic_limit_within_1_percent_of_the_simulator_where_the_frozen_minimum_is_not(cheap_model):
     """The simulated loop (compiled step, along the circle, constant k_e) converges at
     0.99x the periodic limit and does not at 1.01x; the frozen-point minimum is more

@@ -7,6 +7,7 @@ import pathlib
 import re
 import tempfile
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -69,6 +70,7 @@ def _short(**changes):
     return d
 
 
+@pytest.mark.heavy   # 9 s of one worker (60 corrupted scenarios, each parsed and run): the README suite's budget
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(corrupted())
 @example(_short(controller__f_d=3))                       # valid: must run
