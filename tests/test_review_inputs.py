@@ -189,3 +189,23 @@ def test_a_setting_beyond_what_an_arm_means_is_refused_naming_the_key(capsys, tm
     line = _refused(capsys, tmp_path, "--set", "simulate", "--set", f"{key}={value}", "--no-plots",
                     "--out", str(tmp_path / "o"))
     assert line.startswith(f"error: {key}") and "(in --set)" in line, line      # a list's element: key[0]
+
+
+def test_an_astronomical_run_length_is_quoted_with_an_exponent(capsys, tmp_path):
+    """Regression (review 13): trajectory.period = 1e300 s was refused with its step count written out
+    in 300 digits (a 600-character line). 1e300 s x 4 cycles at 1 kHz is 4e303 steps; a count below
+    1e15 keeps its digits (docs/outputs.md quotes 4,000,000)."""
+    line = _refused(capsys, tmp_path, "trajectory.cycles", "simulate", "--set", "trajectory.period=1e300",
+                    "--out", str(tmp_path / "o"))
+    assert "4e+303 control steps" in line and len(line) < 200
+    line = _refused(capsys, tmp_path, "trajectory.cycles", "simulate", "--set", "trajectory.cycles=1000",
+                    "--out", str(tmp_path / "o"))
+    assert "4,000,000 control steps (4000 s at 1000 Hz, about 4.7 GiB)" in line
+
+
+def test_a_radius_beyond_a_plane_is_refused_naming_the_key(capsys, tmp_path):
+    """Regression (review 13): environment.radius = 1e300 m overflowed the chart (r^2) and was refused as
+    'sphere: no task frame at ...'. A part flatter than 1e9 m is its tangent plane to 1e-11 m over 10 cm."""
+    line = _refused(capsys, tmp_path, "environment.radius", "simulate", "--set", 'environment.shape="sphere"',
+                    "--set", "environment.radius=1e300", "--out", str(tmp_path / "o"))
+    assert line.startswith("error: environment.radius: must be <= 1e+09")

@@ -110,10 +110,13 @@ def check_run_size(scenario: Scenario, max_steps: int | None = None) -> int:
         raise ScenarioError(f"--max-steps: must be >= 1, got {limit}")
     steps = scenario.duration / scenario.controller.Ts
     if steps > limit:
+        # digit by digit up to 1e15; beyond, the exponent (review 13: a 1e300 s period printed 300 digits)
+        gib = steps * _BYTES_PER_STEP / 2**30
         raise ScenarioError(
-            f"trajectory.cycles: {steps:,.0f} control steps ({scenario.duration:g} s at "
-            f"{scenario.controller.rate:g} Hz, about {steps * _BYTES_PER_STEP / 2**30:,.1f} GiB) exceed the "
-            f"limit of {limit:,}; shorten the run or raise the limit with --max-steps")
+            "trajectory.cycles: " + (f"{steps:,.0f}" if steps < 1e15 else f"{steps:.3g}")
+            + f" control steps ({scenario.duration:g} s at {scenario.controller.rate:g} Hz, about "
+            + (f"{gib:,.1f}" if gib < 1e15 else f"{gib:.3g}")
+            + f" GiB) exceed the limit of {limit:,}; shorten the run or raise the limit with --max-steps")
     return int(round(steps))
 
 

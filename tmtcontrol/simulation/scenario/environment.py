@@ -221,8 +221,9 @@ class EnvironmentSettings(Section):
     shape: Literal["plane", "sphere", "cylinder", "heightmap"] = Field("plane", description=(
         "the surface's shape: plane, sphere, cylinder or heightmap (touching the plane of tilt_deg/normal at "
         "trajectory.center)"))
+    # at most 1e9 m (a part that flat is its tangent plane to 1e-11 m over 10 cm; review 13: 1e300 overflowed)
     radius: float | None = Field(None, description="sphere's or cylinder's radius [m]", allow_inf_nan=False,
-                                 strict=True, gt=0, json_schema_extra={"unit": "m"})
+                                 strict=True, gt=0, le=1e9, json_schema_extra={"unit": "m"})
     side: Literal["outside", "inside"] | None = Field(None, description=(
         "sphere or cylinder: the tool works on the outside (a dome, a pipe) or the inside (a bowl, a bore); "
         "default outside"))
