@@ -147,6 +147,11 @@ def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
     # "known" settles (converged) on the force its nominal k_e gives, not on f_d (eqs. 11-12)
     assert by_law["known"][within] == "no" and by_law["known"][-1] == "◐ off target"
     assert by_law["tmt"][within] == "yes"
+    # review 15: the known law ends segment 3 (2,000 N/m) at 9.714 N, 2.9 % off f_d, never inside the 2 % band
+    # (its own compare line: "settle 10 mN: never"); the column said 233 ms, segment 2's, as Python's max
+    # skipped the NaN after it
+    settle = head.index("worst settling 2 %")
+    assert by_law["known"][settle] == "never" and by_law["tmt"][settle] != "never"
 
 
 def test_design_tables_name_which_overshoot(paper_report):
@@ -327,6 +332,14 @@ def test_an_unstable_continuous_loop_shows_its_growth_rate():
     growth = float(max(unstable.poles.real))
     assert over.startswith("unstable") and f"{growth:.0f}" in over and "%" not in over and settle == "–"
     assert math.isfinite(growth) and growth > 0
+
+
+def test_the_worst_of_a_column_is_nan_when_any_segment_is():
+    from tmtcontrol.report.document import _worst
+
+    nan = float("nan")
+    assert _worst([0.2, nan, 0.1]) != _worst([0.2, nan, 0.1]) and _worst([nan, 0.2]) != _worst([nan, 0.2])
+    assert _worst([0.2, 0.3, 0.1]) == 0.3
 
 
 def test_worst_settling_counts_a_segment_that_never_settles():

@@ -528,6 +528,14 @@ def _limit_blocks(rep: Report, res) -> list:
                    limit_use_figure, res)]
 
 
+def _worst(values) -> float:
+    """The largest of ``values``; NaN if any is NaN (undefined, or never
+    reached: the worst, not skipped as Python's ``max`` skips a NaN that
+    does not come first)."""
+    values = [float(v) for v in values]
+    return math.nan if any(math.isnan(v) for v in values) else max(values)
+
+
 def _worst_settling(segs) -> str:
     """The longest 2 % settling time; "never" if a segment does not settle
     (its settling time is NaN, which must not be skipped as the smallest)."""
@@ -542,14 +550,18 @@ def _comparison(rep: Report, sc: Scenario):
     cmp = compare_laws(sc)
     runs = [(name + (" (scenario's)" if name == sc.controller.law.kind else ""), run) for name, run in cmp.runs.items()]
     ok = [run.result is not None for _, run in runs]
-    worst = [max(s.steady_state_error for s in run.segments) if good else None for (_, run), good in zip(runs, ok)]
-    settle = [max(s.settling_time for s in run.segments) if good else None for (_, run), good in zip(runs, ok)]
+    def worst_of(name):
+        # NaN (a segment that never settles, an overshoot withheld) is the worst, never skipped: Python's max
+        # drops a NaN that is not first (review 15: the known law's "worst settling 233 ms" hid a segment
+        # that never settles)
+        return [_worst([getattr(s, name) for s in run.segments]) if good else None
+                for (_, run), good in zip(runs, ok)]
+
+    worst, settle = worst_of("steady_state_error"), worst_of("settling_time")
     err = _cells(worst, "N")
-    over = _cells([max(s.overshoot_pct for s in run.segments) if good else None for (_, run), good in zip(runs, ok)],
-                  "%")
+    over = _cells(worst_of("overshoot_pct"), "%")
     settling = _cells([None if t is None or math.isnan(t) else t for t in settle], "s")
-    tang = _cells([max(s.tangential_rms for s in run.segments) if good else None for (_, run), good in zip(runs, ok)],
-                  "m")
+    tang = _cells(worst_of("tangential_rms"), "m")
     rows = []
     for i, (label, run) in enumerate(runs):
         if run.result is None:
@@ -732,7 +744,7 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
                 sim_rows.append([name, "–", "–", "diverged"])
                 continue
             verdict = max((s.verdict for s in segs), key=VERDICTS.index)
-            sim_rows.append([name, max(s.overshoot_pct for s in segs), max(s.steady_state_error for s in segs),
+            sim_rows.append([name, _worst(s.overshoot_pct for s in segs), _worst(s.steady_state_error for s in segs),
                              verdict])
     # each number column in one unit, to the same significant digits (0.00210 % beside 0.00211 %)
     over = _cells([r[1] if r[3] != "diverged" else None for r in sim_rows], "%")
