@@ -468,8 +468,10 @@ def _faulty_export(folder, tmp_path, fault, every_call: str = ""):
     copy = tmp_path / "faulty"
     shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("*.so", "build*"))
     c = (copy / "tmt_controller.c").read_text()
-    head = "int i, rc, bad = 0;"
-    assert head in c
+    # tmt_step's declarations (tmt_init declares the same variables before it)
+    head = ("tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *meas, tmt_command *cmd)\n"
+            "{\n    int i, rc, bad = 0;")
+    assert c.count(head) == 1
     c = "#include <stdio.h>\n#include <stdlib.h>\n" + c.replace(
         head, head + "\n    static int calls_;\n    " + every_call + "\n    if (++calls_ == 5) "
         + (FAULTS[fault][0] if fault else "{ }"), 1)

@@ -175,8 +175,8 @@ def test_a_position_export_records_no_hold_a_torque_export_its_hold(tmp_path):
     from tmtcontrol.export.generate import export_controller
     from tmtcontrol.export.sil import check_export_matches
 
-    # K above f_d/r: the position command on the pipe (f_d/K = r = 0.1 m) would pass its axis (refused)
-    sc = _pipe("trajectory.cycles=0.01", "impedance.k=[150.0, 100.0, 100.0]")
+    # the position command on the pipe would pass its axis (refused) unless f_d/K + f_d/min_stiffness < r
+    sc = _pipe("trajectory.cycles=0.01", "impedance.k=[200.0, 100.0, 100.0]", "controller.law.min_stiffness=1000.0")
     for torque, hold in ((False, "zero_order"), (True, "mid_period")):
         folder = tmp_path / str(torque)
         export_controller(sc, folder, torque)

@@ -14,6 +14,7 @@ the simulation.
 Tolerance of the equality checks: 1e-9 relative to each signal's largest
 magnitude (the issue's acceptance; measured about 1e-15).
 """
+import ctypes
 import shutil
 import subprocess
 
@@ -334,13 +335,15 @@ def test_the_makefile_builds_from_a_copy_twice_and_cleans(tmp_path):
 
 
 @pytest.mark.parametrize("edit", ["kd[0]=nan", "kp[0]=nan", "kp[0]=inf", "tau_max[0]=nan", "tau_max[1]=-5.0",
-                                  "dq[1]=nan"])
+                                  "dq[1]=nan", "dq[1]=1e160", "dq[0]=-1e200"])
 def test_a_bad_input_behind_the_torque_clip_is_refused(built, edit):
     """Regression (review 11): with the torque clip on, a NaN or infinite gain made every torque NaN,
     which the clip's fmin/fmax turned into +-tau_max: full reverse torque on joint 2 with return code 0
     (a NaN tau_max removed the clip, a negative one pinned the torque). The inputs are checked now:
     that period returns TMT_E_NONFINITE (-1) and leaves the command as it was. The same edit without
-    the bad value (the clip at [5, 18, 10] N m, engaged) steps with 0 and a torque within the clip."""
+    the bad value (the clip at [5, 18, 10] N m, engaged) steps with 0 and a torque within the clip. Review 14:
+    a finite but huge measurement (a corrupt encoder word: dq = 1e160 rad/s) overflows to a NaN torque inside
+    the law, which the clip turned into +-tau_max too: the clip now passes a NaN or infinite torque on."""
     _, ctl = built
     p = ctl.default_params()
     s, m, c = ctl.new_state(p), ctl.Measurement(), ctl.Command()
@@ -357,3 +360,22 @@ def test_a_bad_input_behind_the_torque_clip_is_refused(built, edit):
     before = bytes(c)
     assert ctl.step(p, s, m, c) == -1
     assert bytes(c) == before
+
+
+def test_tmt_init_refuses_a_non_finite_parameter(built):
+    """Regression (review 14): tmt_init returned 0 with x_e_hat NaN and built a NaN state, so every later
+    tmt_step returned -1 even after the parameter was corrected (until tmt_init was called again), the
+    'last good command' being whatever the caller had zeroed. Now tmt_init returns TMT_E_NONFINITE; with
+    the parameter corrected it returns 0 and the controller steps."""
+    _, ctl = built
+    p = ctl.default_params()
+    s = ctl.State()
+    p.x_e_hat = float("nan")
+    assert ctl._init(ctypes.byref(p), ctypes.byref(s)) == -1
+    p.x_e_hat = float("inf")
+    assert ctl._init(ctypes.byref(p), ctypes.byref(s)) == -1
+    p.x_e_hat = 0.0
+    assert ctl._init(ctypes.byref(p), ctypes.byref(s)) == 0
+    m, c = ctl.Measurement(), ctl.Command()
+    m.q[0], m.q[1], m.q[2] = 0.0, -0.5, 0.8
+    assert ctl.step(p, s, m, c) == 0

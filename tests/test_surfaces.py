@@ -815,8 +815,17 @@ def test_a_position_export_whose_command_passes_the_parts_centre_is_refused(tmp_
     out = tmp_path / "x"
     assert main(["export", "ur5-pipe", "--out", str(out)]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
-    assert line.startswith("error: impedance.k:") and "0.1 m" in line and not out.exists()
-    assert main(["export", "ur5-pipe", "--set", "impedance.k=[101.0, 100.0, 100.0]", "--out", str(out)]) == 0
+    assert line.startswith("error: impedance.k:") and "0.2 m deep" in line and not out.exists()
+    # review 14: K just above f_d/r is not enough: the law's clipped estimate adds f_d/min_stiffness = 0.1 m
+    # (the simulated command went 0.101 m deep at first contact with K = 101 N/m); refused too
+    assert main(["export", "ur5-pipe", "--set", "impedance.k=[101.0, 100.0, 100.0]", "--out", str(out)]) == 2
+    capsys.readouterr()
+    ok = ["impedance.k=[200.0, 100.0, 100.0]", "controller.law.min_stiffness=1000.0"]     # reach 0.05 + 0.01 m
+    assert main(["export", "ur5-pipe", *sum((["--set", s] for s in ok), []), "--out", str(out)]) == 0
+    # the accepted loop's own command stays on this side of the axis (simulated: its deepest X_c)
+    from tmtcontrol import Simulator, load_scenario
+    res = Simulator(apply_overrides(load_scenario("ur5-pipe"), ok + ["trajectory.cycles=0.05"])).run()
+    assert 0.0 < np.max(res.command_task[0]) < 0.06 + 1e-3
     s = make_surface("sphere", R0, C0, radius=0.05)
     centre = C0 + 0.05 * R0[:, 0]
     assert s.depth_limit() == 0.05 and make_surface("sphere", R0, C0, radius=0.05, side="inside").depth_limit() == np.inf
@@ -867,3 +876,18 @@ def test_a_height_maps_depth_error_is_the_documented_slope_term():
         error = abs(s.from_base(foot + d * n_in)[0] - d)
         want = d * d / r * slope ** 2 / 2
         assert (error < 2e-10) if rho == 0.0 else (abs(error - want) < 0.25 * want), (rho, error, want)
+
+
+def test_a_height_maps_position_command_is_exported(tmp_path):
+    """Regression (review 14): the position export's depth check read a sphere's radius and side from
+    a height map (a subclass of the curved shapes): AttributeError, exit 1. A height map's chart is
+    linear in the depth along e_n and never folds: no limit, and the export is written."""
+    from tmtcontrol.export.generate import export_controller
+    from tmtcontrol.surface import HeightMap
+
+    heights = _grid(lambda U, V: -(0.3 - np.sqrt(0.09 - U * U - V * V)), 41, 0.01)
+    assert HeightMap(R0, C0, heights, 0.01).depth_limit() == np.inf
+    sc = _heightmap_scenario(tmp_path, heights, extra=("trajectory.cycles=0.05",))
+    (tmp_path / "c").mkdir()
+    export_controller(sc, tmp_path / "c", False)
+    assert (tmp_path / "c" / "tmt_controller.c").is_file()

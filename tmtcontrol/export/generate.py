@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pathlib
 import re
 
@@ -345,13 +346,24 @@ def _check_position_depth(scenario: Scenario, surface) -> None:
     f_d/k = r = 0.1 m, p_c crossed its axis). Refused, naming
     ``impedance.k``; the torque command (``--inner-loop``) acts in task
     coordinates and is not affected."""
-    f_d, k = scenario.controller.f_d, scenario.impedance.k[0]
+    ctl = scenario.controller
+    f_d, k = ctl.f_d, scenario.impedance.k[0]
     limit = surface.depth_limit()
-    if f_d / k >= limit:
-        raise ExportError(f"impedance.k: the position command's free-space depth f_d/k = {f_d / k:.4g} m reaches "
-                          f"the {surface.kind}'s radius {limit:.4g} m, where p_c and q_c would pass its centre "
-                          f"and point through the part; use k > f_d/radius = {f_d / limit:.4g} N/m, or export "
-                          "the torque command (--inner-loop)")
+    if not math.isfinite(limit):
+        return
+    # the law's estimate clipped at its floor adds f_d/min_stiffness (the TMT's and the RLS law's compliance
+    # clip), and a surface believed deeper or a part believed moved adds its error (review 14: K = 1.01 f_d/r
+    # still commanded 1.01 r at first contact, 1.99 r with a 5 cm part offset)
+    floor = getattr(ctl.law, "min_stiffness", None)
+    reach = (f_d / k + (f_d / floor if floor else 0.0) + max(ctl.x_e_error, 0.0)
+             + float(np.linalg.norm(ctl.part_offset)))
+    if reach >= limit:
+        raise ExportError(f"impedance.k: the position command can reach {reach:.4g} m deep (f_d/k = {f_d / k:.4g} m"
+                          + (f" + f_d/min_stiffness = {f_d / floor:.4g} m" if floor else "")
+                          + " + the surface-location and part errors), beyond the "
+                          f"{surface.kind}'s radius {limit:.4g} m, where p_c and q_c pass its centre and point "
+                          "through the part; raise impedance.k" + (" or controller.law.min_stiffness" if floor else "")
+                          + ", or export the torque command (--inner-loop)")
 
 
 def check_exportable(fn: ca.Function, law: Law) -> None:
@@ -481,7 +493,7 @@ def _check_in(params, meas) -> str:
             runs.append([i, i + f.size, kind])
         i += f.size
     lines = [f"    for (i = 0; i < {sum(f.size for f in meas)}; ++i) {{", "        bad |= !isfinite(state->y[i]);",
-             "    }"]
+             "    }"] if meas else []
     for first, stop, unbounded in runs:
         lines += [f"    for (i = {first}; i < {stop}; ++i) {{"
                   + ("        /* a limit: INFINITY is none, a NaN or a negative one refused */" if unbounded else ""),
@@ -557,7 +569,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "PARAM_FIELDS": _struct_fields(pf), "MEAS_FIELDS": _struct_fields(mf),
         "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(df),
         "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(mf, "meas", "state->y"),
-        "CHECK_INPUTS": _check_in(pf, mf),
+        "CHECK_INPUTS": _check_in(pf, mf), "CHECK_PARAMS": _check_in(pf, ()),
         "UNPACK_CMD": _copy_out(cf, "state->out", "cmd"),
         "UNPACK_DIAG": _copy_out(df, "state->out", "cmd", n_cmd),
         "DEFAULT_PARAMS": _defaults(pf, p0),

@@ -37,6 +37,7 @@ e_1]``, e_1 the unit tangent ``S_u / |S_u|``.
 from __future__ import annotations
 
 import hashlib
+import math
 
 import casadi as ca
 import numpy as np
@@ -179,6 +180,12 @@ class HeightMap(_Curved):
         K = (L * N - M * M) / det
         root = np.sqrt(np.maximum(H * H - K, 0.0))
         return np.where(inside, H + root, 0.0), np.where(inside, H - root, 0.0)
+
+    def depth_limit(self) -> float:
+        """:meth:`.base.Surface.depth_limit`: none (the chart is linear in
+        X_0 along e_n: it never folds; review 14: the inherited sphere's
+        rule read a radius a height map does not have)."""
+        return math.inf
 
     def concave_radius(self, s) -> np.ndarray:
         """:meth:`.base.Surface.concave_radius`: ``1 / k_1`` of

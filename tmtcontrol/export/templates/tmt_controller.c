@@ -32,7 +32,7 @@ void tmt_default_params(tmt_params *params)
  * initial state) computed from params. */
 int tmt_init(const tmt_params *params, tmt_state *state)
 {
-    int i;
+    int i, rc, bad = 0;
     for (i = 0; i < TMT_N_STATE; ++i) {
         state->s[i] = 0.0;
         state->s_next[i] = 0.0;
@@ -53,9 +53,17 @@ int tmt_init(const tmt_params *params, tmt_state *state)
         state->res[i] = 0;
     }
 @PACK_PARAMS@
+@CHECK_PARAMS@
+    if (bad) {
+        return TMT_E_NONFINITE;          /* a NaN or infinite parameter: the state would be non-finite for good */
+    }
     state->arg[0] = state->p;
     state->res[0] = state->s;
-    return @GEN@_init(state->arg, state->res, state->iw, state->w, 0);
+    rc = @GEN@_init(state->arg, state->res, state->iw, state->w, 0);
+    for (i = 0; i < TMT_N_STATE; ++i) {
+        bad |= !isfinite(state->s[i]);
+    }
+    return rc != 0 ? rc : (bad ? TMT_E_NONFINITE : 0);
 }
 
 /* A non-finite measurement or parameter (a NaN force reading, say) would make

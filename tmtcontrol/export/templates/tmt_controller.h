@@ -83,7 +83,9 @@ void tmt_default_params(tmt_params *params);
 /* Reset state to the scenario's initial controller state (on the surface, or
  * in the guarded approach if the scenario starts above it), with the normal
  * damping, the surface estimate and the law's initial state taken from params
- * (as an export with those values would start). Returns 0. */
+ * (as an export with those values would start). Returns 0; TMT_E_NONFINITE
+ * if a parameter is NaN or infinite (tau_max may be INFINITY) or the state it
+ * would start from is not finite: call it again with good parameters. */
 int tmt_init(const tmt_params *params, tmt_state *state);
 
 /* One control period: reads meas, writes cmd, advances state. Returns 0 on
