@@ -544,3 +544,41 @@ def test_unknown_check_group_is_refused():
         run_check_group("everything")
     with pytest.raises(ValueError, match="got 'law: nosuch'"):
         run_check_group("law: nosuch")
+
+
+def test_the_sweep_says_which_rule_sized_its_stiffness_range():
+    """Regression (review 15): the sweep's text said its range reached twice the 1-D small-signal limit
+    on a loop the 1-D model does not predict (the mid-period hold: scenario_stiffness_limit is None), where
+    the code took ten times the largest stiffness. The rule returned is the one applied: paper 2 x 163,417
+    -> 330,000 N/m (two digits); with the hold, 10 x 20,000 = 200,000 N/m."""
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.report.document import sweep_axes
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = paper_scenario()
+    stiffness, _, rule = sweep_axes(sc, scenario_parameters(sc))
+    assert stiffness[-1] == 330000.0 and "1-D small-signal limit" in rule
+    held = apply_overrides(sc, ['controller.hold="mid_period"'])
+    stiffness, _, rule = sweep_axes(held, scenario_parameters(held))
+    assert stiffness[-1] == 200000.0 and "ten times its largest" in rule and "no prediction" in rule
+
+
+@pytest.mark.heavy   # the loop's periodic and first-contact limits (5 s)
+def test_the_sampled_section_shows_the_1d_model_for_reference_where_it_predicts_nothing():
+    """Regression (review 15): on a loop with the mid-period hold, which the 1-D model leaves out, the
+    models table showed its limit (163,000 N/m beside the loop's own 645,000) with no caveat, and the text
+    said it "explains the limit"; the first-contact row, which stops its search at the periodic limit,
+    read as a limit equal to it. Now the 1-D row is "for reference only", the text and the figure say it
+    predicts nothing, and a first contact that settles at the ceiling reads "≥"."""
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.report.document import Paragraph, Report, Table, _sampled
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = apply_overrides(paper_scenario(), ['controller.hold="mid_period"', "trajectory.cycles=1"])
+    sec = _sampled(Report(sc, ""), sc, scenario_parameters(sc))
+    text = next(b for b in sec.blocks if isinstance(b, Paragraph)).text
+    assert "explains the limit" not in text and "for reference only" in text
+    rows = {r[0].split(" (")[0]: r for r in next(b for b in sec.blocks if isinstance(b, Table)).rows}
+    one_d = next(r for k, r in rows.items() if k.startswith("1-D"))
+    assert "for reference only: it leaves out the mid-period hold" in one_d[0]
+    assert rows["from first contact"][1].startswith("≥ ")

@@ -293,14 +293,26 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         limits.append(np.nan if lim is None else lim)
     points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
     cell = lambda v: [fmt.num(v), fmt.ratio(v / p["k_e_max"])] if v is not None else ["–", "–"]
+    # the 1-D model leaves out the mid-period hold and has no verdict for some laws: then it predicts nothing
+    # for this loop (scenario_stiffness_limit is None, no boundary in the figure) and is shown for reference only
+    # (review 15: the pipe's 133,000 N/m row stood beside the loop's own 561,000-603,000 as if it explained them)
+    why_not_1d = None if scenario_stiffness_limit(sc, p) is not None else (
+        "it leaves out the mid-period hold" if sc.controller.hold == "mid_period" else
+        "this law has no linear verdict")
+    # the first-contact search stops at the limit along the path: a start that settles there is a lower bound
+    # (review 15: the row read as a limit equal to the periodic one)
+    ceiling = periodic if periodic is not None else whole
+    at_least = lambda v: ([f"≥ {c}" for c in cell(v)] if v is not None and ceiling is not None and v >= ceiling
+                          else cell(v))
     model_rows = [["whole-loop linearisation (frozen-point minimum over the path)", *cell(whole)],
-                  [f"1-D: {a['sampled_model']}", *cell(limit_1d)]]
+                  [f"1-D: {a['sampled_model']}" + (f" (for reference only: {why_not_1d})" if why_not_1d else ""),
+                   *cell(limit_1d)]]
     if "limit" in a:
         model_rows = [["along the moving path (" + ("frozen-point minimum: the path period is not whole control "
                                                     "periods" if "periodic_note" in a else
                                                     "periodic orbit, monodromy over one period") + ")",
                        *cell(periodic)],
-                      ["from first contact (the scenario's own start settles below it)", *cell(first)],
+                      ["from first contact (the scenario's own start settles below it)", *at_least(first)],
                       *model_rows,
                       [f"decisive: the smaller of the first two ({a['limit_from']})", *cell(a["limit"])]]
     blocks = [
@@ -312,8 +324,11 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
                   "From first contact, short simulations of the scenario's own start find the stiffness above "
                   "which it locks into a contact limit cycle (the small-force region of eq. (18)). The smaller "
                   "of these two decides the verdict, as in tmtcontrol analyze --scenario. The 1-D model is the "
-                  "normal axis alone with the robot's effective mass, which explains the limit: it falls with "
-                  "the control period, the delay, a force filter and a surface located too shallow."),
+                  "normal axis alone with the robot's effective mass, "
+                  + ("which explains the limit: it falls with the control period, the delay, a force filter and "
+                     "a surface located too shallow." if why_not_1d is None else
+                     f"shown for reference only: it makes no prediction for this loop ({why_not_1d}), and the "
+                     "figure below draws no boundary.")),
         Table("Sampled-data stability: the models", ["model", "largest stable k_e (N/m)", "margin over k_e max"],
               model_rows),
     ]
@@ -327,7 +342,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     blocks.append(figure(
         "Largest stable stiffness against the control period (1-D loop of the scenario's law, with its delay, "
         "filter and x_e error); the scenario's operating points and, at its Ts, the limit that decides the "
-        "verdict (the models table's decisive row). The margin is the vertical distance to the boundary.",
+        "verdict (the models table's decisive row). "
+        + ("The margin is the vertical distance to the boundary." if why_not_1d is None else
+           f"No boundary is drawn: the 1-D model makes no prediction for this loop ({why_not_1d})."),
         sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, verdict_limit) if verdict_limit else None,
         label="1-D sampled loop", mark="deciding limit at the scenario's Ts"))
     # python-control's state-space objects cannot be pickled (python-control#1162), and this stage may run in
@@ -626,7 +643,7 @@ def _round2(v: float) -> float:
     return float(f"{v:.2g}")
 
 
-def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
+def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float], str]:
     """The report sweep's axes, from the scenario: its control rate and half
     of it (Hz; the slower side is where stability is lost), and
     :data:`SWEEP_POINTS` constant stiffnesses (N/m, two significant digits)
@@ -634,7 +651,9 @@ def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
     its largest k_e and the 1-D small-signal limit at its rate (the
     boundary is inside the map whenever the analysis finds one; the 1-D
     small-signal figure sizes the map, the cases' own deciding limits draw
-    its line)."""
+    its line); without a 1-D prediction (a law without a linear verdict,
+    the mid-period hold) to ten times its largest k_e. The third item says
+    which rule sized it, for the report's text."""
     from ..stability.analysis import scenario_stiffness_limit
 
     rate = 1.0 / p["Ts"]
@@ -642,10 +661,14 @@ def sweep_axes(sc: Scenario, p: dict) -> tuple[list[float], list[float]]:
         limit = scenario_stiffness_limit(sc, p)
     except Exception:                 # no linear verdict for this law: the range's neighbourhood only
         limit = None
-    top = max(p["k_e_max"], limit if limit is not None and math.isfinite(limit) else p["k_e_max"] * 5)
+    predicted = limit is not None and math.isfinite(limit)
+    top = max(p["k_e_max"], limit if predicted else p["k_e_max"] * 5)
     lo, hi = p["k_e_min"] / 2, 2 * top
     stiffness = sorted({_round2(v) for v in np.geomspace(lo, hi, SWEEP_POINTS)})
-    return stiffness, [rate, rate / 2]
+    rule = ("half the scenario's smallest stiffness to twice the larger of its largest and the 1-D small-signal "
+            "limit" if predicted else "half the scenario's smallest stiffness to ten times its largest: the 1-D "
+            "model gives no prediction for this loop")
+    return stiffness, [rate, rate / 2], rule
 
 
 def _sweep(rep: Report, sc: Scenario, p: dict):
@@ -655,7 +678,7 @@ def _sweep(rep: Report, sc: Scenario, p: dict):
     from ..sweep.spec import sweep_from_dict
 
     cycles = min(sc.trajectory.cycles, SWEEP_CYCLES)
-    stiffness, rates = sweep_axes(sc, p)
+    stiffness, rates, rule = sweep_axes(sc, p)
     spec = sweep_from_dict({"grid": {"environment.stiffness.values": [[v] for v in stiffness],
                                      "controller.rate": rates}})
     # the axes on this scenario (shortened)
@@ -673,8 +696,7 @@ def _sweep(rep: Report, sc: Scenario, p: dict):
     rep.data["sweep"] = {"frame": df, "predicted": pred, "stiffness": stiffness, "rates": rates}
     return Section("sweep", "Robustness sweep", [
         Paragraph(f"{len(df)} simulations of {fmt.qty(cycles * sc.trajectory.period, 's')} each: constant "
-                  f"stiffness from {fmt.qty(stiffness[0], 'N/m')} to {fmt.qty(stiffness[-1], 'N/m')} (half the "
-                  "scenario's smallest stiffness to twice the larger of its largest and the 1-D small-signal limit) × "
+                  f"stiffness from {fmt.qty(stiffness[0], 'N/m')} to {fmt.qty(stiffness[-1], 'N/m')} ({rule}) × "
                   f"the scenario's control rate {fmt.qty(rates[0], 'Hz')} and half of it, everything else as in "
                   "the scenario. Verdicts: "
                   + ", ".join(f"{n} {v}" for v, n in counts.items()) + ". The dashed line is the deciding limit at each rate "
