@@ -444,3 +444,22 @@ def test_the_steady_force_claimed_is_the_implemented_laws(k_e, delta, expected):
     got = analyze(1.0, 60.0, 100.0, k_e_min=2000.0, k_e_max=20000.0, law="known", law_params=params)
     # the worst end of the range: 9.714 N at 2,000 N/m (10.149 N at 20,000 N/m is nearer f_d)
     assert got["steady_state_force"] == pytest.approx(10 * keff(2000) / keff(5000), rel=1e-12)
+
+
+def test_the_steady_force_line_does_not_contradict_itself_over_rounding(capsys, tmp_path):
+    """Regression (review 15): eq. (22)'s DC gain gave 9.999999999999998 N beside the TMT's 10.0 N, and
+    analyze printed "10 N (... eqs. 23-24's f_e = f_d does not hold here)". Equal to rounding, the line
+    says f_e = f_d; a law that misses f_d (the known law's wrong assumed stiffness, eqs. 11-12) still
+    says it does not hold."""
+    from tmtcontrol.cli import main
+
+    assert main(["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke-min", "2000", "--ke-max", "20000"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("steady-state force"))
+    assert line.endswith("10 N (eqs. 23-24: f_e = f_d)"), line
+    import tmtcontrol as tc
+
+    known = tmp_path / "known.toml"
+    known.write_text(tc.dump_scenario(tc.apply_overrides(tc.paper_scenario(), ["controller.law=known"])))
+    assert main(["analyze", "--scenario", str(known)]) in (0, 1)
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("steady-state force"))
+    assert "does not hold here" in line, line

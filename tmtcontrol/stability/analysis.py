@@ -3,6 +3,8 @@ and the whole analysis (continuous eq. 22/25 and sampled data) as plain values."
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
@@ -208,7 +210,10 @@ def format_analysis(d: dict) -> str:
         f"damping ratio        {d['damping_ratio']:.4g}",
         f"BIBO stable          {yes(d['bibo_stable'])}",
         (f"steady-state force   {d['steady_state_force']:.6g} N (eqs. 23-24: f_e = f_d)"
-         if d.get("steady_state_force_eq22", d["steady_state_force"]) == d["steady_state_force"] else
+         # to rounding (review 15: eq. (22)'s DC gain gave 9.999999999999998 N beside the law's 10.0, and the line
+         # said f_e = f_d "does not hold" of a law that holds it)
+         if math.isclose(d.get("steady_state_force_eq22", d["steady_state_force"]), d["steady_state_force"],
+                         rel_tol=1e-9) else
          f"steady-state force   {d['steady_state_force']:.6g} N (the law as implemented, worst end of the "
          f"range; eqs. 23-24's f_e = f_d does not hold here)"),
         f"critical damping     b >= {d['critical_damping']:.4g} N s/m (eq. 25)",
