@@ -136,6 +136,8 @@ def test_segment_table_shows_the_contact_lost_behind_a_100_percent_overshoot(pap
     assert [row[lost] != "no" for row in segs] == [False, True, False, True]
     assert all((number(row[over]) == 100.0) == (row[lost] != "no") for row in segs)
     assert all(row[lost].endswith("ms") for row in segs if row[lost] != "no")
+    # review 15: the RMS over a whole segment is 3.6-11.4 um, over its last quarter 3.26 um: the column says which
+    assert "tangential RMS (last quarter)" in head
 
 
 def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):

@@ -446,9 +446,10 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         "the force step the stiffness change causes on the current penetration (no controller can avoid it); "
         "the overshoot is the controller's own, after the jump (after a jump above f_d, how far the force then "
         "falls below f_d: 100 % is a contact lost, for the time in the next column). A segment 'converged' "
-        "when its last quarter settles within the ripple band."))
+        "when its last quarter settles within the ripple band. The steady-state error, the tangential RMS "
+        "and a 6-D arm's orientation error are taken over each segment's last quarter."))
     head, rows = ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost", "settling 2 %",
-                  "steady-state |f_e − f_d|", "tangential RMS", "verdict"], _segment_rows(segs)
+                  "steady-state |f_e − f_d|", "tangential RMS (last quarter)", "verdict"], _segment_rows(segs)
     if getattr(res, "orientation_error", None) is not None:     # a 6-D task: the orientation is judged too
         head.insert(-1, "orientation error")
         for r, c in zip(rows, _cells([s.orientation_error for s in segs], "rad")):
