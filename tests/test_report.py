@@ -584,3 +584,29 @@ def test_the_sampled_section_shows_the_1d_model_for_reference_where_it_predicts_
     one_d = next(r for k, r in rows.items() if k.startswith("1-D"))
     assert "for reference only: it leaves out the mid-period hold" in one_d[0]
     assert rows["from first contact"][1].startswith("≥ ")
+
+
+def test_alt_text_reads_a_shared_axis_and_calls_a_picture_an_image():
+    """Regression (review 15): panels sharing the x axis of the one below were described "against
+    index" (only the bottom one carries the label), and the drawn arm's frame (an image, axes off) "a
+    chart of value against index"."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tmtcontrol.report.document import describe
+
+    fig, (a, b) = plt.subplots(2, 1, sharex=True)
+    a.plot([0, 1], [0, 1])
+    a.set_ylabel("force (N)")
+    b.plot([0, 1], [1, 0])
+    b.set_ylabel("depth (m)")
+    b.set_xlabel("time (s)")
+    assert describe(fig) == "Chart. a chart of force (N) against time (s). a chart of depth (m) against time (s)."
+    fig2, c = plt.subplots()
+    c.imshow([[0.0, 1.0], [1.0, 0.0]])
+    c.set_axis_off()
+    c.set_title("the arm at t = 0 s")
+    assert describe(fig2) == "Chart. the arm at t = 0 s: an image."
+    plt.close("all")

@@ -133,8 +133,15 @@ def describe(fig) -> str:
         if ax.get_label() == "<colorbar>":
             parts.append(f"a colour scale of {ax.get_ylabel() or ax.get_xlabel()}")
             continue
-        x, y = ax.get_xlabel(), ax.get_ylabel()
+        # a panel sharing its x axis with the one below reads that one's label (review 15: "against index")
+        x = ax.get_xlabel() or next((o.get_xlabel() for o in ax.get_shared_x_axes().get_siblings(ax)
+                                     if o.get_xlabel()), "")
+        y = ax.get_ylabel() or next((o.get_ylabel() for o in ax.get_shared_y_axes().get_siblings(ax)
+                                     if o.get_ylabel()), "")
         if not (x or y or ax.get_title()):
+            continue
+        if not (x or y) and (ax.images or not ax.axison):     # a picture (the arm drawn), not a chart
+            parts.append(f"{ax.get_title()}: an image")
             continue
         scale = lambda a: " (log scale)" if a.get_scale() == "log" else ""
         what = f"{y or 'value'}{scale(ax.yaxis)} against {x or 'index'}{scale(ax.xaxis)}"
