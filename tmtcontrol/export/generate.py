@@ -338,14 +338,17 @@ def controller_function(scenario: Scenario, torque: bool) -> tuple[ca.Function, 
 
 def _check_position_depth(scenario: Scenario, surface) -> None:
     """The position command ``p_c`` is the surface's point of X_c
-    (:meth:`.surface.base.Surface.point`). Before the force builds up X_c's
-    depth goes to the free-space reference's f_d/k (eq. 18's f_e = 0
-    branch); where that reaches the chart's :meth:`depth_limit` (the radius
-    on a convex sphere or cylinder) ``p_c`` and ``q_c`` pass the centre of
-    curvature and point through the part (review 11: on the built-in pipe,
-    f_d/k = r = 0.1 m, p_c crossed its axis). Refused, naming
-    ``impedance.k``; the torque command (``--inner-loop``) acts in task
-    coordinates and is not affected."""
+    (:meth:`.surface.base.Surface.point`). X_c's depth can reach the
+    reference's: f_d/k (eq. 18's f_e = 0 branch, before the force builds
+    up), plus f_d/min_stiffness where the law's stiffness estimate sits on
+    its floor (eq. 18's compliance term), plus a surface believed deeper
+    (x_e_error > 0) or a part believed moved (part_offset). Where that
+    reaches the chart's :meth:`depth_limit` (the radius on a convex sphere
+    or cylinder) ``p_c`` and ``q_c`` would pass the centre of curvature and
+    point through the part (reviews 11 and 14: on the built-in pipe f_d/k =
+    r = 0.1 m, and K = 1.01 f_d/r still commanded 1.01 r at first contact).
+    Refused, naming ``impedance.k``; the torque command (``--inner-loop``)
+    acts in task coordinates and is not affected."""
     ctl = scenario.controller
     f_d, k = ctl.f_d, scenario.impedance.k[0]
     limit = surface.depth_limit()
@@ -478,8 +481,9 @@ other parameter and every measurement must be finite."""
 
 
 def _check_in(params, meas) -> str:
-    """The fixed-count check of ``tmt_step``'s inputs, before the generated
-    function runs: a NaN anywhere, or an infinite value other than a limit of
+    """The fixed-count check of ``tmt_step``'s inputs (``tmt_init``'s: the
+    parameters only, ``meas`` empty), before the generated function runs: a
+    NaN anywhere, or an infinite value other than a limit of
     :data:`UNBOUNDED_PARAMS` (which must be >= 0 instead), sets ``bad``. The
     results' own check cannot see every bad input: the torque clip
     (``fmin``/``fmax``) turns a NaN torque into +-tau_max (review 11: a NaN
