@@ -395,8 +395,8 @@ def _control(model, law: Law, surface, S: dict, P: dict, ref: dict, q, dq, kin, 
     if hold:            # the torque at t_k + Ts/2, extrapolated from the last two (the first period: as computed)
         out.update(tau_prev=tau, held=ca.MX(1))
         tau = tau + MID_PERIOD * S["held"] * (tau - S["tau_prev"])
-    # the drive's clip (robot.saturate; inf: none); a NaN or infinite torque stays so (fmin/fmax would return the bound and
-    # hide it from every finiteness check: review 14, a measured dq of 1e160 gave -tau_max with return code 0)
+    # the drive's clip (robot.saturate; inf: none); a NaN or infinite torque stays so (fmin/fmax would return the
+    # bound and hide it from every finiteness check: review 14, a measured dq of 1e160 gave -tau_max, return code 0)
     tau = ca.if_else(ca.fabs(tau) < ca.inf, ca.fmin(ca.fmax(tau, -P["tau_max"]), P["tau_max"]), tau)
     if delay:           # apply the oldest waiting torque; queue this one
         queue = ca.vertcat(S["tau_wait"], tau)

@@ -288,9 +288,9 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
 
     law = get_law("tmt")
     b, k = ca.SX.sym("b"), ca.SX.sym("k")
-    F, _ = _step_function(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, k_e=k_e, Ts=spec.Ts, m_p=spec.m_p,
-                          f_d=spec.f_d, delta=0.0, kd=b / spec.m, kp=k / spec.m, alpha=spec.alpha, d_e=0.0,
-                          delay=spec.delay, inputs=(b, k))
+    F, _ = _step_function(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, k_e=k_e,
+                          Ts=spec.Ts, m_p=spec.m_p, f_d=spec.f_d, delta=0.0, kd=b / spec.m, kp=k / spec.m,
+                          alpha=spec.alpha, d_e=0.0, delay=spec.delay, inputs=(b, k))
     n = max(2, int(math.ceil(duration / spec.Ts)))
     acc = F.mapaccum("response", n)
     z0 = np.zeros(F.size1_in(0))
@@ -682,8 +682,8 @@ def _limit(spec: DesignSpec, b: float, k: float) -> float:
 
     # scanned from k_e_min/10: far below it the TMT estimate sits on its min_stiffness clip
     law = get_law("tmt")
-    return law_stiffness_limit(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, Ts=spec.Ts, m_p=spec.m_p, f_d=spec.f_d,
-                               alpha=spec.alpha, delay=spec.delay, k_lo=spec.k_e_min / 10)
+    return law_stiffness_limit(law, law.parameters(min_stiffness=spec.min_stiffness), m=spec.m, b=b, k=k, Ts=spec.Ts,
+                               m_p=spec.m_p, f_d=spec.f_d, alpha=spec.alpha, delay=spec.delay, k_lo=spec.k_e_min / 10)
 
 
 def damping_alternatives(scenario, result: DesignResult) -> dict:
