@@ -261,6 +261,7 @@ def _pinocchio_normal_masses_on_the_part(sc) -> np.ndarray:
     return np.array(out)
 
 
+@pytest.mark.heavy   # a design on the bowl's path masses (5-12 s of one worker): CI's heavy step runs it
 def test_design_on_the_bowl_takes_the_paths_largest_normal_mass(capsys, monkeypatch):
     """``tmtcontrol design --scenario panda-bowl``: the design's m_p is the
     largest of ``stability.normal_masses`` along the bowl's path (exactly:

@@ -122,6 +122,7 @@ def test_design_bad_input_is_one_line_exit_2_nothing_written(argv, needle, tmp_p
     assert not (tmp_path / "figs").exists()
 
 
+@pytest.mark.heavy   # a design and the report's design stage (6-15 s of one worker): CI's heavy step runs it
 def test_a_stated_overshoot_requirement_is_the_designs_bound_and_the_reports_verdict():
     """[requirements] first_contact_overshoot: the design's bound and, only then, a report verdict on the
     scenario's own b. The paper's b = 60 N s/m: damping ratio 0.21 at 2e4 N/m (eq. 25's

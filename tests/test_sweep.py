@@ -107,6 +107,7 @@ def test_axes_carry_their_schema_units_into_the_map(small):
     assert ax.get_xlabel() == "environment.stiffness.values (N/m)" and ax.get_ylabel() == "trajectory.cycles"
 
 
+@pytest.mark.heavy   # three engines (one process, a pool of 2, a local Dask cluster; 5-6 s): CI's heavy step
 def test_results_do_not_depend_on_workers_or_engine(small):
     cols = lambda d: d.drop(columns=["run_time_s"])
     one = cols(run_sweep(small))
