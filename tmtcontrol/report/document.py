@@ -806,10 +806,7 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
 
 
 def _scenario_section(sc: Scenario) -> Section:
-    from ..simulation.simulator import robot_of, robot_task
-
-    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"]
-            for r in applicable_settings(sc, robot_task(robot_of(sc)))]
+    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"] for r in applicable_settings(sc)]
     return Section("scenario", "Scenario", [
         Paragraph("The keys that apply to this scenario's options (SI units)."),
         Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])
