@@ -301,9 +301,10 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
     cell = lambda v: [fmt.num(v), fmt.ratio(v / p["k_e_max"])] if v is not None else ["–", "–"]
     # the 1-D model leaves out the mid-period hold and has no verdict for some laws: then it predicts nothing
-    # for this loop (scenario_stiffness_limit is None, no boundary in the figure) and is shown for reference only
-    # (review 15: the pipe's 133,000 N/m row stood beside the loop's own 561,000-603,000 as if it explained them)
-    why_not_1d = None if scenario_stiffness_limit(sc, p) is not None else (
+    # for this loop (scenario_stiffness_limit is None at every rate above, no boundary in the figure) and is shown
+    # for reference only (review 15: the pipe's 133,000 N/m row stood beside the loop's own 561,000-603,000 as if
+    # it explained them)
+    why_not_1d = None if not np.all(np.isnan(limits)) else (
         "it leaves out the mid-period hold" if sc.controller.hold == "mid_period" else
         "this law has no linear verdict")
     # the first-contact search stops at the limit along the path: a start that settles there is a lower bound
@@ -564,8 +565,8 @@ def _worst(values) -> float:
 def _worst_settling(segs) -> str:
     """The longest 2 % settling time; "never" if a segment does not settle
     (its settling time is NaN, which must not be skipped as the smallest)."""
-    times = [s.settling_time for s in segs]
-    return "never" if any(math.isnan(t) for t in times) else fmt.qty(max(times), "s")
+    t = _worst(s.settling_time for s in segs)
+    return "never" if math.isnan(t) else fmt.qty(t, "s")
 
 
 def _comparison(rep: Report, sc: Scenario):

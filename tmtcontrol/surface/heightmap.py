@@ -37,12 +37,11 @@ e_1]``, e_1 the unit tangent ``S_u / |S_u|``.
 from __future__ import annotations
 
 import hashlib
-import math
 
 import casadi as ca
 import numpy as np
 
-from .base import checked_frame
+from .base import Surface, checked_frame
 from .curved import _Curved
 
 __all__ = ["HeightMap", "MIN_POINTS", "MAX_POINTS"]
@@ -181,11 +180,9 @@ class HeightMap(_Curved):
         root = np.sqrt(np.maximum(H * H - K, 0.0))
         return np.where(inside, H + root, 0.0), np.where(inside, H - root, 0.0)
 
-    def depth_limit(self) -> float:
-        """:meth:`.base.Surface.depth_limit`: none (the chart is linear in
-        X_0 along e_n: it never folds; review 14: the inherited sphere's
-        rule read a radius a height map does not have)."""
-        return math.inf
+    # the base's: none (the chart is linear in X_0 along e_n, it never folds; review 14: the curved shapes' rule,
+    # inherited, read a radius a height map does not have)
+    depth_limit = Surface.depth_limit
 
     def concave_radius(self, s) -> np.ndarray:
         """:meth:`.base.Surface.concave_radius`: ``1 / k_1`` of
