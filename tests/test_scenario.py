@@ -76,6 +76,18 @@ def test_overrides():
         apply_overrides(paper_scenario(), ["controller.f_d"])
 
 
+@pytest.mark.parametrize("item, message", [
+    ("controller.nope=1", r"^controller\.nope: unknown key \(known: rate, f_d, .*damping_schedule\) \(in --set\)$"),
+    ("nosuch.key=1", r"^nosuch: unknown key \(known: name, robot, environment, .*requirements\) \(in --set\)$"),
+    ("controller.law.x.y=1", r"^controller\.law\.x: unknown key \(known: force_threshold, min_stiffness\) \(in --set\)$"),
+])
+def test_unknown_override_key_says_where_and_what_is_known(item, message):
+    # an unknown --set key was "controller.nope: unknown key", without the "(in --set)" every other --set
+    # message carries and without the section's keys the same typo in a file is told
+    with pytest.raises(ScenarioError, match=message):
+        apply_overrides(paper_scenario(), [item])
+
+
 def test_direct_construction_validates():
     with pytest.raises(ValidationError, match="f_d"):
         ControllerSettings(f_d=-1.0)

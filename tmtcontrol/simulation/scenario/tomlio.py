@@ -118,7 +118,10 @@ def set_key(d: dict, key: str, value: Any) -> None:
         if p not in node and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
             node[p] = {}
         if not isinstance(node, dict) or p not in node:
-            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key")
+            parent = model_at(tuple(parts[:i]), d)
+            tables = [f for f in parent.model_fields if f != "kind"] if parent is not None else []
+            raise ScenarioError(f"{'.'.join(parts[:i + 1])}: unknown key"
+                                + (f" (known: {', '.join(tables)})" if tables else ""))
         if isinstance(node[p], str) and tuple(parts[max(0, i - 1):i + 1]) in TAGGED_TABLES:
             node[p] = {"kind": node[p]}
         if not isinstance(node[p], dict):
@@ -140,7 +143,8 @@ def set_key(d: dict, key: str, value: Any) -> None:
     known = model_at(tuple(parts[:-1]), d)
     tagged_member = known is not None and "kind" in known.model_fields   # the schema names the kind
     if last not in node and not tagged_member and (known is None or last not in known.model_fields):
-        raise ScenarioError(f"{key}: unknown key")
+        fields = [f for f in (known.model_fields if known is not None else node) if f != "kind"]
+        raise ScenarioError(f"{key}: unknown key" + (f" (known: {', '.join(fields)})" if fields else ""))
     node[last] = value
 
 
@@ -162,5 +166,8 @@ def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
             value = raw
         except InputFileError as exc:
             raise ScenarioError(f"--set {key}: {exc}") from None
-        set_key(d, key, value)
+        try:
+            set_key(d, key, value)
+        except ScenarioError as exc:          # say where the key came from, as the schema's messages do
+            raise ScenarioError(f"{exc} (in --set)") from None
     return scenario_from_dict(d, "--set")
