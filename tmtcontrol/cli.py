@@ -28,6 +28,14 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, no usage dump
         raise UsageError(f"{self.prog}: {message}")
 
+    def _print_message(self, message, file=None):
+        # argparse ignores a failed write: --help or --version into a full disk exited 0 with nothing shown;
+        # the OSError now reaches main, whose one line and exit 3 every other failed output write gets
+        if message:
+            file = sys.stderr if file is None else file
+            file.write(message)
+            file.flush()
+
 
 _RAW = argparse.RawDescriptionHelpFormatter
 
