@@ -257,8 +257,9 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
     if tip is None:
         leaves = [l for l in below if not children[l]]
         if len(leaves) != 1:
-            raise URDFError(f"{where}: the tree branches ({len(leaves)} leaf links: {', '.join(leaves)}); "
-                            "give the tip link (--tip)")
+            # the request lacks its tip: the command line says --tip, a scenario robot.tip (review 19)
+            raise TipError(f"{where}: the tree branches ({len(leaves)} leaf links: {', '.join(leaves)}); "
+                           "give the tip link")
         tip = leaves[0]
     if tip not in links:
         raise TipError(f"{where}: tip {tip!r} is not a link; links below {base!r}: {', '.join(frames)}")
@@ -337,6 +338,11 @@ def _parse(text: str, where: str):
         raise URDFError(f"{where}: not XML ({exc.msg if hasattr(exc, 'msg') else exc})") from None
     if root.tag != "robot":
         raise URDFError(f"{where}: not a URDF (root element <{root.tag}>, expected <robot>)")
+    for el in root.iter():
+        # urdf_parser_py skips unknown elements: an unexpanded <xacro:include> or macro call would lose what it adds
+        if isinstance(el.tag, str) and el.tag.startswith("{") and "xacro" in el.tag[1:el.tag.find("}")]:
+            raise URDFError(f"{where}: <xacro:{etree.QName(el).localname}> found: a xacro file; expand it first "
+                            "(xacro FILE.urdf.xacro > FILE.urdf)")
     saved = core.on_error
     core.on_error = lambda message: None                   # unknown attributes (e.g. mu_viscous): ignored
     try:
@@ -550,7 +556,18 @@ def _check_inertial(link, where, moving: bool) -> float:
     if eig[0] < -1e-12 * max(1.0, abs(eig[-1])):
         raise URDFError(f"{where}: link {link.name!r}: inertia is not positive semi-definite "
                         f"(eigenvalues {', '.join(f'{e:.3g}' for e in eig)} kg m^2)")
+    if eig[0] + eig[1] < eig[2] * (1 - TRIANGLE_RTOL):
+        # no mass distribution has a principal moment above the sum of the other two (I_zz = int x^2 + y^2 dm);
+        # MuJoCo refuses such a body too, naming neither file nor link (review 19)
+        raise URDFError(f"{where}: link {link.name!r}: inertia no body can have (principal moments "
+                        f"{', '.join(f'{e:.4g}' for e in eig)} kg m^2: the largest exceeds the sum of the others)")
     return m
+
+
+TRIANGLE_RTOL = 1e-6
+"""Slack of the principal moments' triangle inequality, relative to the
+largest: a thin rod or a flat plate meets it with equality, which a CAD
+export rounded to a few digits may miss by its rounding."""
 
 
 def _merge(links, parts, place) -> Body:

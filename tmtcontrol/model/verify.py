@@ -83,8 +83,12 @@ class RobotCheck:
         return all(i.ok for i in self.identities)
 
 
-def _rel(a, b) -> float:
-    """||a - b|| / ||b|| (Frobenius; the absolute difference where b = 0). ``b`` is
+def _rel(a, b, floor: float = 0.0) -> float:
+    """||a - b|| / max(||b||, ``floor``) (Frobenius; the absolute difference where
+    both are 0). ``floor``: the quantity's natural size where ``b`` may be zero
+    but for rounding (the gravity torque of an arm whose axes are all vertical:
+    3.6e-15 N m from one library and exactly 0 from the other read as a relative
+    error of 1; review 19). ``b`` is
     taken in ``a``'s shape when they hold the same number of entries (a one-joint
     arm's Jacobian: 6 x 1 here, 6 from another library); NumPy's broadcasting of
     6 x 1 against 6 compared every row with every other (3.16 on a right model)."""
@@ -93,7 +97,7 @@ def _rel(a, b) -> float:
         if a.size != b.size:
             raise ValueError(f"cannot compare a {a.shape} array with a {b.shape} array")
         b = b.reshape(a.shape)
-    scale = np.linalg.norm(b)
+    scale = max(float(np.linalg.norm(b)), floor)
     return float(np.linalg.norm(a - b) / scale) if scale > 0 else float(np.linalg.norm(a - b))
 
 
@@ -162,8 +166,11 @@ def check_robot(robot, samples: int = 20, seed: int = 0, pinocchio: bool = True)
             got = ref(qi, dqi, taui)
             ours_rnea = robot.inverse_dynamics(qi, dqi, got["aba"]) - robot.friction(dqi)
             pworst["M"] = max(pworst["M"], _rel(Mi, got["M"]))
-            pworst["bias"] = max(pworst["bias"], _rel(robot.bias(qi, dqi), got["bias"]))
-            pworst["g"] = max(pworst["g"], _rel(robot.gravity(qi), got["g"]))
+            # a torque's natural size where the bias or gravity vanishes: what the arm's inertia gives at an
+            # acceleration of 9.81 rad/s^2 plus |dq|^2 (gravity at ~1 m reach, the velocity terms' order)
+            floor = float(np.linalg.norm(Mi)) * (9.81 + float(dqi @ dqi))
+            pworst["bias"] = max(pworst["bias"], _rel(robot.bias(qi, dqi), got["bias"], floor))
+            pworst["g"] = max(pworst["g"], _rel(robot.gravity(qi), got["g"], floor))
             pworst["J"] = max(pworst["J"], _rel(robot.jacobian(qi), got["J"]))
             pworst["fk"] = max(pworst["fk"], _rel(robot.fk(qi), got["fk"]))
             pworst["aba"] = max(pworst["aba"], _rel(ours_rnea, taui))
@@ -192,14 +199,19 @@ def pinocchio_model(robot):
         Pinocchio is not installed.
     NotImplementedError
         The robot's base is not the URDF's root link (Pinocchio's world would
-        differ from the base frame).
+        differ from the base frame), or Pinocchio's URDF parser (urdfdom)
+        refuses a file tmtcontrol reads (a tab between two numbers).
     """
     import pinocchio as pin
 
     if robot.chain is None:
         model, tip = _puma_pinocchio(robot)
     else:
-        model = pin.buildModelFromXML(robot.urdf)
+        try:
+            model = pin.buildModelFromXML(robot.urdf)
+        except (ValueError, RuntimeError) as exc:    # urdfdom is stricter (a tab between numbers; review 19)
+            raise NotImplementedError(f"Pinocchio's URDF parser refuses the file: {' '.join(str(exc).split())}") \
+                from None
         if model.frames[1].name != robot.base:          # frame 0 is the universe, 1 the root link
             raise NotImplementedError(f"base {robot.base!r} is not the URDF's root link")
         qref = pin.neutral(model)
