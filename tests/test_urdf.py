@@ -756,3 +756,25 @@ def test_a_branching_tree_without_a_tip_names_robot_tip_in_a_scenario(tmp_path, 
     assert err.startswith("error: robot.tip: ") and err.endswith("give the tip link") and "--tip" not in err, err
     assert main(["robot", str(path)]) == 2
     assert capsys.readouterr().err.strip().startswith("error: --tip: ")
+
+
+def test_a_massless_moving_link_with_its_mass_on_a_fixed_child_loads_and_matches_pinocchio(tmp_path):
+    """Regression (review 19): each link was checked on its own, so a moving link without
+    <inertial> whose mass sits on a link fixed to it (a '*_inertia' child, a common layout
+    that Pinocchio builds) was refused. The rigid body is what moves: it must have mass
+    and a positive-definite inertia; with no mass on either link it is still refused."""
+    lumped = GOOD.replace('<link name="tool"/>', '<link name="tool"/><link name="arm_inertia">' +
+                          GOOD[GOOD.index("<inertial>"):GOOD.index("</inertial>") + 11] + "</link>") \
+        .replace("</robot>", '<joint name="arm_inertia_fix" type="fixed"><parent link="arm"/><child '
+                             'link="arm_inertia"/></joint></robot>')
+    bare = lumped.replace(GOOD[GOOD.index("<inertial>"):GOOD.index("</inertial>") + 11], "", 1)
+    assert bare.count("<inertial>") == 1 and '<link name="arm"></link>' in bare
+    one, two = load_robot(str(write(tmp_path, GOOD, "one.urdf"))), load_robot(str(write(tmp_path, bare, "two.urdf")), tip="tool")
+    for q in ([0.3], [-1.2]):       # the same body, so the same dynamics (bit for bit is not promised: summed)
+        np.testing.assert_allclose(two.mass_matrix(q), one.mass_matrix(q), rtol=1e-14)
+        np.testing.assert_allclose(two.gravity(q), one.gravity(q), rtol=1e-14)
+    check = check_robot(two, samples=3)
+    assert check.reference.startswith("pinocchio") and check.ok, [(i.name, i.worst) for i in check.identities]
+    nothing = bare.replace(bare[bare.index("<inertial>"):bare.index("</inertial>") + 11], "")
+    with pytest.raises(URDFError, match="link 'arm' moves but has no <inertial>"):
+        load_robot(str(write(tmp_path, nothing, "three.urdf")), tip="tool")

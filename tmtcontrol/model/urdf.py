@@ -313,13 +313,29 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
             place[link] = (b, Rj @ Rm, Rj @ pm + pj)
 
     chain_joints = tuple(_chain_joint(j, R, p, where) for j, R, p in specs)
-    moving = {j.child for j, _, _ in specs}
-    masses = {link: _check_inertial(links[link], where, moving=link in moving) for link in frames}
+    # what moves is the rigid body: the joint's child and the links fixed to it (a massless link whose mass sits
+    # on a fixed '*_inertia' child is a common layout, and Pinocchio's; review 19): a moving link that carries
+    # its body's mass alone is checked as moving, as before; one whose fixed links carry mass, by the body
+    body_parts = [sorted((name for name in frames if place[name][0] == k), key=lambda name: name != j.child)
+                  for k, (j, _, _) in enumerate(specs)]
+
+    def massive(name):
+        got = _inertial(links[name], where)
+        return got is not None and got[0] > 0
+
+    lone = {parts[0] for parts in body_parts if not any(massive(name) for name in parts[1:])}
+    masses = {link: _check_inertial(links[link], where, moving=link in lone) for link in frames}
     bodies = []
-    for k, (j, _, _) in enumerate(specs):
-        parts = [name for name in frames if place[name][0] == k]
-        parts.sort(key=lambda name: name != j.child)
-        bodies.append(_merge(links, parts, place))
+    for (j, _, _), parts in zip(specs, body_parts):
+        if not sum(masses[name] for name in parts) > 0:
+            _check_inertial(links[j.child], where, moving=True)      # names what the moving link lacks
+        body = _merge(links, parts, place)
+        eig = np.linalg.eigvalsh(body.inertia)
+        if not eig[0] > 0:
+            raise URDFError(f"{where}: link {j.child!r}: the inertia of the rigid body it forms with "
+                            f"{', '.join(parts[1:])} is not positive definite (eigenvalues "
+                            f"{', '.join(f'{e:.3g}' for e in eig)} kg m^2)")
+        bodies.append(body)
     tb, tR, tp = place[tip]
     return Chain(name=robot.name, base=base, tip=tip, joints=chain_joints, bodies=tuple(bodies), tip_body=tb,
                  tip_R=tR, tip_p=tp, held=held, link_masses=masses)
