@@ -154,6 +154,43 @@ def test_known_with_a_50_percent_wrong_stiffness_is_off_by_eqs_11_12():
     assert got == pytest.approx(want, abs=2e-3)                  # ... and is the eq. (11)-(12) amount
 
 
+@pytest.mark.parametrize("f_d, threshold", [(10.0, 8.0), (0.8, 0.5)])
+def test_tmt_steady_force_below_twice_the_force_threshold_is_what_the_loop_settles_at(f_d, threshold):
+    """Regression (review 16): below twice ``force_threshold`` eq. (18)'s compliance term
+    has weight w < 1, so the force settles below f_d; the law claimed f_d (analyze printed
+    "10 N (eqs. 23-24: f_e = f_d)" where the run settles at 9.830 N). The claim is now the
+    root of the steady balance; the simulator, an independent computation, settles there
+    (within 1 mN: the circle's motion leaves ~0.2 mN)."""
+    from tmtcontrol.control.laws.tmt import TmtParameters, _steady_force
+
+    k_e = 5e3
+    sc = short(f"controller.law.force_threshold={threshold}", f"controller.f_d={f_d}",
+               f"environment.stiffness.values=[{k_e}]")
+    claim = _steady_force(TmtParameters(force_threshold=threshold), f_d, 100.0, k_e, 0.0)
+    got = Simulator(sc, compile=False).run(sc).contact_force[-1000:].mean()
+    assert f_d - claim > 5e-3                         # the shortfall is real (170 mN and 5.8 mN) ...
+    assert got == pytest.approx(claim, abs=1e-3)      # ... and is the balance's root
+    assert _steady_force(TmtParameters(), 10.0, 100.0, k_e, 0.0) == 10.0      # eqs. 23-24 where w = 1
+
+
+def test_rls_steady_force_with_its_estimate_frozen_and_its_clip_order():
+    """Regression (review 16): with f_d at or below twice force_threshold the RLS estimate
+    never updates at the equilibrium, so the law is eqs. (11)-(12) with its initial estimate
+    (-98 mN here), but claimed f_d; and min_stiffness > max_stiffness was accepted."""
+    from tmtcontrol import ScenarioError
+    from tmtcontrol.control.laws.rls import RlsParameters, _steady_force
+
+    k_e = 5e3
+    sc = short("controller.law=rls", "controller.law.force_threshold=8.0", f"environment.stiffness.values=[{k_e}]")
+    claim = _steady_force(RlsParameters(force_threshold=8.0), 10.0, 100.0, k_e, 0.0)
+    assert claim == pytest.approx(10.0 * k_eff(100.0, k_e) / k_eff(100.0, 1e4), rel=1e-15)   # closed form, -98 mN
+    got = Simulator(sc, compile=False).run(sc).contact_force[-1000:].mean()
+    assert got == pytest.approx(claim, abs=1e-3)
+    assert _steady_force(RlsParameters(), 10.0, 100.0, k_e, 0.0) == 10.0
+    with pytest.raises(ScenarioError, match=r"controller\.law\.min_stiffness: must be <= max_stiffness \(100\)"):
+        short("controller.law=rls", "controller.law.min_stiffness=1e6", "controller.law.max_stiffness=100.0")
+
+
 # -- adaptive damping: the sampled bound on sigma ------------------------------------
 
 def _sigma_limit(k_e, m_p=3.3):

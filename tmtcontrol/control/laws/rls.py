@@ -52,7 +52,7 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import casadi as ca
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ..impedance import filtered_command
 from .base import Law, LawParameters
@@ -80,7 +80,16 @@ class RlsParameters(LawParameters):
                       "(the surface changed), N") = 2.0
     force_threshold: _num(gt=0, description="the estimate updates only while f_m > 2x this, N") = 0.5
     min_stiffness: _num(gt=0, description="lower clip of the stiffness estimate, N/m") = 100.0
-    max_stiffness: _num(gt=0, description="upper clip of the stiffness estimate, N/m") = 1e8
+    max_stiffness: _num(gt=0, description="upper clip of the stiffness estimate, N/m; above the surface's "
+                        "k_e, or the estimate is pinned below it and the loop need not settle") = 1e8
+
+    @model_validator(mode="after")
+    def _clip_order(self):
+        # review 16: min 1e6 > max 100 was accepted and pinned the estimate at 100 N/m (a limit cycle)
+        if self.min_stiffness > self.max_stiffness:
+            raise ValueError(f"min_stiffness: must be <= max_stiffness ({self.max_stiffness:g}), "
+                             f"got {self.min_stiffness:g}")
+        return self
 
 
 def _update(y, p, s):
@@ -116,7 +125,16 @@ def _initial(params):
 
 
 def _steady_force(params, f_d, k, k_e, delta):
-    return f_d
+    """f_d where the estimate updates at it (f_d > 2 force_threshold, module
+    docstring). Below, the estimate is frozen at the equilibrium and the law
+    is eqs. (11)-(12) with the estimate it holds: the initial one if no
+    transient reached 2 force_threshold, f = k_eff(k, k_e) (delta + f_d/k +
+    f_d/initial_stiffness) (review 16: f_d was claimed for a run that settles
+    98 mN low with force_threshold = 8 N)."""
+    if f_d > 2.0 * params.force_threshold:
+        return f_d
+    k_hat = params.initial_stiffness
+    return max(0.0, k * k_e / (k + k_e) * (delta + f_d / k + f_d / k_hat))
 
 
 RLS = Law("rls", RlsParameters, ("x_a", "dx_a", "theta_k", "theta_f", "P_kk", "P_kf", "P_ff"), _update,
