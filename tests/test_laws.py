@@ -191,6 +191,28 @@ def test_rls_steady_force_with_its_estimate_frozen_and_its_clip_order():
         short("controller.law=rls", "controller.law.min_stiffness=1e6", "controller.law.max_stiffness=100.0")
 
 
+def test_analyze_gives_a_law_its_own_continuous_poles_not_eq22s():
+    """Regression (review 16): analyze printed eq. (22)'s poles, damping and overshoot for
+    the integral and adaptive-damping laws as if they were theirs. The integral law's loop
+    is m s^3 + (b + m k_i k_e) s^2 + (k + k_e + b k_i k_e) s + k k_i k_e (docs/laws.md,
+    written out here): at k_e = 2e4 three real roots, -560, -98.9 and -1.08, not eq. (22)'s
+    -30 +- 138.6j; a law without a declared model says so; TMT and known add nothing."""
+    from tmtcontrol.stability.analysis import analyze, format_analysis
+
+    m, b, k, k_e, k_i = 1.0, 60.0, 100.0, 2e4, 0.03
+    d = analyze(m, b, k, k_e=k_e, law="integral")
+    want = np.roots([m, b + m * k_i * k_e, k + k_e + b * k_i * k_e, k * k_i * k_e])
+    got = np.array([complex(re, im) for re, im in d["law_poles"]])
+    assert np.allclose(np.sort_complex(got), np.sort_complex(want), rtol=1e-9)
+    assert np.allclose(np.sort(want.real), [-560.0, -98.9, -1.08], rtol=5e-3) and d["law_stable"]
+    assert d["law_damping_ratio"] == pytest.approx(1.0) and d["damping_ratio"] == pytest.approx(0.2116, abs=1e-4)
+    assert "law integral: the lines above are eq. (22)" in format_analysis(d)
+    ad = analyze(m, b, k, k_e=k_e, law="adaptive_damping")
+    assert ad["law_poles"] is None and "declares no continuous-time model" in format_analysis(ad)
+    for law in ("tmt", "known"):
+        assert "law_poles" not in analyze(m, b, k, k_e=k_e, law=law)
+
+
 # -- adaptive damping: the sampled bound on sigma ------------------------------------
 
 def _sigma_limit(k_e, m_p=3.3):

@@ -99,6 +99,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         out.update({"steady_state_force_eq22": out["steady_state_force"], "steady_state_force": float(worst)})
         if x_e_error != 0.0:
             out.update({"x_e_error": x_e_error, "steady_state_force_x_e_error": float(worst)})
+    out.update(_law_continuous(lw, params, m, b, k, hi, f_d, x_e_error))
     if Ts is not None:
         masses = m_p if m_p is not None else (paper_effective_mass(), paper_effective_mass(worst=True))
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
@@ -140,6 +141,26 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                     "sampled_model": model, "max_stable_stiffness": limit, "stable_band": _band_dict(bands),
                     "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
     return out
+
+
+def _law_continuous(lw, params, m, b, k, k_e, f_d, delta) -> dict:
+    """The law's own ideal continuous loop at ``k_e`` where it is not eq. (22)'s
+    (review 16: ``analyze`` gave the integral and adaptive-damping laws eq.
+    (22)'s poles, damping and overshoot as if they were theirs): its poles
+    and least damping ratio from the polynomial the law declares
+    (``Law.characteristic_polynomial``, checked against the sampled loop by
+    the derivation checks), or ``law_poles = None`` for a law that declares
+    none. Nothing for a law whose polynomial is eq. (22)'s."""
+    if lw.characteristic_polynomial is None:
+        return {"law": lw.name, "law_poles": None}
+    coeffs = np.trim_zeros(np.asarray(lw.characteristic_polynomial(params, m, b, k, k_e, f_d, delta), float), "f")
+    eq22 = np.array([m, b, k + k_e], float)
+    if coeffs.shape == eq22.shape and np.allclose(coeffs / coeffs[0], eq22 / m, rtol=1e-12, atol=0.0):
+        return {}
+    roots = np.roots(coeffs)
+    zeta = [float(-r.real / abs(r)) for r in roots if abs(r) > 0]
+    return {"law": lw.name, "law_poles": [[float(r.real), float(r.imag)] for r in sorted(roots, key=lambda r: -r.real)],
+            "law_damping_ratio": min(zeta) if zeta else 1.0, "law_stable": bool(np.all(roots.real < 0))}
 
 
 def analysis_kwargs(p: dict) -> dict:
@@ -219,6 +240,14 @@ def format_analysis(d: dict) -> str:
         f"critical damping     b >= {d['critical_damping']:.4g} N s/m (eq. 25)",
         f"step: overshoot      {d['overshoot_pct']:.3g} %, settling (2 %) {d['settling_time']:.4g} s",
     ]
+    if "law_poles" in d:        # the law's own loop is not eq. (22): the lines above are the impedance filter's
+        at = "at k_e_max" if "k_e_min" in d else "at k_e"
+        rows.append(f"law {d['law']}: the lines above are eq. (22), the impedance filter on a known k_e; "
+                    + ("the law declares no continuous-time model: its verdict is the sampled loop's below"
+                       if d["law_poles"] is None else
+                       f"its own loop ({at}): poles " + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in d["law_poles"])
+                       + f", least damping ratio {d['law_damping_ratio']:.4g}, "
+                       + ("stable" if d["law_stable"] else "UNSTABLE")))
     if "worst_damping_ratio" in d:
         rows += [f"worst damping ratio  {d['worst_damping_ratio']:.4g} (at k_e_max)",
                  f"stable for all k_e   {yes(d['stable_for_all'])}",
