@@ -213,6 +213,30 @@ def test_analyze_gives_a_law_its_own_continuous_poles_not_eq22s():
         assert "law_poles" not in analyze(m, b, k, k_e=k_e, law=law)
 
 
+def test_integral_roots_tend_to_the_impedance_filters_as_k_i_grows():
+    """The docs' limit (review 16: they said the slow root tends to k/b): with k_i large the
+    integral law's polynomial is k_i k_e (m s^2 + b s + k) plus lower terms, so two roots
+    approach m s^2 + b s + k's (-1.716 and -58.28 for m, b, k = 1, 60, 100; k/b = 1.667)."""
+    m, b, k, k_e = 1.0, 60.0, 100.0, 2e4
+    target = np.sort(np.roots([m, b, k]).real)
+    assert target[-1] == pytest.approx(-1.716, abs=1e-3) and abs(target[-1] + k / b) > 0.04
+    for k_i in (1e2, 1e4):
+        roots = np.sort(np.roots([m, b + m * k_i * k_e, k + k_e + b * k_i * k_e, k * k_i * k_e]).real)
+        assert roots[1:] == pytest.approx(target, rel=1e-2 * 100 / k_i)
+        assert roots[0] == pytest.approx(-(b + m * k_i * k_e) / m, rel=1e-2)
+
+
+def test_rls_without_change_detection_diverges_in_the_paper_run_at_the_8_s_switch():
+    """docs/laws.md and choosing-a-law.md: without its covariance reset the RLS law's paper
+    run diverges at the 2e4 -> 2e3 N/m switch at 8 s (review 16: they said the first switch,
+    which is the 1-D model's, test_rls_needs_its_covariance_reset_at_a_stiffness_switch)."""
+    from tmtcontrol import SimulationError
+
+    sc = apply_overrides(paper_scenario(), ["controller.law=rls", "controller.law.reset_error=1e9"])
+    with pytest.raises(SimulationError, match=r"diverged at t = 8\.0\d* s"):
+        Simulator(sc, compile=False).run(sc)
+
+
 # -- adaptive damping: the sampled bound on sigma ------------------------------------
 
 def _sigma_limit(k_e, m_p=3.3):

@@ -37,7 +37,9 @@ bound is 0.06:
 
 (docs/laws.md; a test checks the bound at 1e3 N/m against the sampled model
 and the simulator). The default sigma = 0.02 keeps a factor 3 below the
-bound and is stable up to k_e ~ 1.2e5 N/m at 1 kHz.
+bound and is stable up to k_e ~ 1.1e5 N/m at 1 kHz (docs/laws.md's table:
+1.114e5 N/m; review 16: this said 1.2e5, and the loop is a limit cycle at
+1.18e5).
 """
 
 from __future__ import annotations

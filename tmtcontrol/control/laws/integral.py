@@ -14,8 +14,10 @@ characteristic polynomial is
     m s^3 + (b + m k_i k_e) s^2 + (k + k_e + b k_i k_e) s + k k_i k_e,
 
 Hurwitz for all m, b, k, k_i, k_e > 0 (a2 a1 > a3 a0 holds term by term), so
-continuous-time stability is unconditional; the slow root tends to k/b as
-k_i grows, the fast one to -(b + m k_i k_e)/m. The sampled loop adds a
+continuous-time stability is unconditional; as k_i grows two roots tend to
+those of m s^2 + b s + k (the slow one about -k/b where b^2 >> 4 m k: -1.716
+for the paper's impedance, k/b = 1.667; review 16), the third to
+-(b + m k_i k_e)/m. The sampled loop adds a
 limit: the forward-Euler integral has loop gain Ts k_i k_e per sample, so
 k_e < 2/(Ts k_i) at the very least (``stability.laws`` gives the exact
 sampled limit). The integral is updated with the force error of the
