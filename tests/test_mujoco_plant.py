@@ -203,8 +203,8 @@ def test_mujoco_contact_calibration_rests_a_known_weight_at_k_e_times_the_penetr
 
 def test_uncalibrated_solref_is_not_k_e():
     """The calibration matters: MuJoCo's solref taken literally as (-k_e,
-    -d_e) rests the same weight at a stiffness far from k_e (the issue
-    measured 65-130x on the UR5), so the test above can fail."""
+    -d_e) rests the same weight at a stiffness far from k_e (k_e/((1 - d) A^):
+    6.2x on the UR5 with the plant's d, below), so the test above can fail."""
     import mujoco
 
     from tmtcontrol.simulation import mujoco_plant
@@ -218,6 +218,20 @@ def test_uncalibrated_solref_is_not_k_e():
     assert force == pytest.approx(2.0 * 9.81, rel=1e-6)
     assert not 0.5 < 5000.0 * depth / force < 2.0
     assert mujoco.__version__
+
+
+def test_the_uncalibrated_stiffness_factor_docs_mujoco_quotes():
+    """docs/mujoco.md: solref = (-k_e, -d_e) taken literally rests at k_e/((1 - d) A^), on
+    the UR5 6.2x k_e with the plant's d = 0.01 and 61-122x with MuJoCo's default impedance
+    (review 18: the page said 65-130x for this plant, whose d makes it 6.2x)."""
+    from tmtcontrol.simulation.mujoco_plant import CONTACT_IMPEDANCE, MujocoPlant
+
+    sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.1", 'simulation.mujoco_contact="contact"'])
+    sim = Simulator(sc, compile=False)
+    A = MujocoPlant(sim.plant, sim.surface, sc.controller.Ts, 0.0, contact="contact").A_hat
+    assert A == pytest.approx(0.163, abs=5e-4)
+    assert 1.0 / ((1.0 - CONTACT_IMPEDANCE) * A) == pytest.approx(6.2, abs=0.05)
+    assert (1.0 / (0.1 * A), 1.0 / (0.05 * A)) == pytest.approx((61.0, 122.0), abs=0.5)
 
 
 @pytest.fixture(scope="module")

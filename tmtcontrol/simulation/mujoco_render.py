@@ -62,6 +62,30 @@ _probed: dict[str, str | None] = {}
 FORCE_SCALE = 0.01
 """Length of the force arrow per newton (m/N): f_d = 10 N is 0.1 m."""
 
+ARROW_DRAWN = 0.5
+"""How long MuJoCo draws an ``mjGEOM_ARROW`` of ``size[2] = L``, per L:
+measured 0.5 (MuJoCo 4.0.1: an arrow of L = 0.1 m spans half a 0.1 m box
+beside it, with ``mjv_initGeom`` and ``mjv_connector`` alike; review 18: the
+arrow was drawn at half of :data:`FORCE_SCALE`, tested in
+tests/test_animation.py)."""
+
+ARROW_RADIUS = 0.035
+"""The force arrow's radius, m: wider than the wrist links it runs along
+(the force on the tool points along the tool's axis, into the wrist), or
+the links hide it (0.02 m: 42 red pixels of a 480 x 360 frame of the UR5;
+0.008 m: none)."""
+
+
+def force_arrow(geom, point, frame, f: float) -> None:
+    """Make the scene ``geom`` the force arrow of ``f`` newtons from ``point``
+    along the third column of ``frame`` (3x3), :data:`FORCE_SCALE` long per
+    newton as drawn, red."""
+    mujoco = __import__("mujoco")
+    mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW,
+                        np.array([ARROW_RADIUS, ARROW_RADIUS, FORCE_SCALE * f / ARROW_DRAWN]),
+                        np.asarray(point, float), np.asarray(frame, float).ravel(),
+                        np.array([0.85, 0.1, 0.1, 1.0], dtype=np.float32))
+
 
 class RenderUnavailable(RuntimeError):
     """MuJoCo cannot render this run here; the message says why."""
@@ -202,9 +226,7 @@ def render_frames(result, indices, size: tuple[int, int] = (480, 360), robot=Non
                 # the arrow's z along the force on the tool, out of the part (its x, y: the frame's tangents)
                 n_out, t1, t2 = normal_frame(-(Rb @ surface.normal(result.position[:, k]))).T
                 mat = np.column_stack([t1, t2, n_out])
-                g = renderer.scene.geoms[renderer.scene.ngeom]
-                mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_ARROW, np.array([0.035, 0.035, FORCE_SCALE * f]), p,
-                                    mat.ravel(), np.array([0.85, 0.1, 0.1, 1.0], dtype=np.float32))
+                force_arrow(renderer.scene.geoms[renderer.scene.ngeom], p, mat, f)
                 renderer.scene.ngeom += 1
             img = Image.fromarray(renderer.render())
             ImageDraw.Draw(img).text((8, 6), f"t = {result.time[k]:5.2f} s   f_e = {f:6.2f} N   "
