@@ -253,3 +253,43 @@ def test_a_response_too_long_to_unroll_is_refused_naming_the_flag(capsys):
     assert line.startswith("error: --ke-min:") and "30,151 samples" in line
     assert 10 * math.sqrt(1 / 2100) / 1e-3 < MAX_RESPONSE_SAMPLES < 30151
     DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3)
+
+
+def test_a_design_for_a_mid_period_hold_is_verified_on_the_scenarios_own_loop(tmp_path, capsys):
+    """Regression (review 20): the design's 1-D sampled loop has the zero-order hold, so on a
+    scenario with the mid-period hold it "verified" a b that diverges (ur5-pipe at 200 Hz;
+    here the PUMA: b = 309 N s/m at 200 Hz). The design is now judged on the scenario's own
+    loop too (the frozen whole loop with the designed gains): unstable from k_e_min, exit 1.
+    The simulator, independently: that b diverges with the mid-period hold and runs with
+    the zero-order hold."""
+    import json
+
+    from tmtcontrol import SimulationError, Simulator
+    from tmtcontrol.cli import main
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.scenario.tomlio import dump_scenario
+
+    sc = apply_overrides(paper_scenario(), ["controller.hold=mid_period"])
+    path = tmp_path / "mid.toml"
+    path.write_text(dump_scenario(sc))
+    assert main(["design", "--scenario", str(path), "--ts", "0.005", "--ke-min", "5000", "--ke-max", "50000",
+                 "--max-overshoot", "10", "--json"]) == 1
+    captured = capsys.readouterr()
+    d = json.loads(captured.out)
+    assert d["sampled_max_stable_stiffness"] > 1.4e5                 # the 1-D model alone: verified
+    assert d["scenario_loop_limit"] == 0.0 and not d["verified"]
+    assert "the scenario's own loop (mid-period hold" in captured.err
+    for hold in ("mid_period", "zero_order"):
+        run = apply_overrides(sc, [f"impedance.b=[{d['b']!r}, 20.0, 20.0]", "controller.rate=200.0",
+                                   f"controller.hold={hold}", "environment.stiffness.values=[5000.0]",
+                                   "trajectory.cycles=0.5"])
+        if hold == "mid_period":
+            with pytest.raises(SimulationError, match="diverged"):
+                Simulator(run, compile=False).run(run)
+        else:
+            assert np.all(np.isfinite(Simulator(run, compile=False).run(run).contact_force))
+    # the zero-order hold's scenario is judged as before: nothing added
+    zoh = tmp_path / "zoh.toml"
+    zoh.write_text(dump_scenario(paper_scenario()))
+    main(["design", "--scenario", str(zoh), "--json"])
+    assert "scenario_loop_limit" not in json.loads(capsys.readouterr().out)

@@ -592,6 +592,10 @@ def _design(args) -> int:
 
     with out if out is not None else contextlib.nullcontext():
         result = design_impedance(spec)
+        if args.scenario is not None:
+            from .stability.design import with_scenario_loop
+
+            result = with_scenario_loop(sc, result)
         text = json.dumps(jsonable(result.as_dict()), indent=2) if args.json else format_design(result)
         violations = result.violations
         # a Ctrl-C that CasADi turned into a failed evaluation (the verification's sampled loops) is an
