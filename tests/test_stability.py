@@ -354,6 +354,46 @@ def test_the_whole_loop_limit_is_a_bracket_checked_at_both_ends():
     assert f"whole loop           {lo:.6g} N/m (stable there, unstable 1e-06 above;" in format_analysis(a)
 
 
+def test_a_fixed_point_newton_cannot_find_is_no_verdict_and_counts_as_unstable(monkeypatch):
+    """Regression (review 17): with the UR5's controller model 30 % heavier, Newton from
+    the 1-D guess stopped with a residual of 0.98 and the whole loop's bisection took the
+    spectral radius at that point, no equilibrium, as its verdict; a non-finite Jacobian
+    ended `simulate` in LAPACK's "SVD did not converge" (exit 2). Now such a stiffness
+    raises NoFixedPoint (an AnalysisError) and the bisection counts it unstable. Here on
+    the PUMA: a Jacobian made NaN, then a Newton that stops short above 1e5 N/m, whose
+    limit the search then finds there (the real one is 1.64e5 N/m)."""
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.stability.wholeloop import NoFixedPoint, WholeLoopModel, whole_loop_limit
+
+    sc = paper_scenario()
+    mdl = WholeLoopModel(sc)
+    w = mdl.at(5e4, 0.0)
+    assert w.residual < 1e-8                                          # the real one, before tampering
+    nan = np.full_like(np.array(mdl._jac(w.s_eq, np.r_[mdl._u(0, 5e4), mdl.P])), np.nan)
+    fresh = WholeLoopModel(sc)
+    monkeypatch.setattr(fresh, "_jac", lambda s, u: nan)
+    from tmtcontrol.stability import AnalysisError
+
+    with pytest.raises(AnalysisError, match=r"(no fixed point found|Jacobian at its fixed point) .*"):
+        fresh.at(5e4, 0.0)                     # either way an AnalysisError, not LAPACK's LinAlgError
+    from tmtcontrol.simulation.closedloop import INPUT
+
+    short = WholeLoopModel(sc)
+    newton = short._newton
+    def stops_short(s, u, **kw):         # above 1e5 N/m Newton ends 0.05 rad off, from every start
+        if u[INPUT["k_e"]] <= 1e5:
+            return newton(s, u, **kw)
+        s = s.copy()
+        s[short.dynamic[0]] += 0.05
+        return s, 0.5
+
+    monkeypatch.setattr(short, "_newton", stops_short)
+    with pytest.raises(NoFixedPoint, match="relative residual"):
+        short.at(1.2e5, 0.0)
+    limit, _ = whole_loop_limit(sc, points=1, rtol=1e-4, model=short, guess=1.6e5)
+    assert limit == pytest.approx(1e5, rel=2e-4)
+
+
 # -- review 9 (an independent attack on the analyze/design verdicts): each test failed on the code it found --------
 
 @pytest.mark.parametrize("m, b, k_e", [(0.001, 60.0, 1e8), (0.001, 60.0, 1e7), (0.01, 1000.0, 1e8),   # stable

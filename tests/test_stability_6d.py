@@ -291,3 +291,32 @@ def test_pipe_orbit_where_single_shooting_stalls_is_found_by_running_the_loop():
     d = mdl.dynamic
     assert np.max(np.abs(end - w.s_orbit)[d] / (1 + np.abs(w.s_orbit[d]))) < 1e-8
     assert periodic_decay(LoopRunner(sc), k, 5) < 1.0
+
+
+@pytest.mark.heavy      # the UR5's steps compiled, a periodic search and a simulated bisection (~2-4 min)
+def test_ur5_with_a_30_percent_heavier_model_has_limits_the_simulator_confirms():
+    """Regression (review 17): with robot.model_mass_scale = 1.3 (an ordinary robustness
+    study) the equilibrium lies ~18 mm off the path, beyond Newton from the 1-D guess:
+    `analyze --scenario` ended "no fixed point found at path time 0.5 s" (exit 2), and
+    where Newton stopped short the bisection took the radius of a point that was no
+    equilibrium. The frozen loop is now run toward its equilibrium first. Checked: the
+    fixed point at 28,102 N/m holds the force the simulator settles at on the same path
+    point (radius 0; the model error leaves it below f_d), and the periodic limit is the
+    simulated bisection's within 1 % (as test_periodic_limit_matches_simulated_bisection)."""
+    from tmtcontrol import Simulator
+    from tmtcontrol.stability.first_contact import LoopRunner, simulated_limit
+    from tmtcontrol.stability.periodic import PeriodicModel, periodic_limit
+    from tmtcontrol.stability.wholeloop import WholeLoopModel, whole_loop_limit
+
+    sc = apply_overrides(arm_scenario("ur5"), ["robot.model_mass_scale=1.3"])
+    still = apply_overrides(sc, ["trajectory.radius=0.0", "environment.stiffness.values=[28102.1]",
+                                 "trajectory.cycles=1.0"])
+    w = WholeLoopModel(still).at(28102.1, 0.0)
+    settled = Simulator(still).run(still).contact_force[-500:]
+    assert np.ptp(settled) < 1e-6 and abs(w.f_eq - 10.0) > 0.3          # settled, and below f_d (the model error)
+    assert w.f_eq == pytest.approx(settled.mean(), abs=1e-6)
+    mdl = PeriodicModel(sc)
+    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=1.3e5)
+    predicted = periodic_limit(sc, model=mdl, bracket=(frozen_min / 1.02, max(l for _, l in points) * 1.02))
+    simulated = simulated_limit(sc, predicted / 1.05, predicted * 1.05, rtol=1e-3, runner=LoopRunner(sc))
+    assert predicted == pytest.approx(simulated, rel=0.01)
