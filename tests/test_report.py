@@ -562,7 +562,12 @@ def test_the_sweep_says_which_rule_sized_its_stiffness_range():
     assert stiffness[-1] == 330000.0 and "1-D small-signal limit" in rule
     held = apply_overrides(sc, ['controller.hold="mid_period"'])
     stiffness, _, rule = sweep_axes(held, scenario_parameters(held))
-    assert stiffness[-1] == 200000.0 and "ten times its largest" in rule and "no prediction" in rule
+    assert stiffness[-1] == 200000.0 and "ten times its largest" in rule and "neither the 1-D model nor" in rule
+    # review 21: the loop's own deciding limit sizes it where the 1-D model predicts nothing (the pipe's map ended
+    # at 200,000 N/m below its 603,000 N/m limit): 2 x 603,000 -> 1,200,000 N/m (two digits)
+    stiffness, _, rule = sweep_axes(held, scenario_parameters(held), loop_limit=lambda: 603e3)
+    assert stiffness[-1] == 1.2e6 and "the loop's own deciding limit" in rule
+    assert sweep_axes(sc, scenario_parameters(sc), loop_limit=lambda: 1 / 0)[0][-1] == 330000.0   # not called
 
 
 @pytest.mark.heavy   # the loop's periodic and first-contact limits (5 s)
