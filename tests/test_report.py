@@ -615,3 +615,53 @@ def test_alt_text_reads_a_shared_axis_and_calls_a_picture_an_image():
     c.set_title("the arm at t = 0 s")
     assert describe(fig2) == "Chart. the arm at t = 0 s: an image."
     plt.close("all")
+
+
+def test_the_law_comparison_verdict_is_the_force_trackings_when_a_law_is_over_a_limit(monkeypatch):
+    """Regression (review 21): on the UR5 every law is over the shoulder's torque limit, and
+    over_limit outranks off_target, so the table's verdict read "over a limit" for all five
+    and hid that the known law settles 286 mN off f_d. The column is now the force
+    tracking's verdict (each segment's tracking_verdict), and the paragraph says which laws
+    are over a limit. Here the paper's comparison (short) with its segments marked over a
+    limit: known off_target, tmt converged."""
+    import dataclasses
+
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.report import document
+    from tmtcontrol.simulation import compare as comparemod
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=2.0"])
+    real = comparemod.compare_laws(sc)
+
+    def over(run):
+        segs = [dataclasses.replace(sg, tracking_verdict=sg.verdict, verdict="over_limit") for sg in run.segments]
+        return dataclasses.replace(run, segments=segs)
+
+    fake = dataclasses.replace(real, runs={name: over(run) for name, run in real.runs.items()})
+    assert all(run.verdict == "over_limit" for run in fake.runs.values())
+    monkeypatch.setattr(comparemod, "compare_laws", lambda scenario: fake)
+    sec = document._comparison(document.Report(sc, ""), sc)
+    tab = next(b for b in sec.blocks if isinstance(b, document.Table))
+    verdict = {row[0].split()[0]: row[-1] for row in tab.rows}
+    assert verdict["known"] == "off_target" and verdict["tmt"] == "converged"
+    text = " ".join(b.text for b in sec.blocks if isinstance(b, document.Paragraph))
+    assert "every law also exceeds the arm's limits (over_limit)" in text
+
+
+def test_a_segment_over_a_limit_whose_force_converged_shows_its_overshoot():
+    """Regression (review 21): the per-segment table printed "- (over limit)" for the UR5's
+    segment 4, whose force converged (its tracking verdict), though the law comparison gave
+    its 100 % overshoot; a segment whose force does not settle still shows none."""
+    import dataclasses
+
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
+    from tmtcontrol.report.document import _segment_rows
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=2.0"])
+    segs = segment_metrics(Simulator(sc, compile=False).run(sc))
+    over = [dataclasses.replace(segs[0], verdict="over_limit", tracking_verdict="converged"),
+            dataclasses.replace(segs[1], verdict="over_limit", tracking_verdict="limit_cycle")]
+    rows = _segment_rows(over)
+    assert rows[0][4].endswith("%") and float(rows[0][4].split()[0].replace("\u2009", "")) == pytest.approx(
+        segs[0].overshoot_pct, rel=1e-2)
+    assert rows[1][4] == "– (over limit)" and rows[0][-1] == rows[1][-1] == "over_limit"
