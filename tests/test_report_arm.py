@@ -29,6 +29,13 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     quarter = res.orientation_error_norm[res.time >= 0.75 * res.time[-1]]
     assert np.max(quarter) < 1e-3                                    # the issue's 1 mrad at steady state
     assert "rad" in text
+    # review 21: the segments' own last quarters (the table's column) and the run's, each named for what it is
+    from tmtcontrol import segment_metrics
+    from tmtcontrol.fmt import qty
+
+    settled = max(s.orientation_error for s in segment_metrics(res))
+    assert f"at most {qty(settled, 'rad')} over the last quarter of every segment" in text
+    assert f"{qty(float(np.max(quarter)), 'rad')} over the last quarter of the run" in text
     v, lim = rep.verdicts
     assert v.name.startswith("Force tracking") and isinstance(v.passed, bool)
     # the first 2 s stay inside the URDF's limits (the 170 N m spike comes at the 12 s switch)
