@@ -42,7 +42,7 @@ def test_a_torque_step_beyond_the_limit_is_one_excursion_with_its_time_value_and
     assert (e.kind, e.name, e.value, e.limit) == ("torque", "a", -14.0, -10.0)
     assert e.time == pytest.approx(0.30, abs=1e-12) and e.duration == pytest.approx(0.07, abs=1e-12)
     assert use.torque_margin[0] == pytest.approx(1 - 14.0 / 10.0) and use.torque_margin[1] == INF
-    assert "joint 1 (a) torque -14 N m beyond its limit -10 N m by 4 N m at 0.300 s (70 ms over)" == e.text
+    assert "joint 1 (a) torque -14 N m beyond its limit -10 N m by 4 N m at worst, from 0.300 s (70 ms over)" == e.text
 
 
 def test_a_rate_limit_counts_every_separate_run_and_the_margin_tightens_it():
@@ -92,7 +92,7 @@ def test_the_ur5_switch_at_12_s_drives_joint_2_over_its_urdf_effort_and_the_segm
     assert res.limits.tau_max[1] == 150.0                               # the bundled URDF's effort
     segs = segment_metrics(res)
     assert [s.verdict for s in segs] == ["converged", "converged", "converged", "over_limit"]
-    assert "joint 2 (shoulder_lift_joint) torque -170.1 N m beyond its limit -150 N m by 20.1 N m at 12.000 s (2 ms over)" \
+    assert "joint 2 (shoulder_lift_joint) torque -170.1 N m beyond its limit -150 N m by 20.1 N m at worst, from 12.000 s (2 ms over)" \
         in segs[3].reason
     assert np.max(np.abs(res.tau[1, (res.time >= 4) & (res.time < 8)])) == pytest.approx(131.5, abs=0.05)
     assert segs[3].torque_margin == pytest.approx(1 - 170.1 / 150, abs=1e-3)
@@ -247,7 +247,7 @@ def test_an_excursion_says_how_far_past_its_bound():
     L = JointLimits(("a",), (False,), np.array([10.0]), np.array([INF]), np.array([-INF]), np.array([INF]))
     (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -10.004]]),
                      1e-3).excursions
-    assert "beyond its limit -10 N m by 0.004 N m at 0.001 s" in e.text
+    assert "beyond its limit -10 N m by 0.004 N m at worst, from 0.001 s" in e.text
 
 
 def test_the_margins_are_against_the_judged_bound_so_negative_means_over():

@@ -127,8 +127,10 @@ class Excursion:
 
     @property
     def text(self) -> str:
+        # the value is the worst sample's, the time the first crossing's (review 17: "0.5036 rad/s ... at
+        # 2.768 s" read as the value at that time; its peak came at 2.822 s)
         return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.4g} {self.unit} beyond its limit "
-                f"{self.limit:.4g} {self.unit} by {self.excess:.3g} {self.unit} at {self.time:.3f} s "
+                f"{self.limit:.4g} {self.unit} by {self.excess:.3g} {self.unit} at worst, from {self.time:.3f} s "
                 f"({self.duration * 1e3:.0f} ms over)")
 
     def as_dict(self) -> dict:

@@ -209,7 +209,7 @@ class DesignResult:
         if not self.sampled_limit >= s.stiffness_margin * s.k_e_max:
             out.append(f"sampled loop stable only up to k_e = {self.sampled_limit:.4g} N/m < margin x k_e_max "
                        f"= {s.stiffness_margin * s.k_e_max:.4g} N/m")
-        loop = self.info.get("scenario_loop_limit")
+        loop = getattr(self, "info", {}).get("scenario_loop_limit")        # (ImpedanceCheck shares these rules)
         if loop is not None and not loop >= s.stiffness_margin * s.k_e_max:
             out.append(f"the scenario's own loop ({self.info['scenario_hold']} hold, which the design's 1-D model "
                        "leaves out) " + ("unstable from k_e_min" if loop == 0 else
