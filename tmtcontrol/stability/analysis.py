@@ -290,8 +290,13 @@ def format_analysis(d: dict) -> str:
                      "over one period; " + ("below the frozen-point minimum: the moving path lowers it)" if below
                                             else "the frozen-point minimum above is the conservative bound)")]
         if "periodic_limit" in d:
-            rows += [f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
-                     "settles below it, else a contact limit cycle)",
+            # the search stops at the periodic limit: a start that settles all the way up to it has a first-contact
+            # limit at or above it, not equal to it (review 21; the report's ">=")
+            rows += [(f"from first contact   >= {d['first_contact_limit']:.6g} N/m (the scenario's own start "
+                      "settles up to the periodic limit, where the search stops)"
+                      if d["first_contact_limit"] >= d["periodic_limit"] else
+                      f"from first contact   {d['first_contact_limit']:.6g} N/m (the scenario's own start "
+                      "settles below it, else a contact limit cycle)"),
                      f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
                      "decides the verdict)"]
         rows.append(f"sampled stable       {yes(d['sampled_stable'])}")
