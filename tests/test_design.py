@@ -255,6 +255,7 @@ def test_a_response_too_long_to_unroll_is_refused_naming_the_flag(capsys):
     DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3)
 
 
+@pytest.mark.heavy      # two IPOPT designs, the whole loop's search and two simulations (~6 s under load)
 def test_a_design_for_a_mid_period_hold_is_verified_on_the_scenarios_own_loop(tmp_path, capsys):
     """Regression (review 20): the design's 1-D sampled loop has the zero-order hold, so on a
     scenario with the mid-period hold it "verified" a b that diverges (ur5-pipe at 200 Hz;
