@@ -294,3 +294,34 @@ def test_a_design_for_a_mid_period_hold_is_verified_on_the_scenarios_own_loop(tm
     zoh.write_text(dump_scenario(paper_scenario()))
     main(["design", "--scenario", str(zoh), "--json"])
     assert "scenario_loop_limit" not in json.loads(capsys.readouterr().out)
+
+
+def test_the_scenario_loop_check_runs_the_design_that_was_made(monkeypatch):
+    """The scenario's loop is judged with what the design assumed (with_scenario_loop): its b and
+    k, its Ts, delay and force filter (a --filter-hz pole mapped back to its cut-off), the search
+    from k_e_min; a zero-order hold adds nothing. whole_loop_limit is replaced by a recorder."""
+    import dataclasses
+
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.stability import design, wholeloop
+
+    seen = {}
+
+    def record(sc, points, rtol, within):
+        seen.update(sc=sc, within=within)
+        return 4e4, []
+
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", record)
+    sc = apply_overrides(paper_scenario(), ["controller.hold=mid_period"])
+    spec = design.scenario_design_spec(sc, Ts=0.005, delay=1, k_e_min=5e3, k_e_max=5e4,
+                                       alpha=math.exp(-2 * math.pi * 50.0 * 0.005))
+    r = design.DesignResult(spec, 309.1, 120.0, 1.0, 283.5, 1.0, 4.0, "ok", 1.0, 1.4e5)
+    out = design.with_scenario_loop(sc, r)
+    run = seen["sc"]
+    assert run.impedance.b[0] == 309.1 and run.impedance.k[0] == 120.0 and run.impedance.b[1:] == sc.impedance.b[1:]
+    assert run.controller.rate == pytest.approx(200.0) and run.controller.delay_samples == 1
+    assert run.sensor.filter_cutoff == pytest.approx(50.0, rel=1e-12) and seen["within"] == 5e3
+    assert out.info["scenario_loop_limit"] == 4e4 and out.info["scenario_hold"] == "mid-period"
+    assert any("scenario's own loop (mid-period hold" in v for v in out.violations)         # 4e4 < k_e_max
+    seen.clear()
+    assert design.with_scenario_loop(paper_scenario(), dataclasses.replace(r)) == r and not seen

@@ -767,9 +767,11 @@ def with_scenario_loop(scenario, r: DesignResult) -> DesignResult:
     from .wholeloop import whole_loop_limit
 
     s, imp = r.spec, scenario.impedance
-    sc = apply_overrides(scenario, [f"impedance.b=[{r.b!r}, {imp.b[1]!r}, {imp.b[2]!r}]",
-                                    f"impedance.k=[{r.k!r}, {imp.k[1]!r}, {imp.k[2]!r}]",
-                                    f"controller.rate={1.0 / s.Ts!r}", f"controller.delay_samples={s.delay}"])
+    sets = [f"impedance.b=[{r.b!r}, {imp.b[1]!r}, {imp.b[2]!r}]", f"impedance.k=[{r.k!r}, {imp.k[1]!r}, {imp.k[2]!r}]",
+            f"controller.rate={1.0 / s.Ts!r}", f"controller.delay_samples={s.delay}"]
+    if s.alpha != scenario.sensor.pole(s.Ts):      # --filter-hz: the pole exp(-2 pi f_c Ts) back to its cut-off
+        sets.append(f"sensor.filter_cutoff={(-math.log(s.alpha) / (2 * math.pi * s.Ts) if s.alpha > 0 else 0.0)!r}")
+    sc = apply_overrides(scenario, sets)
     limit, _ = whole_loop_limit(sc, points=8, rtol=1e-3, within=s.k_e_min)
     return dataclasses.replace(r, info={**r.info, "scenario_loop_limit": float(limit),
                                         "scenario_hold": scenario.controller.hold.replace("_", "-")})

@@ -243,8 +243,8 @@ class WholeLoopModel:
                 raise ValueError("not settling")
             return x
 
-        # the first two are the only ones where they find it (every result before review 17 is theirs); the
-        # others, damped, where they do not, the one that found this point's last equilibrium first
+        # every result before review 17 came from the first two starts; the others (with a damped Newton) are
+        # tried only where those fail, the kept equilibrium first at a point whose last one a fallback found
         warm = i in self._warm
         guesses = ([("previous", lambda: from_previous(*self._warm[i]))] if warm else []) + [("1-D", from_1d)] \
             + ([("kept", kept)] if warm else []) + [("relaxed", relaxed)]
