@@ -39,10 +39,11 @@ Robustness. A stiffness change at constant position puts old and new
 points on two different lines; a window mixing them fits a nonsense line
 (measured: a negative slope, and the paper run diverges at its 2e4 -> 2e3
 N/m switch at 8 s; review 16: the 1-D model of tests/test_laws.py diverges
-at the first, the full loop at that one, a test runs both). Two standard safeguards make it usable: a prediction error above
-``reset_error`` restarts the covariance at P0 (change detection; the new
-points then dominate within a few samples), and the stiffness estimate is
-projected onto [min_stiffness, max_stiffness]. Stability: no closed form;
+at the first, the full loop at that one, a test runs both). Two standard
+safeguards make it usable: a prediction error above ``reset_error``
+restarts the covariance at P0 (change detection; the new points then
+dominate within a few samples), and the stiffness estimate is projected
+onto [min_stiffness, max_stiffness]. Stability: no closed form;
 the loop has a continuum of equilibria (``linear_analysis = False``), so its
 stability is judged by simulation (at converged estimates it is the
 ``known`` law with the true k_e, eq. 22).

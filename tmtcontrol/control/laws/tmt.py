@@ -4,8 +4,8 @@ The unknown k_e of eqs. (11)-(12) is replaced by ``f_e / (x - x_e)``
 (eq. 14), giving the reference of eq. (16)/(18) from measured quantities
 only. Needs x_e (not k_e). Steady state: f_e = f_d for any constant k_e
 (eqs. 23-24), where f_d is at least twice ``force_threshold`` (below, the
-safeguard's blend settles lower: :func:`_steady_force`). Stability: eq. (22), ``m s^2 + b s + (k + k_e)``, stable for
-b > 0 in continuous time; the sampled loop has a stiffness limit (see
+safeguard's blend settles lower: :func:`_steady_force`). Stability: eq.
+(22), ``m s^2 + b s + (k + k_e)``, stable for b > 0 in continuous time; the sampled loop has a stiffness limit (see
 ``stability.sampled``).
 
 The reference functions work on floats and on CasADi symbols, so the
