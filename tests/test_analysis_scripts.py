@@ -22,7 +22,11 @@ def test_every_script_is_listed():
     assert {p.name for p in (ROOT / "analysis").glob("*.py")} == set(SCRIPTS)
 
 
-@pytest.mark.parametrize("name", sorted(SCRIPTS))
+HEAVY = {"sweep_example.py"}
+"""Scripts run by the heavy step, which .ci/run also runs (the sweep example: ~7 s)."""
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.heavy) if n in HEAVY else n for n in sorted(SCRIPTS)])
 def test_script_runs(name, tmp_path):
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, str(ROOT / "analysis" / name), "--out", str(out), *SCRIPTS[name]],

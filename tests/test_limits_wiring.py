@@ -13,6 +13,7 @@ from tmtcontrol.simulation.scenario import apply_overrides, dump_scenario, paper
 NOT_WHOLE = ["controller.rate=250", "trajectory.period=1.001"]
 
 
+@pytest.mark.heavy      # a whole analyze --scenario (~5 s); the README suite stays within its 3 minutes
 def test_analyze_scenario_with_a_period_not_whole_samples_falls_back_to_the_frozen_minimum(tmp_path, capsys,
                                                                                             monkeypatch):
     """Was exit 2 ("not a whole number of control periods"). Now exit 0 and the JSON's

@@ -52,6 +52,7 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     assert "at k_e = 5,000 N/m" in first.caption and "1-D sampled loop" in first.caption
 
 
+@pytest.mark.heavy      # the UR5 on both plants (~7 s); the README suite stays within its 3 minutes
 def test_the_independent_plant_section_compares_mujoco_with_the_builtin_plant(monkeypatch):
     """``report --plant mujoco``'s section (issue 41): one table row per
     segment with both plants' steady-state errors and verdicts, the figure

@@ -486,6 +486,7 @@ def test_the_steady_force_claimed_is_the_implemented_laws(k_e, delta, expected):
     assert got["steady_state_force"] == pytest.approx(10 * keff(2000) / keff(5000), rel=1e-12)
 
 
+@pytest.mark.heavy      # a whole analyze --scenario (~5 s); the README suite stays within its 3 minutes
 def test_the_steady_force_line_does_not_contradict_itself_over_rounding(capsys, tmp_path):
     """Regression (review 15): eq. (22)'s DC gain gave 9.999999999999998 N beside the TMT's 10.0 N, and
     analyze printed "10 N (... eqs. 23-24's f_e = f_d does not hold here)". Equal to rounding, the line
