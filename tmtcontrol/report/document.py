@@ -579,7 +579,6 @@ def _worst_settling(segs) -> str:
 def _comparison(rep: Report, sc: Scenario):
     from ..simulation import figures as simf
     from ..simulation.compare import compare_laws
-    from ..simulation.metrics import VERDICTS
 
     cmp = compare_laws(sc)
     runs = [(name + (" (scenario's)" if name == sc.controller.law.kind else ""), run) for name, run in cmp.runs.items()]
@@ -601,14 +600,12 @@ def _comparison(rep: Report, sc: Scenario):
         if run.result is None:
             rows.append([label, "–", "no", "–", "–", "–", "diverged"])
             continue
-        # the force tracking's verdict (review 21: over_limit, which outranks off_target, hid the known law's
-        # wrong force on the UR5 behind the same "over a limit" as every other law's)
-        tracking = max((sg.tracking_verdict or sg.verdict for sg in run.segments), key=VERDICTS.index,
-                       default="converged")
         if run.verdict == "over_limit":
             over_limit.append(label)
+        # the force tracking's verdict (review 21: over_limit, which outranks off_target, hid the known law's
+        # wrong force on the UR5 behind the same "over a limit" as every other law's)
         rows.append([label, err[i], "yes" if worst[i] <= sc.controller.force_tolerance else "no", over[i],
-                     "never" if math.isnan(settle[i]) else settling[i], tang[i], tracking])
+                     "never" if math.isnan(settle[i]) else settling[i], tang[i], run.tracking_verdict])
     rep.data["comparison"] = cmp
     every = len(over_limit) == len(rows)
     limits = ("" if not over_limit else

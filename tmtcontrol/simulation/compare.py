@@ -39,6 +39,15 @@ class LawRun:
             return "diverged"
         return max((s.verdict for s in self.segments), key=VERDICTS.index, default="converged")
 
+    @property
+    def tracking_verdict(self) -> str:
+        """As :attr:`verdict`, of the force tracking alone (each segment's
+        ``tracking_verdict``: the arm's limits left out)."""
+        if self.result is None:
+            return "diverged"
+        return max((s.tracking_verdict or s.verdict for s in self.segments), key=VERDICTS.index,
+                   default="converged")
+
     def as_dict(self) -> dict:
         return {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
                 "segments": [s.as_dict() for s in self.segments]}

@@ -80,7 +80,8 @@ def force_arrow(geom, point, frame, f: float) -> None:
     """Make the scene ``geom`` the force arrow of ``f`` newtons from ``point``
     along the third column of ``frame`` (3x3), :data:`FORCE_SCALE` long per
     newton as drawn, red."""
-    mujoco = __import__("mujoco")
+    import mujoco
+
     mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_ARROW,
                         np.array([ARROW_RADIUS, ARROW_RADIUS, FORCE_SCALE * f / ARROW_DRAWN]),
                         np.asarray(point, float), np.asarray(frame, float).ravel(),
