@@ -88,6 +88,7 @@ def _mujoco_renders() -> bool:
     return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True).returncode == 0
 
 
+@pytest.mark.heavy      # MuJoCo's renderer on the UR5 (~4 s); the README suite stays within its 3 minutes
 def test_simulate_animate_draws_with_mujoco_where_it_renders(tmp_path):
     """``simulate ur5 --animate`` with MUJOCO_GL=egl: where MuJoCo's renderer
     starts (probed independently), the GIF's frames are MuJoCo's (480 x 360,

@@ -208,6 +208,7 @@ def test_radius_error_steady_force_is_the_known_laws_closed_form(part, delta):
 
 # -- 4. the commands on curved parts ------------------------------------------------------------------
 
+@pytest.mark.heavy      # five laws on the pipe (~4 s); the README suite stays within its 3 minutes
 def test_compare_on_the_pipe_every_law_converges(tmp_path, capsys):
     """``tmtcontrol compare ur5-pipe --set trajectory.cycles=0.25``: every
     registered law runs on the pipe (1 s, the first stiffness segment) and

@@ -242,6 +242,7 @@ def test_analyze_scenario_json_gives_both_limits(tmp_path):
     assert d["whole_loop_limit"] < d["periodic_limit"]
 
 
+@pytest.mark.heavy      # limits against simulated runs (~4 s); the README suite stays within its 3 minutes
 def test_scheduled_damping_limits_match_the_simulator():
     """Issue 28 item 4: with controller.damping_schedule.kind = "zeta" the analysis
     said 0 N/m. Every path now linearises at the schedule's fixed point: the frozen

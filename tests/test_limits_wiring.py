@@ -50,6 +50,7 @@ def test_periodic_note_only_when_the_period_is_not_whole_samples():
     assert "1.001 s" in periodic_note(apply_overrides(paper_scenario(), NOT_WHOLE))
 
 
+@pytest.mark.heavy      # a sweep with its limits (~4 s); the README suite stays within its 3 minutes
 def test_each_sweep_case_carries_its_own_limits_and_the_smaller_predicts_its_verdict():
     """Paper scenario at constant k_e, delta = 0 and -10 mm (issue 28 item 1). Known
     independently: at delta = 0 the small-signal limit is the closed-form 1-D loop's

@@ -202,6 +202,7 @@ def test_ctrl_c_on_a_sweep_with_finished_cases_says_where_they_are_kept(tmp_path
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.heavy      # a Dask cluster started and interrupted (~5 s); the README suite stays within its 3 minutes
 def test_ctrl_c_on_a_dask_sweep_is_one_line(tmp_path):
     # a LocalCluster of one worker process; the terminal's SIGINT reaches the worker too
     (tmp_path / "s.toml").write_text(LONG_SWEEP)
