@@ -106,3 +106,26 @@ def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypat
         c = crosscheck(sc)
         assert c.segments[0]["verdict_builtin"] == c.segments[0]["verdict_mujoco"] == "converged"
         assert c.agree is agree
+
+
+def test_crosscheck_table_prints_both_plants_in_one_unit_and_digits():
+    """Review 21: the peak column printed "40 N" beside "12.4 N" (each cell
+    its own trimmed quantity). Each plant pair shares one unit in its header
+    and three significant digits with trailing zeros, so 40.0 reads as 40.0
+    beside 12.4 and a 4 mN error as 4.00 mN beside 12.0 mN."""
+    from tmtcontrol.simulation.crosscheck import PlantComparison, format_crosscheck
+
+    row = {"start": 0.0, "end": 4.0, "stiffness": 5000.0,
+           "steady_state_error_builtin": 0.004, "steady_state_error_mujoco": 0.012,
+           "peak_force_builtin": 40.0, "peak_force_mujoco": 12.4,
+           "settling_time_builtin": 0.5, "settling_time_mujoco": 1.25,
+           "verdict_builtin": "converged", "verdict_mujoco": "converged",
+           "steady_force_difference": 0.008, "agree": True}
+    text = format_crosscheck(PlantComparison(None, None, (row,), 0.008, 1.0, True))
+    header, line = text.splitlines()[0], text.splitlines()[2]
+    for name in ("ss err built-in (mN)", "ss err MuJoCo (mN)", "peak built-in (N)", "peak MuJoCo (N)",
+                 "settling built-in (s)", "steady |Δf| (mN)"):
+        assert name in header
+    cells = line.split()
+    for cell in ("4.00", "12.0", "40.0", "12.4", "0.500", "1.25", "8.00"):
+        assert cell in cells

@@ -108,19 +108,25 @@ def format_crosscheck(c: PlantComparison) -> str:
     from .. import fmt
 
     rows = c.segments
+
+    def pair(name, key, unit):
+        """The built-in and MuJoCo columns of ``key`` in one unit and to the
+        same digits, so the two plants' figures read side by side."""
+        unit, cells = fmt.column([r[f"{key}_builtin"] for r in rows] + [r[f"{key}_mujoco"] for r in rows], unit)
+        return [(f"{name} {plant} ({unit})", cells[i * len(rows):(i + 1) * len(rows)])
+                for i, plant in enumerate(("built-in", "MuJoCo"))]
+
+    diff_unit, diff = fmt.column([r["steady_force_difference"] for r in rows], "N")
     table = fmt.text_table([
         ("segment", [str(i) for i in range(1, len(rows) + 1)]),
         ("t (s)", [f"{fmt.num(r['start'])}–{fmt.num(r['end'])}" for r in rows]),
         ("k_e (N/m)", [fmt.num(r["stiffness"], 4) for r in rows]),
-        ("ss err built-in", [fmt.qty(r["steady_state_error_builtin"], "N") for r in rows]),
-        ("ss err MuJoCo", [fmt.qty(r["steady_state_error_mujoco"], "N") for r in rows]),
-        ("peak built-in", [fmt.qty(r["peak_force_builtin"], "N") for r in rows]),
-        ("peak MuJoCo", [fmt.qty(r["peak_force_mujoco"], "N") for r in rows]),
-        ("settling built-in", [fmt.qty(r["settling_time_builtin"], "s") for r in rows]),
-        ("settling MuJoCo", [fmt.qty(r["settling_time_mujoco"], "s") for r in rows]),
+        *pair("ss err", "steady_state_error", "N"),
+        *pair("peak", "peak_force", "N"),
+        *pair("settling", "settling_time", "s"),
         ("verdict built-in", [r["verdict_builtin"] for r in rows]),
         ("verdict MuJoCo", [r["verdict_mujoco"] for r in rows]),
-        ("steady |Δf|", [fmt.qty(r["steady_force_difference"], "N") for r in rows]),
+        (f"steady |Δf| ({diff_unit})", diff),
         ("agree", ["yes" if r["agree"] else "NO" for r in rows])])
     return (table + f"\nlargest |f_e(MuJoCo) - f_e(built-in)|: {fmt.qty(c.max_force_difference, 'N')} at "
             f"{c.time_of_max:.3f} s; the plants {'agree' if c.agree else 'DISAGREE'}").replace(fmt.NBSP, " ")
