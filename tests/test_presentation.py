@@ -646,3 +646,18 @@ def test_a_column_constant_over_every_row_moves_into_the_caption():
     assert tab.caption == "Laws (worst overshoot: 100 % in every row)"
     one = _constant_columns_out("One", head, rows[:1], 3, (2,))       # a single row keeps its columns
     assert one.head == head
+
+
+def test_stiffness_limit_figure_without_any_limit_lists_no_boundary():
+    """Review 21: on a loop the 1-D model makes no prediction for (the pipe's
+    mid-period hold) the figure drew no boundary, yet its legend listed
+    "largest stable k_e" and "unstable". With a limit at some period both
+    entries stay (a figure that dropped them always would fail too)."""
+    from tmtcontrol.stability.figures import stiffness_limit_figure
+
+    def legend(limits):
+        fig = stiffness_limit_figure(np.geomspace(1e-4, 1e-2, 3), limits, [(1e-3, 5e3, "5,000")], (1e-3, 6e5))
+        return [t.get_text() for leg in [fig.axes[0].get_legend(), *fig.legends] if leg for t in leg.get_texts()]
+
+    assert legend([np.nan] * 3) == ["operating points", "whole-loop limit at the scenario's Ts"]
+    assert {"largest stable k_e (1-D sampled loop)", "unstable"} <= set(legend([1e6, np.nan, 1e4]))

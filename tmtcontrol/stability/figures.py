@@ -147,18 +147,20 @@ def stiffness_limit_figure(Ts_grid, limits, points=(), whole_loop=None, label="1
     hatched, the operating points ``[(Ts, k_e, label), ...]`` and the
     limit ``(Ts, k_e)`` at the scenario's period labelled ``mark`` (the
     report marks the one that decides its verdict). Distance to the
-    boundary is the margin, readable at any Ts."""
+    boundary is the margin, readable at any Ts. Where no period has a limit
+    (all NaN), neither boundary nor hatch is drawn or listed in the legend."""
     fig = Figure(figsize=(6.5, 4.6))
     ax = fig.add_subplot()
     Ts_grid, limits = np.asarray(Ts_grid, float), np.asarray(limits, float)
     # a period where no stiffness is stable (limit 0) or the analysis found none (NaN) has no point on a log axis
     limits = np.where(np.isfinite(limits) & (limits > 0), limits, np.nan)
     known = limits[np.isfinite(limits)]
-    ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable k_e ({label})")
     values = [*known, *(p[1] for p in points), *([whole_loop[1]] if whole_loop is not None else [])]
     top = max(values) * 20
-    ax.fill_between(Ts_grid, limits, top, facecolor="none", hatch="///", edgecolor="0.6", lw=0,
-                    label="unstable")
+    if known.size:      # no limit anywhere (a loop the model makes no prediction for): no boundary in the legend
+        ax.plot(Ts_grid, limits, lw=1.8, label=f"largest stable k_e ({label})")
+        ax.fill_between(Ts_grid, limits, top, facecolor="none", hatch="///", edgecolor="0.6", lw=0,
+                        label="unstable")
     for i, (Ts, ke, text) in enumerate(points):
         ax.plot(Ts, ke, "o", color="C1", label="operating points" if i == 0 else None)
         ax.annotate(text, (Ts, ke), textcoords="offset points", xytext=(5, -3), fontsize=7)
