@@ -193,7 +193,10 @@ def test_scenario_table_lists_only_applicable_keys_with_units(paper_report):
     assert head == ["key", "value", "unit", "meaning"]
     keys = {row[0]: row for row in rows}
     for absent in ("controller.approach_speed", "controller.contact_threshold", "controller.force_ramp",
-                   "sensor.seed", "simulation.tol", "environment.stiffness.mean", "controller.law.k_i"):
+                   "sensor.seed", "simulation.tol", "environment.stiffness.mean", "controller.law.k_i",
+                   # review 15: the PUMA's position-only task has no orientation and no posture task
+                   "impedance.m_rot", "controller.orientation_tolerance", "trajectory.tool_spin_deg",
+                   "robot.posture_kp"):
         assert absent not in keys
     assert keys["controller.rate"][1:3] == ["1,000", "Hz"]
     assert keys["environment.stiffness.values"][1:3] == ["[5,000, 20,000, 2,000, 10,000]", "N/m"]
@@ -210,6 +213,22 @@ def test_applicable_settings_follow_the_options():
     assert {"controller.approach_speed", "controller.force_ramp", "sensor.seed", "simulation.tol",
             "controller.law.k_i", "environment.stiffness.amplitude"} <= keys
     assert not {"simulation.substeps", "controller.law.min_stiffness", "environment.stiffness.values"} & keys
+
+
+def test_applicable_settings_follow_the_arms_task():
+    """Review 15: the report's table listed a 6-D arm's orientation keys and a redundant arm's posture keys
+    for the 3-joint PUMA. With the arm's task, they apply only where the task has them: 3 joints (position
+    only) neither, 6 joints (6-D, square) the orientation's, 7 joints (redundant) both; without a task, all."""
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.model.robot import Task
+    from tmtcontrol.simulation.scenario import applicable_settings
+
+    rot, post = {"impedance.k_rot", "controller.orientation_tolerance", "trajectory.tool_spin_deg"}, \
+        {"robot.posture_kp", "robot.posture_kd"}
+    sc = paper_scenario()
+    for task, want in ((Task(3, 3), set()), (Task(6, 6), rot), (Task(7, 6), rot | post), (None, rot | post)):
+        keys = {r.key for r in applicable_settings(sc, task)}
+        assert keys & (rot | post) == want, task
 
 
 def test_pdf_is_the_same_document_paginated(paper_report):
@@ -665,3 +684,13 @@ def test_a_segment_over_a_limit_whose_force_converged_shows_its_overshoot():
     assert rows[0][4].endswith("%") and float(rows[0][4].split()[0].replace("\u2009", "")) == pytest.approx(
         segs[0].overshoot_pct, rel=1e-2)
     assert rows[1][4] == "– (over limit)" and rows[0][-1] == rows[1][-1] == "over_limit"
+
+
+def test_applicable_settings_leave_out_the_plane_point_on_a_curved_part():
+    """Review 21: the pipe's table listed environment.point, which a curved
+    part refuses (it touches its tangent plane at trajectory.center); a plane
+    keeps it."""
+    from tmtcontrol.simulation.scenario import applicable_settings, arm_scenario
+
+    assert "environment.point" not in {r.key for r in applicable_settings(arm_scenario("ur5-pipe"))}
+    assert "environment.point" in {r.key for r in applicable_settings(arm_scenario("ur5"))}

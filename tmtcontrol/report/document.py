@@ -346,7 +346,6 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     if rows:
         blocks.append(Table("Whole-loop stiffness limit along the path", ["path time", "largest stable k_e (N/m)",
                                                                           "margin over k_e max"], rows))
-    blocks += _normal_mass_blocks(rep, sc, p)
     blocks.append(figure(
         "Largest stable stiffness against the control period (1-D loop of the scenario's law, with its delay, "
         "filter and x_e error); the scenario's operating points and, at its Ts, the limit that decides the "
@@ -355,6 +354,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
            f"No boundary is drawn: the 1-D model makes no prediction for this loop ({why_not_1d})."),
         sf.stiffness_limit_figure, Ts_grid, limits, points, (Ts, verdict_limit) if verdict_limit else None,
         label="1-D sampled loop", mark="deciding limit at the scenario's Ts"))
+    blocks += _normal_mass_blocks(rep, sc, p)
     # python-control's state-space objects cannot be pickled (python-control#1162), and this stage may run in
     # the second process: the numbers only (analyze_scenario(sc)["systems"] rebuilds the systems)
     rep.data["sampled"] = {key: v for key, v in a.items() if key != "systems"}
@@ -846,7 +846,10 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
 
 
 def _scenario_section(sc: Scenario) -> Section:
-    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"] for r in applicable_settings(sc)]
+    from ..simulation.simulator import robot_of, robot_task
+
+    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"]
+            for r in applicable_settings(sc, robot_task(robot_of(sc)))]
     return Section("scenario", "Scenario", [
         Paragraph("The keys that apply to this scenario's options (SI units)."),
         Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])

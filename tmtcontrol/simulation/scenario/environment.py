@@ -238,8 +238,8 @@ class EnvironmentSettings(Section):
     tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
                           "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
     normal: tuple[F, F, F] | None = Field(None, description=(
-        "inward unit normal of the plane (pointing into the surface), base frame; 6-D arms only; default: "
-        "from tilt_deg"), json_schema_extra={"unit": "1"})
+        "inward unit normal of the plane (pointing into the surface), base frame, or of a curved part's "
+        "tangent plane at trajectory.center; default: from tilt_deg"), json_schema_extra={"unit": "1"})
     point: tuple[F, F, F] | None = Field(None, description=(
         "a point of the plane, base frame; default: trajectory.center (the circle's centre must lie on the "
         "plane)"), json_schema_extra={"unit": "m"})

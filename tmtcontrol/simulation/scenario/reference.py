@@ -30,13 +30,30 @@ class SettingRow:
     meaning: str
 
 
-def _applies(sc: Scenario, key: str) -> bool:
+_ROTATION_KEYS = ("impedance.m_rot", "impedance.b_rot", "impedance.k_rot", "controller.orientation_tolerance",
+                  "trajectory.tool_spin_deg")
+"""Keys of a task with orientation (6-D: an arm with 6 or more joints)."""
+
+_POSTURE_KEYS = ("robot.posture_kp", "robot.posture_kd")
+"""Keys of a redundant arm's null-space posture task (more joints than task axes)."""
+
+
+def _applies(sc: Scenario, key: str, task=None) -> bool:
     """Whether ``key`` changes anything for the options ``sc`` chose (the
-    members of tagged unions already are the chosen kind's)."""
+    members of tagged unions already are the chosen kind's) and, given the
+    arm's ``task`` (:class:`tmtcontrol.model.robot.Task`), for its task: the
+    orientation's keys only on a 6-D task, the posture's only on a redundant
+    arm (review 15: the PUMA's report listed both)."""
+    if task is not None and key in _ROTATION_KEYS:
+        return bool(task.rotational)
+    if task is not None and key in _POSTURE_KEYS:
+        return bool(task.posture)
     if key in ("controller.approach_speed", "controller.contact_threshold", "controller.force_ramp"):
         return sc.trajectory.approach_gap > 0
     if key == "sensor.seed":
         return sc.sensor.noise_std > 0
+    if key == "environment.point":         # a curved part touches its tangent plane at trajectory.center
+        return sc.environment.shape == "plane"
     if key == "environment.tilt_deg":
         return sc.environment.normal is None
     if key in ("environment.radius", "environment.side"):
@@ -63,10 +80,13 @@ def _applies(sc: Scenario, key: str) -> bool:
     return True
 
 
-def applicable_settings(sc: Scenario) -> list[SettingRow]:
+def applicable_settings(sc: Scenario, task=None) -> list[SettingRow]:
     """The scenario's keys that apply to its options, with value, unit and
     meaning (from the schema), in schema order. Unset optional values (the
-    inner-loop gains) are shown as their defaults' rule."""
+    inner-loop gains) are shown as their defaults' rule. Given the arm's
+    ``task`` (the model's :class:`~tmtcontrol.model.robot.Task`, which the
+    schema alone does not know), the keys its task has no use for are left
+    out too."""
     rows = []
 
     def walk(model: BaseModel, prefix: str):
@@ -75,7 +95,7 @@ def applicable_settings(sc: Scenario) -> list[SettingRow]:
             if isinstance(value, BaseModel):
                 walk(value, key + ".")
                 continue
-            if not _applies(sc, key):
+            if not _applies(sc, key, task):
                 continue
             extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
             desc = info.description or ""
