@@ -123,9 +123,20 @@ BRANCH = re.compile(r"""(\.n\s*(<|<=|>|>=|==|!=)\s*\d)|(["']puma560["'])|"""
                     r"""((==|!=)\s*["'](plane|sphere|cylinder|heightmap)["'])""")
 """What a branch on the joint count, a robot's name or a shape's name looks like."""
 
-ALLOWED = {"tmtcontrol/simulation/scenario.py", "tmtcontrol/simulation/scenario", "tmtcontrol/cli.py"}
+ALLOWED = {"tmtcontrol/simulation/scenario/robot.py", "tmtcontrol/simulation/scenario/builtin.py",
+           "tmtcontrol/cli.py"}
 """Data, not branches: the scenario's default ``robot.model = "puma560"`` and its built-in
-scenarios, and the command line's help text naming the bundled arms."""
+scenarios, and the command line's help text naming the bundled arms. (The whole scenario
+package was allowed, which hid its one branch on the arm's name: the PUMA refused
+``environment.normal``.)"""
+
+SHAPE_SETTINGS = "tmtcontrol/simulation/scenario"
+"""The scenario's settings declare which keys each shape takes (a sphere's radius, a
+cylinder's axis) and validate them: a shape's name there is its schema, so only a
+branch on a shape's name is allowed in this package."""
+
+SHAPE = re.compile(r"""(["'](plane|sphere|cylinder|heightmap)["']\s*(==|!=|in))|"""
+                   r"""((==|!=)\s*["'](plane|sphere|cylinder|heightmap)["'])""")
 
 
 def test_the_branch_pattern_sees_the_branches_it_is_for():
@@ -145,6 +156,8 @@ def test_no_branch_on_the_joint_count_or_a_name_above_model_and_surface():
             continue
         for i, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1):
             code = line.split("#", 1)[0]
+            if rel.startswith(SHAPE_SETTINGS + "/"):
+                code = SHAPE.sub("", code)
             if BRANCH.search(code) and not code.lstrip().startswith(('"', "'")):
                 hits.append(f"{rel}:{i}: {line.strip()}")
     assert hits == []

@@ -6,6 +6,7 @@ import subprocess
 import sys
 import tomllib
 
+import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
@@ -305,3 +306,19 @@ def test_the_end_of_a_resumed_sweep_keeps_a_file_it_did_not_write(small, tmp_pat
     assert note.read_text() == "why this sweep was stopped\n"
     assert sorted(p.name for p in partial.path.iterdir()) == ["my-notes.txt"]
     assert f"sweep: kept {partial.path}: it holds files tmtcontrol did not write" in capsys.readouterr().err
+
+
+def test_a_tilt_axis_on_a_base_with_a_normal_sweeps_the_plane():
+    """A sweep over environment.tilt_deg on the UR5 (whose scenario gives its
+    plane by environment.normal) built no case: the base's normal overruled
+    the tilt ("tilt_deg: 30 deg is not the plane of normal"). The axis now
+    replaces the base's normal: each case's normal is the tilt's
+    (sin t, 0, -cos t); and a normal axis on the paper base replaces its tilt."""
+    from tmtcontrol.simulation.geometry import surface_frame
+
+    sweep = sweep_from_dict({"scenario": "ur5", "grid": {"environment.tilt_deg": [30.0, 40.0]}})
+    for case, t in zip(sweep.cases, (30.0, 40.0)):
+        n = surface_frame(sweep.scenario(case).environment)[:, 0]
+        assert np.allclose(n, [np.sin(np.radians(t)), 0.0, -np.cos(np.radians(t))], atol=1e-15)
+    paper = sweep_from_dict({"grid": {"environment.normal": [[0.0, 0.0, -1.0]]}})
+    assert np.allclose(surface_frame(paper.scenario(paper.cases[0]).environment)[:, 0], [0, 0, -1], atol=1e-15)

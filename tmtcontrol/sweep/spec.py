@@ -59,8 +59,8 @@ from typing import Any
 import numpy as np
 
 from ..simulation.scenario import (BUILTIN_ARMS, NOT_INTERVALS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
-                                   load_scenario, read_toml, resolve_files, scenario_from_dict, scenario_to_dict,
-                                   set_key)
+                                   load_scenario, read_toml, replace_plane, resolve_files, scenario_from_dict,
+                                   scenario_to_dict, set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "Cases", "load_sweep", "sweep_from_dict", "EXAMPLE", "DEFAULT_MAX_CASES",
            "check_sweep_size"]
@@ -353,6 +353,7 @@ def case_scenario(base: dict, values: dict) -> Scenario:
     given for a list-valued key (e.g. a generated stiffness) is a one-element
     list."""
     d = json.loads(json.dumps(base))
+    replace_plane(d, values)              # an axis over the plane's normal or tilt replaces the base's other form
     for key, value in values.items():
         if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list):
             value = [value]

@@ -38,7 +38,8 @@ from .schema import (NOT_INTERVALS, SAMPLED_KEYS, TAGGED_TABLES, Scenario, check
                      sampling_problem, scenario_from_dict, scenario_to_dict, setting_bounds)
 from .sensor import SensorSettings, SimulationSettings, filter_pole
 from .textfiles import MAX_INPUT_BYTES, MAX_KEY_PARTS, InputFileError, parse_toml, read_text_file, read_toml
-from .tomlio import apply_overrides, dump_scenario, load_scenario, resolve_files, set_key, toml_document
+from .tomlio import (apply_overrides, dump_scenario, load_scenario, replace_plane, resolve_files, set_key,
+                     toml_document)
 from .trajectory import TrajectorySettings
 
 __all__ = [
@@ -46,7 +47,7 @@ __all__ = [
     "SinusoidalStiffness", "TableStiffness", "StiffnessProfile", "EnvironmentSettings", "TrajectorySettings",
     "ImpedanceSettings", "FixedDamping", "ScheduledDamping", "DampingSchedule", "ControllerSettings",
     "SensorSettings", "SimulationSettings", "RequirementsSettings", "Scenario", "paper_scenario", "load_scenario", "scenario_from_dict",
-    "scenario_to_dict", "dump_scenario", "toml_document", "apply_overrides", "set_key", "resolve_files", "scenario_json_schema",
+    "scenario_to_dict", "dump_scenario", "toml_document", "apply_overrides", "set_key", "replace_plane", "resolve_files", "scenario_json_schema",
     "scenario_reference", "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "SAMPLED_KEYS", "NOT_INTERVALS",
     "applicable_settings", "read_text_file", "read_toml", "parse_toml", "InputFileError", "MAX_INPUT_BYTES",
     "MAX_KEY_PARTS", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",

@@ -93,14 +93,10 @@ SAMPLED_KEYS = ("trajectory.period", "trajectory.lanes", "environment.stiffness"
 
 
 def _plane_problem(sc: Scenario) -> str | None:
-    """The surface across sections: the PUMA takes ``tilt_deg`` only, the
-    path stays in a curved part's domain (:func:`_domain_problem`), a
+    """The surface across sections: the path stays in a curved part's domain (:func:`_domain_problem`), a
     cylinder's axis lies in the tangent plane, and the circle's centre lies
     on the plane given by ``environment.point``."""
     env = sc.environment
-    if env.normal is not None and sc.robot.model.lower() == "puma560":
-        return ("environment.normal: the 3-joint PUMA 560 scenario gives its plane as tilt_deg "
-                "(its analyses and export use it); leave normal unset")
     if env.shape != "plane":
         domain = _domain_problem(sc)
         if domain:

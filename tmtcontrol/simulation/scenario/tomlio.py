@@ -148,12 +148,27 @@ def set_key(d: dict, key: str, value: Any) -> None:
     node[last] = value
 
 
+def replace_plane(d: dict, keys) -> None:
+    """Before ``keys`` are set on the scenario dict ``d``: the plane is given
+    by ``environment.normal`` or its shorthand ``environment.tilt_deg``, so a
+    key setting one drops ``d``'s other (a dump always carries one of them),
+    unless ``keys`` set both (which must then agree)."""
+    keys = set(keys)
+    env = d.get("environment")
+    for given, other in (("environment.normal", "tilt_deg"), ("environment.tilt_deg", "normal")):
+        if given in keys and f"environment.{other}" not in keys and isinstance(env, dict):
+            env.pop(other, None)
+
+
 def apply_overrides(scenario: Scenario, assignments: list[str]) -> Scenario:
     """Apply ``dotted.key=value`` strings (value in TOML syntax; bare words are
     strings), e.g. ``controller.f_d=5``, ``controller.law=integral`` or
     ``environment.stiffness.values=[1e3,1e4]``. The result goes through the
-    same schema as a file."""
+    same schema as a file. The plane is given by ``environment.normal`` or
+    its shorthand ``environment.tilt_deg``: an override of one replaces the
+    base's other (which the base's dump always carries), unless it is set too."""
     d = scenario_to_dict(scenario)
+    replace_plane(d, [item.split("=", 1)[0].strip() for item in assignments if "=" in item])
     for item in assignments:
         if "=" not in item:
             raise ScenarioError(f"--set {item!r}: expected dotted.key=value")
