@@ -314,26 +314,39 @@ def test_an_arm_with_fewer_than_3_joints_is_refused_in_one_line_naming_its_joint
 def test_tilt_deg_that_disagrees_with_the_normal_is_refused_and_not_printed():
     """Review F1: a 6-D scenario's plane is environment.normal; a tilt_deg that says another
     plane was silently ignored (a sweep over it claimed robustness over planes never simulated).
-    Refused, naming tilt_deg; the same plane (45 deg) is accepted; the printed scenario has no
-    tilt_deg beside a normal, and reads back."""
+    Given alone, an override of the tilt now replaces the base's normal (the plane simulated is
+    the tilt's); given beside a normal that is another plane, it is refused, naming tilt_deg;
+    the same plane (45 deg) is accepted; the printed scenario has no tilt_deg beside a normal,
+    and reads back."""
+    from tmtcontrol.simulation.geometry import surface_frame
     from tmtcontrol.simulation.scenario import dump_scenario
 
     ur5 = load_scenario("ur5")
+    normal = "environment.normal=[0.7071067811865476, 0.0, -0.7071067811865476]"
     with pytest.raises(ScenarioError, match=r"^environment\.tilt_deg: 30 deg is not the plane of normal"):
-        apply_overrides(ur5, ["environment.tilt_deg=30"])
-    assert apply_overrides(ur5, ["environment.tilt_deg=45"]).environment.normal == ur5.environment.normal
+        apply_overrides(ur5, ["environment.tilt_deg=30", normal])
+    t = math.radians(30.0)
+    tilted = apply_overrides(ur5, ["environment.tilt_deg=30"])
+    assert np.allclose(surface_frame(tilted.environment)[:, 0], [math.sin(t), 0.0, -math.cos(t)], atol=1e-15)
+    assert np.allclose(apply_overrides(ur5, ["environment.tilt_deg=45", normal]).environment.normal,
+                       ur5.environment.normal, atol=1e-15)
     text = dump_scenario(apply_overrides(ur5, ["environment.normal=[0, 0.6, -0.8]"]))
     assert "tilt_deg" not in text and "normal = [0.0, 0.6, -0.8]" in text
     assert "tilt_deg = 45.0" in dump_scenario(load_scenario("paper"))     # the PUMA's shorthand stays
 
 
-def test_sweeping_tilt_deg_on_a_6d_arm_is_refused_before_any_case(tmp_path, capsys):
+def test_sweeping_tilt_deg_against_a_normal_axis_is_refused_before_any_case(tmp_path, capsys):
+    """A tilt axis beside a normal axis that says another plane: refused in one line naming the
+    first case and its tilt, before any case runs and with nothing written (a tilt axis alone sweeps
+    the tilt's planes: test_sweep.py)."""
     from tmtcontrol.cli import main
 
-    (tmp_path / "sw.toml").write_text('scenario = "ur5"\n[grid]\n"environment.tilt_deg" = [10.0, 60.0]\n')
+    (tmp_path / "sw.toml").write_text('scenario = "ur5"\n[grid]\n"environment.tilt_deg" = [10.0, 60.0]\n'
+                                      '"environment.normal" = [[0.0, 0.0, -1.0]]\n')
     assert main(["sweep", str(tmp_path / "sw.toml"), "--out", str(tmp_path / "o"), "--no-plots"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error: grid.environment.tilt_deg[0] = 10.0: environment.tilt_deg"), err
+    assert len(err) == 1 and err[0].startswith("error: case 0 (environment.tilt_deg = 10.0, environment.normal = "
+                                               "[0.0, 0.0, -1.0]): environment.tilt_deg: 10 deg is not the plane"), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sw.toml"]
 
 
