@@ -454,3 +454,24 @@ def test_a_cylinders_axis_is_column_3_of_the_exported_R():
         start += f.size
     axis = np.asarray(sc.environment.axis) / np.linalg.norm(sc.environment.axis)
     assert abs(abs(R[:, 2] @ axis) - 1.0) < 1e-15 and np.allclose(R[:, 0], sc.environment.normal, atol=1e-15)
+
+
+def test_the_header_describes_the_force_and_orientation_of_a_curved_part():
+    """Review 24: on the pipe the header said the normal force is -R[:,0].force (35 % off at 0.87 rad
+    round the pipe, where the controller rightly uses the local normal), q_c "in the commanded
+    orientation R_d" and dq_c "zero angular velocity" (both turn with the surface). On a plane the
+    text stays as it was; on a curved part it names the local normal and the turning command."""
+    from tmtcontrol import load_scenario
+    from tmtcontrol.export.generate import interface
+
+    def docs(name):
+        i = interface(load_scenario(name), True)
+        return {f.name: f.doc for f in (*i.measurement_fields, *i.command_fields, *i.param_fields)}
+
+    plane, pipe = docs("ur5"), docs("ur5-pipe")
+    assert plane["force"].endswith("pushing on the surface is -R[:,0].force")
+    assert "R_d" in plane["q_c"] and "zero angular velocity" in plane["dq_c"]
+    assert "-R[:,0].force" not in pipe["force"] and "inward unit normal at the tool point" in pipe["force"]
+    assert "turned with the surface's normal" in pipe["q_c"] and "zero angular velocity" not in pipe["dq_c"]
+    assert "turns with the surface's normal" in pipe["R_d"] and "turns" not in plane["R_d"]
+    assert "valid +1 or -1" in pipe["side"] and "valid > 0" in pipe["radius"]

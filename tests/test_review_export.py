@@ -379,3 +379,79 @@ def test_tmt_init_refuses_a_non_finite_parameter(built):
     m, c = ctl.Measurement(), ctl.Command()
     m.q[0], m.q[1], m.q[2] = 0.0, -0.5, 0.8
     assert ctl.step(p, s, m, c) == 0
+
+
+# -- a finite parameter outside its range (review 24) --------------------------------------------------
+
+def _sheared(p):
+    p.R[1] += 0.01           # column 1 no longer a unit vector orthogonal to the others
+
+
+def _scaled(p):
+    for i in range(9):
+        p.R[i] *= 2.0
+
+
+def _mirrored(p):            # orthonormal columns, determinant -1: a reflection, not a rotation
+    for i in range(3):
+        p.R[6 + i] = -p.R[6 + i]
+
+
+@pytest.mark.parametrize("change", [
+    lambda p: setattr(p, "alpha", 1.5), lambda p: setattr(p, "alpha", -0.1), lambda p: setattr(p, "Ts", -1e-3),
+    lambda p: p.m.__setitem__(0, -1.0), lambda p: setattr(p, "f_d", -10.0),
+    lambda p: setattr(p, "law_min_stiffness", -100.0), lambda p: setattr(p, "sched", 0.5),
+    lambda p: setattr(p, "b_max", 0.5), lambda p: setattr(p, "k_hat_min", 2e7), _sheared, _scaled, _mirrored],
+    ids=["alpha 1.5", "alpha -0.1", "Ts < 0", "m < 0", "f_d < 0", "law min_stiffness < 0", "sched 0.5",
+         "b_max < b_min", "k_hat_min > k_hat_max", "R sheared", "R scaled", "R mirrored"])
+def test_a_parameter_outside_its_range_is_refused(built, change):
+    """Review 24: tmt_step checked only that parameters are finite, so alpha = 1.5 commanded 4e99 m,
+    Ts < 0 or a negative mass 1e12-1e13 m, a scaled R a wrong depth, all with return code 0. A
+    finite parameter outside its valid range now makes tmt_init and tmt_step return TMT_E_RANGE
+    (-2), the step leaving state and command as they were; the exported defaults pass."""
+    _, ctl = built
+    p = ctl.default_params()
+    s, m, c = ctl.new_state(p), ctl.Measurement(), ctl.Command()
+    assert ctl._init(ctypes.byref(p), ctypes.byref(s)) == 0
+    m.q[0], m.q[1], m.q[2] = 0.0, -0.5, 0.8
+    normal = np.array(p.R[:]).reshape(3, 3, order="F")[:, 0]
+    m.force[0], m.force[1], m.force[2] = (-10.0 * normal).tolist()
+    assert [ctl.step(p, s, m, c) for _ in range(3)] == [0, 0, 0]
+    state, cmd = bytes(s.s), bytes(c)
+    change(p)
+    assert ctl.step(p, s, m, c) == -2
+    assert bytes(s.s) == state and bytes(c) == cmd
+    assert ctl._init(ctypes.byref(p), ctypes.byref(ctl.State())) == -2
+    header = (built[0] / "tmt_controller.h").read_text()
+    assert "#define TMT_E_RANGE (-2)" in header and "(0: no filter); valid [0, 1) [1; -]" in header
+
+
+def test_the_schedule_switched_on_at_run_time_schedules_as_its_export(built, tmp_path):
+    """Review 24: an export without the damping schedule wrote placeholders for its bounds (b_min 0,
+    b_max 1, k_hat 1): setting sched = 1 at run time, as the header allows, held the normal damping
+    at 1 N s/m (a damping ratio of 0.007). Its defaults are now the schema's, so the schedule
+    switched on in the paper's export runs bit for bit as the export of the scenario with
+    damping_schedule.kind = "zeta" (its b_n, command and state over 300 periods)."""
+    _, plain = built
+    folder = tmp_path / "sched"
+    folder.mkdir()
+    export_controller(apply_overrides(paper_scenario(), ["controller.damping_schedule.kind='zeta'"]), folder, True)
+    _run(["gcc", "-std=c99", "-O0", "-fPIC", "-shared", "tmt_controller.c", "-o", "libtmt.so", "-lm"], folder)
+    sched = CompiledController(folder, library=folder / "libtmt.so")
+    runs = []
+    for ctl, on in ((plain, True), (sched, False)):
+        p = ctl.default_params()
+        if on:
+            assert p.sched == 0.0
+            p.sched = 1.0
+        s, m, c = ctl.new_state(p), ctl.Measurement(), ctl.Command()
+        m.q[0], m.q[1], m.q[2] = 0.0, -0.5, 0.8
+        normal = np.array(p.R[:]).reshape(3, 3, order="F")[:, 0]
+        b_n = []
+        for k in range(300):
+            m.force[0], m.force[1], m.force[2] = (-min(10.0, 0.1 * k) * normal).tolist()
+            assert ctl.step(p, s, m, c) == 0
+            b_n.append(c.b_n)
+        runs.append((b_n, bytes(c), bytes(s.s)))
+    assert runs[0] == runs[1]
+    assert max(runs[0][0]) > 20.0         # scheduled: eq. (25) raised the damping far above b_min = 1

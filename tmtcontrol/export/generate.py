@@ -134,16 +134,19 @@ def _as_task(task):
     return task_of(task) if isinstance(task, int) else task
 
 
-def measurement_fields(task=3) -> tuple[Field, ...]:
-    """``tmt_measurement`` for the robot's ``task`` (or its joint count):
-    n joint positions and velocities, the contact force and the tangential
-    reference (:func:`~tmtcontrol.simulation.closedloop.measurement_layout`)."""
+def measurement_fields(task=3, surface=Plane) -> tuple[Field, ...]:
+    """``tmt_measurement`` for the robot's ``task`` (or its joint count) on
+    the ``surface``'s shape: n joint positions and velocities, the contact
+    force and the tangential reference
+    (:func:`~tmtcontrol.simulation.closedloop.measurement_layout`)."""
     n = _as_task(task).n
+    normal = ("-n.force, n the surface's inward unit normal at the tool point (it turns along this curved part; "
+              "R[:,0] only at c)" if surface.turns else "-R[:,0].force")
     return (Field("q", n, "rad", "joint", "joint positions (encoders), the robot model's joint order and zero",
                   _joints(n)),
             Field("dq", n, "rad/s", "joint", "joint velocities", _joints(n)),
             Field("force", 3, "N", "base", "contact force on the tool: the bias-compensated force-sensor reading "
-                  "rotated into the base frame; the normal force pushing on the surface is -R[:,0].force",
+                  f"rotated into the base frame; the normal force pushing on the surface is {normal}",
                   suffixes=_XYZ),
             Field("pos_t", 2, "m", "task axes 2, 3", "tangential reference position (the path along the surface)",
                   suffixes=_T23),
@@ -151,12 +154,18 @@ def measurement_fields(task=3) -> tuple[Field, ...]:
             Field("acc_t", 2, "m/s^2", "task axes 2, 3", "tangential reference acceleration", suffixes=_T23))
 
 
-def command_fields(torque: bool, task=3) -> tuple[Field, ...]:
+def command_fields(torque: bool, task=3, surface=Plane) -> tuple[Field, ...]:
     """``tmt_command``'s commands for the robot's ``task`` (``torque``: with
-    the joint torques of eqs. 5-6; :func:`~tmtcontrol.simulation.closedloop.command_layout`)."""
+    the joint torques of eqs. 5-6; :func:`~tmtcontrol.simulation.closedloop.command_layout`)
+    on the ``surface``'s shape (on a curved part the commanded orientation
+    turns with the surface)."""
     task = _as_task(task)
     n, j = task.n, _joints(task.n)
-    pose = "the tool at p_c" + (" in the commanded orientation R_d" if task.rotational else "")
+    turning = task.rotational and surface.turns
+    pose = "the tool at p_c" + ("" if not task.rotational else " in the commanded orientation turned with the "
+                                "surface's normal at p_c (R_d at c)" if turning else " in the commanded orientation R_d")
+    omega = (" (the angular velocity with which the surface's frame turns along dX_c)" if turning
+             else " (zero angular velocity)" if task.rotational else "")
     out = (Field("x_c", 3, "m", "task", "commanded position X_c = X_r - X_a, eq. (4)"),
            Field("dx_c", 3, "m/s", "task", "commanded velocity, eq. (4)"),
            Field("ddx_c", 3, "m/s^2", "task", "commanded acceleration, eq. (4)"),
@@ -164,8 +173,7 @@ def command_fields(torque: bool, task=3) -> tuple[Field, ...]:
                  "(R X_c + c on a plane)", suffixes=_XYZ),
            Field("q_c", n, "rad", "joint", f"joint position command: {pose} ({ik_steps(task)} Newton steps "
                  "from q" + ("" if task.square else ", least-norm") + ")", j),
-           Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ R dX_c"
-                 + (" (zero angular velocity)" if task.rotational else ""), j),
+           Field("dq_c", n, "rad/s", "joint", "joint velocity command J(q_c)^+ R dX_c" + omega, j),
            Field("tau", n, "N m", "joint", "joint torques of eqs. (5)-(6), operational space: J^T F + n"
                  + (" + N^T tau_0" if task.posture else "") + " (only with --inner-loop)", j))
     return out if torque else out[:-1]
@@ -233,6 +241,88 @@ _PARAM_DOCS = {
 }
 
 
+PARAM_RANGES = {
+    "m": "> 0", "b": ">= 0", "k": "> 0", "kd": ">= 0", "kp": "> 0", "f_d": "> 0", "alpha": "[0, 1)",
+    "radius": "> 0", "side": "+1 or -1", "Ts": "> 0", "sched": "0 or 1", "zeta": "> 0", "b_min": ">= 0",
+    "b_max": ">= b_min", "b_rate": "> 0", "k_hat_min": "> 0", "k_hat_max": ">= k_hat_min", "sched_f_th": "> 0",
+    "v_app": ">= 0", "f_contact": "> 0", "ramp_rate": "> 0", "kd_rot": ">= 0", "kp_rot": "> 0",
+    "kp_post": ">= 0", "kd_post": ">= 0", "R": "a rotation", "R_d": "a rotation",
+}
+"""The valid range of each exported parameter whose every finite value is
+not meaningful (``tmt_init`` and ``tmt_step`` return ``TMT_E_RANGE``
+outside it, :func:`_range_check`): masses, gains, the period and the
+schedule's bounds positive (or non-negative where 0 means off), the filter
+pole in [0, 1), a side +-1, a frame a rotation (orthonormal columns to
+:data:`ROTATION_TOL`, determinant +1). A law's parameters take their
+schema's bounds. The others (positions, the surface estimate) need only be
+finite; ``tau_max`` may be INFINITY but not negative (:data:`UNBOUNDED_PARAMS`)."""
+
+ROTATION_TOL = 1e-6
+"""How far a parameter frame's columns may be from orthonormal (each dot
+product from 0 or 1): a matrix rounded to single precision passes, one
+scaled or sheared by a typing slip does not."""
+
+
+def _law_ranges(law: Law) -> dict[str, str]:
+    """``law_<name>`` -> its range from the law's parameter schema (gt, ge, lt, le)."""
+    out = {}
+    for name in law.parameter_names:
+        parts = []
+        for m in law.parameters.model_fields[name].metadata:
+            for attr, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+                if getattr(m, attr, None) is not None:
+                    parts.append(f"{op} {getattr(m, attr)!r}")
+        if parts:
+            out[f"law_{name}"] = " and ".join(parts)
+    return out
+
+
+def _range_check(params, law: Law) -> str:
+    """The body of ``tmt_params_in_range(p)``: 1 if every parameter of the
+    packed vector ``p`` lies in its range (:data:`PARAM_RANGES`), else 0
+    (fixed count: every condition evaluated)."""
+    ranges = {**PARAM_RANGES, **_law_ranges(law)}
+    offsets, i = {}, 0
+    for f in params:
+        offsets[f.name] = i
+        i += f.size
+    lines = ["    int i, j, ok = 1;", "    double d;", "    (void)i; (void)j; (void)d;"]
+    for f in params:
+        rule, o = ranges.get(f.name), offsets[f.name]
+        if rule is None:
+            continue
+        if rule == "a rotation":
+            lines += [f"    for (i = 0; i < 3; ++i) {{      /* {f.name}: orthonormal columns */",
+                      "        for (j = 0; j < 3; ++j) {",
+                      f"            d = p[{o} + 3 * i] * p[{o} + 3 * j] + p[{o} + 3 * i + 1] * p[{o} + 3 * j + 1]"
+                      f" + p[{o} + 3 * i + 2] * p[{o} + 3 * j + 2];",
+                      f"            ok &= fabs(d - (i == j ? 1.0 : 0.0)) <= {ROTATION_TOL!r};",
+                      "        }", "    }",
+                      f"    /* {f.name}: determinant +1 (column 1 . (column 2 x column 3) > 0) */",
+                      f"    ok &= p[{o}] * (p[{o + 4}] * p[{o + 8}] - p[{o + 5}] * p[{o + 7}])"
+                      f" - p[{o + 1}] * (p[{o + 3}] * p[{o + 8}] - p[{o + 5}] * p[{o + 6}])"
+                      f" + p[{o + 2}] * (p[{o + 3}] * p[{o + 7}] - p[{o + 4}] * p[{o + 6}]) > 0.0;"]
+            continue
+        if rule == "[0, 1)":
+            conds = ["{v} >= 0.0", "{v} < 1.0"]
+        elif rule == "+1 or -1":
+            conds = ["({v} == 1.0 || {v} == -1.0)"]
+        elif rule == "0 or 1":
+            conds = ["({v} == 0.0 || {v} == 1.0)"]
+        else:
+            conds = []
+            for part in rule.split(" and "):
+                op, bound = part.split(" ", 1)
+                bound = f"p[{offsets[bound]}]" if bound in offsets else _c_num(float(bound))
+                conds.append(f"{{v}} {op} {bound}")
+        for j in range(f.size):
+            v = f"p[{o + j}]"
+            lines.append("    ok &= " + " && ".join(c.format(v=v) for c in conds) + ";"
+                         + (f"      /* {f.name} {rule} */" if j == 0 else ""))
+    lines.append("    return ok;")
+    return "\n".join(lines)
+
+
 def param_fields(law: Law, task=3, surface=Plane) -> tuple[Field, ...]:
     """The parameter struct: the controller's parameter layout for the
     robot's ``task`` on the ``surface``'s shape (:func:`controller_param_layout`;
@@ -248,9 +338,16 @@ def param_fields(law: Law, task=3, surface=Plane) -> tuple[Field, ...]:
                 desc = law.parameters.model_fields[pname].description or ""
                 head, _, unit = desc.rpartition(", ")
                 unit, desc = (unit, head) if head and len(unit) <= 12 else ("see meaning", desc)
-                out.append(Field(f"law_{pname}", 1, unit, "-", f"law '{law.name}': {desc}"))
+                rng = _law_ranges(law).get(f"law_{pname}")
+                out.append(Field(f"law_{pname}", 1, unit, "-", f"law '{law.name}': {desc}"
+                                 + (f"; valid {rng}" if rng else "")))
             continue
         unit, frame, doc = _PARAM_DOCS[name]
+        if name == "R_d" and surface.turns:
+            doc = ("commanded tool orientation at c, column-major (the tool frame's axes in the base frame); on "
+                   "this curved part the command turns with the surface's normal along the path (docs/surfaces.md)")
+        if name in PARAM_RANGES:
+            doc += f"; valid {PARAM_RANGES[name]}"
         size = s.stop - s.start
         out.append(Field(name, size, unit, frame, doc, *((_joints(size),) if name in ("q_post", "tau_max") else ())))
     return tuple(out)
@@ -281,11 +378,11 @@ class Interface:
 
     @property
     def measurement_fields(self):
-        return measurement_fields(self.task)
+        return measurement_fields(self.task, self.surface)
 
     @property
     def command_fields(self):
-        return command_fields(self.torque, self.task)
+        return command_fields(self.torque, self.task, self.surface)
 
     @property
     def diagnostic_fields(self):
@@ -574,6 +671,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "CMD_FIELDS": _struct_fields(cf), "DIAG_FIELDS": _struct_fields(df),
         "PACK_PARAMS": _copy_in(pf, "params", "state->p"), "PACK_MEAS": _copy_in(mf, "meas", "state->y"),
         "CHECK_INPUTS": _check_in(pf, mf), "CHECK_PARAMS": _check_in(pf, ()),
+        "RANGE_CHECK": _range_check(pf, law),
         "UNPACK_CMD": _copy_out(cf, "state->out", "cmd"),
         "UNPACK_DIAG": _copy_out(df, "state->out", "cmd", n_cmd),
         "DEFAULT_PARAMS": _defaults(pf, p0),

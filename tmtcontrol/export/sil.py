@@ -204,14 +204,14 @@ class CompiledController:
         if scenario is not None:            # refused before compiling
             self.check_matches(scenario)
         self.library = pathlib.Path(library) if library is not None else compile_export(self.folder, flag)
-        self.cmd_fields = command_fields(self.torque, self.task)
+        self.cmd_fields = command_fields(self.torque, self.task, self.surface)
         self.diag_fields = diagnostic_fields(self.task)
         self.Params = _struct("tmt_params", param_fields(self.law, self.task, self.surface))
-        self.Measurement = _struct("tmt_measurement", measurement_fields(self.task))
+        self.Measurement = _struct("tmt_measurement", measurement_fields(self.task, self.surface))
         self.Command = _struct("tmt_command", (*self.cmd_fields, *self.diag_fields))
         sz = self.meta["sizes"]
         self.host_sizes = {"param": sz["param"], "state": sz["state"],
-                           "meas": sum(f.size for f in measurement_fields(self.task)),
+                           "meas": sum(f.size for f in measurement_fields(self.task, self.surface)),
                            "out": sum(f.size for f in (*self.cmd_fields, *self.diag_fields)),
                            "arg": sz["arg"], "res": sz["res"], "iw": sz["iw"], "w": sz["w"]}
         self.State = state_struct(self.host_sizes)
@@ -341,7 +341,9 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     def failed(rc):
         raise ExportError(f"{flag}: {controller.prefix}_step returned {rc} at period {calls[0]} "
                           f"(t = {calls[0] * Ts:.3f} s)"
-                          + (f" (a non-finite result: {controller.prefix.upper()}_E_NONFINITE)" if rc == -1 else ""))
+                          + (f" (a non-finite result: {controller.prefix.upper()}_E_NONFINITE)" if rc == -1 else
+                             f" (a parameter outside its valid range: {controller.prefix.upper()}_E_RANGE)"
+                             if rc == -2 else ""))
 
     if controller.isolated:
         from .host import ControllerHost, HostFault

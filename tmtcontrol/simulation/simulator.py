@@ -39,7 +39,7 @@ from .geometry import surface_of, tool_orientation
 from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
-from .scenario import Scenario, ScenarioError, paper_scenario
+from .scenario import Scenario, ScenarioError, ScheduledDamping, paper_scenario
 from .traces import SimulationTraces
 from .trajectory import path_extent, path_reference
 
@@ -585,6 +585,8 @@ class Simulator:
         alpha = sc.sensor.pole(Ts)
         sch = ctl.damping_schedule
         on = sch.kind == "zeta"
+        if not on:      # its parameters unused (sched = 0), yet the exported defaults a user may switch on
+            sch = ScheduledDamping()
         # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the path
         gap = sc.trajectory.approach_gap
         q0 = path.q[:, 0]
@@ -599,9 +601,8 @@ class Simulator:
         P = param_layout(task, law, surface).pack(
             m=imp.m, b=imp.b, k=imp.k, kd=kd, kp=kp, f_d=ctl.f_d, x_e_hat=ctl.x_e_error, alpha=alpha,
             d_e=sc.environment.damping, **surface.values(), part_offset=ctl.part_offset, Ts=Ts,
-            sched=1.0 if on else 0.0, zeta=sch.zeta if on else 1.0, b_min=sch.b_min if on else 0.0,
-            b_max=sch.b_max if on else 1.0, b_rate=sch.rate if on else 1.0, k_hat_max=sch.k_max if on else 1.0,
-            k_hat_min=sch.min_stiffness if on else 1.0, sched_f_th=sch.force_threshold if on else 1.0,
+            sched=1.0 if on else 0.0, zeta=sch.zeta, b_min=sch.b_min, b_max=sch.b_max, b_rate=sch.rate,
+            k_hat_max=sch.k_max, k_hat_min=sch.min_stiffness, sched_f_th=sch.force_threshold,
             v_app=ctl.approach_speed, f_contact=contact_threshold_of(sc, alpha),
             ramp_rate=1.0 / ctl.force_ramp, law=law.parameter_vector(ctl.law),
             R_d=R_d.ravel(order="F"), kd_rot=np.divide(imp.b_rot, imp.m_rot), kp_rot=np.divide(imp.k_rot, imp.m_rot),

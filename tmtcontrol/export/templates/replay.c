@@ -256,7 +256,8 @@ int main(int argc, char **argv)
         set_measurement(&meas, rows + k * TMT_N_MEASUREMENT);
         if ((rc = tmt_step(&params, &state, &meas, &cmd)) != 0) {
             fprintf(stderr, "replay: %s: row %ld: tmt_step returned %d%s\n", argv[1], k + 2, rc,
-                    rc == TMT_E_NONFINITE ? " (a non-finite result: check the measurement)" : "");
+                    rc == TMT_E_NONFINITE ? " (a non-finite result: check the measurement)" :
+                    rc == TMT_E_RANGE ? " (a parameter outside its valid range)" : "");
             fclose(out);
             free(rows);
             free(times);

@@ -22,6 +22,15 @@
 #pragma GCC diagnostic pop
 #endif
 
+/* 1 if every parameter of the packed vector p lies in its valid range (the
+ * ranges in tmt_controller.h's parameter struct: a finite value outside one,
+ * a negative mass, a filter pole of 1.5 or a sheared frame, would give finite
+ * nonsense, which the finiteness checks cannot see), else 0. */
+static int tmt_params_in_range(const double *p)
+{
+@RANGE_CHECK@
+}
+
 void tmt_default_params(tmt_params *params)
 {
 @DEFAULT_PARAMS@
@@ -57,6 +66,9 @@ int tmt_init(const tmt_params *params, tmt_state *state)
     if (bad) {
         return TMT_E_NONFINITE;          /* a NaN or infinite parameter: the state would be non-finite for good */
     }
+    if (!tmt_params_in_range(state->p)) {
+        return TMT_E_RANGE;              /* a finite parameter outside its valid range */
+    }
     state->arg[0] = state->p;
     state->res[0] = state->s;
     rc = @GEN@_init(state->arg, state->res, state->iw, state->w, 0);
@@ -74,9 +86,11 @@ int tmt_init(const tmt_params *params, tmt_state *state)
 int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *meas, tmt_command *cmd)
 {
     int i, rc, bad = 0;
+    int range;
 @PACK_PARAMS@
 @PACK_MEAS@
 @CHECK_INPUTS@
+    range = !tmt_params_in_range(state->p);
     state->arg[0] = state->s;
     state->arg[1] = state->y;
     state->arg[2] = state->p;
@@ -90,8 +104,8 @@ int tmt_step(const tmt_params *params, tmt_state *state, const tmt_measurement *
     for (i = 0; i < TMT_N_OUT; ++i) {
         bad |= !isfinite(state->out[i]);
     }
-    if (rc != 0 || bad) {
-        return rc != 0 ? rc : TMT_E_NONFINITE;
+    if (rc != 0 || bad || range) {
+        return rc != 0 ? rc : (bad ? TMT_E_NONFINITE : TMT_E_RANGE);
     }
     for (i = 0; i < TMT_N_STATE; ++i) {
         state->s[i] = state->s_next[i];

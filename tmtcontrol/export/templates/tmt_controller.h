@@ -44,6 +44,7 @@ extern "C" {
 #define TMT_SZ_W @SZ_W@
 #define TMT_ALLOC(n) ((n) > 0 ? (n) : 1)
 #define TMT_E_NONFINITE (-1)            /* tmt_step: a non-finite result; state and command not updated */
+#define TMT_E_RANGE (-2)                /* a finite parameter outside its valid range (see tmt_params) */
 
 /* Parameters: may be changed between two calls of tmt_step(). */
 typedef struct {
@@ -85,13 +86,17 @@ void tmt_default_params(tmt_params *params);
  * damping, the surface estimate and the law's initial state taken from params
  * (as an export with those values would start). Returns 0; TMT_E_NONFINITE
  * if a parameter is NaN or infinite (tau_max may be INFINITY) or the state it
- * would start from is not finite: call it again with good parameters. */
+ * would start from is not finite; TMT_E_RANGE if a parameter lies outside its
+ * valid range (the "valid" of each field below): call it again with good
+ * parameters. */
 int tmt_init(const tmt_params *params, tmt_state *state);
 
 /* One control period: reads meas, writes cmd, advances state. Returns 0 on
  * success; TMT_E_NONFINITE if a result would be NaN or infinite, or an input
  * is (a NaN or infinite measurement or parameter; tau_max may be INFINITY, no
- * clip, but not NaN or negative), or the generated function's non-zero
+ * clip, but not NaN or negative); TMT_E_RANGE if a parameter lies outside
+ * its valid range (a negative mass, a filter pole of 1.5, a frame that is not
+ * a rotation: finite nonsense); or the generated function's non-zero
  * return code: then state and cmd are left as they were (the last good
  * command; stop the robot safely) and the next call starts from that state.
  * Call tmt_init() before the first call. */
