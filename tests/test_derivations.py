@@ -71,7 +71,26 @@ def missing_term_delta(x, f_e, x_e, f_d, k):
     return f_d * (k * (x - x_e)) / (k * f_e)
 
 
+def loop_torque_without_jdot(M, n, J, Jdot_dq, U, F_e, tau_0=None):
+    """Review 24's mutant: the loop's torque without - J-dot dq (its paper run off by 60 mN, 6x the tolerance)."""
+    from tmtcontrol.simulation.closedloop import operational_space_torque
+
+    return operational_space_torque(M, n, J, 0 * Jdot_dq, U, F_e, tau_0)
+
+
+def loop_torque_general_form_off(M, n, J, Jdot_dq, U, F_e, tau_0=None):
+    """The general (redundant-arm) form 0.01 % off; the square form right."""
+    from tmtcontrol.simulation.closedloop import operational_space_torque
+
+    tau = operational_space_torque(M, n, J, Jdot_dq, U, F_e, tau_0)
+    return tau if tau_0 is None else 1.0001 * tau
+
+
 @pytest.mark.parametrize("change,expected", [
+    # review 24: rows (7), (8)-(9) checked impedance.control_force, which the loop does not call; the loop's
+    # joint torque now enters (7)
+    (dict(joint_torque=loop_torque_without_jdot), {"(7)"}),
+    (dict(joint_torque=loop_torque_general_form_off), {"(7)"}),
     (dict(tmt_reference=sign_flipped_tmt), {"(16)-(17)", "(19)-(22)", "(23)-(24)"}),
     (dict(tmt_reference=wrong_branch_tmt), {"(18)"}),
     (dict(tmt_delta=missing_term_delta), {"(16)-(17)", "(18)"}),

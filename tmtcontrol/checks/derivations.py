@@ -26,6 +26,7 @@ import numpy as np
 from .. import stability
 from ..control import impedance
 from ..control.laws import tmt as reference
+from ..simulation import closedloop
 
 __all__ = ["CheckResult", "Implementation", "run_checks", "format_checks", "CHECKS"]
 
@@ -81,6 +82,7 @@ class Implementation:
     command: Callable = impedance.command
     inner_loop: Callable = impedance.inner_loop
     control_force: Callable = impedance.control_force
+    joint_torque: Callable = closedloop.operational_space_torque
     critical_damping: Callable = stability.critical_damping
     tmt_error_tf: Callable = stability.tmt_error_tf
     impedance_gains: Callable = None
@@ -138,17 +140,27 @@ def check_eq7(impl: Implementation, rng) -> CheckResult:
     lhs = ddE + s["kd"] * dE + s["kp"] * E
     rhs = ca.solve(Dh, ca.mtimes(D - Dh, ddX) + (h - hh) + Ff) + ddXa + s["kd"] * s["dXa"] + s["kp"] * s["Xa"]
     f = ca.Function("eq7", list(sym.values()), [lhs, rhs])
+    # eq. (5) as the loop applies it: the joint torque of the closed loop (closedloop.operational_space_torque,
+    # square and general forms) against J^T F of the Cartesian law above, with the controller's model and
+    # dq != 0 (review 24: the J-dot dq term could go missing from the loop's torque with every check passing)
+    q, dq, U, Fe = (ca.MX.sym(n, 3) for n in ("q", "dq", "U", "Fe"))    # MX: the loop's solves are MX's
+    Jm, Mh, nh, Jd = mod.jacobian(q), mod.mass_matrix(q), mod.bias(q, dq), mod.jacobian_dot(q, dq)
+    cart = ca.mtimes(Jm.T, impl.control_force(mod.cartesian_inertia(q), mod.cartesian_bias(q, dq), U, Fe))
+    loop = ca.Function("eq5_loop", [q, dq, U, Fe], [cart, impl.joint_torque(Mh, nh, Jm, Jd, U, Fe),
+                                                    impl.joint_torque(Mh, nh, Jm, Jd, U, Fe, ca.MX.zeros(3))])
     res = 0.0
     for q, dq in _q_samples(rng, rob, 12):
         vals = [q, dq] + [rng.normal(size=3) for _ in range(6)] + [rng.uniform(0.5, 2, 3), rng.uniform(1, 100, 3),
                                                                       rng.uniform(10, 1e3, 3), rng.uniform(1, 100, 3),
                                                                       rng.uniform(10, 1e3, 3)]
         a, b = f(*vals)
-        res = max(res, _rel(a, b))
+        want, square, general = loop(q, dq, rng.normal(size=3), vals[7])
+        res = max(res, _rel(a, b), _rel(square, want), _rel(general, want))
     return _result("closed-loop error dynamics", "(7)",
                    "E'' + K_D E' + K_P E = D^-1[dD X'' + dh + F_f] + Xa'' + K_D Xa' + K_P Xa",
                    "CasADi: PUMA plant (eq. 1) with friction under the implemented eqs. (4)-(6) "
-                   "and a 20 % mass-model error; both sides at 12 random states", res)
+                   "and a 20 % mass-model error; both sides at 12 random states; the loop's joint "
+                   "torque (square and general forms) equal to J^T F there", res)
 
 
 def check_eq8_9(impl: Implementation, rng) -> CheckResult:
