@@ -322,3 +322,20 @@ def test_a_tilt_axis_on_a_base_with_a_normal_sweeps_the_plane():
         assert np.allclose(n, [np.sin(np.radians(t)), 0.0, -np.cos(np.radians(t))], atol=1e-15)
     paper = sweep_from_dict({"grid": {"environment.normal": [[0.0, 0.0, -1.0]]}})
     assert np.allclose(surface_frame(paper.scenario(paper.cases[0]).environment)[:, 0], [0, 0, -1], atol=1e-15)
+
+
+@pytest.mark.parametrize("grid, random", [
+    ({"controller.f_d": [5.0, 20.0], "controller": [{"rate": 1000.0}]}, {}),
+    ({"controller": [{"f_d": 7.0}], "controller.f_d": [5.0, 20.0]}, {}),
+    ({"controller": [{"rate": 1000.0}]}, {"samples": 2, "controller.f_d": {"uniform": [1.0, 5.0]}}),
+])
+def test_an_axis_inside_another_axis_is_refused_naming_both(grid, random):
+    """Review 23: a table axis ("controller") beside one of its keys ("controller.f_d") ran with one
+    of them silently dropped: both f_d cases ran at 10 N (first-contact peak 12.40 N each, as
+    simulate gives for 10 N, against 6.20 N for 5 N), or the f_d axis overwrote the user's table in
+    place, and a random draw leaked into a grid value. Refused before any case, naming both."""
+    from tmtcontrol.sweep.spec import SweepError
+
+    with pytest.raises(SweepError, match=r"^controller\.f_d: also set by the axis controller, "):
+        sweep_from_dict({"grid": grid, "random": random} if random else {"grid": grid})
+

@@ -357,7 +357,7 @@ def case_scenario(base: dict, values: dict) -> Scenario:
     for key, value in values.items():
         if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list):
             value = [value]
-        set_key(d, key, value)
+        set_key(d, key, copy.deepcopy(value))   # a table value is the sweep's own: never edited in place
     return scenario_from_dict(d)
 
 
@@ -641,6 +641,13 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
     overlap = set(grid_in) & set(random)
     if overlap:
         raise SweepError(f"{sorted(overlap)[0]}: both a grid and a random axis")
+    axes = [*grid_in, *random]
+    nested = [(a, b) for i, a in enumerate(axes) for b in axes[i + 1:] if _covers(a, b)]
+    if nested:      # one would overwrite the other's values (review 23: a "controller" table dropped controller.f_d)
+        (a, b), = nested[:1]
+        outer, inner = (a, b) if len(a) < len(b) else (b, a)
+        raise SweepError(f"{inner}: also set by the axis {outer}, which holds it; sweep one of them (or give "
+                         f"{inner} inside each value of {outer})")
     if not grid_in and not random:
         raise SweepError("grid, random: a sweep needs at least one axis")
     if max_cases is not None and (isinstance(max_cases, bool) or not (isinstance(max_cases, int) and max_cases >= 1)):
