@@ -733,3 +733,17 @@ def test_a_prefix_in_a_system_namespace_is_refused(tmp_path, capsys, prefix):
     assert not out.exists()
     check_prefix("semantic")
     check_prefix("pthreads")
+
+
+def test_the_python_api_does_not_export_over_a_users_files(tmp_path):
+    """Review 23: export_controller into a folder holding the user's README.md and Makefile replaced
+    both (its docstring asked for an empty folder; nothing checked). Refused, the files untouched;
+    a missing folder too."""
+    folder = tmp_path / "ud"
+    folder.mkdir()
+    (folder / "README.md").write_text("MY NOTES")
+    with pytest.raises(ExportError, match="must be an existing, empty folder"):
+        export_controller(paper_scenario(), folder)
+    assert [p.name for p in folder.iterdir()] == ["README.md"] and (folder / "README.md").read_text() == "MY NOTES"
+    with pytest.raises(ExportError, match="must be an existing, empty folder"):
+        export_controller(paper_scenario(), tmp_path / "missing")

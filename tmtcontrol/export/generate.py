@@ -638,6 +638,9 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
 
     check_prefix(prefix)
     folder = pathlib.Path(folder)
+    if not folder.is_dir() or any(folder.iterdir()):    # never over a user's files (review 23: README, Makefile)
+        raise ExportError(f"{folder}: must be an existing, empty folder (the export writes README.md, Makefile and "
+                          "its sources there; the command line stages one and moves it into --out)")
     fn, law = controller_function(scenario, inner_loop)
     p0, s0 = scenario_values(scenario, inner_loop)
     gen = ca.CodeGenerator("tmt_controller_gen.c", {"with_header": True, "casadi_real": "double",
