@@ -193,8 +193,11 @@ def test_json_schema_lists_every_kind_and_unit():
     ("# only a comment\n\n", r"no data rows in"),
     ("0,1e3\n4,nan\n", r"non-finite value in"),
     ("0,1e3\ninf,2e3\n", r"non-finite value in"),
-    ("0,1e3\n4,0\n", r"stiffness must be > 0 in"),
-    ("0,1e3\n4,-2e3\n", r"stiffness must be > 0 in"),
+    ("0,1e3\n4,0\n", r"stiffness must be >= 0.001 N/m in"),
+    ("0,1e3\n4,-2e3\n", r"stiffness must be >= 0.001 N/m in"),
+    # review 23: the other profiles' bounds (values >= 1e-3 N/m, knot times >= 0) held for a table too
+    ("0,1e-4\n1,6e3\n", r"stiffness must be >= 0.001 N/m in"),
+    ("-1,5e3\n1,6e3\n", r"times must be >= 0 s in"),
     ("0,1e3\n4,2e3\n4,3e3\n", r"times must be strictly increasing in"),
     ("4,1e3\n0,2e3\n", r"times must be strictly increasing in"),
 ])

@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, model_serializer, model_validator
 
-from .fields import MAX_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
+from .fields import MAX_STIFFNESS, MIN_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
 from .textfiles import InputFileError, read_text_file
 
 __all__ = ["SHAPES", "read_height_grid", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
@@ -120,8 +120,11 @@ def read_stiffness_table(path: str | pathlib.Path) -> tuple[Any, Any]:
     arr = np.array(data)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"file: non-finite value in {str(path)!r}")
-    if np.any(arr[:, 1] <= 0):
-        raise ValueError(f"file: stiffness must be > 0 in {str(path)!r}")
+    # the bounds of the other profiles' values and knot times (review 23: 1e-4 N/m and t = -1 s were accepted)
+    if np.any(arr[:, 1] < MIN_STIFFNESS):
+        raise ValueError(f"file: stiffness must be >= {MIN_STIFFNESS:g} N/m in {str(path)!r}")
+    if np.any(arr[:, 0] < 0):
+        raise ValueError(f"file: times must be >= 0 s in {str(path)!r}")
     if np.any(arr[:, 1] > MAX_STIFFNESS):
         raise ValueError(f"file: stiffness must be <= {MAX_STIFFNESS:g} N/m in {str(path)!r}")
     if np.any(np.diff(arr[:, 0]) <= 0):

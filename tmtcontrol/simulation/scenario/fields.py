@@ -40,7 +40,10 @@ MIN_PERIODS = 10
 """A path period, a stiffness segment and a stiffness sinusoid's period are at
 least this many control periods (fewer samples cannot resolve them)."""
 
-Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=1e-3, le=MAX_STIFFNESS)]
+MIN_STIFFNESS = 1e-3
+"""The smallest stiffness a profile may give, N/m (any form: values, knots, a table's rows)."""
+
+Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MIN_STIFFNESS, le=MAX_STIFFNESS)]
 
 
 class Section(BaseModel):
