@@ -3,6 +3,8 @@ relative links resolve, and the README links the guide."""
 import pathlib
 import re
 
+import pytest
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
@@ -106,3 +108,30 @@ def test_sweep_throughput_quoted_is_the_recorded_benchmark():
     changed = json.loads(json.dumps(record))
     changed["puma560"]["2 workers"] *= 1.01
     assert bench.paragraph(changed) != text
+
+
+def test_the_reference_states_each_elements_bounds_that_the_schema_enforces():
+    """Review 23: docs/scenario.md gave the range "–" for impedance.m, b, k, kd, kp and the rotational
+    gains (fixed-length or optional tuples), which the schema bounds (impedance.m = [2e4, 1, 1]:
+    "must be <= 10000"). Each bound the reference states now, the schema refuses just past it and
+    accepts at it."""
+    import re
+
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.scenario import ScenarioError, scenario_reference
+
+    text = scenario_reference()
+    section = text[text.index("**[impedance]**"):]
+    checked = 0
+    for key in ("m", "b", "k", "kd", "kp", "m_rot", "b_rot", "k_rot"):
+        row = next(line for line in section.splitlines() if line.startswith(f"| `{key}` |"))
+        for op, bound in re.findall(r"each (≥|>|≤) ([0-9.e+-]+)", row):
+            bound = float(bound)
+            past = {"≥": bound - 1e-6 * max(1.0, abs(bound)), ">": bound,
+                    "≤": bound * (1 + 1e-6)}[op]
+            with pytest.raises(ScenarioError, match=rf"^impedance\.{key}"):
+                apply_overrides(paper_scenario(), [f"impedance.{key}=[{past!r}, 1.0, 1.0]"])
+            if op != ">":
+                apply_overrides(paper_scenario(), [f"impedance.{key}=[{bound!r}, 1.0, 1.0]"])
+            checked += 1
+    assert checked >= 11          # m and k two bounds each, b two, kd, kp and the three rotational ones

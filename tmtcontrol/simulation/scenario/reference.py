@@ -135,8 +135,13 @@ def scenario_reference() -> str:
                 parts.append("non-empty")
         from typing import get_args, get_origin
 
-        if get_origin(info.annotation) is tuple and get_args(info.annotation)[-1] is Ellipsis:   # each element's
-            for m in get_args(get_args(info.annotation)[0])[1:]:
+        # each element's bounds, of a tuple of any length or of a fixed length (impedance.m: 3 masses), also
+        # when optional (impedance.kd); review 23: the fixed-length tuples' bounds were left out
+        ann = info.annotation
+        tuples = [a for a in (ann, *get_args(ann)) if get_origin(a) is tuple]
+        elements = [e for e in get_args(tuples[0]) if e is not Ellipsis] if tuples else []
+        if elements and all(e == elements[0] for e in elements):
+            for m in get_args(elements[0])[1:]:
                 for item in (getattr(m, "metadata", None) or [m]):
                     for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
                         if getattr(item, attr, None) is not None:
