@@ -121,3 +121,19 @@ def test_a_one_period_segment_below_the_loops_limit_is_not_called_a_limit_cycle(
     assert one_d.verdict == "limit_cycle"
     (lost,) = segment_metrics(attached(run(1.7e5), 167249.0))                # above the limit: the contact is lost
     assert lost.verdict == "limit_cycle" and "contact is lost" in lost.reason
+
+
+def test_a_segment_that_never_touches_the_surface_is_off_target_not_a_limit_cycle():
+    """Review 23: with a 50 mm gap closed at 1 mm/s the 1 s run never touched the surface, and its
+    segment was judged limit_cycle, "the contact is lost in the last quarter" (a sweep over the gap
+    then printed it as a stability boundary). It is off_target, saying no contact was made; the
+    run still fails its check. A segment that loses a contact it had stays a limit cycle (above)."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.25", "trajectory.approach_gap=0.05",
+                                            "controller.approach_speed=0.001"])
+    res = Simulator(sc).run()
+    assert float(np.max(res.contact_force)) == 0.0            # the premise: 1 mm of a 50 mm gap
+    (seg,) = segment_metrics(res)
+    assert seg.verdict == "off_target" and "no contact in the segment" in seg.reason

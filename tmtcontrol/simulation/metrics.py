@@ -353,6 +353,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     at least one); with no such period (no forcing, or a segment shorter than
     two periods), the two halves of the last quarter. With a_A, a_B the
     oscillation in each (the largest swing between consecutive extrema):
+    ``off_target`` if the segment has no contact at all (the tool never
+    reached the surface: nothing to judge as an oscillation);
     ``diverged`` if a_B > band and a_B > 1.5 a_A; ``limit_cycle`` if the
     contact is lost in the last
     quarter, or a_B > band, a_B >= 0.95 a_A and B does not repeat A (whole
@@ -373,6 +375,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
                 else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
+    if not np.any(force > 0.0):     # never in contact: nothing oscillates, the tool is off the surface (review 23)
+        return "off_target", "no contact in the segment (the tool never reached the surface)"
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
     P = next((p for p in periods if n >= 2 * p), None)
