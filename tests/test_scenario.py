@@ -115,6 +115,9 @@ def test_direct_construction_validates():
     ("[controller]\nf_d = '10'\n", r"controller\.f_d: expected a number, got '10'"),
     ("[controller.damping_schedule]\nkind = 'zeta'\nb_min = 5\nb_max = 2\n",
      r"controller\.damping_schedule\.b_min: must be <= b_max \(2\), got 5"),
+    # review 23: an empty clamp range of the stiffness estimate was accepted
+    ("[controller.damping_schedule]\nkind = 'zeta'\nk_max = 50\n",
+     r"controller\.damping_schedule\.min_stiffness: must be <= k_max \(50\), got 100"),
     ("[environment.stiffness]\nkind = 'sinusoidal'\namplitude = 2e4\n", r"environment\.stiffness\.amplitude: must be < mean"),
     ("", r"empty scenario"),
 ])

@@ -77,6 +77,8 @@ class ScheduledDamping(Section):
     def _bounds(self):
         if self.b_min > self.b_max:
             raise ValueError(f"b_min: must be <= b_max ({self.b_max:g}), got {self.b_min:g}")
+        if self.min_stiffness > self.k_max:      # review 23: accepted, the estimate clamped to an empty range
+            raise ValueError(f"min_stiffness: must be <= k_max ({self.k_max:g}), got {self.min_stiffness:g}")
         return self
 
 
