@@ -474,8 +474,10 @@ def _pickled(path):
     ("big.npy", _huge, "larger than the 16 MiB limit"),
     ("folder.csv", lambda p: p.mkdir(), "is a folder"),
     ("folder.npy", lambda p: p.mkdir(), "is not a regular file"),
-    ("pickled.npy", _pickled, "Object arrays cannot be loaded when allow_pickle=False"),
-], ids=["over-limit-csv", "over-limit-npy", "folder-csv", "folder-npy", "pickled-npy"])
+    ("pickled.npy", _pickled, "(Object arrays cannot be loaded when allow_pickle=False)"),
+    # review 23: NumPy took a text file named .npy for a pickle and said so, cut at 80 characters
+    ("text.npy", lambda p: p.write_text("0,0\n0,0\n"), "is not a NumPy .npy file (no .npy header; a CSV"),
+], ids=["over-limit-csv", "over-limit-npy", "folder-csv", "folder-npy", "pickled-npy", "text-npy"])
 def test_a_height_map_file_over_the_limit_a_folder_or_a_pickle_is_refused(tmp_path, capsys, name, make, reason):
     """The height map is read with the stiffness tables' limits
     (docs/surfaces.md): a file over 16 MiB (sparse, one byte over; refused

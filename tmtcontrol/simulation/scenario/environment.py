@@ -169,10 +169,16 @@ def _read_height_grid(path: str, size: int, mtime_ns: int):
             raise ValueError(f"heightmap: {path!r} is not a regular file")
         if st.st_size > MAX_INPUT_BYTES:
             raise ValueError(f"heightmap: {path!r} is larger than the {MAX_INPUT_BYTES / 2**20:g} MiB limit")
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+        if magic != b"\x93NUMPY":      # NumPy would read it as a pickle and say so (review 23: text named .npy)
+            raise ValueError(f"heightmap: {path!r} is not a NumPy .npy file (no .npy header; a CSV file of "
+                             "heights needs another extension)")
         try:
             arr = np.load(path, allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
-            raise ValueError(f"heightmap: {path!r} is not a NumPy .npy array ({str(exc)[:80]})") from None
+            reason = str(exc).split(". ")[0].strip().rstrip(".")
+            raise ValueError(f"heightmap: {path!r} is not a readable NumPy .npy array ({reason})") from None
         if arr.dtype.kind not in "fiu":
             raise ValueError(f"heightmap: {path!r} holds {arr.dtype}, expected numbers")
         arr = arr.astype(float)
