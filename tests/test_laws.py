@@ -418,3 +418,28 @@ def test_tmt_compliance_clip_closed_forms():
     # just inside the clip: eq. (18) itself
     c = 0.9 / 100.0
     assert float(tmt_reference(c * 1.5, 1.5, 0.0, 10.0, 100.0, 0.5, 100.0)) == pytest.approx(0.1 + 10 * c, rel=1e-14)
+
+
+def test_tmt_with_the_surface_believed_deeper_than_the_penetration_is_eq22_and_exits_0(capsys):
+    """Review 22: with x_e_error above f_d/k_e (5 mm > 2 mm at 5e3 N/m) the compliance estimate
+    sits on its clip at 0, so the reference is constant and the loop is eq. (22) (poles
+    -30 +- 64.8j); analyze took the linearisation of the unclipped law (valid for c < 1 only)
+    and printed a pole at +34.3 /s, "UNSTABLE", with exit 0 despite --help's "exit 1 if any
+    verdict is unstable". The simulation settles at the clipped law's closed form,
+    k_eff (delta + f_d/k) = 10.2941 N, with no oscillation left."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.cli import main
+    from tmtcontrol.stability.analysis import analyze
+
+    d = analyze(1.0, 60.0, 100.0, k_e=5000.0, x_e_error=0.005, law="tmt")
+    assert "law_poles" not in d                              # the law's loop is eq. (22)'s
+    assert main(["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke", "5000", "--x-e-error", "0.005"]) == 0
+    assert "UNSTABLE" not in capsys.readouterr().out
+    sc = apply_overrides(paper_scenario(), ["controller.x_e_error=0.005", "environment.stiffness.values=[5000.0]",
+                                            "trajectory.cycles=0.5"])
+    f = Simulator(sc).run().contact_force
+    k_eff = 1.0 / (1.0 / 5000.0 + 1.0 / 100.0)
+    tail = f[-500:]
+    assert tail.mean() == pytest.approx(k_eff * (0.005 + 10.0 / 100.0), abs=1e-3) and np.ptp(tail) < 1e-3
+    # below the clip (c < 1) the unclipped linearisation stays the law's
+    assert "law_poles" in analyze(1.0, 60.0, 100.0, k_e=5000.0, x_e_error=0.001, law="tmt")

@@ -164,8 +164,18 @@ def tmt_polynomial(params, m, b, k, k_e, f_d=10.0, delta=0.0):
     becomes ``m s^2 + b s + k + k_e/(1 - c)``, the same roots. Read in the
     position: the stiffness is ``k_e + k(1 - c)`` (it changes by at most k)
     while the apparent mass and damping scale by (1 - c). delta = 0 is eq.
-    (22)."""
+    (22).
+
+    Where the estimate at the equilibrium, 1/k_e - delta/f_d, lies on its
+    clip (:func:`compliance_estimate`: below 0, c >= 1, a surface believed
+    deeper than the tool presses into it; above 1/min_stiffness), the
+    reference does not move with the position and the loop is eq. (22)'s,
+    ``m s^2 + b s + k + k_e`` (review 22: c >= 1 gave a pole at +34 /s and
+    "UNSTABLE" for a loop the simulation shows settling)."""
     c = delta * k_e / f_d
+    min_stiffness = (params if params is not None else TmtParameters()).min_stiffness
+    if c >= 1.0 or 1.0 / k_e - delta / f_d > 1.0 / min_stiffness:
+        return [m, b, k + k_e]
     return [m * (1.0 - c), b * (1.0 - c), k_e + k * (1.0 - c)]
 
 
