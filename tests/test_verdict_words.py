@@ -137,3 +137,30 @@ def test_a_segment_that_never_touches_the_surface_is_off_target_not_a_limit_cycl
     assert float(np.max(res.contact_force)) == 0.0            # the premise: 1 mm of a 50 mm gap
     (seg,) = segment_metrics(res)
     assert seg.verdict == "off_target" and "no contact in the segment" in seg.reason
+
+
+def test_a_one_period_growth_below_the_loops_limit_is_not_called_diverged():
+    """Review 22: the paper with a 100 Hz filter and the b that `design --scenario` picks for it
+    (213.1 N s/m), at 277,500 N/m below the loop's own limit (279,117 N/m, periodic orbit): its one
+    4 s segment grows 1.89x over the two halves of its last quarter and was judged diverged
+    (exit 1). A 3-period run of it decays 0.21x per period (the truth, checked here on the
+    force's swing at each period's start). As review 17's limit cycle: off_target, not settled
+    within the segment; with only the 1-D figure attached, it stays diverged."""
+    import dataclasses
+
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    sets = ["sensor.filter_cutoff=100", "impedance.b=[213.1, 20.0, 20.0]", "environment.stiffness.values=[277500.0]"]
+    r = Simulator(apply_overrides(paper_scenario(), sets + ["trajectory.cycles=1"])).run()
+    (bare,) = segment_metrics(r)
+    assert bare.verdict == "diverged" and bare.reason.startswith("oscillation grows")
+    long = Simulator(apply_overrides(paper_scenario(), sets + ["trajectory.cycles=3"])).run().contact_force
+    swings = [np.ptp(long[i * 4000:i * 4000 + 200]) for i in range(3)]
+    assert swings[2] < 0.3 * swings[1] < 0.3 * 0.3 * swings[0]            # decaying period by period
+    attach = lambda limit, source: dataclasses.replace(
+        r, info={**(r.info or {}), "stiffness_limit": limit, "stiffness_limit_from": source})
+    (seg,) = segment_metrics(attach(279117.0, "periodic orbit"))
+    assert seg.verdict == "off_target" and "cannot tell growth from the path's phase" in seg.reason
+    (one_d,) = segment_metrics(attach(2.8e5, "1-D small-signal"))
+    assert one_d.verdict == "diverged"
