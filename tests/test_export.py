@@ -737,13 +737,18 @@ def test_a_prefix_in_a_system_namespace_is_refused(tmp_path, capsys, prefix):
 
 def test_the_python_api_does_not_export_over_a_users_files(tmp_path):
     """Review 23: export_controller into a folder holding the user's README.md and Makefile replaced
-    both (its docstring asked for an empty folder; nothing checked). Refused, the files untouched;
-    a missing folder too."""
+    both. Refused, naming them, the files untouched; a folder with other files, or a new one, takes
+    the export."""
     folder = tmp_path / "ud"
     folder.mkdir()
     (folder / "README.md").write_text("MY NOTES")
-    with pytest.raises(ExportError, match="must be an existing, empty folder"):
+    (folder / "notes.txt").write_text("mine")
+    with pytest.raises(ExportError, match="already holds README.md, which the export would write"):
         export_controller(paper_scenario(), folder)
-    assert [p.name for p in folder.iterdir()] == ["README.md"] and (folder / "README.md").read_text() == "MY NOTES"
-    with pytest.raises(ExportError, match="must be an existing, empty folder"):
-        export_controller(paper_scenario(), tmp_path / "missing")
+    assert sorted(p.name for p in folder.iterdir()) == ["README.md", "notes.txt"]
+    assert (folder / "README.md").read_text() == "MY NOTES"
+    (folder / "README.md").unlink()
+    export_controller(paper_scenario(), folder)
+    assert (folder / "notes.txt").read_text() == "mine" and (folder / "tmt_controller.c").exists()
+    export_controller(paper_scenario(), tmp_path / "new")
+    assert (tmp_path / "new" / "tmt_controller.h").exists()

@@ -211,7 +211,7 @@ _PARAM_DOCS = {
     "kp": ("1/s^2", "task", "inner-loop position gain K_P, eq. (6)"),
     "f_d": ("N", "task normal", "desired normal force"),
     "x_e_hat": ("m", "task normal", "surface-estimate offset: at contact after a guarded approach the "
-                "estimate becomes the contact point plus this"),
+                "estimate becomes the tool's position when the measured force reaches f_contact, plus this"),
     "alpha": ("1", "-", "force-filter pole: f_m = alpha f_m,prev + (1 - alpha) f (0: no filter)"),
     "R": ("1", "base <- task", "task-frame rotation, column-major; column 1 the surface normal pointing "
           "into the surface, columns 2 and 3 the tangent task axes 1 and 2 (a cylinder's axis is column 3)"),
@@ -631,16 +631,25 @@ def _fill(text: str, values: dict) -> str:
 def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool = False,
                       prefix: str = DEFAULT_PREFIX) -> dict:
     """Write the exported library of ``scenario``'s controller into ``folder``
-    (an existing, empty staging folder). ``inner_loop`` adds the joint torques
+    (created if missing; a file there that the export would write is never
+    replaced: :class:`ExportError` names it). ``inner_loop`` adds the joint torques
     of eqs. (5)-(6) to the command; ``prefix`` starts every C name (module
     docstring). Returns a summary (files, sizes)."""
     from .. import __version__
 
     check_prefix(prefix)
     folder = pathlib.Path(folder)
-    if not folder.is_dir() or any(folder.iterdir()):    # never over a user's files (review 23: README, Makefile)
-        raise ExportError(f"{folder}: must be an existing, empty folder (the export writes README.md, Makefile and "
-                          "its sources there; the command line stages one and moves it into --out)")
+    # never over a file it did not write (review 23: a user's README.md and Makefile were replaced)
+    names = [_renamed(n, prefix) for n in ("tmt_controller.h", "tmt_controller.c", "tmt_controller_gen.c",
+                                            "tmt_controller_gen.h", "Makefile", "example_loop.c", "replay.c",
+                                            "README.md")] + [METADATA]
+    if folder.exists() and not folder.is_dir():
+        raise ExportError(f"{folder}: is not a folder")
+    taken = [n for n in names if (folder / n).exists() or (folder / n).is_symlink()]
+    if taken:
+        raise ExportError(f"{folder}: already holds {', '.join(taken)}, which the export would write; export into "
+                          "a new folder (the command line stages one and moves it into --out)")
+    folder.mkdir(parents=True, exist_ok=True)
     fn, law = controller_function(scenario, inner_loop)
     p0, s0 = scenario_values(scenario, inner_loop)
     gen = ca.CodeGenerator("tmt_controller_gen.c", {"with_header": True, "casadi_real": "double",
