@@ -500,16 +500,18 @@ def test_coupled_axes_are_not_checked_against_the_base_value_of_the_other(grid):
 def test_the_shapes_of_a_sweep_are_those_its_cases_take():
     """Regression (review 3): the curved shapes a sweep takes (for the case-by-case check of
     NOT_INTERVALS keys) were read from each shape-setting grid value alone; a value replaced
-    in every case by a later whole ``environment`` table ("cube") raised a bare KeyError,
-    although every case is a valid plane. Every case is checked valid here independently."""
+    in every case by a later whole ``environment`` table ("cube") raised a bare KeyError.
+    Since review 23 an axis inside another axis' table is refused (one silently dropped the
+    other's values): one line naming both, never a KeyError; the table alone sweeps planes."""
     from tmtcontrol.sweep import sweep_from_dict
-    from tmtcontrol.sweep.spec import case_scenario, load_scenario, scenario_to_dict
+    from tmtcontrol.sweep.spec import SweepError
 
     env = {"shape": "plane", "tilt_deg": 45.0}
-    base = scenario_to_dict(load_scenario("paper"))
-    for r in (0.05, 0.1):
-        case_scenario(base, {"environment.shape": "cube", "environment": env, "trajectory.radius": r})
-    sweep = sweep_from_dict({"grid": {"environment.shape": ["cube"], "environment": [env]},
+    with pytest.raises(SweepError, match=r"^environment\.shape: also set by the axis environment") as info:
+        sweep_from_dict({"grid": {"environment.shape": ["cube"], "environment": [env]},
+                         "random": {"samples": 3, "trajectory.radius": {"uniform": [0.05, 0.1]}}})
+    assert "\n" not in str(info.value)
+    sweep = sweep_from_dict({"grid": {"environment": [env]},
                              "random": {"samples": 3, "trajectory.radius": {"uniform": [0.05, 0.1]}}})
     assert {sweep.scenario(c).environment.shape for c in sweep.cases} == {"plane"}
 

@@ -339,3 +339,16 @@ def test_an_axis_inside_another_axis_is_refused_naming_both(grid, random):
     with pytest.raises(SweepError, match=r"^controller\.f_d: also set by the axis controller, "):
         sweep_from_dict({"grid": grid, "random": random} if random else {"grid": grid})
 
+
+
+def test_a_law_axis_beside_its_parameters_axis_sweeps_both():
+    """Review 25: the nested-axis refusal also refused a law's kind beside one of its parameters
+    ("controller.law" = ["tmt", "rls"] with "controller.law.force_threshold"), which --set takes
+    (--set controller.law=rls --set controller.law.force_threshold=1). A kind (a name, no table)
+    is applied first, then its parameter, in whichever order the file lists them."""
+    for grid in ({"controller.law": ["tmt", "rls"], "controller.law.force_threshold": [0.5, 1.0]},
+                 {"controller.law.force_threshold": [0.5, 1.0], "controller.law": ["tmt", "rls"]}):
+        sweep = sweep_from_dict({"grid": grid})
+        got = sorted((sc.controller.law.kind, sc.controller.law.force_threshold)
+                     for sc in (sweep.scenario(c) for c in sweep.cases))
+        assert got == [("rls", 0.5), ("rls", 1.0), ("tmt", 0.5), ("tmt", 1.0)]

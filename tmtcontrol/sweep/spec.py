@@ -354,7 +354,8 @@ def case_scenario(base: dict, values: dict) -> Scenario:
     list."""
     d = json.loads(json.dumps(base))
     replace_plane(d, values)              # an axis over the plane's normal or tilt replaces the base's other form
-    for key, value in values.items():
+    # the outer key first: a law's kind ("controller.law" = "rls", which resets the table) before its parameters
+    for key, value in sorted(values.items(), key=lambda kv: kv[0].count(".")):
         if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list):
             value = [value]
         set_key(d, key, copy.deepcopy(value))   # a table value is the sweep's own: never edited in place
@@ -642,12 +643,14 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
     if overlap:
         raise SweepError(f"{sorted(overlap)[0]}: both a grid and a random axis")
     axes = [*grid_in, *random]
-    nested = [(a, b) for i, a in enumerate(axes) for b in axes[i + 1:] if _covers(a, b)]
-    if nested:      # one would overwrite the other's values (review 23: a "controller" table dropped controller.f_d)
-        (a, b), = nested[:1]
-        outer, inner = (a, b) if len(a) < len(b) else (b, a)
-        raise SweepError(f"{inner}: also set by the axis {outer}, which holds it; sweep one of them (or give "
-                         f"{inner} inside each value of {outer})")
+    tables = {a for a in grid_in if isinstance(grid_in[a], list) and any(isinstance(v, dict) for v in grid_in[a])}
+    nested = [(a, b) if len(a) < len(b) else (b, a) for i, a in enumerate(axes) for b in axes[i + 1:]
+              if a != b and _covers(a, b)]
+    nested = [(outer, inner) for outer, inner in nested if outer in tables]
+    if nested:      # the table would overwrite the other's values (review 23: a "controller" table dropped f_d)
+        outer, inner = nested[0]
+        raise SweepError(f"{inner}: also set by the axis {outer}, whose tables hold it; sweep one of them (or "
+                         f"give {inner} inside each value of {outer})")
     if not grid_in and not random:
         raise SweepError("grid, random: a sweep needs at least one axis")
     if max_cases is not None and (isinstance(max_cases, bool) or not (isinstance(max_cases, int) and max_cases >= 1)):
