@@ -30,7 +30,7 @@ import numpy as np
 
 from ..surface import Surface, make_surface, normal_frame, tilt_frame
 
-__all__ = ["surface_of", "surface_error", "surface_frame", "tool_orientation", "rotation_vector"]
+__all__ = ["surface_of", "surface_frame", "tool_orientation", "rotation_vector"]
 
 
 def surface_of(scenario) -> Surface:
@@ -57,22 +57,6 @@ def surface_of(scenario) -> Surface:
 
 
 _SURFACES: dict = {}
-
-
-def surface_error(scenario) -> float:
-    """The controller's surface-location error along the inward normal at the
-    path's centre (m, positive: believed deeper than it is):
-    ``controller.x_e_error + controller.part_offset . n``. Exact on a plane
-    (a part offset along the normal is an x_e error there, tested); on a
-    curved part the value at the centre, for the 1-D analyses. With a
-    guarded approach only ``x_e_error``: the approach finds the surface, and
-    the estimate is set at contact to the contact point plus that error."""
-    sc = scenario
-    if sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0:
-        # a guarded approach measures the surface: at contact x_e^ = x + x_e_error, the offset's normal part gone
-        return float(sc.controller.x_e_error)
-    n = surface_of(sc).normal(np.asarray(sc.trajectory.center, dtype=float))
-    return float(sc.controller.x_e_error + np.dot(sc.controller.part_offset, n))
 
 
 def surface_frame(environment) -> np.ndarray:

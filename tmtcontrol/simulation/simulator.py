@@ -34,11 +34,11 @@ from ..files import VerdictFailed, check_interrupt
 from ..model import URDFError, load_robot
 from ..model.urdf import TipError
 from .closedloop import INPUT, build_step, log_layout, param_layout, state_layout, step_name
-from .environment import stiffness_samples
 from .geometry import surface_of, tool_orientation
 from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
+from .environment import CONTACT_NOISE_SIGMAS, contact_detection_threshold, stiffness_samples
 from .scenario import Scenario, ScenarioError, ScheduledDamping, paper_scenario
 from .traces import SimulationTraces
 from .trajectory import path_extent, path_reference
@@ -58,27 +58,6 @@ MAX_STEPS = 1_000_000
 _BYTES_PER_STEP = 8 * 2 * 60 + 300
 """Rough memory per control step: state, log and inputs (about 60 doubles,
 held twice) plus one CSV row."""
-
-
-CONTACT_NOISE_SIGMAS = 6.0
-"""Standard deviations of the filtered sensor noise added to the contact
-threshold of the guarded approach (a Gaussian sample exceeds 6 sigma about
-once in 1e9 samples: no false contact in a 1,000 s approach at 1 kHz)."""
-
-
-def contact_detection_threshold(threshold: float, noise_std: float, alpha: float) -> float:
-    """The measured force (N) that ends the guarded approach:
-    ``controller.contact_threshold`` plus :data:`CONTACT_NOISE_SIGMAS` standard
-    deviations of the sensor noise after the force filter, ``noise_std
-    sqrt((1 - alpha)/(1 + alpha))`` (the first-order filter
-    ``f_m = alpha f_m + (1 - alpha)(f + n)`` with pole ``alpha``; 0: none).
-    Noise alone then never ends the approach early (one sample above 1 N with
-    0.5 N noise did, 0.3 s early, taking the surface 3 mm too high and hitting
-    at 2.6-2.9 f_d);
-    without noise it is the threshold itself."""
-    if noise_std == 0:
-        return threshold
-    return threshold + CONTACT_NOISE_SIGMAS * noise_std * (((1.0 - alpha) / (1.0 + alpha)) ** 0.5)
 
 
 def contact_threshold_of(scenario: Scenario, alpha: float) -> float:

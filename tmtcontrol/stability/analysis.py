@@ -137,7 +137,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         if damping is not None:
             model += ", scheduled damping b(k_e)"
         limit = min(bd.limit for bd in bands)
-        out.update({"Ts": Ts, "m_p": list(masses), "delay": delay, "x_e_error": x_e_error,
+        out.update({"Ts": Ts, "m_p": list(masses), "delay": delay, "x_e_error": x_e_error, "alpha": float(alpha),
                     "sampled_model": model, "max_stable_stiffness": limit, "stable_band": _band_dict(bands),
                     "spectral_radius": rho, "sampled_stable": bool(rho < 1.0 and hi < limit)})
     return out
@@ -196,6 +196,11 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
+    out["hold"] = scenario.controller.hold
+    if scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0:
+        # review 22: the x_e error printed is not only the user's (simulation.environment.surface_error)
+        out["x_e_error_from"] = ("the guarded approach's estimate, set where the measured force reaches the "
+                                 "detection threshold f_c (f_c/k_e inside the surface), plus controller.x_e_error")
     lim = deciding_limit(scenario, points=points, along_path=limits)
     if lim is not None:
         k_max = out.get("k_e_max", out.get("k_e"))
@@ -256,10 +261,18 @@ def format_analysis(d: dict) -> str:
     if "steady_state_force_x_e_error" in d:
         rows.append(f"with x_e error       {d['x_e_error'] * 1e3:+.4g} mm: steady-state force "
                     f"{d['steady_state_force_x_e_error']:.6g} N (worst end of the range)")
+    if "x_e_error_from" in d:
+        rows.append(f"x_e error            {d['x_e_error_from']}")
     if "Ts" in d:
+        a = d.get("alpha", 0.0)
+        # review 22: the filter was modelled but never named (a limit falling 9x with no stated cause)
+        filt = (f", force filter pole {a:.4g} (cut-off {-math.log(a) / (2 * math.pi * d['Ts']):.4g} Hz)"
+                if a > 0 else "")
+        ref = ("; the 1-D model has no mid-period hold: for reference only, the loop's own limit below decides"
+               if d.get("hold") == "mid_period" else "")
         rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg, "
-                 f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm",
-                 (f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']})"
+                 f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm{filt}",
+                 (f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']}{ref})"
                   if not ("limit" in d and d["limit"] < d["max_stable_stiffness"]) else
                   f"small-signal k_e     {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']}; not a safe "
                   f"limit: the loop's own limit below is lower)"),

@@ -26,7 +26,7 @@ def scenario_parameters(scenario) -> dict:
     (``x_e_error``, m: ``controller.x_e_error`` plus the part position
     error's component along the inward normal there, ``part_offset . n``;
     exact on a plane, the centre's value on a curved part)."""
-    from ..simulation.geometry import surface_error
+    from ..simulation.environment import surface_error
 
     sc = scenario
     masses = normal_masses(sc)

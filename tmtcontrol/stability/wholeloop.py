@@ -35,7 +35,7 @@ from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import largest_stable
-from ..simulation.geometry import surface_error
+from ..simulation.environment import surface_error
 
 __all__ = ["WholeLoop", "WholeLoopModel", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
