@@ -443,3 +443,20 @@ def test_tmt_with_the_surface_believed_deeper_than_the_penetration_is_eq22_and_e
     assert tail.mean() == pytest.approx(k_eff * (0.005 + 10.0 / 100.0), abs=1e-3) and np.ptp(tail) < 1e-3
     # below the clip (c < 1) the unclipped linearisation stays the law's
     assert "law_poles" in analyze(1.0, 60.0, 100.0, k_e=5000.0, x_e_error=0.001, law="tmt")
+
+
+def test_analyze_names_the_force_filter_and_the_mid_period_holds_reference_figure():
+    """Review 22: a 20 Hz filter cut the paper's limit ~9x and analyze never said it modelled a
+    filter; with the mid-period hold the 1-D figure, which has no such hold, was printed unlabelled.
+    The sampled row names the filter's pole and its cut-off -ln(a)/(2 pi Ts); the 1-D row says it
+    is for reference only under the mid-period hold."""
+    import math
+
+    from tmtcontrol.stability.analysis import analyze, format_analysis
+
+    a = math.exp(-2 * math.pi * 20.0 * 1e-3)
+    d = analyze(1.0, 60.0, 100.0, k_e=5000.0, Ts=1e-3, alpha=a)
+    assert "force filter pole 0.8819 (cut-off 20 Hz)" in format_analysis(d)
+    assert "force filter" not in format_analysis(analyze(1.0, 60.0, 100.0, k_e=5000.0, Ts=1e-3))
+    assert "for reference only" in format_analysis({**d, "hold": "mid_period"})
+    assert "for reference only" not in format_analysis({**d, "hold": "zero_order"})
