@@ -164,3 +164,39 @@ def test_a_one_period_growth_below_the_loops_limit_is_not_called_diverged():
     assert seg.verdict == "off_target" and "cannot tell growth from the path's phase" in seg.reason
     (one_d,) = segment_metrics(attach(2.8e5, "1-D small-signal"))
     assert one_d.verdict == "diverged"
+
+
+def test_contact_first_made_in_the_last_quarter_and_held_is_not_a_limit_cycle():
+    """Review 25: a guarded approach from 35 mm at 10 mm/s touches at 3.5 s of a 4 s segment and
+    holds the contact (no zero-force sample after it; 10.01 N at 3.9 s); the samples before the
+    arrival fell in the last quarter and read as "the contact is lost", a limit cycle. It is
+    off_target, saying when contact was made."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=1", "trajectory.approach_gap=0.035",
+                                            "controller.approach_speed=0.01"])
+    res = Simulator(sc).run()
+    f = res.contact_force
+    first = int(np.argmax(f > 0.0))
+    assert 3.0 < res.time[first] < 3.6 and np.all(f[first:] > 0.0)          # the premise: late and held
+    (seg,) = segment_metrics(res)
+    assert seg.verdict == "off_target" and "contact made only" in seg.reason, seg.reason
+
+
+def test_first_contact_in_a_later_segment_reads_its_peak_there():
+    """Review 25: a guarded approach from 50 mm at 10 mm/s touches at 5.0 s, in the second 4 s
+    segment; the first-contact window ended at the first segment's end, so one sample was read
+    (peak 0.04 N) where the run peaks at 10.2 N in the next 0.3 s. The peak is the run's largest
+    force within the window after contact, inside the segment of the contact (an independent
+    reduction of the trace)."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import FIRST_CONTACT_WINDOW, first_contact
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=2", "trajectory.approach_gap=0.05",
+                                            "controller.approach_speed=0.01"])
+    res = Simulator(sc).run()
+    fc = first_contact(res)
+    i0 = int(np.argmax(res.contact_force > 0.0))
+    w = (res.time >= res.time[i0]) & (res.time <= res.time[i0] + FIRST_CONTACT_WINDOW) & (res.time < 8.0)
+    assert 4.0 < fc.time < 5.5 and fc.peak_force == float(res.contact_force[w].max()) and fc.peak_force > 9.0

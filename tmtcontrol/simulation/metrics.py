@@ -375,8 +375,14 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
                 else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
-    if not np.any(force > 0.0):     # never in contact: nothing oscillates, the tool is off the surface (review 23)
+    touching = np.flatnonzero(force > 0.0)
+    if not touching.size:           # never in contact: nothing oscillates, the tool is off the surface (review 23)
         return "off_target", "no contact in the segment (the tool never reached the surface)"
+    if touching[0] > 0 and np.all(force[touching[0]:] > 0.0) and touching[0] > n * (1 - STEADY_FRACTION) - 1:
+        # contact first made within the last quarter and held since (a guarded approach arriving late, review 25):
+        # nothing was lost, and too little is left to judge
+        return "off_target", (f"contact made only {(n - touching[0]) * Ts:.3g} s before the segment's end, "
+                              "too late to judge its settling")
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
     P = next((p for p in periods if n >= 2 * p), None)
@@ -622,7 +628,10 @@ def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW
     if not touching.any():
         return FirstContact(None, 0.0, 0.0, 0)
     i0 = int(np.argmax(touching))
-    end = min(segments(result)[0][1], i0 + int(round(window / result.Ts)) + 1)
+    # the window ends at the end of the segment the contact is made in (a later switch's transient is not the
+    # contact's; review 25: the first segment's end, before a late contact, left one sample: 0.04 N for 10.2 N)
+    seg_end = next((e for s, e in segments(result) if s <= i0 < e), f.size)
+    end = min(seg_end, i0 + int(round(window / result.Ts)) + 1)
     w = touching[i0:max(end, i0 + 1)]
     peak = float(f[i0:max(end, i0 + 1)].max())
     return FirstContact(float(result.time[i0]), peak, peak / result.scenario.controller.f_d,
