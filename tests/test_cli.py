@@ -80,6 +80,8 @@ def test_scenario_command_round_trips(tmp_path):
     ("[trajectory]\nperiod = 1.3e-289\n", [], "trajectory.period: must be at least 10 control periods"),
     ("[environment.stiffness]\nsegment = 1e-12\n", [], "environment.stiffness.segment: must be 0"),
     ("[sensor]\nfilter_cutoff = 1e9\n", [], "sensor.filter_cutoff: must be below the Nyquist frequency"),
+    # reviews 22, 25: a cut-off whose pole rounds to 1 held the measured force at 0 (and failed the export's tmt_init)
+    ("[sensor]\nfilter_cutoff = 1e-15\n", [], "sensor.filter_cutoff: 1e-15 Hz is so low that the filter's pole"),
     ("[controller]\ndelay_samples = 1.0\n", [], "controller.delay_samples: expected an integer"),
     ("name = 't'\n", ["--set", "environment.stiffness.values=[1e300]"], "environment.stiffness.values[0]: must be <= 1e+10"),
 ])

@@ -112,6 +112,7 @@ def test_design_scenario_ur5_equals_the_explicit_flags(capsys):
     (["design", "--scenario", "no_such_scenario.toml"], "no_such_scenario.toml"),
     (["design", "--scenario", "ur5", "--ke-min", "1e5"], "--ke-min: must be <= k_e_max"),
     (["design", "--scenario", "paper", "--filter-hz", "1e9"], "--filter-hz: must be below the Nyquist"),
+    (["design", "--scenario", "paper", "--filter-hz", "1e-300"], "--filter-hz: 1e-300 Hz is so low"),
     (["design", "--scenario", "paper", "--mp", "-1"], "--mp: must be"),
     (["design", "--m", "1", "--k", "100"], "--ke-min: required (or use --scenario)"),
 ])

@@ -254,7 +254,21 @@ def sampling_problem(sc: Scenario) -> str | None:
     if cutoff >= rate / 2:
         return (f"sensor.filter_cutoff: must be below the Nyquist frequency controller.rate/2 = {rate / 2:g} Hz "
                 f"(0 = no filter), got {cutoff!r}")
+    if _pole_is_one(cutoff, 1.0 / rate):
+        return _pole_message("sensor.filter_cutoff", cutoff)
     return None
+
+
+def _pole_is_one(cutoff: float, Ts: float) -> bool:
+    """Whether a cut-off > 0 is so low that its discrete pole exp(-2 pi f_c Ts)
+    rounds to 1: the measured force would stay at 0 for ever (review 25: an
+    export with 1e-15 Hz failed its own tmt_init)."""
+    return cutoff > 0 and math.exp(-2.0 * math.pi * cutoff * Ts) == 1.0
+
+
+def _pole_message(key: str, cutoff: float) -> str:
+    return (f"{key}: {cutoff!r} Hz is so low that the filter's pole rounds to 1 (the measured force would never "
+            "leave 0); use 0 for no filter")
 
 # -- errors ----------------------------------------------------------------------------
 
@@ -451,6 +465,8 @@ def check_filter_cutoff(flag: str, cutoff: Any, Ts: float) -> float:
     if cutoff >= 0.5 / Ts:
         raise ScenarioError(f"{flag}: must be below the Nyquist frequency 1/(2 Ts) = {0.5 / Ts:g} Hz "
                             f"(0 = no filter), got {cutoff!r}")
+    if _pole_is_one(cutoff, Ts):
+        raise ScenarioError(_pole_message(flag, cutoff))
     return cutoff
 
 
