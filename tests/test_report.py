@@ -694,3 +694,21 @@ def test_applicable_settings_leave_out_the_plane_point_on_a_curved_part():
 
     assert "environment.point" not in {r.key for r in applicable_settings(arm_scenario("ur5-pipe"))}
     assert "environment.point" in {r.key for r in applicable_settings(arm_scenario("ur5"))}
+
+
+def test_applicable_settings_leave_out_a_spheres_keys_on_a_height_map_and_an_unset_normal(tmp_path):
+    """Review 25: the table listed environment.radius and environment.side (None) for a height
+    map, which refuses them ("not used by shape = 'heightmap'"), and environment.normal None
+    beside the paper's tilt_deg. A sphere keeps radius and side, the UR5 its normal."""
+    from tmtcontrol.simulation.scenario import applicable_settings, apply_overrides, arm_scenario, paper_scenario
+
+    (tmp_path / "flat.csv").write_text("\n".join([",".join(["0.0"] * 9)] * 9) + "\n")
+    keys = lambda sc: {r.key for r in applicable_settings(sc)}
+    sphere = apply_overrides(paper_scenario(), ["environment.shape=sphere", "environment.radius=0.3"])
+    assert {"environment.radius", "environment.side"} <= keys(sphere)
+    assert "environment.normal" not in keys(paper_scenario()) and "environment.tilt_deg" in keys(paper_scenario())
+    assert "environment.normal" in keys(arm_scenario("ur5"))
+    flat = apply_overrides(paper_scenario(), ["environment.shape=heightmap", "environment.grid_spacing=0.05",
+                                              f"environment.heightmap='{tmp_path / 'flat.csv'}'"])
+    assert "environment.heightmap" in keys(flat)
+    assert not {"environment.radius", "environment.side"} & keys(flat)

@@ -56,8 +56,10 @@ def _applies(sc: Scenario, key: str, task=None) -> bool:
         return sc.environment.shape == "plane"
     if key == "environment.tilt_deg":
         return sc.environment.normal is None
-    if key in ("environment.radius", "environment.side"):
-        return sc.environment.shape != "plane"
+    if key in ("environment.radius", "environment.side"):      # a sphere's or cylinder's (review 25: a height map's)
+        return sc.environment.shape in ("sphere", "cylinder")
+    if key == "environment.normal":       # unset: the plane is tilt_deg's, shown there
+        return sc.environment.normal is not None
     if key == "robot.tool_radius":      # the concave parts' check and MuJoCo's own contact use it
         return (sc.environment.side == "inside" or sc.environment.heightmap is not None
                 or sc.simulation.mujoco_contact == "contact")
