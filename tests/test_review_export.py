@@ -358,7 +358,8 @@ def test_a_bad_input_behind_the_torque_clip_is_refused(built, edit):
     name, index = field[:-3], int(field[-2])
     getattr(m if name == "dq" else p, name)[index] = float(value)
     before = bytes(c)
-    assert ctl.step(p, s, m, c) == -1
+    # a finite limit <= 0 is out of its range (review 25: -5 returned -1, as if non-finite); a NaN is non-finite
+    assert ctl.step(p, s, m, c) == (-2 if edit == "tau_max[1]=-5.0" else -1)
     assert bytes(c) == before
 
 
@@ -401,9 +402,10 @@ def _mirrored(p):            # orthonormal columns, determinant -1: a reflection
     lambda p: setattr(p, "alpha", 1.5), lambda p: setattr(p, "alpha", -0.1), lambda p: setattr(p, "Ts", -1e-3),
     lambda p: p.m.__setitem__(0, -1.0), lambda p: setattr(p, "f_d", -10.0),
     lambda p: setattr(p, "law_min_stiffness", -100.0), lambda p: setattr(p, "sched", 0.5),
-    lambda p: setattr(p, "b_max", 0.5), lambda p: setattr(p, "k_hat_min", 2e7), _sheared, _scaled, _mirrored],
+    lambda p: setattr(p, "b_max", 0.5), lambda p: setattr(p, "k_hat_min", 2e7), _sheared, _scaled, _mirrored,
+    lambda p: p.tau_max.__setitem__(0, 0.0)],
     ids=["alpha 1.5", "alpha -0.1", "Ts < 0", "m < 0", "f_d < 0", "law min_stiffness < 0", "sched 0.5",
-         "b_max < b_min", "k_hat_min > k_hat_max", "R sheared", "R scaled", "R mirrored"])
+         "b_max < b_min", "k_hat_min > k_hat_max", "R sheared", "R scaled", "R mirrored", "tau_max 0"])
 def test_a_parameter_outside_its_range_is_refused(built, change):
     """Review 24: tmt_step checked only that parameters are finite, so alpha = 1.5 commanded 4e99 m,
     Ts < 0 or a negative mass 1e12-1e13 m, a scaled R a wrong depth, all with return code 0. A
@@ -455,3 +457,16 @@ def test_the_schedule_switched_on_at_run_time_schedules_as_its_export(built, tmp
         runs.append((b_n, bytes(c), bytes(s.s)))
     assert runs[0] == runs[1]
     assert max(runs[0][0]) > 20.0         # scheduled: eq. (25) raised the damping far above b_min = 1
+
+
+def test_an_rls_range_with_its_ends_swapped_is_refused(tmp_path):
+    """Review 25: the RLS law's schema refuses min_stiffness > max_stiffness, the C accepted it
+    (tmt_init 0). A law parameter max_X is held >= its min_X in the C too."""
+    folder = tmp_path / "rls"
+    export_controller(apply_overrides(paper_scenario(), ["controller.law=rls"]), folder, True)
+    _run(["gcc", "-std=c99", "-O0", "-fPIC", "-shared", "tmt_controller.c", "-o", "libtmt.so", "-lm"], folder)
+    ctl = CompiledController(folder, library=folder / "libtmt.so")
+    p = ctl.default_params()
+    assert ctl._init(ctypes.byref(p), ctypes.byref(ctl.State())) == 0
+    p.law_min_stiffness = 2.0 * p.law_max_stiffness
+    assert ctl._init(ctypes.byref(p), ctypes.byref(ctl.State())) == -2

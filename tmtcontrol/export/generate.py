@@ -246,7 +246,7 @@ PARAM_RANGES = {
     "radius": "> 0", "side": "+1 or -1", "Ts": "> 0", "sched": "0 or 1", "zeta": "> 0", "b_min": ">= 0",
     "b_max": ">= b_min", "b_rate": "> 0", "k_hat_min": "> 0", "k_hat_max": ">= k_hat_min", "sched_f_th": "> 0",
     "v_app": ">= 0", "f_contact": "> 0", "ramp_rate": "> 0", "kd_rot": ">= 0", "kp_rot": "> 0",
-    "kp_post": ">= 0", "kd_post": ">= 0", "R": "a rotation", "R_d": "a rotation",
+    "kp_post": ">= 0", "kd_post": ">= 0", "R": "a rotation", "R_d": "a rotation", "tau_max": "> 0",
 }
 """The valid range of each exported parameter whose every finite value is
 not meaningful (``tmt_init`` and ``tmt_step`` return ``TMT_E_RANGE``
@@ -272,6 +272,8 @@ def _law_ranges(law: Law) -> dict[str, str]:
             for attr, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
                 if getattr(m, attr, None) is not None:
                     parts.append(f"{op} {getattr(m, attr)!r}")
+        if name.startswith("max_") and f"min_{name[4:]}" in law.parameter_names:    # a range's ends (rls)
+            parts.append(f">= law_min_{name[4:]}")
         if parts:
             out[f"law_{name}"] = " and ".join(parts)
     return out
@@ -573,15 +575,17 @@ def _copy_in(fields, src: str, dst: str) -> str:
 
 
 UNBOUNDED_PARAMS = ("tau_max",)
-"""Parameters whose ``INFINITY`` means "no limit" (the torque clip); every
-other parameter and every measurement must be finite."""
+"""Parameters whose ``INFINITY`` means "no limit" (the torque clip; not NaN,
+and > 0 by :data:`PARAM_RANGES`); every other parameter and every
+measurement must be finite."""
 
 
 def _check_in(params, meas) -> str:
     """The fixed-count check of ``tmt_step``'s inputs (``tmt_init``'s: the
     parameters only, ``meas`` empty), before the generated function runs: a
     NaN anywhere, or an infinite value other than a limit of
-    :data:`UNBOUNDED_PARAMS` (which must be >= 0 instead), sets ``bad``. The
+    :data:`UNBOUNDED_PARAMS`, sets ``bad`` (a limit's range, > 0, is
+    :func:`_range_check`'s). The
     results' own check cannot see every bad input: the torque clip
     (``fmin``/``fmax``) turns a NaN torque into +-tau_max (review 11: a NaN
     gain commanded full reverse torque with return code 0)."""
@@ -597,8 +601,8 @@ def _check_in(params, meas) -> str:
              "    }"] if meas else []
     for first, stop, unbounded in runs:
         lines += [f"    for (i = {first}; i < {stop}; ++i) {{"
-                  + ("        /* a limit: INFINITY is none, a NaN or a negative one refused */" if unbounded else ""),
-                  f"        bad |= {'!(state->p[i] >= 0.0)' if unbounded else '!isfinite(state->p[i])'};", "    }"]
+                  + ("        /* a limit: INFINITY is none, a NaN refused (a limit <= 0: tmt_params_in_range) */" if unbounded else ""),
+                  f"        bad |= {'isnan(state->p[i])' if unbounded else '!isfinite(state->p[i])'};", "    }"]
     return "\n".join(lines)
 
 

@@ -94,7 +94,7 @@ int tmt_init(const tmt_params *params, tmt_state *state);
 /* One control period: reads meas, writes cmd, advances state. Returns 0 on
  * success; TMT_E_NONFINITE if a result would be NaN or infinite, or an input
  * is (a NaN or infinite measurement or parameter; tau_max may be INFINITY, no
- * clip, but not NaN or negative); TMT_E_RANGE if a parameter lies outside
+ * clip, but not NaN); TMT_E_RANGE if a parameter lies outside
  * its valid range (a negative mass, a filter pole of 1.5, a frame that is not
  * a rotation: finite nonsense); or the generated function's non-zero
  * return code: then state and cmd are left as they were (the last good
