@@ -135,3 +135,27 @@ def test_the_reference_states_each_elements_bounds_that_the_schema_enforces():
                 apply_overrides(paper_scenario(), [f"impedance.{key}=[{bound!r}, 1.0, 1.0]"])
             checked += 1
     assert checked >= 11          # m and k two bounds each, b two, kd, kp and the three rotational ones
+
+
+def test_the_force_filters_quoted_response_is_its_own():
+    """docs/scenario.md quotes the discrete filter's -3 dB points and its gain at the Nyquist
+    frequency (review 22): recomputed here from the package's pole, |H| = (1 - a)/|1 - a e^(-jw)|,
+    on a 0.0025 Hz grid, and the cut-off above which it never falls 3 dB, (1 - a)/(1 + a) = 1/sqrt 2."""
+    import numpy as np
+    from scipy.optimize import brentq
+
+    from tmtcontrol.simulation.scenario import SensorSettings
+
+    text = " ".join((ROOT / "docs" / "scenario.md").read_text().split())
+    Ts = 1e-3
+    pole = lambda fc: SensorSettings(filter_cutoff=fc).pole(Ts)
+    f = np.linspace(1.0, 500.0, 200_000)
+
+    def gain_db(fc):
+        a = pole(fc)
+        return 20 * np.log10((1 - a) / np.abs(1 - a * np.exp(-2j * np.pi * f * Ts)))
+
+    corner = lambda fc: f[np.argmax(gain_db(fc) <= -10 * np.log10(2))]
+    assert f"({corner(100.0):.1f} Hz for 100 Hz at 1 kHz, {corner(200.0):.1f} Hz for 200 Hz;" in text
+    edge = brentq(lambda fc: (1 - pole(fc)) / (1 + pole(fc)) - 2 ** -0.5, 100.0, 499.0) / 500.0
+    assert f"from {edge:.3f} of the Nyquist frequency up it never falls 3 dB: {gain_db(300.0)[-1]:.2f} dB" in text
