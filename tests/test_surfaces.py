@@ -911,3 +911,40 @@ def test_after_a_guarded_approach_the_analysis_predicts_the_known_laws_bias():
     k_eff = 1.0 / (1.0 / 5000.0 + 1.0 / 100.0)
     assert f[-300:].mean() == pytest.approx(10.0 + k_eff * 1.0 / 5000.0, abs=5e-4)      # the closed form
     assert analyze_scenario(sc)["steady_state_force"] == pytest.approx(f[-300:].mean(), abs=5e-4)
+
+
+def test_the_whole_loop_after_a_guarded_approach_drops_the_offsets_normal_part():
+    """Review 26: with a guarded approach the approach finds the surface along the believed normal,
+    so a part offset's normal part is gone (the 1-D error said so) but the whole-loop and periodic
+    analyses kept it: a PUMA on a 0.3 m dome believed 5 mm nearer had its periodic limit at 150,666
+    N/m, 6 % low (the reviewer's bisection of the simulator: decaying at 158k, limit cycle at 163k;
+    without the offset 160,056), calling a converged run beyond_limit. The loop analysed keeps the
+    tangential part, drops the normal one, and carries the approach's estimate error f_c/k_e."""
+    from tmtcontrol.stability.wholeloop import on_the_surface
+
+    n = np.array([np.sin(np.pi / 4), 0.0, -np.cos(np.pi / 4)])
+    t1 = np.array([0.0, 1.0, 0.0])
+    sets = ["environment.shape=sphere", "environment.radius=0.3", "environment.stiffness.values=[5000.0]",
+            "trajectory.approach_gap=0.01", f"controller.part_offset={(-0.005 * n + 0.002 * t1).tolist()}"]
+    sc = on_the_surface(apply_overrides(paper_scenario(), sets))
+    assert sc.trajectory.approach_gap == 0.0
+    assert np.allclose(sc.controller.part_offset, 0.002 * t1, atol=1e-15)
+    assert sc.controller.x_e_error == pytest.approx(1.0 / 5000.0, rel=1e-12)     # the 1 N threshold's depth
+    plain = apply_overrides(paper_scenario(), ["controller.part_offset=[0.001, 0.0, 0.0]"])
+    assert on_the_surface(plain).controller == plain.controller                 # no approach: unchanged
+
+
+@pytest.mark.heavy
+def test_the_dome_with_an_approach_and_an_offset_has_the_limit_without_the_offset():
+    """Review 26's case end to end: the periodic limit with the offset and the approach equals the
+    one without the offset (the approach removes it), 160,056 N/m, where the reviewer's simulated
+    bisection puts the boundary between 158,000 (decaying) and 163,000 N/m (limit cycle)."""
+    from tmtcontrol.stability.limit import deciding_limit
+
+    n = np.array([np.sin(np.pi / 4), 0.0, -np.cos(np.pi / 4)])
+    base = ["environment.shape=sphere", "environment.radius=0.3", "environment.stiffness.values=[5000.0]",
+            "trajectory.approach_gap=0.01", "trajectory.cycles=1"]
+    with_offset = deciding_limit(apply_overrides(paper_scenario(), base + [f"controller.part_offset={(-0.005 * n).tolist()}"]))
+    without = deciding_limit(apply_overrides(paper_scenario(), base))
+    assert with_offset.periodic == pytest.approx(without.periodic, rel=1e-6)
+    assert 158_000 < with_offset.limit < 163_000
