@@ -797,5 +797,5 @@ def format_design(r: DesignResult) -> str:
     ] + (["scenario's loop      " + (f"stable up to k_e = {num(r.info['scenario_loop_limit'], 4)} N/m"
                                         if r.info["scenario_loop_limit"] > 0 else "unstable from k_e_min")
           + f" with its {r.info['scenario_hold']} hold (whole loop, 8 path points; the 1-D model above leaves "
-          "the hold out)"]
+          "the hold out, so its overshoot is the zero-order hold's: the scenario's may differ slightly)"]
          if "scenario_loop_limit" in r.info else []))
