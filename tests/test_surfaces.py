@@ -895,22 +895,30 @@ def test_a_height_maps_position_command_is_exported(tmp_path):
     assert (tmp_path / "c" / "tmt_controller.c").is_file()
 
 
-def test_after_a_guarded_approach_the_analysis_predicts_the_known_laws_bias():
+@pytest.mark.parametrize("cutoff, tol", [(0.0, 5e-4), (10.0, 3e-3)])
+def test_after_a_guarded_approach_the_analysis_predicts_the_known_laws_bias(cutoff, tol):
     """Review 22: after a guarded approach the estimate is where the measured force reads the
-    detection threshold, f_c/k_e inside the surface; the known law with its exact stiffness then
-    settles k_eff f_c/k_e above f_d (10.0198 N at 5,000 N/m), and the run's verdict is off_target,
-    while analyze said 10 N. The analysis' steady force now takes that error and meets the run
-    (within 0.5 mN: the filter-free force crosses the threshold between two samples)."""
+    detection threshold, f_c/k_e inside the surface without a filter; the known law with its exact
+    stiffness then settles k_eff f_c/k_e above f_d (10.0196 N at 5,000 N/m), and the run's verdict
+    is off_target, while analyze said 10 N. Review 27: behind a 10 Hz filter the tool is 0.34 mm
+    deep when the filtered force reads 1 N (the ramp through the filter), not 0.2 mm: the run's
+    bias is 31 mN, analyze said 19.6. The analysis' steady force meets the run within 0.5 mN
+    without a filter (the threshold crossed between samples) and 3 mN with it (the tool lags its
+    approach command, which the depth model leaves out)."""
     from tmtcontrol.simulation.simulator import Simulator
     from tmtcontrol.stability.analysis import analyze_scenario
 
-    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.75", "trajectory.approach_gap=0.005",
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.75", "trajectory.approach_gap=0.002",
                                             "controller.law=known", "controller.law.assumed_stiffness=5000.0",
-                                            "environment.stiffness.values=[5000.0]"])
+                                            "environment.stiffness.values=[5000.0]",
+                                            f"sensor.filter_cutoff={cutoff}"])
     f = Simulator(sc, compile=False).run().contact_force
     k_eff = 1.0 / (1.0 / 5000.0 + 1.0 / 100.0)
-    assert f[-300:].mean() == pytest.approx(10.0 + k_eff * 1.0 / 5000.0, abs=5e-4)      # the closed form
-    assert analyze_scenario(sc)["steady_state_force"] == pytest.approx(f[-300:].mean(), abs=5e-4)
+    if cutoff == 0.0:
+        assert f[-300:].mean() == pytest.approx(10.0 + k_eff * 1.0 / 5000.0, abs=5e-4)      # the closed form
+    else:
+        assert f[-300:].mean() - 10.0 > 0.028                 # the filter's lag: well above the 19.6 mN of f_c/k_e
+    assert analyze_scenario(sc)["steady_state_force"] == pytest.approx(f[-300:].mean(), abs=tol)
 
 
 def test_the_whole_loop_after_a_guarded_approach_drops_the_offsets_normal_part():
@@ -926,19 +934,31 @@ def test_the_whole_loop_after_a_guarded_approach_drops_the_offsets_normal_part()
     t1 = np.array([0.0, 1.0, 0.0])
     sets = ["environment.shape=sphere", "environment.radius=0.3", "environment.stiffness.values=[5000.0]",
             "trajectory.approach_gap=0.01", f"controller.part_offset={(-0.005 * n + 0.002 * t1).tolist()}"]
-    sc = on_the_surface(apply_overrides(paper_scenario(), sets))
+    given = apply_overrides(paper_scenario(), sets)
+    sc = on_the_surface(given)
     assert sc.trajectory.approach_gap == 0.0
-    assert np.allclose(sc.controller.part_offset, 0.002 * t1, atol=1e-15)
-    assert sc.controller.x_e_error == pytest.approx(1.0 / 5000.0, rel=1e-12)     # the 1 N threshold's depth
+    assert sc.controller.x_e_error == pytest.approx(1.0 / 5000.0, rel=1e-9)      # the 1 N threshold's depth
+    # the approach measures the part below the path's start (review 27): the offset loses its component along
+    # the sphere's normal there, (C - p0)/|C - p0| with C the sphere's centre 0.3 m along the centre's normal and
+    # p0 the run's start (the tool approach_gap above that point), taken from a 10-step simulation
+    from tmtcontrol.simulation.simulator import Simulator
+
+    p0 = Simulator(apply_overrides(given, ["trajectory.cycles=0.0025"]), compile=False).run().position[:, 0]
+    C = np.array(given.trajectory.center) + 0.3 * n
+    m = (C - p0) / np.linalg.norm(C - p0)
+    given_offset = -0.005 * n + 0.002 * t1
+    assert np.allclose(sc.controller.part_offset, given_offset - (given_offset @ m) * m, atol=1e-12)
+    assert abs(np.asarray(sc.controller.part_offset) @ m) < 1e-15
     plain = apply_overrides(paper_scenario(), ["controller.part_offset=[0.001, 0.0, 0.0]"])
     assert on_the_surface(plain).controller == plain.controller                 # no approach: unchanged
 
 
 @pytest.mark.heavy
 def test_the_dome_with_an_approach_and_an_offset_has_the_limit_without_the_offset():
-    """Review 26's case end to end: the periodic limit with the offset and the approach equals the
-    one without the offset (the approach removes it), 160,056 N/m, where the reviewer's simulated
-    bisection puts the boundary between 158,000 (decaying) and 163,000 N/m (limit cycle)."""
+    """Review 26's case end to end: the periodic limit with the offset and the approach near the
+    one without the offset, 160,056 N/m, where the reviewer's simulated
+    bisection puts the boundary between 158,000 (decaying) and 163,000 N/m (limit cycle); within 1 %
+    of the limit without the offset (the approach removes the offset's part along the start's normal)."""
     from tmtcontrol.stability.limit import deciding_limit
 
     n = np.array([np.sin(np.pi / 4), 0.0, -np.cos(np.pi / 4)])
@@ -946,5 +966,6 @@ def test_the_dome_with_an_approach_and_an_offset_has_the_limit_without_the_offse
             "trajectory.approach_gap=0.01", "trajectory.cycles=1"]
     with_offset = deciding_limit(apply_overrides(paper_scenario(), base + [f"controller.part_offset={(-0.005 * n).tolist()}"]))
     without = deciding_limit(apply_overrides(paper_scenario(), base))
-    assert with_offset.periodic == pytest.approx(without.periodic, rel=1e-6)
+    # the offset along the centre's normal keeps a small component off the start's normal (review 27: ~0.5 %)
+    assert with_offset.periodic == pytest.approx(without.periodic, rel=1e-2)
     assert 158_000 < with_offset.limit < 163_000

@@ -200,7 +200,8 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     if scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0:
         # review 22: the x_e error printed is not only the user's (simulation.environment.surface_error)
         out["x_e_error_from"] = ("the guarded approach's estimate, set where the measured force reaches the "
-                                 "detection threshold f_c (f_c/k_e inside the surface), plus controller.x_e_error")
+                                 "detection threshold f_c (f_c/k_e inside the surface, deeper behind a force "
+                                 "filter), plus controller.x_e_error")
     lim = deciding_limit(scenario, points=points, along_path=limits)
     if lim is not None:
         k_max = out.get("k_e_max", out.get("k_e"))

@@ -35,8 +35,7 @@ from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import largest_stable
-from ..simulation.environment import surface_error
-from ..simulation.geometry import surface_of
+from ..simulation.environment import approach_depth, approach_normal, surface_error
 
 __all__ = ["WholeLoop", "WholeLoopModel", "on_the_surface", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -142,14 +141,16 @@ Newton of the last guess (:meth:`WholeLoopModel.at`), s."""
 def on_the_surface(sc):
     """The scenario started on the surface, as the whole loop is analysed: without its guarded
     approach, and with the controller's surface belief as the approach leaves it (the surface found
-    along the believed normal: the part offset's normal part at the path's centre gone, the estimate
-    ``x_e_error + f_c/k_e`` deep, :func:`~tmtcontrol.simulation.environment.surface_error`).
+    along the believed normal: the part offset's component along the normal where the approach meets
+    the part gone, the estimate ``x_e_error`` plus the detection depth deep,
+    :func:`~tmtcontrol.simulation.environment.approach_depth`).
     Review 26: the offset's normal part was kept, the PUMA-on-a-dome periodic limit 6 % low (150,666
     against 160,056 N/m, a simulated bisection 158k-163k) and a stable run called beyond_limit."""
     if sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0:
-        n = surface_of(sc).normal(np.asarray(sc.trajectory.center, dtype=float))
+        n = approach_normal(sc)       # where the approach measured the part (review 27: not the centre's)
         offset = np.asarray(sc.controller.part_offset, dtype=float)
-        sc = sc.replace(controller={**sc.controller.model_dump(), "x_e_error": surface_error(sc),
+        sc = sc.replace(controller={**sc.controller.model_dump(),
+                                    "x_e_error": sc.controller.x_e_error + approach_depth(sc),
                                     "part_offset": tuple(float(v) for v in offset - (offset @ n) * n)})
     return sc.replace(trajectory={**sc.trajectory.model_dump(), "approach_gap": 0.0})
 
