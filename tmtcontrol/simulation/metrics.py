@@ -375,14 +375,8 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
                 else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
-    touching = np.flatnonzero(force > 0.0)
-    if not touching.size:           # never in contact: nothing oscillates, the tool is off the surface (review 23)
+    if not np.any(force > 0.0):     # never in contact: nothing oscillates, the tool is off the surface (review 23)
         return "off_target", "no contact in the segment (the tool never reached the surface)"
-    if touching[0] > 0 and np.all(force[touching[0]:] > 0.0) and touching[0] > n * (1 - STEADY_FRACTION) - 1:
-        # contact first made within the last quarter and held since (a guarded approach arriving late, review 25):
-        # nothing was lost, and too little is left to judge
-        return "off_target", (f"contact made only {(n - touching[0]) * Ts:.3g} s before the segment's end, "
-                              "too late to judge its settling")
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
     P = next((p for p in periods if n >= 2 * p), None)
@@ -533,6 +527,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         else:
             verdict, reason, tol = ("diverged", f"without the sensor noise the run diverges: {twin_error}",
                                     sc.controller.force_tolerance)
+        verdict, reason = _first_contact_rules(verdict, reason, result.contact_force, i0, i1, result.Ts)
         k_max = float(np.max(result.stiffness[i0:i1]))
         if (((verdict == "limit_cycle" and "does not decay over" in reason)
              or (verdict == "diverged" and reason.startswith("oscillation grows"))) and periods
@@ -573,6 +568,25 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             orientation_error=e_o, tracking_verdict=tracking,
         ))
     return out
+
+
+def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float):
+    """A segment's verdict with the run's first contact in view: a segment the
+    run's first contact falls in at or after the start of its last quarter
+    (a guarded approach arriving late) has too little left to judge, its
+    impact's bounces included (review 25: held, review 27: bouncing, both
+    read "the contact is lost", a limit cycle): off_target. A segment without
+    contact after the run had some has lost it: limit_cycle."""
+    touched = np.flatnonzero(force > 0.0)
+    first = int(touched[0]) if touched.size else None
+    if first is not None and first < i0 and reason.startswith("no contact in the segment"):
+        return "limit_cycle", "the contact is lost for the whole segment"
+    late = i0 + int((i1 - i0) * (1 - STEADY_FRACTION))
+    if (first is not None and late <= first < i1 and verdict in ("limit_cycle", "diverged")
+            and reason.startswith("the contact is lost")):
+        return "off_target", (f"first contact made only {(i1 - first) * Ts:.3g} s before the segment's end (its "
+                              "impact included), too late to judge its settling")
+    return verdict, reason
 
 
 def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, tolerance: float) -> tuple[str, str]:
