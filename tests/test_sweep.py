@@ -324,6 +324,15 @@ def test_a_tilt_axis_on_a_base_with_a_normal_sweeps_the_plane():
     assert np.allclose(surface_frame(paper.scenario(paper.cases[0]).environment)[:, 0], [0, 0, -1], atol=1e-15)
 
 
+def test_a_laws_name_beside_its_kind_axis_is_refused():
+    """Review 27: "controller.law" = ["known", "integral"] beside "controller.law.kind" = ["known"]
+    ran the case labelled integral as known. Both set the law's kind: refused naming both."""
+    from tmtcontrol.sweep.spec import SweepError
+
+    with pytest.raises(SweepError, match=r"^controller\.law\.kind: also set by the axis controller\.law"):
+        sweep_from_dict({"grid": {"controller.law": ["known", "integral"], "controller.law.kind": ["known"]}})
+
+
 @pytest.mark.parametrize("grid, random", [
     ({"controller.f_d": [5.0, 20.0], "controller": [{"rate": 1000.0}]}, {}),
     ({"controller": [{"f_d": 7.0}], "controller.f_d": [5.0, 20.0]}, {}),

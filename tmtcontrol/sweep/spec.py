@@ -646,7 +646,8 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
     tables = {a for a in grid_in if isinstance(grid_in[a], list) and any(isinstance(v, dict) for v in grid_in[a])}
     nested = [(a, b) if len(a) < len(b) else (b, a) for i, a in enumerate(axes) for b in axes[i + 1:]
               if a != b and _covers(a, b)]
-    nested = [(outer, inner) for outer, inner in nested if outer in tables]
+    # a table overwrites what is inside it; a kind's name and its .kind set the same key (review 27)
+    nested = [(outer, inner) for outer, inner in nested if outer in tables or inner == outer + ".kind"]
     if nested:      # the table would overwrite the other's values (review 23: a "controller" table dropped f_d)
         outer, inner = nested[0]
         raise SweepError(f"{inner}: also set by the axis {outer}, whose tables hold it; sweep one of them (or "
