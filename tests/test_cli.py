@@ -82,6 +82,9 @@ def test_scenario_command_round_trips(tmp_path):
     ("[sensor]\nfilter_cutoff = 1e9\n", [], "sensor.filter_cutoff: must be below the Nyquist frequency"),
     # reviews 22, 25: a cut-off whose pole rounds to 1 held the measured force at 0 (and failed the export's tmt_init)
     ("[sensor]\nfilter_cutoff = 1e-15\n", [], "sensor.filter_cutoff: 1e-15 Hz is so low that the filter's pole"),
+    # review 27: 1e-6 Hz (a pole of 1 - 6e-9) ran an approach that never ended, the tool driving into the part
+    ("[sensor]\nfilter_cutoff = 1e-6\n", [], "sensor.filter_cutoff: 1e-06 Hz has a time constant 1/(2 pi f_c) = "
+                                            "1.59e+05 s, longer than a period of the path"),
     ("[controller]\ndelay_samples = 1.0\n", [], "controller.delay_samples: expected an integer"),
     ("name = 't'\n", ["--set", "environment.stiffness.values=[1e300]"], "environment.stiffness.values[0]: must be <= 1e+10"),
 ])

@@ -256,6 +256,12 @@ def sampling_problem(sc: Scenario) -> str | None:
                 f"(0 = no filter), got {cutoff!r}")
     if _pole_is_one(cutoff, 1.0 / rate):
         return _pole_message("sensor.filter_cutoff", cutoff)
+    if cutoff > 0 and 1.0 / (2.0 * math.pi * cutoff) > sc.trajectory.period:
+        # review 27: 1e-6 Hz ran a guarded approach that never ended, the tool driving into the part
+        return (f"sensor.filter_cutoff: {cutoff!r} Hz has a time constant 1/(2 pi f_c) = "
+                f"{1.0 / (2.0 * math.pi * cutoff):.3g} s, longer than a period of the path "
+                f"(trajectory.period = {sc.trajectory.period:g} s): the measured force would lag the contact by "
+                "more than the task; use a cut-off above 1/(2 pi period) or 0 for no filter")
     return None
 
 
