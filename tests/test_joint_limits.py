@@ -302,3 +302,22 @@ def test_a_failing_segment_says_how_long_the_drive_sat_on_its_clip():
     assert (v, reason) == ("off_target", "bias of -1.06 N; the torque sat on its clip (robot.saturate): "
                                          "joint 1 (a) 0.75 s")
     assert _limits_and_orientation("converged", "settled", use, 0.0, 1e-3) == ("converged", "settled")
+
+
+def test_the_worst_excursion_is_the_furthest_past_its_bound_not_the_first():
+    """Review 28: the Panda bowl's report quoted joint 2's torque breach at 4 s (40.3 N m past 87 N m)
+    as "at worst", where the run went 77.5 N m past it at 12 s and joint 4 over too. The worst is
+    the largest excess relative to its bound, and the summary names every joint that went over."""
+    from tmtcontrol.simulation.limits import Excursion, LimitUse
+
+    first = Excursion("torque", 1, "panda_joint2", -127.3, -87.0, 4.0, 0.001, "N m")
+    worst = Excursion("torque", 1, "panda_joint2", -164.5, -87.0, 12.0, 0.004, "N m")
+    other = Excursion("torque", 3, "panda_joint4", 105.9, 87.0, 12.0, 0.001, "N m")
+    rate = Excursion("rate", 4, "panda_joint5", 3.0, 2.61, 5.0, 0.002, "rad/s")       # 15 % past: less than 89 %
+    z = np.zeros(7)
+    use = LimitUse(None, z, z, z, z, z, z, (first, worst, other, rate))
+    assert use.worst is worst
+    text = use.summary()
+    assert text.startswith("4 excursions (joint 2 torque, joint 4 torque, joint 5 rate); the largest: joint 2")
+    assert "by 77.5 N m at worst, from 12.000 s" in text
+    assert LimitUse(None, z, z, z, z, z, z, ()).summary() == "" and LimitUse(None, z, z, z, z, z, z, ()).worst is None

@@ -545,12 +545,11 @@ def _limit_blocks(rep: Report, res) -> list:
         head.append("on the torque clip")
         for r, s in zip(rows, use.saturated):
             r.append(fmt.qty(s, "s"))
-    worst = min(use.excursions, key=lambda e: (e.kind != "torque", e.time), default=None)
     rep.verdicts.append(Verdict(                      # named after the limits judged (a PUMA with only tau_max)
         f"Within the arm's {' and '.join([', '.join(judged[:-1]), judged[-1]] if len(judged) > 1 else judged)} "
         "limits (simulation)", use.ok,
         f"least torque margin {pct(float(np.min(use.torque_margin)))}, least rate margin "
-        f"{pct(float(np.min(use.rate_margin)))}" + (f"; {worst.text}" if worst else ""),
+        f"{pct(float(np.min(use.rate_margin)))}" + (f"; {use.summary()}" if not use.ok else ""),
         f"every sample of the run against the limits less robot.limit_margin = {L.margin:g}"
         + ("; the drive clips the torque (robot.saturate)" if L.saturate else "")))
     from ..simulation.figures import limit_use_figure

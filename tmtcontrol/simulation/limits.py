@@ -163,6 +163,23 @@ class LimitUse:
     def ok(self) -> bool:
         return not self.excursions
 
+    @property
+    def worst(self) -> Excursion | None:
+        """The excursion furthest past its bound relative to the bound (a
+        torque 77.5 N m past 87 N m before one 40.3 N m past it, whichever came
+        first; review 28: the report quoted the earliest as "at worst")."""
+        return max(self.excursions, key=lambda e: e.excess / max(abs(e.limit), 1e-300), default=None)
+
+    def summary(self) -> str:
+        """The worst excursion's words, and which joints went over how (``""`` when none)."""
+        worst = self.worst
+        if worst is None:
+            return ""
+        over = sorted({(e.joint, e.kind) for e in self.excursions})
+        where = ", ".join(f"joint {j + 1} {kind}" for j, kind in over)
+        return (f"{len(self.excursions)} excursion{'s' if len(self.excursions) > 1 else ''} ({where}); "
+                f"the largest: {worst.text}")
+
     def rows(self) -> list[dict]:
         """One dict per joint: its name, peaks, limits and margins (JSON-ready: inf as None)."""
         L = self.limits
