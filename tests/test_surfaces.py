@@ -969,3 +969,15 @@ def test_the_dome_with_an_approach_and_an_offset_has_the_limit_without_the_offse
     # the offset along the centre's normal keeps a small component off the start's normal (review 27: ~0.5 %)
     assert with_offset.periodic == pytest.approx(without.periodic, rel=1e-2)
     assert 158_000 < with_offset.limit < 163_000
+
+
+def test_a_parts_name_says_which_side_the_tool_works():
+    """Review 28 (and 18's leftover): the Panda's bowl was titled and captioned "sphere", beside a
+    MuJoCo picture of a flat plate. A sphere worked from inside is a bowl, from outside a dome; a
+    cylinder from inside a bore. The report's caption says when MuJoCo draws the part as its tangent
+    plane: exactly the parts without a solid (primitive None)."""
+    assert Sphere(R0, C0, 0.2, "inside").noun == "bowl" and Sphere(R0, C0, 0.2, "outside").noun == "dome"
+    assert Cylinder(R0, C0, 0.2, "inside").noun == "bore" and Cylinder(R0, C0, 0.2, "outside").noun == "cylinder"
+    assert Plane(R0, C0).noun == "tilted plane"
+    for part in (Sphere(R0, C0, 0.2, "inside"), Cylinder(R0, C0, 0.2, "inside")):
+        assert part.primitive() is None

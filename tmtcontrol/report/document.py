@@ -504,10 +504,13 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
             f"the joints would too; how far each has drifted after whole periods (joint: largest |q(kT) − q(0)|): "
             f"{drift}."))
     from ..simulation.animation import still_figure
+    from ..simulation.geometry import surface_of
 
+    flat = ("; MuJoCo has no solid for this part and draws it as its tangent plane at the path's centre"
+            if surface_of(res.scenario).primitive() is None else "")       # review 28: a flat plate "on the sphere"
     blocks.append(figure(f"The arm ({res.scenario.robot.model}) at the end of the run on the "
                          f"{res.traces.surface_name}, the contact force as an arrow: the last frame of simulate "
-                         "--animate (drawn by MuJoCo's renderer where it can render, else by matplotlib).",
+                         f"--animate (drawn by MuJoCo's renderer where it can render, else by matplotlib{flat}).",
                          still_figure, res))
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
     return Section("simulation", "Simulation", blocks), sim, res

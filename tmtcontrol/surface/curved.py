@@ -215,7 +215,12 @@ class Sphere(_Curved):
     at ``c``; the tool on its ``side`` (``outside``: a dome, ``inside``: a bowl)."""
 
     kind = "sphere"
-    noun = "sphere"
+
+    @property
+    def noun(self) -> str:
+        """What the part is called in figures and reports: a dome from outside, a bowl from inside
+        (review 28: "sphere" for the Panda's bowl)."""
+        return "dome" if self.side == "outside" else "bowl"
 
     def primitive(self):
         """:meth:`Surface.primitive`: the solid when the tool works on its outside, else None (no solid)."""
@@ -282,7 +287,11 @@ class Cylinder(_Curved):
     or shaft's surface, ``inside``: a bore)."""
 
     kind = "cylinder"
-    noun = "cylinder"
+
+    @property
+    def noun(self) -> str:
+        """A pipe or shaft from outside, a bore from inside."""
+        return "cylinder" if self.side == "outside" else "bore"
 
     def primitive(self):
         """:meth:`Surface.primitive`: the solid when the tool works on its outside, else None (no solid)."""
