@@ -706,6 +706,8 @@ def test_applicable_settings_leave_out_a_spheres_keys_on_a_height_map_and_an_uns
     keys = lambda sc: {r.key for r in applicable_settings(sc)}
     sphere = apply_overrides(paper_scenario(), ["environment.shape=sphere", "environment.radius=0.3"])
     assert {"environment.radius", "environment.side"} <= keys(sphere)
+    # review 28: the default side that ran, not "None"
+    assert next(r.value for r in applicable_settings(sphere) if r.key == "environment.side") == "outside"
     assert "environment.normal" not in keys(paper_scenario()) and "environment.tilt_deg" in keys(paper_scenario())
     assert "environment.normal" in keys(arm_scenario("ur5"))
     flat = apply_overrides(paper_scenario(), ["environment.shape=heightmap", "environment.grid_spacing=0.05",

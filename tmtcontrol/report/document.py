@@ -805,7 +805,10 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
             ["eq. (25) at k_e max", fmt.num(d.baseline_b, 4), fmt.num(d.baseline_objective), "0 % (continuous)"]]
     if "design_check" in rep.data:
         own = rep.data["design_check"]
-        rows.append(["the scenario's (as run)", fmt.num(own.b, 4), "–",
+        # review 28: under the mid-period hold this row is the 1-D zero-order loop's, not the run's
+        rows.append(["the scenario's b" + (" (its 1-D zero-order-hold loop; the run has the mid-period hold)"
+                                           if sc.controller.hold == "mid_period" else " (as run)"),
+                     fmt.num(own.b, 4), "–",
                      f"{fmt.against(own.worst_overshoot, bound)} %"])
     sim_rows = []
     if res is not None:

@@ -244,8 +244,9 @@ class EnvironmentSettings(Section):
         "task axis 1, columns along task axis 2, the grid centred on trajectory.center"))
     grid_spacing: float | None = Field(None, description="heightmap: the grid's spacing [m]", allow_inf_nan=False,
                                        strict=True, gt=0, json_schema_extra={"unit": "m"})
-    tilt_deg: float = num(45.0, "deg", "tilt of the plane about the base y axis (the shorthand for the "
-                          "inward normal (sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
+    tilt_deg: float = num(45.0, "deg", "tilt of the plane (or a curved part's tangent plane at "
+                          "trajectory.center) about the base y axis (the shorthand for the inward normal "
+                          "(sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
     normal: tuple[F, F, F] | None = Field(None, description=(
         "inward unit normal of the plane (pointing into the surface), base frame, or of a curved part's "
         "tangent plane at trajectory.center; default: from tilt_deg"), json_schema_extra={"unit": "1"})

@@ -109,6 +109,8 @@ def applicable_settings(sc: Scenario, task=None) -> list[SettingRow]:
                 desc = desc[:trailing.start()]
             if value is None and name in ("kd", "kp"):
                 value = "B/M" if name == "kd" else "K/M"
+            if value is None and key == "environment.side":     # review 28: "None" for the outside that ran
+                value = "outside"
             rows.append(SettingRow(key, value, "" if unit == "–" else unit, desc))
 
     walk(sc, "")
