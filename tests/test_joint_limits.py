@@ -321,3 +321,19 @@ def test_the_worst_excursion_is_the_furthest_past_its_bound_not_the_first():
     assert text.startswith("4 excursions (joint 2 torque, joint 4 torque, joint 5 rate); the largest: joint 2")
     assert "by 77.5 N m at worst, from 12.000 s" in text
     assert LimitUse(None, z, z, z, z, z, z, ()).summary() == "" and LimitUse(None, z, z, z, z, z, z, ()).worst is None
+
+
+def test_a_position_excursion_is_weighed_against_the_joints_range():
+    """Review 29: the worst excursion ranked a position by excess/|bound|: 0.01 rad past a bound at
+    -0.0175 rad (the Panda's joint 6) outranked a torque 40 N m past 87 N m, and a bound at 0 rad made
+    any position the largest. A position is weighed against the joint's range (0.01 rad of 3.77 rad)."""
+    from tmtcontrol.simulation.limits import Excursion, JointLimits, LimitUse
+
+    L = JointLimits(("j1", "j6"), (False, False), tau_max=np.array([87.0, 12.0]), dq_max=np.array([2.175, 2.61]),
+                    q_min=np.array([-2.8973, -0.0175]), q_max=np.array([2.8973, 3.7525]))
+    torque = Excursion("torque", 0, "j1", 127.0, 87.0, 1.0, 0.05, "N m")
+    position = Excursion("position", 1, "j6", -0.0275, -0.0175, 2.0, 0.005, "rad")
+    z = np.zeros(2)
+    assert LimitUse(L, z, z, z, z, z, z, (position, torque)).worst is torque
+    at_zero = Excursion("position", 1, "j6", -0.001, 0.0, 2.0, 0.005, "rad")
+    assert LimitUse(L, z, z, z, z, z, z, (at_zero, torque)).worst is torque

@@ -329,7 +329,8 @@ def test_a_laws_name_beside_its_kind_axis_is_refused():
     ran the case labelled integral as known. Both set the law's kind: refused naming both."""
     from tmtcontrol.sweep.spec import SweepError
 
-    with pytest.raises(SweepError, match=r"^controller\.law\.kind: also set by the axis controller\.law"):
+    with pytest.raises(SweepError, match=r"^controller\.law\.kind: also set by the axis controller\.law, whose "
+                                         r"names set it"):
         sweep_from_dict({"grid": {"controller.law": ["known", "integral"], "controller.law.kind": ["known"]}})
 
 

@@ -234,3 +234,21 @@ def test_a_segment_without_contact_after_the_run_had_some_has_lost_it():
                                 force, 100, 200, 1e-3) == ("limit_cycle", "the contact is lost for the whole segment")
     assert _first_contact_rules("off_target", "no contact in the segment (the tool never reached the surface)",
                                 np.zeros(200), 100, 200, 1e-3)[0] == "off_target"
+
+
+def test_a_late_first_contact_bouncing_to_the_end_is_still_a_limit_cycle():
+    """Review 29: the late-contact rule excused a real limit cycle: 2e6 N/m (12x the loop's limit),
+    the approach touching at 3.05 s of a 4 s segment and bouncing to the end (875 of 949 samples
+    off the surface) read off_target, "too late to judge", where the same run without the approach
+    is a limit cycle. Excused only when the contact holds over the last quarter of what is left."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=1", "trajectory.approach_gap=0.0305",
+                                            "controller.approach_speed=0.01", "environment.stiffness.values=[2e6]"])
+    res = Simulator(sc, compile=False).run()
+    f = res.contact_force
+    first = int(np.argmax(f > 0.0))
+    assert res.time[first] > 3.0 and np.count_nonzero(f[first:] <= 0.0) > 0.5 * (f.size - first)   # the premise
+    (seg,) = segment_metrics(res)
+    assert seg.verdict == "limit_cycle" and "contact is lost" in seg.reason, seg.reason

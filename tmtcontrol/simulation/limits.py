@@ -166,9 +166,17 @@ class LimitUse:
     @property
     def worst(self) -> Excursion | None:
         """The excursion furthest past its bound relative to the bound (a
-        torque 77.5 N m past 87 N m before one 40.3 N m past it, whichever came
-        first; review 28: the report quoted the earliest as "at worst")."""
-        return max(self.excursions, key=lambda e: e.excess / max(abs(e.limit), 1e-300), default=None)
+        position relative to the joint's range): a torque 77.5 N m past 87 N m
+        before one 40.3 N m past it, whichever came first (review 28: the
+        report quoted the earliest as "at worst")."""
+        def scale(e):       # a torque or rate against its bound; a position against the joint's range (a bound at
+            # 0 rad divides nothing: review 29)
+            if e.kind == "position" and self.limits is not None:
+                span = float(self.limits.q_max[e.joint] - self.limits.q_min[e.joint])
+                return span if np.isfinite(span) and span > 0 else 1.0
+            return abs(e.limit) if e.limit != 0 else 1.0
+
+        return max(self.excursions, key=lambda e: e.excess / scale(e), default=None)
 
     def summary(self) -> str:
         """The worst excursion's words, and which joints went over how (``""`` when none)."""

@@ -650,7 +650,8 @@ def sweep_from_dict(data: Any, folder: pathlib.Path | None = None,
     nested = [(outer, inner) for outer, inner in nested if outer in tables or inner == outer + ".kind"]
     if nested:      # the table would overwrite the other's values (review 23: a "controller" table dropped f_d)
         outer, inner = nested[0]
-        raise SweepError(f"{inner}: also set by the axis {outer}, whose tables hold it; sweep one of them (or "
+        holds = "whose tables hold it" if outer in tables else "whose names set it"
+        raise SweepError(f"{inner}: also set by the axis {outer}, {holds}; sweep one of them (or "
                          f"give {inner} inside each value of {outer})")
     if not grid_in and not random:
         raise SweepError("grid, random: a sweep needs at least one axis")
