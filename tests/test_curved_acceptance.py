@@ -104,6 +104,7 @@ def _pinocchio_fk(sc, q: np.ndarray) -> np.ndarray:
 
 # -- 1. the contact force on the sphere is k_e times the independent penetration --------------------
 
+@pytest.mark.heavy
 def test_bowl_contact_force_is_k_e_times_the_depth_from_pinocchio():
     """Acceptance of issue 40 on the sphere (the pipe's is in
     tests/test_surfaces.py): over the whole ``panda-bowl`` run, every

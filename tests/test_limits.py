@@ -272,6 +272,7 @@ def test_scheduled_damping_limits_match_the_simulator():
     assert periodic_decay(runner, 1.01 * limit, 5) >= 1.0
 
 
+@pytest.mark.heavy
 def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_sim, tmp_path, capsys):
     """delta = -10 mm, k_e = 1.3e5 N/m: below the small-signal limit (1-D: 143,812
     N/m) but above the first-contact one (~1.2e5, bracketed by the simulations of

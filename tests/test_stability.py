@@ -438,6 +438,7 @@ def test_the_step_overshoot_is_the_second_order_closed_form(zeta):
     assert a.settling_time == pytest.approx(settled, rel=2e-3)
 
 
+@pytest.mark.heavy
 def test_an_undamped_impedance_is_judged_unstable_not_refused(tmp_path, capsys):
     """Regression (review 9): b = 0 (the schema allows it) was refused by the
     law loop's strict check: ``analyze --scenario`` then said the equilibrium

@@ -895,6 +895,7 @@ def test_a_height_maps_position_command_is_exported(tmp_path):
     assert (tmp_path / "c" / "tmt_controller.c").is_file()
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("cutoff, tol", [(0.0, 5e-4), (10.0, 3e-3)])
 def test_after_a_guarded_approach_the_analysis_predicts_the_known_laws_bias(cutoff, tol):
     """Review 22: after a guarded approach the estimate is where the measured force reads the
