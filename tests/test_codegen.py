@@ -108,6 +108,7 @@ def first_compile(tmp_path_factory):
     return tmp
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("damage", ["truncate_4096", "truncate_0", "flip_byte"])
 def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage, first_compile):
     # as in real life, the damage (a crash or a full disk during a write) is met by a new process

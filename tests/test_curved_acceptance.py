@@ -392,6 +392,7 @@ def _heightmap_scenario(tmp_path, heights, spacing=0.01, extra=()):
                                               f"environment.grid_spacing={spacing!r}", *extra])
 
 
+@pytest.mark.heavy
 def test_the_tilted_plane_as_a_height_map_reproduces_the_whole_plane_run(tmp_path):
     """Acceptance of issue 40 over the paper's whole 16 s run (four
     stiffness segments, the circle four times): the paper's plane, tilted

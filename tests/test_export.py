@@ -602,6 +602,7 @@ def _steps_in_python(ctl, n_steps):
     return np.array(out)
 
 
+@pytest.mark.heavy
 def test_two_exports_with_their_own_prefixes_link_into_one_program(tmp_path):
     """``export --prefix``: the paper's controller (prefix ``alpha``, inner
     loop) and an RLS one (prefix ``beta``) compile with the strict flags and

@@ -44,6 +44,7 @@ def test_starts_on_surface_with_zero_force(paper_result):
     assert abs(paper_result.position_task[0, 0]) < 1e-12
 
 
+@pytest.mark.heavy
 def test_fixed_step_agrees_with_cvodes(paper_result):
     ref = Simulator(apply_overrides(paper_scenario(), ["simulation.integrator=cvodes"])).run()
     assert ref.info["code"] == "vm"

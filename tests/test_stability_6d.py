@@ -57,6 +57,7 @@ def test_ur5_fixed_point_holds_f_d_the_pose_and_the_orientation(still_ur5):
     assert w.stable and w.spectral_radius > 0.99          # the impedance filter's slow pole at Ts = 4 ms
 
 
+@pytest.mark.heavy
 def test_ur5_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_period(still_ur5):
     """Closed form: with the path standing still the orbit is the frozen fixed point and
     Phi = A^N. The two Jacobians come from different code (SX in the rolled-out augmented

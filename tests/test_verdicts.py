@@ -78,6 +78,7 @@ def test_whole_loop_jacobian_is_the_derivative_of_the_step_and_far_warm_starts_f
     assert soft.residual < 1e-8 and soft.stable
 
 
+@pytest.mark.heavy
 def test_delay_of_one_sample_lowers_the_limit_and_simulation_agrees_within_2_percent():
     law, mp = get_law("tmt"), paper_effective_mass(worst=True)
     no_delay = law_stiffness_limit(law, **PAPER, Ts=1e-3, m_p=mp)
