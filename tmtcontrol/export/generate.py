@@ -336,11 +336,12 @@ def param_fields(law: Law, task=3, surface=Plane) -> tuple[Field, ...]:
         if s.stop == s.start:
             continue
         if name == "law":
+            law_ranges = _law_ranges(law)
             for pname in law.parameter_names:
                 desc = law.parameters.model_fields[pname].description or ""
                 head, _, unit = desc.rpartition(", ")
                 unit, desc = (unit, head) if head and len(unit) <= 12 else ("see meaning", desc)
-                rng = _law_ranges(law).get(f"law_{pname}")
+                rng = law_ranges.get(f"law_{pname}")
                 out.append(Field(f"law_{pname}", 1, unit, "-", f"law '{law.name}': {desc}"
                                  + (f"; valid {rng}" if rng else "")))
             continue
@@ -632,6 +633,13 @@ def _fill(text: str, values: dict) -> str:
     return text
 
 
+TEMPLATE_FILES = ("tmt_controller.h", "tmt_controller.c", "Makefile", "example_loop.c", "replay.c", "README.md")
+"""The files filled from ``templates/`` (before a prefix renames them)."""
+
+GENERATED_FILES = ("tmt_controller_gen.c", "tmt_controller_gen.h")
+"""The files CasADi's code generator writes."""
+
+
 def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool = False,
                       prefix: str = DEFAULT_PREFIX) -> dict:
     """Write the exported library of ``scenario``'s controller into ``folder``
@@ -644,9 +652,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     check_prefix(prefix)
     folder = pathlib.Path(folder)
     # never over a file it did not write (review 23: a user's README.md and Makefile were replaced)
-    names = [_renamed(n, prefix) for n in ("tmt_controller.h", "tmt_controller.c", "tmt_controller_gen.c",
-                                            "tmt_controller_gen.h", "Makefile", "example_loop.c", "replay.c",
-                                            "README.md")] + [METADATA]
+    names = [_renamed(n, prefix) for n in (*TEMPLATE_FILES, *GENERATED_FILES)] + [METADATA]
     if folder.exists() and not folder.is_dir():
         raise ExportError(f"{folder}: is not a folder")
     taken = [n for n in names if (folder / n).exists() or (folder / n).is_symlink()]
@@ -697,7 +703,7 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
         "MEAS_TABLE": _md_table(mf), "CMD_TABLE": _md_table(cf),
         "DIAG_TABLE": _md_table(df), "PARAM_TABLE": _md_table(pf),
     }
-    for name in ("tmt_controller.h", "tmt_controller.c", "Makefile", "example_loop.c", "replay.c", "README.md"):
+    for name in TEMPLATE_FILES:
         text = _fill((_TEMPLATES / name).read_text(encoding="utf-8"), values)
         (folder / name).write_text(text, encoding="utf-8")
     if prefix != DEFAULT_PREFIX:              # every name given the prefix, the files' names too

@@ -18,7 +18,8 @@ from .geometry import surface_of
 from .scenario import read_stiffness_table
 
 __all__ = ["task_frame", "contact_force", "stiffness_samples", "CONTACT_NOISE_SIGMAS", "contact_detection_threshold",
-           "surface_error", "approach_depth", "approach_normal"]
+           "surface_error", "approach_depth", "approach_normal",
+           "belief_after_approach"]
 
 
 def stiffness_samples(profile, t: np.ndarray, default_segment: float) -> np.ndarray:
@@ -94,6 +95,20 @@ def approach_depth(scenario) -> float:
     return float(v * Ts * j)
 
 
+def belief_after_approach(scenario) -> tuple[float, np.ndarray]:
+    """The controller's surface belief as a guarded approach leaves it:
+    ``(x_e_error, part_offset)`` with the estimate :func:`approach_depth`
+    deeper and the offset's component along :func:`approach_normal` gone
+    (the approach measured the part there); the scenario's own values when
+    it has no guarded approach."""
+    sc = scenario
+    offset = np.asarray(sc.controller.part_offset, dtype=float)
+    if not (sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0):
+        return float(sc.controller.x_e_error), offset
+    m = approach_normal(sc)
+    return float(sc.controller.x_e_error + approach_depth(sc)), offset - (offset @ m) * m
+
+
 def surface_error(scenario) -> float:
     """The controller's surface-location error along the inward normal at the
     path's centre (m, positive: believed deeper than it is):
@@ -108,10 +123,6 @@ def surface_error(scenario) -> float:
     f_d, 19.8 mN on 5e3 N/m; "the contact point" was assumed); the part
     offset's component along :func:`approach_normal` is gone, the rest of it
     projected on the centre's normal."""
-    sc = scenario
-    n = surface_of(sc).normal(np.asarray(sc.trajectory.center, dtype=float))
-    offset = np.asarray(sc.controller.part_offset, dtype=float)
-    if sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0:
-        m = approach_normal(sc)
-        return float(sc.controller.x_e_error + approach_depth(sc) + np.dot(offset - (offset @ m) * m, n))
-    return float(sc.controller.x_e_error + np.dot(offset, n))
+    x_e_error, offset = belief_after_approach(scenario)
+    n = surface_of(scenario).normal(np.asarray(scenario.trajectory.center, dtype=float))
+    return float(x_e_error + np.dot(offset, n))

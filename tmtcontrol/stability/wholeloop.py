@@ -35,7 +35,7 @@ from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import largest_stable
-from ..simulation.environment import approach_depth, approach_normal, surface_error
+from ..simulation.environment import belief_after_approach, surface_error
 
 __all__ = ["WholeLoop", "WholeLoopModel", "on_the_surface", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -147,11 +147,9 @@ def on_the_surface(sc):
     Review 26: the offset's normal part was kept, the PUMA-on-a-dome periodic limit 6 % low (150,666
     against 160,056 N/m, a simulated bisection 158k-163k) and a stable run called beyond_limit."""
     if sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0:
-        n = approach_normal(sc)       # where the approach measured the part (review 27: not the centre's)
-        offset = np.asarray(sc.controller.part_offset, dtype=float)
-        sc = sc.replace(controller={**sc.controller.model_dump(),
-                                    "x_e_error": sc.controller.x_e_error + approach_depth(sc),
-                                    "part_offset": tuple(float(v) for v in offset - (offset @ n) * n)})
+        x_e_error, offset = belief_after_approach(sc)   # along the normal where the approach met the part
+        sc = sc.replace(controller={**sc.controller.model_dump(), "x_e_error": x_e_error,
+                                    "part_offset": tuple(float(v) for v in offset)})
     return sc.replace(trajectory={**sc.trajectory.model_dump(), "approach_gap": 0.0})
 
 
