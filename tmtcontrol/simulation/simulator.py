@@ -620,7 +620,7 @@ class Simulator:
                                   "joint velocity); check the stiffness, gains and control rate")
 
     def _result(self, sc, t, L, U, path, info) -> SimulationResult:
-        lg = self.log.split(L)
+        lg = self.log.split(np.ascontiguousarray(L))       # rows contiguous (the compiled rollout's already are)
         surface = surface_of(sc)
         f_m = lg["f_m"][0]
         depth = lg["X"][0] - lg["x_e_hat"][0]
