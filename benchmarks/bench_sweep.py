@@ -11,7 +11,9 @@ scenario, and checks that the three give identical rows; then the same sweep
 (``--arm-cases`` draws) on the UR5 scenario (the 6-D loop, issue 30) with 1
 and 2 local workers, and the two arms' 2-worker throughput side by side with
 the workers' start-up apart (:func:`marginal_rate`: a short sweep is mostly
-start-up).
+start-up; the PUMA's over up to 400 cases), and the host's speed
+(``bench_all.host_speed``) before and after, since a shared machine's speed
+varies from day to day.
 Target (issue #15): 1,000 PUMA cases in <= 30 s on 2 cores. The 2-worker
 figures also go into the arm speed table (``bench_arm.py`` calls
 :func:`marginal_rate`).
@@ -77,7 +79,9 @@ def paragraph(doc: dict) -> str:
     side = doc["two_workers_startup_apart"]
     return (f"Throughput (`python benchmarks/bench_sweep.py`, paper-length cases, 16 s at 1 kHz, warm; "
             f"recorded {doc['date']} on {doc['cpu']}, {doc['cores']} cores, load average "
-            f"{doc['load_before']:.1f} before and {doc['load_after']:.1f} after): the PUMA "
+            f"{doc['load_before']:.1f} before and {doc['load_after']:.1f} after, host speed loop "
+            f"{doc['host_speed_loop_s'][0]:.2f} s before and {doc['host_speed_loop_s'][1]:.2f} s after, "
+            f"`bench_all.host_speed`, 0.29 s on the quiet reference machine): the PUMA "
             f"{p['1 worker'] :.1f} cases/s on 1 worker, {p['2 workers']:.1f} on 2 workers "
             f"({doc['cases']:,} cases in {doc['cases'] / p['2 workers']:.1f} s), "
             f"{p['dask local, 2 workers']:.1f} on a 2-worker Dask LocalCluster, each with its workers' "
@@ -99,9 +103,10 @@ def main():
     if args.markdown:
         print(paragraph(json.loads(pathlib.Path(args.markdown).read_text())))
         return
-    from bench_all import cpu
+    from bench_all import cpu, host_speed
 
     load_before = os.getloadavg()[0]
+    speed = [host_speed()]
     warm("paper")
     frames, rates = {}, {"puma560": {}, "ur5": {}}
     for label, kw in (("1 worker", dict(workers=1)), ("2 workers", dict(workers=2)),
@@ -118,14 +123,16 @@ def main():
         rates["ur5"][label] = args.arm_cases / dt
         print(f"ur5     {label:>22}: {args.arm_cases} cases in {dt:.1f} s = {args.arm_cases / dt:.1f} cases/s",
               flush=True)
-    side = {arm: marginal_rate(sc, args.arm_cases) for arm, sc in (("puma560", "paper"), ("ur5", "ur5"))}
-    print("2 workers, paper-length cases/s after the workers' start-up (sweeps of 16 and "
-          f"{16 + args.arm_cases} cases): " + ", ".join(f"{arm} {r:.1f} (start-up {s0:.1f} s)"
-                                                         for arm, (r, s0) in side.items()))
+    # the PUMA's marginal rate over up to 400 cases (64 took 0.4 s: its figure was the timer's noise)
+    side = {arm: marginal_rate(sc, n) for arm, sc, n in (("puma560", "paper", min(args.cases, 400)),
+                                                          ("ur5", "ur5", args.arm_cases))}
+    print("2 workers, paper-length cases/s after the workers' start-up (sweeps of 16 and 16 + N cases): "
+          + ", ".join(f"{arm} {r:.1f} (start-up {s0:.1f} s)" for arm, (r, s0) in side.items()))
+    speed.append(host_speed())
     doc = {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "cpu": cpu(),
            "cores": os.cpu_count(), "python": sys.version.split()[0], "load_before": load_before,
            "load_after": os.getloadavg()[0], "cases": args.cases, "arm_cases": args.arm_cases, "identical": same,
-           **rates, "two_workers_startup_apart": side}
+           "host_speed_loop_s": speed, **rates, "two_workers_startup_apart": side}
     pathlib.Path(args.json).write_text(json.dumps(doc, indent=1) + "\n")
     print(f"wrote {args.json}")
     print(paragraph(doc))
