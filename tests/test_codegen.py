@@ -218,6 +218,45 @@ def test_a_step_compiled_at_o1_computes_what_o3_and_the_vm_compute(monkeypatch, 
     np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)
 
 
+def test_compile_together_runs_the_pending_compilers_side_by_side(monkeypatch, tmp_path):
+    """rollout.compile_together (issue 42: the law comparison's five loops, the periodic analysis's
+    tangent step beside the scenario's step): the compilers of two pending rollouts run at the same
+    time (each waits at a barrier for the other; one after the other, the first would wait out the
+    barrier's timeout, its compile fail with a warning and its rollout stay on the virtual machine),
+    each builds its own library, and each run equals the closed form bit for bit, as a rollout
+    compiled alone does (test_compiled_rollout_matches_closed_form)."""
+    import threading
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    both = threading.Barrier(2, timeout=30)
+    real = codegen.run_compiler
+
+    def compiler_run(args, *a, **k):
+        both.wait()
+        return real(args, *a, **k)
+
+    monkeypatch.setattr(codegen, "run_compiler", compiler_run)
+    a, b = Rollout(toy_step(), compile="auto", chunk=1000), Rollout(toy_step(), compile="auto", chunk=400)
+    assert a.how == b.how == "vm"                                    # nothing cached: pending
+    codegen.compile_together([a, b], codegen.COMPILE_AFTER + 1, threads=2)
+    assert a.how == b.how == "compiled" and a.library != b.library
+    U, S_ref = reference(2500)
+    for r in (a, b):
+        np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)
+
+
+def test_compile_together_leaves_alone_what_a_run_would_not_compile(monkeypatch, tmp_path):
+    """A run of fewer periods than COMPILE_AFTER stays on the virtual machine (compile="auto"),
+    and so does every rollout given to compile_together for such a run, or with one thread (each
+    then compiles when its own run needs it)."""
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    monkeypatch.setattr(codegen, "run_compiler", lambda *a, **k: pytest.fail("nothing to compile"))
+    rollouts = [Rollout(toy_step(), compile="auto", chunk=c) for c in (1000, 400)]
+    codegen.compile_together(rollouts, codegen.COMPILE_AFTER - 1, threads=2)
+    codegen.compile_together(rollouts, codegen.COMPILE_AFTER + 1, threads=1)
+    assert [r.how for r in rollouts] == ["vm", "vm"]
+
+
 def test_the_compile_lock_excludes_another_holder_until_released(monkeypatch, tmp_path):
     """cache.compile_lock: while a block holds it, another open file of the same
     lock cannot take it (flock conflicts between open files, as between

@@ -613,7 +613,7 @@ def frozen_limits(monkeypatch):
     def set_limits(frozen, per_point, periodic_at=None, first_at=None):
         monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **kw: (frozen, per_point))
         monkeypatch.setattr(periodic, "periodic_limit",
-                            lambda scenario, bracket=None: calls.setdefault("bracket", bracket) and periodic_at)
+                            lambda scenario, bracket=None, **kw: calls.setdefault("bracket", bracket) and periodic_at)
         monkeypatch.setattr(first_contact, "first_contact_limit",
                             lambda scenario, bound, **kw: calls.setdefault("bound", bound) and first_at)
         return calls

@@ -296,6 +296,19 @@ sys.exit(rc if rc >= 0 else 128 - rc)
 _SUPERVISOR PARENT_PID CC ARGS...``, started as the leader of a new session."""
 
 
+def threads_for_side_by_side(limit: int = 2) -> int:
+    """Threads for work that runs side by side in this process (the periodic
+    analysis's tangent rollouts, compiles of several loops): the usable cores
+    up to ``limit``, and 1 in a worker process (a sweep's or the report's: the
+    cores are shared out by process already)."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        return 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(limit, cores))
+
+
 def run_compiler(args: list[str], tmpdir: str | os.PathLike, timeout: float = 600.0, check: bool = True,
                  text: bool = False) -> subprocess.CompletedProcess:
     """Run the C compiler ``args`` (``[cc, flags..., file, "-o", lib]``) to the

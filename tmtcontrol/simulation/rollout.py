@@ -40,6 +40,7 @@ import os
 import pathlib
 import platform
 import subprocess
+import threading
 import warnings
 
 import casadi as ca
@@ -95,6 +96,38 @@ _WRAPPER = "dense-outputs"
 """How the chunk's C is wrapped (in the cache key): a library built before
 the outputs were made dense (a structurally zero entry shifted the columns)
 is not reused."""
+
+
+_SYMBOLIC = threading.RLock()
+"""CasADi's symbolic work in :meth:`Rollout._build` (building the step, code
+generation) one thread at a time: CasADi releases the GIL and its expression
+graphs are shared between Functions. The C compiler runs outside it, so
+:func:`compile_together` compiles side by side."""
+
+
+def compile_together(rollouts, steps: int, threads: int = 2) -> None:
+    """Compile, side by side in up to ``threads`` threads, each of
+    ``rollouts`` that a run of ``steps`` periods would compile first (``compile
+    = "auto"``, no library in the cache): a caller about to run several loop
+    structures (``compare_laws``: one per law, each 3-6 s to compile for the
+    Panda) pays for about half of their compiles on 2 cores instead of all of
+    them in turn. The generated C is written one rollout at a time; results
+    are those of compiling each when it runs. A failed compile warns and
+    leaves that rollout on the virtual machine, as when it runs."""
+    import concurrent.futures
+
+    todo = [r for r in rollouts if r._pending and r._steps + steps > COMPILE_AFTER]
+    if len(todo) < 2 or threads < 2:
+        return
+    with concurrent.futures.ThreadPoolExecutor(min(threads, len(todo)), thread_name_prefix="tmtcontrol-cc") as pool:
+        futures = [pool.submit(r._compile) for r in todo]
+        try:
+            for f in futures:
+                f.result()
+        except BaseException:       # Ctrl-C: the compiles not started are not wanted
+            for f in futures:
+                f.cancel()
+            raise
 
 
 def _cpu_id() -> str:
@@ -193,7 +226,8 @@ class Rollout:
         if self._structure is not None:
             h = hashlib.sha256(b"structure:" + self._structure.encode())
         else:
-            h = hashlib.sha256(self.step.mapaccum(self._chunk_name, self.chunk).serialize().encode())
+            with _SYMBOLIC:
+                h = hashlib.sha256(self.step.mapaccum(self._chunk_name, self.chunk).serialize().encode())
         # the optimisation level is not in the key: no level changes a result (O1_FROM)
         for part in (" ".join(_FLAGS), LEVEL or "", ca.__version__, _cpu_id(), str(self.chunk), _WRAPPER):
             h.update(part.encode())
@@ -231,20 +265,22 @@ class Rollout:
         cached one to replace, or None)."""
         name = self._chunk_name
         target = lib if lib is not None else cache_dir() / self._library_name()
-        acc = self.step.mapaccum(name, self.chunk)
-        # named as the library is (mapaccum names its Function after the chunk's factors)
-        args = acc.mx_in()
-        # dense outputs: the buffers are dense, and a structurally zero entry (a monodromy row of a state
-        # that is a constant, the mid-period hold's flag) would otherwise be left out of the C output
-        fn = ca.Function(name, args, [ca.densify(o) for o in acc.call(args)], acc.name_in(), acc.name_out())
+        with _SYMBOLIC:
+            acc = self.step.mapaccum(name, self.chunk)
+            # named as the library is (mapaccum names its Function after the chunk's factors)
+            args = acc.mx_in()
+            # dense outputs: the buffers are dense, and a structurally zero entry (a monodromy row of a state
+            # that is a constant, the mid-period hold's flag) would otherwise be left out of the C output
+            fn = ca.Function(name, args, [ca.densify(o) for o in acc.call(args)], acc.name_in(), acc.name_out())
+            level = optimisation_level(self.step.n_instructions())
         # a private build folder under the cache, removed however this ends; the compiler is killed
         # with its children if this is interrupted, and its temporaries are in the folder's tmp/
         with cache.build_folder("cg") as build:
-            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-            gen.add(fn)
-            cfile = pathlib.Path(gen.generate(str(build) + os.sep))
+            with _SYMBOLIC:
+                gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+                gen.add(fn)
+                cfile = pathlib.Path(gen.generate(str(build) + os.sep))
             tmp_lib = build / "lib.so"
-            level = optimisation_level(self.step.n_instructions())
             run_compiler([compiler(), level, *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
             lib = self._keep(tmp_lib, target)
             # an uncached library is loaded from the build folder, which is removed

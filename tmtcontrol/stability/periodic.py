@@ -110,16 +110,10 @@ def _tangent(loop, dynamic):
 
 
 def _threads() -> int:
-    """Threads for the tangent rollouts: the usable cores up to 2, and 1 in a
-    worker process (a sweep's or the report's: the cores are shared out by
-    process already)."""
-    import multiprocessing
-    import os
+    """Threads for the tangent rollouts (``processes.threads_for_side_by_side``)."""
+    from ..processes import threads_for_side_by_side
 
-    if multiprocessing.parent_process() is not None:
-        return 1
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, min(2, cores))
+    return threads_for_side_by_side()
 
 
 class PeriodicModel:
