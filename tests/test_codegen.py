@@ -257,6 +257,61 @@ def test_compile_together_leaves_alone_what_a_run_would_not_compile(monkeypatch,
     assert [r.how for r in rollouts] == ["vm", "vm"]
 
 
+def test_compile_together_compiles_a_rollout_listed_twice_once_and_warns_here(monkeypatch, tmp_path):
+    """Review 30: a rollout listed twice was compiled by one thread and then found "cached" by the
+    other (its ``how`` said cached for a library built just now); and a failed compile warned from
+    the worker thread (the warning's file: concurrent/futures/thread.py). Now each rollout once,
+    ``how`` "compiled"; a failure is a RuntimeWarning at the caller's line, in the rollouts' order,
+    and that rollout runs on the virtual machine with the right result."""
+    import subprocess
+    import warnings
+
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    calls = []
+    real = codegen.run_compiler
+    monkeypatch.setattr(codegen, "run_compiler", lambda args, *a, **k: calls.append(args) or real(args, *a, **k))
+    a, b = Rollout(toy_step(), compile="auto", chunk=1000), Rollout(toy_step(), compile="auto", chunk=400)
+    codegen.compile_together([a, a, b], codegen.COMPILE_AFTER + 1, threads=2)
+    assert (a.how, b.how, len(calls)) == ("compiled", "compiled", 2)
+
+    def failing(args, *a, **k):
+        raise subprocess.CalledProcessError(1, args, b"", b"boom")
+
+    monkeypatch.setattr(codegen, "run_compiler", failing)
+    c, d = Rollout(toy_step(), compile="auto", chunk=300), Rollout(toy_step(), compile="auto", chunk=200)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        codegen.compile_together([c, d], codegen.COMPILE_AFTER + 1, threads=2)
+    assert [w.category for w in seen] == [RuntimeWarning, RuntimeWarning]
+    assert all(w.filename == __file__ for w in seen), [w.filename for w in seen]
+    assert ["toy_chunk" in str(w.message) and "virtual machine" in str(w.message) for w in seen] == [True, True]
+    U, S_ref = reference(50)
+    for r in (c, d):
+        assert r.how == "vm"
+        np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_run_with_inputs_of_the_wrong_size_is_refused_naming_them(compiled):
+    """Review 30: the compiled chunk reads exactly ns states, nu inputs and np parameters a period;
+    a p of one number where the step takes two was read past its end (uninitialised memory in
+    the log), three shifted from period to period, a longer s0 was cut silently, where the virtual
+    machine broadcast or raised. Both paths now refuse, naming the argument; 0 periods too."""
+    s, u, p = ca.SX.sym("s", 1), ca.SX.sym("u", 1), ca.SX.sym("p", 2)
+    step = ca.Function("toy_p2", [s, u, p], [s + u * p[0], p], ["s", "u", "p"], ["s_next", "log"])
+    r = Rollout(step, compile=compiled, chunk=4)
+    assert r.how == ("vm" if not compiled else r.how)
+    U = np.zeros((1, 6))
+    for s0, UU, pp, name in (([0.0], U, [5.0], "p"), ([0.0], U, [5.0, 6.0, 7.0], "p"),
+                             ([0.0, 1.0], U, [5.0, 6.0], "s0"), ([0.0], np.zeros((2, 3)), [5.0, 6.0], "U"),
+                             ([0.0], np.zeros((1, 0)), [5.0, 6.0], "U")):
+        with pytest.raises(ValueError, match=f"^{name}: "):
+            r.run(s0, UU, pp)
+    S, L = r.run([1.0], np.ones(6), [2.0, 3.0])          # one input row may come as a 1-D array
+    np.testing.assert_array_equal(S, [[3.0, 5.0, 7.0, 9.0, 11.0, 13.0]])
+    np.testing.assert_array_equal(L, [[2.0] * 6, [3.0] * 6])
+
+
 def test_the_compile_lock_excludes_another_holder_until_released(monkeypatch, tmp_path):
     """cache.compile_lock: while a block holds it, another open file of the same
     lock cannot take it (flock conflicts between open files, as between

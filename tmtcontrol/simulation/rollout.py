@@ -116,18 +116,19 @@ def compile_together(rollouts, steps: int, threads: int = 2) -> None:
     leaves that rollout on the virtual machine, as when it runs."""
     import concurrent.futures
 
-    todo = [r for r in rollouts if r._pending and r._steps + steps > COMPILE_AFTER]
+    todo = list({id(r): r for r in rollouts if r._pending and r._steps + steps > COMPILE_AFTER}.values())
     if len(todo) < 2 or threads < 2:
         return
     with concurrent.futures.ThreadPoolExecutor(min(threads, len(todo)), thread_name_prefix="tmtcontrol-cc") as pool:
-        futures = [pool.submit(r._compile) for r in todo]
+        futures = [pool.submit(r._compile, warn=False) for r in todo]
         try:
-            for f in futures:
-                f.result()
+            failed = [f.result() for f in futures]
         except BaseException:       # Ctrl-C: the compiles not started are not wanted
             for f in futures:
                 f.cancel()
             raise
+    for text in filter(None, failed):     # here, in the rollouts' order, pointing at the caller (not a thread)
+        warnings.warn(text, RuntimeWarning, stacklevel=2)
 
 
 def _cpu_id() -> str:
@@ -205,14 +206,19 @@ class Rollout:
     def _chunk_name(self) -> str:
         return f"{self.name}_chunk"
 
-    def _compile(self) -> None:
+    def _compile(self, warn: bool = True) -> str | None:
+        """Load or build the library; if that fails, warn (or, without
+        ``warn``, return the warning's text) and stay on the virtual machine."""
         self._pending = False
         try:
             self._load()
         except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
             if compiler() is not None:
-                warnings.warn(f"tmtcontrol: compiling {self.name} failed ({exc}); "
-                              "running on CasADi's virtual machine", RuntimeWarning, stacklevel=3)
+                text = f"tmtcontrol: compiling {self.name} failed ({exc}); running on CasADi's virtual machine"
+                if not warn:
+                    return text
+                warnings.warn(text, RuntimeWarning, stacklevel=3)
+        return None
 
     def _cached(self) -> bool:
         return cache.find(self._library_name()) is not None
@@ -356,9 +362,18 @@ class Rollout:
         if self._lib is None:
             self.step                               # the virtual machine needs the Function
         s0 = np.ascontiguousarray(s0, dtype=float).ravel()
-        U = np.asarray(U, dtype=float).reshape(self.nu, -1)
+        U = np.asarray(U, dtype=float)
+        U = U[None, :] if U.ndim == 1 and self.nu == 1 else U
         p = np.ascontiguousarray(p, dtype=float).ravel()
+        # the compiled chunk reads exactly these sizes: another would be read past its end (review 30)
+        for name, got, want in (("s0", s0.size, self.ns), ("U", U.shape[0] if U.ndim == 2 else -1, self.nu),
+                                ("p", p.size, self.np)):
+            if got != want:
+                raise ValueError(f"{name}: {'rows' if name == 'U' else 'size'} {got if got >= 0 else U.shape}, "
+                                 f"the step takes {want}")
         N = U.shape[1]
+        if N < 1:
+            raise ValueError("U: no period to run (0 columns)")
         self._steps += N
         if self._pending and self._steps > COMPILE_AFTER:
             self._compile()
