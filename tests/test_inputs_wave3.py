@@ -664,9 +664,10 @@ def test_the_plan_is_printed_before_the_first_case_runs(tmp_path, capsys, monkey
     line, = [x for x in err.splitlines() if x.startswith("sweep: 4 cases")]
     # 2 x 0.25 x 4 s and 2 x 1 x 4 s at 1 kHz = 10,000 steps; the estimate is that at the stated rates
     # and the limits (on by default for a grid): 2 families (the two f_d; the run length changes no analysis)
-    from tmtcontrol.sweep.spec import SECONDS_PER_CASE, SECONDS_PER_LIMIT, SECONDS_PER_STEP
+    from tmtcontrol.sweep.spec import SECONDS_PER_CASE, SECONDS_PER_LIMIT, SECONDS_PER_STEP, SECONDS_TO_START
 
-    est = (10_000 * SECONDS_PER_STEP + 4 * SECONDS_PER_CASE + 2 * SECONDS_PER_LIMIT) / 2
+    # the PUMA (3 joints: arm cost 1); each worker computes each family's limit for itself (review 31)
+    est = SECONDS_TO_START + (10_000 * SECONDS_PER_STEP + 4 * SECONDS_PER_CASE) / 2 + 2 * SECONDS_PER_LIMIT
     assert line == (f"sweep: 4 cases (2 x 2 grid); about {est:.0f} s on 2 workers (estimate, 2 limit analyses "
                     "included)") and todo == 4
 
@@ -706,7 +707,8 @@ def test_the_estimate_counts_one_limit_analysis_per_case_family():
     """Sweep.limit_families: the combinations of the grid axes that change the
     analysis (not the stiffness, the noise, the run length), times the samples
     when a random axis changes it; the estimate adds SECONDS_PER_LIMIT for each,
-    shared by the workers."""
+    not shared by the workers: each computes every family it meets (review 31:
+    4 families on 2 workers took 10.3 s where 4 s were estimated)."""
     from tmtcontrol.sweep import sweep_from_dict
     from tmtcontrol.sweep.spec import SECONDS_PER_LIMIT
 
@@ -714,11 +716,33 @@ def test_the_estimate_counts_one_limit_analysis_per_case_family():
             "controller.f_d": [5.0, 10.0, 20.0], "trajectory.cycles": [0.5, 1.0]}
     sweep = sweep_from_dict({"grid": grid})
     assert sweep.limit_families() == 6
-    assert sweep.estimate_seconds(workers=2, limits=True) - sweep.estimate_seconds(workers=2) == \
-        pytest.approx(6 * SECONDS_PER_LIMIT / 2, rel=1e-12)
+    for workers in (1, 2):
+        assert sweep.estimate_seconds(workers=workers, limits=True) - sweep.estimate_seconds(workers=workers) == \
+            pytest.approx(6 * SECONDS_PER_LIMIT, rel=1e-12)
     noisy = sweep_from_dict({"grid": grid, "random": {"samples": 10, "sensor.noise_std": {"uniform": [0.0, 0.1]}}})
     assert noisy.limit_families() == 6                     # the noise changes no analysis
     drawn = sweep_from_dict({"grid": grid, "random": {"samples": 10, "controller.x_e_error": {"uniform": [-1e-3, 0.0]}}})
     assert drawn.limit_families() == 60                    # every draw of the x_e error is a new analysis
     assert "(estimate, 60 limit analyses included)" in drawn.plan(limits=True)
     assert drawn.plan().endswith("(estimate)")
+
+
+def test_the_estimate_scales_a_step_and_a_limit_with_the_arm():
+    """Review 31: the estimate used the paper loop's per-step and per-limit costs for every arm, and
+    printed "about 2 s" for a UR5 sweep of 23 s. Sweep.arm_cost is (n / 3)**2 for n joints (the UR5
+    4, the Panda 49/9): the same sweep on the UR5 is estimated 4x the PUMA's per control step and per
+    limit analysis, its fixed and per-case parts unchanged (closed form from the constants)."""
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.spec import SECONDS_PER_CASE, SECONDS_PER_LIMIT, SECONDS_PER_STEP, SECONDS_TO_START
+
+    def sweep(arm):
+        return sweep_from_dict({"scenario": arm, "grid": {"controller.f_d": [5.0, 10.0]}})
+
+    costs = {arm: sweep(arm).arm_cost() for arm in ("paper", "ur5", "panda")}
+    assert costs == pytest.approx({"paper": 1.0, "ur5": 4.0, "panda": 49 / 9}, rel=1e-12)
+    for arm, cost in costs.items():
+        s = sweep(arm)
+        steps = s.steps()[0]
+        assert s.estimate_seconds(workers=2, limits=True) == pytest.approx(
+            SECONDS_TO_START + (steps * SECONDS_PER_STEP * cost + 2 * SECONDS_PER_CASE) / 2
+            + 2 * SECONDS_PER_LIMIT * cost, rel=1e-12)

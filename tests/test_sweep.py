@@ -362,3 +362,36 @@ def test_a_law_axis_beside_its_parameters_axis_sweeps_both():
         got = sorted((sc.controller.law.kind, sc.controller.law.force_threshold)
                      for sc in (sweep.scenario(c) for c in sweep.cases))
         assert got == [("rls", 0.5), ("rls", 1.0), ("tmt", 0.5), ("tmt", 1.0)]
+
+
+def test_the_boundary_is_found_along_an_axis_that_varies():
+    """Review 31: with a one-valued grid axis first (trajectory.cycles = [0.5]) and random draws of
+    the stiffness, the boundary was found along the cycles and blamed them ("trajectory.cycles not
+    converged from the smallest, 0.5") for what the stiffness draws did. It is found along the
+    first grid axis with more than one value, else the first random axis; with every axis
+    holding one value there is none. The verdicts below are given (no simulation): every case up
+    to 2e4 N/m converged, the ones from 5e4 did not."""
+    import pandas as pd
+
+    from tmtcontrol.sweep import boundary_lines, sweep_from_dict, sweep_summary
+
+    k = "environment.stiffness.values"
+    drawn = sweep_from_dict({"grid": {"trajectory.cycles": [0.5]},
+                             "random": {"samples": 4, k: {"loguniform": [1e3, 1e5]}}})
+    df = pd.DataFrame({"case": range(4), "trajectory.cycles": [0.5] * 4, k: [1e3, 2e4, 5e4, 9e4],
+                       "verdict": ["converged", "converged", "limit_cycle", "diverged"],
+                       "max_steady_error": [1e-4, 2e-4, 1.0, 5.0]})
+    summary = sweep_summary(drawn, df)
+    assert summary["boundary"] == [{"trajectory.cycles": 0.5, f"largest {k} with every case converged": 2e4,
+                                    f"smallest {k} with a case not converged": 5e4}]
+    line, = boundary_lines(drawn, summary)
+    assert line.startswith(f"boundary: {k} converged up to 20,000") and "cycles" not in line
+    # a one-valued grid axis before a varied one: the varied one
+    grid = sweep_from_dict({"grid": {"trajectory.cycles": [0.5], k: [[1e3], [2e4], [5e4]]}})
+    g = pd.DataFrame({"case": range(3), "trajectory.cycles": [0.5] * 3, k: [1e3, 2e4, 5e4],
+                      "verdict": ["converged", "converged", "diverged"], "max_steady_error": [0.0, 0.0, 9.0]})
+    assert sweep_summary(grid, g)["boundary"][0][f"smallest {k} with a case not converged"] == 5e4
+    # nothing varies: no boundary
+    one = sweep_from_dict({"grid": {"trajectory.cycles": [0.5]}})
+    o = pd.DataFrame({"case": [0], "trajectory.cycles": [0.5], "verdict": ["diverged"], "max_steady_error": [9.0]})
+    assert sweep_summary(one, o)["boundary"] == [] and boundary_lines(one, sweep_summary(one, o)) == []

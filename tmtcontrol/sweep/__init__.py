@@ -83,8 +83,8 @@ def sweep_prediction(sweep: Sweep, df) -> dict | None:
 
 def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
     """Counts per verdict, the five worst cases and the boundary found along
-    the first axis (per value of the second), with the SI unit of each axis
-    and figure (``units``)."""
+    :func:`boundary_axis` (per combination of the other grid axes), with the
+    SI unit of each axis and figure (``units``)."""
     import numpy as np
 
     from ..simulation.metrics import VERDICTS
@@ -96,13 +96,13 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
              for row in order.head(5).drop(columns="_e").to_dict("records")]
     boundary = []
     axes = sweep.axes
-    first = axes[0]
+    first = boundary_axis(sweep)
     # one boundary per combination of the other grid axes (random axes are draws, not settings to split by)
-    others = [a for a in axes[1:] if a in sweep.grid and a in df]
+    others = [a for a in axes if a != first and a in sweep.grid and a in df]
     groups = [((), df)] if not others else [((k,) if len(others) == 1 else k, g)
                                             for k, g in df.groupby(others if len(others) > 1 else others[0],
                                                                    sort=True)]
-    for values, g in groups:
+    for values, g in (groups if first is not None else []):
         try:
             xs = sorted(set(g[first]))
         except TypeError:
@@ -123,6 +123,17 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
         out["predicted_stiffness_limit"] = [{"value": list(k) if isinstance(k, tuple) else k, "limit": v}
                                             for k, v in predicted.items()]
     return out
+
+
+def boundary_axis(sweep: Sweep) -> str | None:
+    """The axis the boundary is found along: the first grid axis with more
+    than one value, else the first random axis (with more than one sample);
+    None when every axis holds one value (review 31: a one-valued
+    ``trajectory.cycles`` grid axis was blamed, "not converged from the
+    smallest, 0.5", for what random draws of the stiffness did)."""
+    several = [a for a, v in sweep.grid.items() if len(v) > 1]
+    several += [a for a in sweep.random if sweep.samples > 1]
+    return several[0] if several else None
 
 
 def _plain(v):
@@ -153,7 +164,7 @@ def boundary_lines(sweep: Sweep, summary: dict) -> list[str]:
     from .. import fmt
 
     units = sweep.units
-    first = sweep.axes[0]
+    first = boundary_axis(sweep)
 
     def show(key, v):
         if v is None:

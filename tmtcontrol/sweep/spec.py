@@ -95,18 +95,27 @@ NORMAL_SPAN = 10.0
 """A normal axis without ``bounds`` is truncated at mean +- 10 std (a
 probability of 2e-23 per draw): the range its validation covers."""
 
-SECONDS_PER_STEP = 2.5e-6
+SECONDS_PER_STEP = 0.7e-6
 SECONDS_PER_CASE = 4e-3
-"""The estimate printed before a sweep runs: per control step and per case
-(metrics, the row), measured with ``case_row`` on a busy 2-core machine (the
-paper loop, compiled, 1,000-16,000 steps per case)."""
+"""The estimate printed before a sweep runs: per control step of a 3-joint
+arm's loop (the PUMA's compiled rollout: 0.47-0.73 µs a step on the 2-core
+machines measured) and per case (metrics, the row); a step of an arm of n
+joints costs :meth:`Sweep.arm_cost` times as much (the UR5's 2.3 µs, the
+Panda's 3.9 µs, docs/robots.md)."""
 
-SECONDS_PER_LIMIT = 2.0
+SECONDS_PER_LIMIT = 2.5
 """The estimate's cost of one case family's deciding limit
-(``sweep.run.case_limits``): the paper loop's on a 2-core machine with its
-compiled steps cached (the periodic and first-contact searches; a 6-D arm's
-take about ten times as long, and a cold cache adds the monodromy
-compile)."""
+(``sweep.run.case_limits``) on a 3-joint arm (the paper loop's periodic and
+first-contact searches, its compiled steps cached), times
+:meth:`Sweep.arm_cost` (review 31: the UR5's took about 11 s). Every worker
+computes each family it meets (the limit is memoised per worker), so the
+workers do not share this cost: it is counted once per family, not divided
+among them."""
+
+SECONDS_TO_START = 0.5
+"""The estimate's fixed part: the workers' start-up, loading the compiled
+step and each family's noise-free twin (review 31: a 32-case sweep of 1 s
+was estimated at 0.2 s)."""
 
 ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
 """Axes under these keys leave a case's analysis as it was (the limit does
@@ -288,17 +297,35 @@ class Sweep:
         n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a))
         return n * (self.samples if any(changes_analysis(a) for a in self.random) else 1)
 
+    def arm_cost(self) -> float:
+        """How much a control step and a limit analysis of the base scenario's
+        arm cost against a 3-joint arm's: ``(n / 3)**2`` for n joints (the
+        dynamics' operations grow about so: a step measured 3.7x for the
+        UR5's 6 joints, 6.2x for the Panda's 7, docs/robots.md; a UR5 limit
+        analysis about 4.4x, review 31); 1 if the arm cannot be loaded (the
+        cases' validation says why)."""
+        from ..simulation.simulator import robot_of
+
+        try:
+            joints = robot_of(self.scenario(self.cases.case(0))).n
+        except (ValueError, OSError):          # ScenarioError among them
+            return 1.0
+        return (max(joints, 3) / 3.0) ** 2
+
     def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
         """A rough run time (s) of ``cases`` of the cases (default all) on
-        ``workers`` processes: :data:`SECONDS_PER_STEP` per control step and
-        :data:`SECONDS_PER_CASE` per case, before any compilation; with
-        ``limits``, :data:`SECONDS_PER_LIMIT` per limit analysis (the
-        families' share of ``cases``)."""
+        ``workers`` processes: :data:`SECONDS_TO_START`, then
+        :data:`SECONDS_PER_STEP` per control step (times :meth:`arm_cost`)
+        and :data:`SECONDS_PER_CASE` per case shared by the workers, before
+        any compilation; with ``limits``, :data:`SECONDS_PER_LIMIT` (times
+        :meth:`arm_cost`) per limit analysis (the families' share of
+        ``cases``), which every worker computes for itself."""
         n = self.cases.total if cases is None else cases
         share = n / max(self.cases.total, 1)
         total = self.steps()[0] * share
-        analyses = self.limit_families() * share * SECONDS_PER_LIMIT if limits else 0.0
-        return (total * SECONDS_PER_STEP + n * SECONDS_PER_CASE + analyses) / max(1, workers)
+        cost = self.arm_cost()
+        analyses = self.limit_families() * share * SECONDS_PER_LIMIT * cost if limits else 0.0
+        return SECONDS_TO_START + (total * SECONDS_PER_STEP * cost + n * SECONDS_PER_CASE) / max(1, workers) + analyses
 
 
 def check_sweep_size(sweep: Sweep, max_steps: int | None = None) -> None:
