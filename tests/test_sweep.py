@@ -308,6 +308,21 @@ def test_the_end_of_a_resumed_sweep_keeps_a_file_it_did_not_write(small, tmp_pat
     assert f"sweep: kept {partial.path}: it holds files tmtcontrol did not write" in capsys.readouterr().err
 
 
+def test_resume_without_an_interrupted_sweep_says_it_runs_every_case(small, tmp_path, capsys):
+    """Review 31: --resume where no OUT.partial/ is ran a fresh sweep without a word (a mistyped
+    --out would rerun everything silently); it says so, runs every case, and a resume of an
+    interrupted sweep does not say it."""
+    save_sweep(small, tmp_path / "o", resume=True, plots=False, limits=False)
+    err = capsys.readouterr().err
+    assert f"sweep: --resume: no interrupted sweep in {(tmp_path / 'o.partial').resolve()}; running every case" in err
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["run"]["resumed_cases"] == 0
+    partial = PartialFolder((tmp_path / "p").resolve(), small, resume=False, options={"limits": False,
+                                                                                    "max_steps": None})
+    partial.write([case_row(small.base, c, limits=False) for c in small.cases[:2]])
+    save_sweep(small, tmp_path / "p", resume=True, plots=False, limits=False)
+    assert "no interrupted sweep" not in capsys.readouterr().err
+
+
 def test_a_tilt_axis_on_a_base_with_a_normal_sweeps_the_plane():
     """A sweep over environment.tilt_deg on the UR5 (whose scenario gives its
     plane by environment.normal) built no case: the base's normal overruled
@@ -395,3 +410,23 @@ def test_the_boundary_is_found_along_an_axis_that_varies():
     one = sweep_from_dict({"grid": {"trajectory.cycles": [0.5]}})
     o = pd.DataFrame({"case": [0], "trajectory.cycles": [0.5], "verdict": ["diverged"], "max_steady_error": [9.0]})
     assert sweep_summary(one, o)["boundary"] == [] and boundary_lines(one, sweep_summary(one, o)) == []
+
+
+def test_the_progress_lines_time_left_follows_the_rate_since_the_previous_line(monkeypatch):
+    """Review 31: the time left was the cases left over the rate since the start, which the first
+    cases' limit analyses hold down (an ETA of 136 s for a sweep of 21 s). With a clock given: 5
+    cases in the first 10 s (the analyses), 20 in the next 10 s (2 cases/s): 20 cases left take
+    10 s at the recent rate, not the 16 s of the overall 1.25 cases/s, which the line still prints."""
+    import io
+
+    from tmtcontrol.sweep import run as sweep_run
+
+    clock = iter([0.0, 10.0, 20.0])
+    monkeypatch.setattr(sweep_run.time, "perf_counter", lambda: next(clock))
+    out = io.StringIO()
+    p = sweep_run.Progress(45, every=10.0, stream=out)
+    p.update(5)
+    p.update(20)
+    first, second = out.getvalue().splitlines()
+    assert first == "sweep: 5/45 cases (11 %), 0.5 cases/s, ETA 80 s"
+    assert second == "sweep: 25/45 cases (56 %), 1.2 cases/s, ETA 10 s"

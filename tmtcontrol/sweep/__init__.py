@@ -215,6 +215,9 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
                                 {"limits": bool(limits), "max_steps": max_steps})
         done = partial.done()
         todo = sweep.cases.without(done)           # a view: the cases are generated as they run
+        if resume and partial.fresh:               # review 31: said, not a silent fresh run
+            print(f"sweep: --resume: no interrupted sweep in {partial.path}; running every case", file=sys.stderr,
+                  flush=True)
         print(sweep.plan(len(todo), workers, limits), file=sys.stderr, flush=True)
         if why is not None:
             print(why, file=sys.stderr, flush=True)
