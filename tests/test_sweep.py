@@ -430,3 +430,20 @@ def test_the_progress_lines_time_left_follows_the_rate_since_the_previous_line(m
     first, second = out.getvalue().splitlines()
     assert first == "sweep: 5/45 cases (11 %), 0.5 cases/s, ETA 80 s"
     assert second == "sweep: 25/45 cases (56 %), 1.2 cases/s, ETA 10 s"
+
+
+def test_the_summary_says_which_limit_it_quotes():
+    """Review 31: with --limits off summary.json's predicted_stiffness_limit held the 1-D
+    small-signal figure (163,417 N/m at 1 kHz) under the name it has for the deciding limit
+    (167,248 N/m); predicted_stiffness_limit_from now says which (the rows given, no simulation)."""
+    import pandas as pd
+
+    from tmtcontrol.sweep import sweep_from_dict, sweep_summary
+
+    k = "environment.stiffness.values"
+    sweep = sweep_from_dict({"grid": {k: [[1e4], [2e5]]}})
+    rows = {"case": [0, 1], k: [1e4, 2e5], "verdict": ["converged", "diverged"], "max_steady_error": [0.0, 9.0]}
+    on = sweep_summary(sweep, pd.DataFrame({**rows, "predicted_limit": [167248.8, 167248.8]}), {None: 167248.8})
+    off = sweep_summary(sweep, pd.DataFrame(rows), {None: 163417.0})
+    assert on["predicted_stiffness_limit_from"].startswith("deciding limit")
+    assert off["predicted_stiffness_limit_from"].startswith("1-D small-signal limit")

@@ -120,6 +120,10 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
            # SI units of the axes (and so of the boundary values) and of the numbers quoted
            "units": {**sweep.units, "max_steady_error": "N", "predicted_stiffness_limit": "N/m"}}
     if predicted:
+        # which limit it is (review 31: the 1-D figure under --limits off had the deciding limit's name alone)
+        out["predicted_stiffness_limit_from"] = (
+            "deciding limit (the group's smallest, as analyze --scenario prints it)" if "predicted_limit" in df
+            else "1-D small-signal limit of the group's first case (sweep --limits off)")
         out["predicted_stiffness_limit"] = [{"value": list(k) if isinstance(k, tuple) else k, "limit": v}
                                             for k, v in predicted.items()]
     return out
