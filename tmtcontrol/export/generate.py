@@ -255,7 +255,7 @@ schedule's bounds positive (or non-negative where 0 means off), the filter
 pole in [0, 1), a side +-1, a frame a rotation (orthonormal columns to
 :data:`ROTATION_TOL`, determinant +1). A law's parameters take their
 schema's bounds. The others (positions, the surface estimate) need only be
-finite; ``tau_max`` may be INFINITY but not negative (:data:`UNBOUNDED_PARAMS`)."""
+finite; ``tau_max`` must be > 0 and may be INFINITY (:data:`UNBOUNDED_PARAMS`)."""
 
 ROTATION_TOL = 1e-6
 """How far a parameter frame's columns may be from orthonormal (each dot
