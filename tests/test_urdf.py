@@ -229,6 +229,79 @@ def test_mimic_joint_off_the_chain_follows_its_joint(tmp_path):
     assert robot.n == 1
 
 
+FINGER = ('<link name="f{i}"><inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" '
+          'ixz="0" iyz="0"/></inertial></link>')
+LEADER = ('<joint name="j1" type="prismatic"><parent link="arm"/><child link="f1"/><axis xyz="1 0 0"/>'
+          '<limit lower="{lo}" upper="{hi}" effort="1" velocity="1"/></joint>')
+FOLLOWER = ('<joint name="{name}" type="prismatic"><parent link="arm"/><child link="{child}"/><axis xyz="1 0 0"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="{leader}" multiplier="{mult}" '
+            'offset="{off}"/></joint>')
+
+
+def _fingers(joints):
+    """The pendulum with a finger link f1, f2, ... for each of ``joints`` (their child links)."""
+    links = [FINGER.format(i=i) for i in range(1, len(joints) + 1)]
+    return PENDULUM.format(m=2.0, l=0.3, I=0.01, L=0.5, kind="revolute", axis="0 1 0").replace(
+        "</robot>", "\n  ".join(["", *links, *joints]) + "\n</robot>")
+
+
+@pytest.mark.parametrize("order", ["leaders first", "followers first"])
+def test_a_mimic_of_a_mimic_is_held_whatever_the_files_order(tmp_path, order):
+    """Review 32: a mimic of a mimic was held when the file listed its leader first, and refused
+    ("mimics 'j2', which is not a held movable joint": it was one) when it came after. Held, in
+    either order, at the chained closed form: j1 = 0.01 (0 clipped into [0.01, 0.04]), j2 = 2 j1 +
+    0.001 = 0.021, j3 = -j2 + 0.005 = -0.016."""
+    joints = [LEADER.format(lo=0.01, hi=0.04),
+              FOLLOWER.format(name="j2", child="f2", leader="j1", mult=2, off=0.001),
+              FOLLOWER.format(name="j3", child="f3", leader="j2", mult=-1, off=0.005)]
+    if order == "followers first":
+        joints = joints[::-1]
+    held = load_robot(write(tmp_path, _fingers(joints)), tip="tool").held
+    assert held == pytest.approx({"j1": 0.01, "j2": 0.021, "j3": -0.016}, abs=1e-15)
+
+
+def test_a_mimic_cycle_and_a_reversed_held_limit_are_refused_saying_so(tmp_path):
+    """Review 32: two mimic joints following each other have no value (refused naming the cycle,
+    not "not a held movable joint"); a held joint's reversed limits (lower 0.04 > upper 0.01) were
+    accepted silently, the hold value then clipped into nothing."""
+    cycle = [LEADER.format(lo=0.01, hi=0.04), FOLLOWER.format(name="j2", child="f2", leader="j3", mult=1, off=0),
+             FOLLOWER.format(name="j3", child="f3", leader="j2", mult=1, off=0)]
+    with pytest.raises(URDFError, match="joint 'j2' mimics 'j3', which is a mimic joint of a cycle"):
+        load_robot(write(tmp_path, _fingers(cycle), "cycle.urdf"), tip="tool")
+    reversed_ = [LEADER.format(lo=0.04, hi=0.01)]
+    with pytest.raises(URDFError, match=r"joint 'j1' \(held, off the chain\): <limit> lower 0.04 must not exceed "
+                                        "upper 0.01"):
+        load_robot(write(tmp_path, _fingers(reversed_), "reversed.urdf"), tip="tool")
+    # a range of one value (the URDF's default lower = upper = 0) is a joint held there
+    assert load_robot(write(tmp_path, _fingers([LEADER.format(lo=0, hi=0)]), "zero.urdf"), tip="tool").held == \
+        {"j1": 0.0}
+
+
+def test_the_bases_own_joint_is_not_held(tmp_path):
+    """Review 32: with --base on a link that has a parent joint, that joint (above the base, not in
+    the model) was listed as held: the pendulum's hinge (base -> arm) with the base at 'arm' and a
+    wrist joint below it as the chain; a held finger below the base stays held."""
+    text = _fingers([LEADER.format(lo=0.01, hi=0.04)]).replace(
+        '<link name="tool"/>', '<link name="tool"/><link name="hand"><inertial><mass value="0.5"/><inertia ixx="1e-3" '
+        'iyy="1e-3" izz="1e-3" ixy="0" ixz="0" iyz="0"/></inertial></link>').replace(
+        '<joint name="flange" type="fixed">', '<joint name="wrist" type="revolute"><parent link="arm"/><child '
+        'link="hand"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="10" velocity="2"/></joint>'
+        '<joint name="flange" type="fixed">')
+    robot = load_robot(write(tmp_path, text), base="arm", tip="hand")
+    assert robot.n == 1 and robot.held == {"j1": 0.01}          # not the hinge above 'arm'
+
+
+def test_cli_robot_refuses_an_arm_no_command_can_run(tmp_path, capsys):
+    """Review 32: `tmtcontrol robot` passed a 2-joint arm ("all checks pass", exit 0) that every loop
+    command refuses; one line naming the file, exit 2, as simulate's."""
+    path = tmp_path / "one.urdf"
+    path.write_text(ONE_JOINT)
+    assert main(["robot", str(path)]) == 2
+    assert capsys.readouterr().err.strip() == (f"error: {path}: r has 1 actuated joint: the closed loop needs at "
+                                                "least 3 (the tool point's position); no tmtcontrol command can "
+                                                "run it")
+
+
 # -- the cache ------------------------------------------------------------------------
 def test_cache_is_keyed_by_content_and_rebuilds_a_damaged_file(tmp_path, monkeypatch):
     monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path / "cache"))

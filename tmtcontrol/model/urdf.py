@@ -289,7 +289,7 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         raise URDFError(f"{where}: {len(actuated)} actuated joints between {base!r} and {tip!r}, more than "
                         f"{MAX_JOINTS} (the symbolic dynamics grow as n^3: a 30-joint chain takes minutes to build); "
                         "name the arm's joints (joints=...) or a nearer tip")
-    held = _held_values(robot, below, by_child, set(actuated), where)
+    held = _held_values(robot, [l for l in below if l != base], by_child, set(actuated), where)
 
     # walk the tree: every link's body (index of its actuated joint, -1 = base) and placement in it
     index = {name: k for k, name in enumerate(actuated)}
@@ -446,35 +446,50 @@ def _finite(value, what, where):
 
 
 def _held_values(robot, below, by_child, actuated, where) -> dict:
+    """The value each movable joint off the actuated chain is held at, for the
+    links ``below`` the base (the base's own parent joint is not in the model,
+    review 32): 0 clipped into its limits; a mimic joint its leader's value times the
+    multiplier plus the offset, leaders first whatever the file's order (a
+    mimic of a mimic). Held limits must not be reversed (lower <= upper)."""
     joints = {j.name: j for j in robot.joints}
     inside = {by_child[l].name for l in below if l in by_child}
     held = {}
+    mimics = []
     for name in (n for n in joints if n in inside):
         j = joints[name]
         if j.type not in _MOVABLE:
             continue
+        lo, hi = -math.inf, math.inf
+        if j.limit is not None and j.type != "continuous" and name not in actuated:
+            lo, hi = float(j.limit.lower or 0.0), float(j.limit.upper or 0.0)
+            if not lo <= hi:            # (equal: a range of one value, the URDF's default 0 to 0)
+                raise URDFError(f"{where}: joint {name!r} (held, off the chain): <limit> lower {lo:g} must not "
+                                f"exceed upper {hi:g}")
         if j.mimic is not None:
             if name in actuated:
                 raise URDFError(f"{where}: joint {name!r} mimics {j.mimic.joint!r}: mimic joints on the actuated "
                                 "chain are not supported")
+            mimics.append(j)
             continue
         if name in actuated:
             continue
-        lo, hi = -math.inf, math.inf
-        if j.limit is not None and j.type != "continuous":
-            lo, hi = float(j.limit.lower or 0.0), float(j.limit.upper or 0.0)
         held[name] = float(min(max(0.0, lo), hi))
-    for name in (n for n in joints if n in inside):
-        j = joints[name]
-        if j.type in _MOVABLE and j.mimic is not None:
+    while mimics:
+        ready = [j for j in mimics if j.mimic.joint in held]
+        if not ready:
+            j = mimics[0]
             if j.mimic.joint in actuated:
-                raise URDFError(f"{where}: joint {name!r} mimics the actuated joint {j.mimic.joint!r}: "
+                raise URDFError(f"{where}: joint {j.name!r} mimics the actuated joint {j.mimic.joint!r}: "
                                 "not supported (mimic joints are held, off the chain)")
-            if j.mimic.joint not in held:
-                raise URDFError(f"{where}: joint {name!r} mimics {j.mimic.joint!r}, which is not a held movable joint")
+            followed = {m.name for m in mimics}
+            raise URDFError(f"{where}: joint {j.name!r} mimics {j.mimic.joint!r}, which is "
+                            + ("a mimic joint of a cycle" if j.mimic.joint in followed
+                               else "not a movable joint held below the base"))
+        for j in ready:
             mult = 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier)
             off = 0.0 if j.mimic.offset is None else float(j.mimic.offset)
-            held[name] = mult * held[j.mimic.joint] + off
+            held[j.name] = mult * held[j.mimic.joint] + off
+            mimics.remove(j)
     return held
 
 

@@ -30,10 +30,10 @@ class RobotSettings(Section):
     q0: tuple[F, ...] | None = Field(None, min_length=1, description=(
         "start posture guess (one value per joint) for the start-posture solver; default: the middle of the "
         "joint limits [rad or m]"), json_schema_extra={"unit": "rad"})
-    posture_kp: float = num(25.0, "1/s^2", "null-space posture stiffness of a redundant arm (more than 6 joints)",
-                            ge=0)
-    posture_kd: float = num(10.0, "1/s", "null-space posture damping of a redundant arm (more than 6 joints)",
-                            ge=0)
+    posture_kp: float = num(25.0, "1/s^2", "null-space posture stiffness of a redundant arm (more joints "
+                            "than task axes: 4 or 5 joints, or more than 6)", ge=0)
+    posture_kd: float = num(10.0, "1/s", "null-space posture damping of a redundant arm (more joints "
+                            "than task axes: 4 or 5 joints, or more than 6)", ge=0)
     tau_max: tuple[Pos, ...] | None = Field(None, min_length=1, description=(
         "joint torque limits, one per joint (N for a prismatic joint); default: the robot's own (URDF effort; "
         "the paper's PUMA parameter set has none) [N m]"), json_schema_extra={"unit": "N m"})
