@@ -291,15 +291,20 @@ def test_the_bases_own_joint_is_not_held(tmp_path):
     assert robot.n == 1 and robot.held == {"j1": 0.01}          # not the hinge above 'arm'
 
 
-def test_cli_robot_refuses_an_arm_no_command_can_run(tmp_path, capsys):
-    """Review 32: `tmtcontrol robot` passed a 2-joint arm ("all checks pass", exit 0) that every loop
-    command refuses; one line naming the file, exit 2, as simulate's."""
+def test_cli_robot_says_what_the_closed_loop_controls_and_an_arm_it_cannot(tmp_path, capsys):
+    """Review 32: `tmtcontrol robot` passed a 2-joint arm ("all checks pass") that every loop command
+    refuses, without a word. Its model check still passes (review 5: a right one-joint model is
+    checked, exit 0), and a line says the closed loop refuses it; a usable arm's line says which task
+    it gets (docs/robots.md: 3 axes below 6 joints, 6 from 6, the posture task when redundant)."""
     path = tmp_path / "one.urdf"
     path.write_text(ONE_JOINT)
-    assert main(["robot", str(path)]) == 2
-    assert capsys.readouterr().err.strip() == (f"error: {path}: r has 1 actuated joint: the closed loop needs at "
-                                                "least 3 (the tool point's position); no tmtcontrol command can "
-                                                "run it")
+    assert main(["robot", str(path)]) == 0
+    assert ("  closed loop: none: 1 actuated joint: the closed loop needs at least 3 (the tool point's position); "
+            "simulate and every loop command refuse this arm") in capsys.readouterr().out.splitlines()
+    for arm, said in (("puma560", "a 3-axis task (position)"), ("ur5", "a 6-axis task (position and orientation)"),
+                      ("panda", "a 6-axis task (position and orientation), with the null-space posture task")):
+        assert main(["robot", arm, "--samples", "1"]) == 0
+        assert f"  closed loop: {said}" in capsys.readouterr().out.splitlines(), arm
 
 
 # -- the cache ------------------------------------------------------------------------

@@ -761,10 +761,6 @@ def _robot(args) -> int:
         robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
     except ChainError as exc:      # the file is fine; the flag is at fault
         raise UsageError(f"--{exc.key}: {exc}") from None
-    try:
-        robot.task                 # review 32: an arm no command can run passed every check here
-    except ValueError as exc:
-        raise UsageError(f"{args.source}: {robot.name} has {exc}; no tmtcontrol command can run it") from None
     check = check_robot(robot, samples=args.samples, seed=args.seed)
     if "mujoco" in args.against:
         import dataclasses
