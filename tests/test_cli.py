@@ -115,3 +115,19 @@ def test_diverging_simulation_exit_1_with_time(tmp_path):
     assert r.returncode == 1
     assert "diverged at t =" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_path, capsys):
+    """Review 33: `simulate --set simulation.mujoco_friction=0.3` without --plant mujoco ran the
+    frictionless built-in spring and said nothing; docs/mujoco.md says friction 0.3 makes the run
+    off_target, so a user who forgot the flag believed friction was simulated. A note names the
+    settings; with the defaults there is none."""
+    from tmtcontrol.cli import main
+
+    args = ["simulate", "paper", "--no-plots", "--set", "trajectory.cycles=0.05"]      # (too short to settle: exit 1)
+    rc = main([*args, "--set", "simulation.mujoco_friction=0.3", "--out", str(tmp_path / "a")])
+    assert ("note: simulation.mujoco_friction = 0.3: for --plant mujoco only; the built-in plant ignores it"
+            in capsys.readouterr().err.splitlines())
+    assert main([*args, "--out", str(tmp_path / "b")]) == rc              # the same run
+    assert "mujoco" not in capsys.readouterr().err
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()

@@ -288,6 +288,9 @@ def _simulate_with(args, workers) -> int:
     sc = _load(args)
     check_run_size(sc, args.max_steps)
     controller = None
+    if args.plant != "mujoco" and (unused := sc.simulation.mujoco_only()):
+        print(f"note: {', '.join(unused)}: for --plant mujoco only; the built-in plant ignores "
+              f"{'it' if len(unused) == 1 else 'them'}", file=sys.stderr)
     if args.plant == "mujoco":
         if getattr(args, "integrator", None):
             raise UsageError("--integrator: the MuJoCo plant integrates with MuJoCo's RK4 (10 steps per control "

@@ -46,3 +46,11 @@ class SimulationSettings(Section):
         "calibrated to k_e (contact; docs/mujoco.md)"))
     mujoco_friction: float = num(0.0, "1", "with --plant mujoco and mujoco_contact = contact: the Coulomb "
                                  "friction coefficient of MuJoCo's contact (0: frictionless)", ge=0, le=2.0)
+
+    def mujoco_only(self) -> list[str]:
+        """The settings given away from their defaults that only the MuJoCo
+        plant reads (``key = value``): the built-in plant ignores them
+        (review 33: friction 0.3 on the built-in plant ran frictionless, and
+        nothing said so)."""
+        return [f"simulation.{k} = {getattr(self, k)!r}" for k in ("mujoco_contact", "mujoco_friction")
+                if getattr(self, k) != type(self).model_fields[k].default]
