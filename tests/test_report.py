@@ -610,6 +610,22 @@ def test_the_sampled_section_shows_the_1d_model_for_reference_where_it_predicts_
     assert rows["from first contact"][1].startswith("≥ ")
 
 
+@pytest.mark.heavy   # the damping design (IPOPT) on the mid-period loop, 3-10 s
+def test_the_design_tables_scenario_row_says_which_loop_it_judged(hold="mid_period"):
+    """Review 28 (its label untested until now): the design table's row for the scenario's own b is
+    the 1-D zero-order-hold loop's; under the mid-period hold the run's loop differs, and the label
+    says so (under the zero-order hold it reads "as run")."""
+    from tmtcontrol import apply_overrides, paper_scenario
+    from tmtcontrol.report.document import Report, Table, _design
+    from tmtcontrol.stability import scenario_parameters
+
+    sc = apply_overrides(paper_scenario(), [f'controller.hold="{hold}"'])          # its four stiffnesses
+    sec = _design(Report(sc, ""), sc, scenario_parameters(sc), None, None)
+    rows = [r for b in sec.blocks if isinstance(b, Table) for r in b.rows if r[0].startswith("the scenario's b")]
+    assert [r[0] for r in rows] == ["the scenario's b" + (" (its 1-D zero-order-hold loop; the run has the "
+                                                          "mid-period hold)" if hold == "mid_period" else " (as run)")]
+
+
 def test_alt_text_reads_a_shared_axis_and_calls_a_picture_an_image():
     """Regression (review 15): panels sharing the x axis of the one below were described "against
     index" (only the bottom one carries the label), and the drawn arm's frame (an image, axes off) "a
