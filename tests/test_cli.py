@@ -131,3 +131,7 @@ def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_pat
     assert main([*args, "--out", str(tmp_path / "b")]) == rc              # the same run
     assert "mujoco" not in capsys.readouterr().err
     assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+    main([*args, "--set", "simulation.mujoco_friction=0.3", "--set", 'simulation.mujoco_contact="contact"',
+          "--out", str(tmp_path / "c")])
+    assert ("note: simulation.mujoco_contact = 'contact', simulation.mujoco_friction = 0.3: for --plant mujoco "
+            "only; the built-in plant ignores them") in capsys.readouterr().err.splitlines()

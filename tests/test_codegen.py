@@ -373,3 +373,20 @@ def test_a_library_stored_while_waiting_for_the_lock_is_loaded_not_compiled_agai
     assert second.library == first[0].library
     U, S_ref = reference(30)
     np.testing.assert_array_equal(second.run([0.0, 1.0], U, [P])[0], S_ref)
+
+
+def test_compile_together_follows_the_runs_own_threshold_counting_the_steps_run(monkeypatch, tmp_path):
+    """Review 35's survivors: a run of exactly COMPILE_AFTER periods stays on the virtual machine
+    (run's own rule: compile once more than COMPILE_AFTER have run), so compile_together for such a
+    run compiles nothing; and the periods a rollout has already run count: after 9,990 on the
+    virtual machine, 20 more cross the threshold, and both rollouts are compiled ahead."""
+    monkeypatch.setenv("TMTCONTROL_CACHE", str(tmp_path))
+    a, b = Rollout(toy_step(), compile="auto", chunk=1000), Rollout(toy_step(), compile="auto", chunk=400)
+    codegen.compile_together([a, b], codegen.COMPILE_AFTER, threads=2)
+    assert (a.how, b.how) == ("vm", "vm")
+    U, S_ref = reference(codegen.COMPILE_AFTER - 10)
+    for r in (a, b):
+        np.testing.assert_array_equal(r.run([0.0, 1.0], U, [P])[0], S_ref)     # 9,990 periods: still the VM
+        assert r.how == "vm"
+    codegen.compile_together([a, b], 20, threads=2)
+    assert (a.how, b.how) == ("compiled", "compiled")

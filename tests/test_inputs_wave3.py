@@ -746,3 +746,16 @@ def test_the_estimate_scales_a_step_and_a_limit_with_the_arm():
         assert s.estimate_seconds(workers=2, limits=True) == pytest.approx(
             SECONDS_TO_START + (steps * SECONDS_PER_STEP * cost + 2 * SECONDS_PER_CASE) / 2
             + 2 * SECONDS_PER_LIMIT * cost, rel=1e-12)
+
+
+def test_the_arm_cost_is_the_cases_mean_whatever_the_grids_order():
+    """Review 35: the cost was the first case's arm alone, so a grid over [puma560, panda] was
+    estimated at the PUMA's cost and [panda, puma560] at the Panda's. Both orders now give the mean,
+    (1 + 49/9) / 2; an arm that cannot be loaded counts 1 (its cases are refused at validation)."""
+    from tmtcontrol.sweep import sweep_from_dict
+
+    forward = sweep_from_dict({"grid": {"robot.model": ["puma560", "panda"]}})
+    backward = sweep_from_dict({"grid": {"robot.model": ["panda", "puma560"]}})
+    assert forward.arm_cost() == backward.arm_cost() == pytest.approx((1 + 49 / 9) / 2, rel=1e-12)
+    assert forward.estimate_seconds(workers=2) == pytest.approx(backward.estimate_seconds(workers=2), rel=1e-12)
+    assert sweep_from_dict({"grid": {"robot.model": ["no_such_arm"]}}).arm_cost() == 1.0

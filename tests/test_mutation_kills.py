@@ -636,6 +636,45 @@ def test_the_periodic_search_starts_from_the_frozen_limits_widened_two_percent(f
     assert out["sampled_stable"] is False                     # the paper's 2e4 N/m is above it
 
 
+def test_the_deciding_limit_compiles_the_tangent_beside_the_step_and_searches_with_that_model(
+        frozen_limits, monkeypatch):
+    """Review 35's survivors (results unchanged, only the time): the compile-ahead given too few steps
+    (nothing compiled ahead), or its model thrown away (periodic_limit building and compiling its own).
+    The tangent step of the model the periodic search gets and the step of the runner the first-contact
+    search gets go to compile_together together, for a run longer than COMPILE_AFTER."""
+    from tmtcontrol.simulation import rollout
+    from tmtcontrol.stability import first_contact, periodic
+    from tmtcontrol.stability.analysis import analyze_scenario
+
+    frozen_limits(1e4, [(0.0, 1e4), (2.0, 1.3e4)], periodic_at=1.2e4, first_at=1.5e4)
+    seen, models, runners = {}, [], []
+    monkeypatch.setattr(rollout, "compile_together",
+                        lambda rollouts, steps, threads=2: seen.update(rollouts=list(rollouts), steps=steps))
+    monkeypatch.setattr(periodic, "periodic_limit",
+                        lambda scenario, bracket=None, model=None, **kw: models.append(model) or 1.2e4)
+    monkeypatch.setattr(first_contact, "first_contact_limit",
+                        lambda scenario, bound, runner=None, **kw: runners.append(runner) or 1.5e4)
+    analyze_scenario(paper_scenario(), limits=True)
+    (model,), (runner,) = models, runners
+    assert model is not None and seen["steps"] > rollout.COMPILE_AFTER
+    assert seen["rollouts"] == [model.rollout, runner.sim.rollout]
+
+
+def test_compare_laws_compiles_its_loops_together_for_the_runs_length(monkeypatch):
+    """Review 35's survivor: compare_laws giving compile_together 0 steps (nothing compiled ahead:
+    the laws' loops compiled one after the other as they run). Each law's rollout, for the
+    scenario's own number of periods (1,000 at 0.25 cycles of the paper)."""
+    from tmtcontrol import apply_overrides
+    from tmtcontrol.simulation import rollout
+    from tmtcontrol.simulation.compare import compare_laws
+
+    calls = []
+    monkeypatch.setattr(rollout, "compile_together", lambda rollouts, steps, threads=2: calls.append(
+        (len(list(rollouts)), steps)))
+    cmp = compare_laws(apply_overrides(paper_scenario(), ["trajectory.cycles=0.25"]), ["tmt", "known"])
+    assert calls == [(2, 1000)] and set(cmp.runs) == {"tmt", "known"}
+
+
 def test_a_loop_unstable_at_the_smallest_stiffness_has_limit_zero_and_no_path_search(frozen_limits):
     """analysis.py:core/ReplaceComparisonOperator_Gt_GtE:3 (`limit >= 0`): a whole loop unstable at
     the scenario's smallest stiffness (frozen limit 0) has limit 0 "unstable at the smallest

@@ -85,3 +85,21 @@ def test_without_process_groups_the_compiler_runs_plainly(tmp_path, monkeypatch)
     monkeypatch.setattr(processes.os, "name", "nt")
     processes.run_compiler(["true"], tmp_path / "tmp")
     assert calls == [(["true"], str(tmp_path / "tmp"))]
+
+
+def test_side_by_side_threads_are_one_in_a_worker_and_on_one_core(monkeypatch):
+    """Review 35: processes.threads_for_side_by_side (the periodic analysis's threads, the compiles
+    side by side) is 1 in a worker process (the cores are shared out by process already) and with
+    one usable core, up to 2 otherwise."""
+    import multiprocessing
+    import os
+
+    from tmtcontrol.processes import threads_for_side_by_side
+
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as pool:
+        assert pool.apply(threads_for_side_by_side) == 1
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    assert threads_for_side_by_side() == 1
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)
+    assert threads_for_side_by_side() == 2 and threads_for_side_by_side(limit=3) == 3

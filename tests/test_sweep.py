@@ -312,6 +312,8 @@ def test_resume_without_an_interrupted_sweep_says_it_runs_every_case(small, tmp_
     """Review 31: --resume where no OUT.partial/ is ran a fresh sweep without a word (a mistyped
     --out would rerun everything silently); it says so, runs every case, and a resume of an
     interrupted sweep does not say it."""
+    save_sweep(small, tmp_path / "plain", plots=False, limits=False)           # not asked to resume: no word
+    assert "--resume" not in capsys.readouterr().err
     save_sweep(small, tmp_path / "o", resume=True, plots=False, limits=False)
     err = capsys.readouterr().err
     assert f"sweep: --resume: no interrupted sweep in {(tmp_path / 'o.partial').resolve()}; running every case" in err
@@ -447,3 +449,17 @@ def test_the_summary_says_which_limit_it_quotes():
     off = sweep_summary(sweep, pd.DataFrame(rows), {None: 163417.0})
     assert on["predicted_stiffness_limit_from"].startswith("deciding limit")
     assert off["predicted_stiffness_limit_from"].startswith("1-D small-signal limit")
+
+
+def test_the_boundary_axis_prefers_a_varied_grid_axis_and_needs_two_values():
+    """Review 35's survivors: random axes ranked before grid axes, or one random sample taken for a
+    boundary, would pass the test above. A varied grid axis comes before a random one; one sample of
+    a random axis beside one-valued grid axes gives no boundary."""
+    from tmtcontrol.sweep import boundary_axis, sweep_from_dict
+
+    k = "environment.stiffness.values"
+    both = sweep_from_dict({"grid": {"controller.f_d": [5.0, 10.0]},
+                            "random": {"samples": 4, k: {"loguniform": [1e3, 1e5]}}})
+    assert boundary_axis(both) == "controller.f_d"
+    once = sweep_from_dict({"grid": {"trajectory.cycles": [0.5]}, "random": {"samples": 1, k: {"loguniform": [1e3, 1e5]}}})
+    assert boundary_axis(once) is None

@@ -856,3 +856,27 @@ def test_a_massless_moving_link_with_its_mass_on_a_fixed_child_loads_and_matches
     nothing = bare.replace(bare[bare.index("<inertial>"):bare.index("</inertial>") + 11], "")
     with pytest.raises(URDFError, match="link 'arm' moves but has no <inertial>"):
         load_robot(str(write(tmp_path, nothing, "three.urdf")), tip="tool")
+
+
+def test_a_mimic_of_a_fixed_or_missing_or_actuated_joint_is_refused_with_its_own_reason(tmp_path):
+    """Review 35's survivors: every unresolved mimic called a cycle, or the actuated leader's reason
+    dropped, would pass the cycle test. A mimic of a fixed joint or of a missing one is "not a movable
+    joint held below the base"; of the actuated chain's joint, "mimics the actuated joint"."""
+    fixed = _fingers([FOLLOWER.format(name="j2", child="f1", leader="flange", mult=1, off=0)])
+    with pytest.raises(URDFError, match="joint 'j2' mimics 'flange', which is not a movable joint held below the base"):
+        load_robot(write(tmp_path, fixed, "fixed.urdf"), tip="tool")
+    missing = _fingers([FOLLOWER.format(name="j2", child="f1", leader="nowhere", mult=1, off=0)])
+    with pytest.raises(URDFError, match="joint 'j2' mimics 'nowhere', which is not a movable joint held below"):
+        load_robot(write(tmp_path, missing, "missing.urdf"), tip="tool")
+    actuated = _fingers([FOLLOWER.format(name="j2", child="f1", leader="hinge", mult=1, off=0)])
+    with pytest.raises(URDFError, match="joint 'j2' mimics the actuated joint 'hinge': not supported"):
+        load_robot(write(tmp_path, actuated, "actuated.urdf"), tip="tool")
+
+
+def test_describe_names_the_posture_task_on_a_redundant_position_only_arm():
+    """Review 35: a line keyed on more than 6 joints would drop the posture clause on 4- and 5-joint
+    arms, where the posture task acts (their 3-axis task leaves them redundant)."""
+    from tmtcontrol.model.verify import describe
+
+    four = load_robot("ur5", joints=["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint"])
+    assert "  closed loop: a 3-axis task (position), with the null-space posture task" in describe(four).splitlines()

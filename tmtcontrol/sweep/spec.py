@@ -112,6 +112,9 @@ computes each family it meets (the limit is memoised per worker), so the
 workers do not share this cost: it is counted once per family, not divided
 among them."""
 
+ARM_COST_CASES = 64
+"""Cases :meth:`Sweep.arm_cost` averages over when an axis changes the arm."""
+
 SECONDS_TO_START = 0.5
 """The estimate's fixed part: the workers' start-up, loading the compiled
 step and each family's noise-free twin (review 31: a 32-case sweep of 1 s
@@ -298,19 +301,31 @@ class Sweep:
         return n * (self.samples if any(changes_analysis(a) for a in self.random) else 1)
 
     def arm_cost(self) -> float:
-        """How much a control step and a limit analysis of the base scenario's
-        arm cost against a 3-joint arm's: ``(n / 3)**2`` for n joints (the
-        dynamics' operations grow about so: a step measured 3.7x for the
-        UR5's 6 joints, 6.2x for the Panda's 7, docs/robots.md; a UR5 limit
-        analysis about 4.4x, review 31); 1 if the arm cannot be loaded (the
-        cases' validation says why)."""
+        """How much a control step and a limit analysis of the cases' arm cost
+        against a 3-joint arm's: ``(n / 3)**2`` for n joints (the dynamics'
+        operations grow about so: a step measured 3.7x for the UR5's 6
+        joints, 6.2x for the Panda's 7, docs/robots.md; a UR5 limit analysis
+        about 4.4x, review 31); 1 for an arm that cannot be loaded (the
+        cases' validation says why). With an axis under ``robot``, the mean
+        over up to :data:`ARM_COST_CASES` cases spread evenly over the sweep
+        (every case of a smaller one: review 35, the first case's arm alone
+        made the estimate depend on the grid's order)."""
         from ..simulation.simulator import robot_of
 
-        try:
-            joints = robot_of(self.scenario(self.cases.case(0))).n
-        except (ValueError, OSError):          # ScenarioError among them
+        def cost(index: int) -> float:
+            try:
+                joints = robot_of(self.scenario(self.cases.case(index))).n
+            except (ValueError, OSError):          # ScenarioError among them
+                return 1.0
+            return (max(joints, 3) / 3.0) ** 2
+
+        total = self.cases.total
+        if total == 0:
             return 1.0
-        return (max(joints, 3) / 3.0) ** 2
+        if not any(_covers(axis, "robot.model") or axis.startswith("robot.") for axis in self.axes):
+            return cost(0)
+        picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
+        return float(np.mean([cost(i) for i in picks]))
 
     def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
         """A rough run time (s) of ``cases`` of the cases (default all) on
