@@ -166,3 +166,19 @@ def test_analyze_delay_and_x_e_error(capsys):
     assert both["max_stable_stiffness"] < closer["max_stable_stiffness"] / 2.5
     assert main(["analyze", "--scenario", "paper", "--delay", "1"]) == 2
     assert capsys.readouterr().err.strip().startswith("error: --delay: not allowed with --scenario")
+
+
+def test_analyze_with_an_x_e_error_that_keeps_the_tool_off_the_surface_says_so_and_exits_1(capsys):
+    """Review 34: with x_e error -0.2 m at k_e = 2,000 N/m the reference stays outside the surface
+    (delta + f_d/k < 0: -0.2 + 10/100 = -0.1 m), so the steady-state force is 0 N (the law's own
+    closed form); the sampled verdict linearised a contact that does not exist and the command exited
+    0. It now says there is no contact and exits 1; a small x_e error in contact still exits 0."""
+    from tmtcontrol.cli import main
+
+    base = ["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke", "2000", "--ts", "0.001"]
+    assert main([*base, "--x-e-error", "-0.2"]) == 1
+    out, err = capsys.readouterr()
+    assert "contact              NONE: the tool stays off the surface (steady-state force 0 N)" in out
+    assert err.strip() == "no contact: the tool stays off the surface; see the contact line above"
+    assert main([*base, "--x-e-error", "-0.001"]) == 0
+    assert "contact              NONE" not in capsys.readouterr().out

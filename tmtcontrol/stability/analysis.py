@@ -99,6 +99,10 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
         out.update({"steady_state_force_eq22": out["steady_state_force"], "steady_state_force": float(worst)})
         if x_e_error != 0.0:
             out.update({"x_e_error": x_e_error, "steady_state_force_x_e_error": float(worst)})
+        if not worst > 0.0:
+            # review 34: the tool stays off the surface (x_e error beyond the reference's reach): the verdicts
+            # below linearise a contact that does not exist, and the command exited 0
+            out["in_contact"] = False
     out.update(_law_continuous(lw, params, m, b, k, hi, f_d, x_e_error))
     if Ts is not None:
         masses = m_p if m_p is not None else (paper_effective_mass(), paper_effective_mass(worst=True))
@@ -262,6 +266,9 @@ def format_analysis(d: dict) -> str:
     if "steady_state_force_x_e_error" in d:
         rows.append(f"with x_e error       {d['x_e_error'] * 1e3:+.4g} mm: steady-state force "
                     f"{d['steady_state_force_x_e_error']:.6g} N (worst end of the range)")
+    if d.get("in_contact") is False:
+        rows.append("contact              NONE: the tool stays off the surface (steady-state force "
+                    f"{d['steady_state_force']:.6g} N); the stability lines linearise a contact that does not exist")
     if "x_e_error_from" in d:
         rows.append(f"x_e error            {d['x_e_error_from']}")
     if "Ts" in d:
