@@ -103,7 +103,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
             # review 34: the tool stays off the surface (x_e error beyond the reference's reach): the verdicts
             # below linearise a contact that does not exist, and the command exited 0
             out["in_contact"] = False
-    out.update(_law_continuous(lw, params, m, b, k, hi, f_d, x_e_error))
+    out.update(_law_continuous(lw, params, m, b, k, hi, f_d, x_e_error, kd, kp))
     if Ts is not None:
         masses = m_p if m_p is not None else (paper_effective_mass(), paper_effective_mass(worst=True))
         grid = np.geomspace(lo, hi, 25) if hi > lo else np.array([lo])   # ends included exactly
@@ -147,24 +147,35 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
     return out
 
 
-def _law_continuous(lw, params, m, b, k, k_e, f_d, delta) -> dict:
-    """The law's own ideal continuous loop at ``k_e`` where it is not eq. (22)'s
-    (review 16: ``analyze`` gave the integral and adaptive-damping laws eq.
-    (22)'s poles, damping and overshoot as if they were theirs): its poles
-    and least damping ratio from the polynomial the law declares
-    (``Law.characteristic_polynomial``, checked against the sampled loop by
-    the derivation checks), or ``law_poles = None`` for a law that declares
-    none. Nothing for a law whose polynomial is eq. (22)'s."""
+def _law_continuous(lw, params, m, b, k, k_e, f_d, delta, kd=None, kp=None) -> dict:
+    """The law's own continuous loop at ``k_e`` as it runs, where it is not
+    eq. (22)'s (review 16: ``analyze`` gave the integral and adaptive-damping
+    laws eq. (22)'s poles, damping and overshoot as if they were theirs): the
+    eigenvalues and least damping ratio of its linearisation with the inner
+    loop of eq. (6) (``stability.lawloop.implemented_limit``; review 34: the
+    polynomial the law declares, ``Law.characteristic_polynomial``, is its
+    ideal-inner-loop (x = x_c) model, which scaled TMT's mass and damping by
+    (1 - c) under an x_e error and made the integral law overdamped, damping
+    ratio 1 where the running loop has 0.12), or ``law_poles = None`` for a
+    law that declares no continuous model. Nothing where the loop is eq.
+    (22)'s times the inner loop's ``s^2 + K_D s + K_P``."""
+    from .lawloop import implemented_limit
+
     if lw.characteristic_polynomial is None:
         return {"law": lw.name, "law_poles": None}
-    coeffs = np.trim_zeros(np.asarray(lw.characteristic_polynomial(params, m, b, k, k_e, f_d, delta), float), "f")
-    eq22 = np.array([m, b, k + k_e], float)
-    if coeffs.shape == eq22.shape and np.allclose(coeffs / coeffs[0], eq22 / m, rtol=1e-12, atol=0.0):
+    kd = b / m if kd is None else kd
+    kp = k / m if kp is None else kp
+    A, _ = implemented_limit(lw, params, m=m, b=b, k=k, k_e=k_e, f_d=f_d, delta=delta, kd=kd, kp=kp)
+    roots = np.linalg.eigvals(A)
+    eq22 = np.r_[np.roots([m, b, k + k_e]), np.roots([1.0, kd, kp])]
+    order = lambda r: np.sort_complex(np.round(r, 9))
+    if roots.size == eq22.size and np.allclose(order(roots), order(eq22), rtol=1e-7, atol=1e-9):
         return {}
-    roots = np.roots(coeffs)
     zeta = [float(-r.real / abs(r)) for r in roots if abs(r) > 0]
     return {"law": lw.name, "law_poles": [[float(r.real), float(r.imag)] for r in sorted(roots, key=lambda r: -r.real)],
-            "law_damping_ratio": min(zeta) if zeta else 1.0, "law_stable": bool(np.all(roots.real < 0))}
+            "law_damping_ratio": min(zeta) if zeta else 1.0, "law_stable": bool(np.all(roots.real < 0)),
+            "law_model": "the loop as it runs: the law's update with the inner loop of eq. (6), K_D = "
+                         f"{kd:.4g} 1/s, K_P = {kp:.4g} 1/s^2, exact model"}
 
 
 def analysis_kwargs(p: dict) -> dict:
@@ -255,7 +266,8 @@ def format_analysis(d: dict) -> str:
         rows.append(f"law {d['law']}: the lines above are eq. (22), the impedance filter on a known k_e; "
                     + ("the law declares no continuous-time model: its verdict is the sampled loop's below"
                        if d["law_poles"] is None else
-                       f"its own loop ({at}): poles " + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in d["law_poles"])
+                       f"its own loop ({at}, with the inner loop of eq. (6)): poles "
+                       + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in d["law_poles"])
                        + f", least damping ratio {d['law_damping_ratio']:.4g}, "
                        + ("stable" if d["law_stable"] else "UNSTABLE")))
     if "worst_damping_ratio" in d:

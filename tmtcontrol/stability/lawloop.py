@@ -36,7 +36,7 @@ from ..control.laws import MEASUREMENTS, Law, LawParameters
 from .continuous import AnalysisError, _pos
 from .sampled import StiffnessBand, _zoh, stable_band
 
-__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "law_stiffness_band", "continuous_limit",
+__all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "law_stiffness_band", "continuous_limit", "implemented_limit",
            "stiffness_sequence"]
 
 
@@ -216,6 +216,42 @@ def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: 
     ``k_lo``). ``inf`` if stable up to ``k_hi``; 0 if unstable at ``within``
     and at every stiffness scanned below it."""
     return law_stiffness_band(law, params, k_lo=k_lo, k_hi=k_hi, rtol=rtol, within=within, **kw).limit
+
+
+def implemented_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,
+                      k_e: float, f_d: float = 10.0, delta: float = 0.0, kd: float | None = None,
+                      kp: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The law's continuous-time normal axis as it runs: the law's state
+    derivative (``d s_next / d Ts`` at Ts = 0, as :func:`continuous_limit`)
+    and the inner loop of eq. (6) on an exact model, ``x'' = ddx_c + K_D
+    (dx_c - x') + K_P (x_c - x)`` (K_D = b/m, K_P = k/m unless given), with
+    the command as the law computes it (the TMT reference enters without its
+    derivatives, section IV). Returns ``(A, w_eq)``, the Jacobian at the
+    equilibrium of the state ``(law states, x, x')``. Review 34: the ideal
+    inner loop (x = x_c) of :func:`continuous_limit` scales the TMT loop's
+    mass and damping by (1 - c) under an x_e error, which the running loop
+    does not (its damping ratio there several times lower); at delta = 0
+    the two agree (eq. 22 times the inner loop's ``s^2 + K_D s + K_P``)."""
+    params = law.parameters() if params is None else params
+    kd = b / m if kd is None else kd
+    kp = k / m if kp is None else kp
+    nl = len(law.states)
+    s = ca.SX.sym("s", nl)
+    xv = ca.SX.sym("xv", 2)
+    Ts = ca.SX.sym("Ts")
+    y = {"x": xv[0], "dx": xv[1], "f_m": k_e * xv[0], "f_d": f_d, "x_e_hat": delta, "Ts": Ts, "m": m, "b": b,
+         "k": k}
+    _, x_c, dx_c, ddx_c, s_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
+                                                  law.parameter_vector(params), s)
+    at0 = lambda e: ca.substitute(e, Ts, 0)
+    sdot = at0(ca.jacobian(s_next, Ts))
+    ddx = at0(ddx_c) + kd * (at0(dx_c) - xv[1]) + kp * (at0(x_c) - xv[0])
+    w = ca.vertcat(s, xv)
+    f = ca.vertcat(sdot, xv[1], ddx)
+    res = ca.Function("res", [w], [f])
+    jac = ca.Function("jacobian", [w], [ca.jacobian(f, w)])
+    w_eq = _newton(res, jac, np.r_[law.initial_state(params), f_d / k_e, 0.0])
+    return np.array(jac(w_eq)), np.ravel(w_eq)
 
 
 def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,
