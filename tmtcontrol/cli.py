@@ -514,7 +514,7 @@ def _analyze(args) -> int:
     print(json.dumps(jsonable(result), indent=2) if args.json else format_analysis(result))
     stable = (result["bibo_stable"] and result.get("stable_for_all", True) and result.get("sampled_stable", True)
               and result.get("law_stable", True))      # the law's own loop (review 22: UNSTABLE printed, exit 0)
-    if result.get("in_contact") is False:               # review 34: no contact, exit 0
+    if result.get("in_contact") is False:               # review 34: no contact (it exited 0)
         print("no contact: the tool stays off the surface; see the contact line above", file=sys.stderr)
         return 1
     if not stable:
