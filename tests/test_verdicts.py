@@ -182,3 +182,20 @@ def test_analyze_with_an_x_e_error_that_keeps_the_tool_off_the_surface_says_so_a
     assert err.strip() == "no contact: the tool stays off the surface; see the contact line above"
     assert main([*base, "--x-e-error", "-0.001"]) == 0
     assert "contact              NONE" not in capsys.readouterr().out
+
+
+def test_a_harmless_x_e_error_does_not_flip_the_verdict_just_below_the_limit():
+    """Review 34: at k_e = 163,410 N/m, 6 N/m below the paper loop's limit (163,416.86 N/m, the
+    reviewer's own bisection of the discrete loop; the closed form here gives 163,417), a +1 mm x_e
+    error, harmless there (the compliance estimate is on its clip, so the loop is the one without
+    it), read "sampled stable NO": the law loop's band, searched to 1e-4 and anchored at that
+    stiffness, ended at it, and the strict k_e < limit failed although the spectral radius at k_e
+    was below 1. Within the search's tolerance the radius at the stiffness decides: stable at
+    163,410 with and without the error, unstable at 163,430 (radius above 1) with and without."""
+    from tmtcontrol.stability.analysis import analyze
+
+    kw = dict(m=1.0, b=60.0, k=100.0, Ts=1e-3, m_p=3.7176737929253623)
+    for k_e, stable in ((163_410.0, True), (163_430.0, False)):
+        for x_e_error in (0.0, 0.001):
+            d = analyze(k_e=k_e, x_e_error=x_e_error, **kw)
+            assert d["sampled_stable"] is stable and (d["spectral_radius"] < 1.0) is stable, (k_e, x_e_error)
