@@ -218,6 +218,30 @@ def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: 
     return law_stiffness_band(law, params, k_lo=k_lo, k_hi=k_hi, rtol=rtol, within=within, **kw).limit
 
 
+def _limit_at_ts0(law: Law, params: LawParameters, m, b, k, k_e, f_d, delta):
+    """The law's update at Ts -> 0 on the normal axis, f = k_e x: the symbols
+    ``s`` (law states) and ``xv`` (x, x'), the command ``x_c, dx_c, ddx_c`` at
+    Ts = 0 and the law state's derivative ``d s_next / d Ts`` at Ts = 0 (its
+    update is a discretisation of an ODE)."""
+    s = ca.SX.sym("s", len(law.states))
+    xv = ca.SX.sym("xv", 2)
+    Ts = ca.SX.sym("Ts")
+    y = {"x": xv[0], "dx": xv[1], "f_m": k_e * xv[0], "f_d": f_d, "x_e_hat": delta, "Ts": Ts, "m": m, "b": b,
+         "k": k}
+    _, x_c, dx_c, ddx_c, s_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
+                                                  law.parameter_vector(params), s)
+    at0 = lambda e: ca.substitute(e, Ts, 0)
+    return s, xv, at0(x_c), at0(dx_c), at0(ddx_c), at0(ca.jacobian(s_next, Ts))
+
+
+def _equilibrium_jacobian(g, w, w0) -> tuple[np.ndarray, np.ndarray]:
+    """``(dg/dw at w_eq, w_eq)`` with ``g(w_eq) = 0`` found by Newton from ``w0``."""
+    res = ca.Function("res", [w], [g])
+    jac = ca.Function("jacobian", [w], [ca.jacobian(g, w)])
+    w_eq = _newton(res, jac, w0)
+    return np.array(jac(w_eq)), np.ravel(w_eq)
+
+
 def implemented_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,
                       k_e: float, f_d: float = 10.0, delta: float = 0.0, kd: float | None = None,
                       kp: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -235,23 +259,10 @@ def implemented_limit(law: Law, params: LawParameters | None = None, *, m: float
     params = law.parameters() if params is None else params
     kd = b / m if kd is None else kd
     kp = k / m if kp is None else kp
-    nl = len(law.states)
-    s = ca.SX.sym("s", nl)
-    xv = ca.SX.sym("xv", 2)
-    Ts = ca.SX.sym("Ts")
-    y = {"x": xv[0], "dx": xv[1], "f_m": k_e * xv[0], "f_d": f_d, "x_e_hat": delta, "Ts": Ts, "m": m, "b": b,
-         "k": k}
-    _, x_c, dx_c, ddx_c, s_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
-                                                  law.parameter_vector(params), s)
-    at0 = lambda e: ca.substitute(e, Ts, 0)
-    sdot = at0(ca.jacobian(s_next, Ts))
-    ddx = at0(ddx_c) + kd * (at0(dx_c) - xv[1]) + kp * (at0(x_c) - xv[0])
-    w = ca.vertcat(s, xv)
-    f = ca.vertcat(sdot, xv[1], ddx)
-    res = ca.Function("res", [w], [f])
-    jac = ca.Function("jacobian", [w], [ca.jacobian(f, w)])
-    w_eq = _newton(res, jac, np.r_[law.initial_state(params), f_d / k_e, 0.0])
-    return np.array(jac(w_eq)), np.ravel(w_eq)
+    s, xv, x_c, dx_c, ddx_c, sdot = _limit_at_ts0(law, params, m, b, k, k_e, f_d, delta)
+    ddx = ddx_c + kd * (dx_c - xv[1]) + kp * (x_c - xv[0])
+    return _equilibrium_jacobian(ca.vertcat(sdot, xv[1], ddx), ca.vertcat(s, xv),
+                                 np.r_[law.initial_state(params), f_d / k_e, 0.0])
 
 
 def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float, b: float, k: float,
@@ -268,24 +279,11 @@ def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float,
     give a zero row for that state."""
     params = law.parameters() if params is None else params
     nl = len(law.states)
-    s = ca.SX.sym("s", nl)
-    xv = ca.SX.sym("xv", 2)
-    Ts = ca.SX.sym("Ts")
-    y = {"x": xv[0], "dx": xv[1], "f_m": k_e * xv[0], "f_d": f_d, "x_e_hat": delta, "Ts": Ts, "m": m, "b": b,
-         "k": k}
-    _, x_c, dx_c, _, s_next = law.function()(ca.vertcat(*(y[n] for n in MEASUREMENTS)),
-                                             law.parameter_vector(params), s)
-    sdot = ca.substitute(ca.jacobian(s_next, Ts), Ts, 0)
-    x_c, dx_c = ca.substitute(x_c, Ts, 0), ca.substitute(dx_c, Ts, 0)
-    g = ca.vertcat(sdot, x_c - xv[0], dx_c - xv[1])
-    w = ca.vertcat(s, xv)
-    res = ca.Function("res", [w], [g])
-    jac = ca.Function("jacobian", [w], [ca.jacobian(g, w)])
-    w0 = np.r_[law.initial_state(params), f_d / k_e, 0.0]
-    w_eq = _newton(res, jac, w0)
-    Jw = np.array(jac(w_eq))
+    s, xv, x_c, dx_c, _, sdot = _limit_at_ts0(law, params, m, b, k, k_e, f_d, delta)
+    Jw, w_eq = _equilibrium_jacobian(ca.vertcat(sdot, x_c - xv[0], dx_c - xv[1]), ca.vertcat(s, xv),
+                                     np.r_[law.initial_state(params), f_d / k_e, 0.0])
     # sdot = G_s ds + G_y dxv ;  0 = H_s ds + H_y dxv  ->  dxv = -H_y^-1 H_s ds
     G_s, G_y = Jw[:nl, :nl], Jw[:nl, nl:]
     H_s, H_y = Jw[nl:, :nl], Jw[nl:, nl:]
     A = G_s - G_y @ np.linalg.solve(H_y, H_s)
-    return A, np.ravel(w_eq)
+    return A, w_eq
