@@ -101,7 +101,6 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
     Returns a :class:`Comparison`; a law whose run diverges is kept with
     ``error`` set rather than raising. Unknown law names raise ValueError
     naming them before anything runs."""
-    from ..processes import threads_for_side_by_side
     from .rollout import compile_together
     from .simulator import simulator_for    # one loop for every arm
 
@@ -111,8 +110,7 @@ def compare_laws(scenario: Scenario, names: list[str] | tuple[str, ...] | None =
     scenarios = {n: with_law(scenario, n) for n in names}
     sims = {n: simulator_for(sc) for n, sc in scenarios.items()}
     # each law is a loop of its own: their steps compile side by side (issue 42: the Panda's five, 30 s in turn)
-    compile_together([sim.rollout for sim in sims.values()], int(round(scenario.duration / scenario.controller.Ts)),
-                     threads=threads_for_side_by_side())
+    compile_together([sim.rollout for sim in sims.values()], int(round(scenario.duration / scenario.controller.Ts)))
     for n in names:
         sc = scenarios[n]
         try:

@@ -105,8 +105,9 @@ graphs are shared between Functions. The C compiler runs outside it, so
 :func:`compile_together` compiles side by side."""
 
 
-def compile_together(rollouts, steps: int, threads: int = 2) -> None:
-    """Compile, side by side in up to ``threads`` threads, each of
+def compile_together(rollouts, steps: int, threads: int | None = None) -> None:
+    """Compile, side by side in up to ``threads`` threads (default
+    ``processes.threads_for_side_by_side``: 1 in a worker process), each of
     ``rollouts`` that a run of ``steps`` periods would compile first (``compile
     = "auto"``, no library in the cache): a caller about to run several loop
     structures (``compare_laws``: one per law, each 3-6 s to compile for the
@@ -116,6 +117,10 @@ def compile_together(rollouts, steps: int, threads: int = 2) -> None:
     leaves that rollout on the virtual machine, as when it runs."""
     import concurrent.futures
 
+    if threads is None:
+        from ..processes import threads_for_side_by_side
+
+        threads = threads_for_side_by_side()
     todo = list({id(r): r for r in rollouts if r._pending and r._steps + steps > COMPILE_AFTER}.values())
     if len(todo) < 2 or threads < 2:
         return

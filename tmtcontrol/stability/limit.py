@@ -211,7 +211,6 @@ def _computed_limit(scenario, points, along_path, runner):
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)
     if not along_path:
         return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
-    from ..processes import threads_for_side_by_side
     from ..simulation.rollout import COMPILE_AFTER, compile_together
     from .first_contact import LoopRunner, first_contact_limit
     from .periodic import PeriodicModel, periodic_limit
@@ -221,7 +220,7 @@ def _computed_limit(scenario, points, along_path, runner):
         model, runner = PeriodicModel(scenario), runner or LoopRunner(scenario)
         # both searches run their loops for far more than COMPILE_AFTER periods: the tangent step and the
         # scenario's step compile side by side (issue 42: the Panda's, 13 s and 6 s in turn)
-        compile_together([model.rollout, runner.sim.rollout], COMPILE_AFTER + 1, threads=threads_for_side_by_side())
+        compile_together([model.rollout, runner.sim.rollout], COMPILE_AFTER + 1)
         hi = max(l for _, l in per_point)
         periodic = periodic_limit(scenario, model=model, bracket=(whole / 1.02, hi * 1.02))
     else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in

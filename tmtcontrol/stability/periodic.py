@@ -109,13 +109,6 @@ def _tangent(loop, dynamic):
                        [ca.vertcat(s_next, Av), log[loop.f_e]], ["s", "u", "p"], ["s_next", "log"])
 
 
-def _threads() -> int:
-    """Threads for the tangent rollouts (``processes.threads_for_side_by_side``)."""
-    from ..processes import threads_for_side_by_side
-
-    return threads_for_side_by_side()
-
-
 class PeriodicModel:
     """The scenario's tangent-linear step, its one-period inputs and the frozen
     loop (for a starting orbit), built once; :meth:`at` for a stiffness.
@@ -209,13 +202,16 @@ class PeriodicModel:
 
     def _period(self, s: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period from ``s``: the end state, the monodromy (one tangent
-        rollout per column; compiled rollouts two at a time in threads, see
-        :func:`_threads`) and the contact force along the period (N)."""
+        rollout per column; compiled rollouts two at a time in threads,
+        ``processes.threads_for_side_by_side``) and the contact force along
+        the period (N)."""
+        from ..processes import threads_for_side_by_side
+
         ns, nd = self.layout.size, self.dynamic.size
         run = lambda j: self.rollout.run(np.r_[s, np.eye(1, nd, j).ravel()], U, self.P)
         with np.errstate(all="ignore"):
             first = run(0)                  # on the virtual machine until compiled (rollout's "auto")
-            threads = _threads() if self.rollout.how != "vm" else 1
+            threads = threads_for_side_by_side() if self.rollout.how != "vm" else 1
             if threads > 1 and nd > 1:
                 from concurrent.futures import ThreadPoolExecutor
 

@@ -322,7 +322,7 @@ class Sweep:
         total = self.cases.total
         if total == 0:
             return 1.0
-        if not any(_covers(axis, "robot.model") or axis.startswith("robot.") for axis in self.axes):
+        if not any(_covers(axis, "robot") for axis in self.axes):
             return cost(0)
         picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
         return float(np.mean([cost(i) for i in picks]))
