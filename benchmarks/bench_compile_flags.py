@@ -4,7 +4,9 @@ the compiled steps at each optimisation level, with the results' difference.
 For each scenario, two Functions that ``simulation.rollout.Rollout`` compiles:
 the simulated closed-loop step (``step``) and the periodic analysis's
 tangent-linear step (``tangent``: the step and its Jacobian times one
-direction, ``stability.periodic``, about 3x the step's operations). Each is
+direction, ``simulation.closedloop.build_tangent``: the controller's side and
+the plant's right-hand side each with its own directional derivative, the
+operations counted as the generated C holds them, ``rollout.operations``). Each is
 compiled at every level of ``--levels`` (the other flags of
 ``rollout._FLAGS`` kept) into a fresh cache, then one path period's monodromy
 (one tangent rollout per dynamic state) or 16 s (the step) is run five
@@ -33,7 +35,7 @@ import numpy as np
 def _one(name: str, levels: list[str]) -> list[dict]:
     from tmtcontrol.simulation import rollout as ro
     from tmtcontrol.simulation.scenario import load_scenario
-    from tmtcontrol.stability.periodic import PeriodicModel, _tangent
+    from tmtcontrol.stability.periodic import PeriodicModel
 
     sc = load_scenario(name)
     mdl = PeriodicModel(sc, compile=False)
@@ -45,7 +47,7 @@ def _one(name: str, levels: list[str]) -> list[dict]:
     sim_U, sim_P, sim_s0, _ = loop.inputs(sc, loop.path(sc))
     cases = {
         "step": (loop.build_step(contact_refine=1), sim_s0, sim_U, sim_P, 1),
-        "tangent": (_tangent(loop, mdl.dynamic), s0, U, mdl.P, nd),       # nd rollouts: the monodromy
+        "tangent": (loop.build_tangent(mdl.dynamic), s0, U, mdl.P, nd),       # nd rollouts: the monodromy
     }
     rows = []
     for fn_name, (fn, x0, UU, PP, reps) in cases.items():
@@ -65,9 +67,9 @@ def _one(name: str, levels: list[str]) -> list[dict]:
             if ref is None:
                 ref = out
             diff = float(np.max(np.abs(out - ref))) if np.all(np.isfinite(out)) else float("nan")
-            rows.append({"scenario": name, "function": fn_name, "ops": fn.n_instructions(), "level": level,
+            rows.append({"scenario": name, "function": fn_name, "ops": ro.operations(fn), "level": level,
                          "compile_s": t_compile, "run_s": statistics.median(times), "samples": UU.shape[1],
-                         "diff": diff, "chosen": _chosen(ro, fn.n_instructions()) == level})
+                         "diff": diff, "chosen": _chosen(ro, ro.operations(fn)) == level})
     ro.LEVEL = None
     return rows
 

@@ -97,7 +97,7 @@ from ..surface import Plane, contact_force
 from .geometry import rotation_vector
 
 __all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "damping_schedule",
-           "operational_space_torque", "build_step", "step_name", "build_plant", "build_controller",
+           "operational_space_torque", "build_step", "build_tangent", "step_name", "build_plant", "build_controller",
            "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
            "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics",
            "MID_PERIOD", "believed"]
@@ -272,22 +272,19 @@ def _rk4(ode, z, pz, n: int) -> ca.Function:
     return ca.Function(f"plant_rk{n}", [z, pz], ca.cse([zf, switched]), ["z", "pz"], ["zf", "switched"])
 
 
-def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, contact_refine: int):
-    """The plant over one period, time scaled to [0, 1] so Ts is a parameter:
-    ``(coarse, choose, flow)``; ``coarse`` (fixed step) is ``(z, pz) ->
-    (zf, switched)``, ``choose`` the contact refinement (or None), ``flow``
-    the CVODES integrator (``integrator="cvodes"``); ``pz`` laid out by
-    :func:`plant_inputs_layout`."""
-    task = plant.task
-    n = task.n
-    PZ = plant_inputs_layout(task, surface)
+def _plant_ode(plant, surface):
+    """The plant's right-hand side over time scaled to [0, 1]: ``(z, pz,
+    ode)``, SX symbols of the joints ``z = [q, dq]`` and the plant's inputs
+    ``pz`` (:func:`plant_inputs_layout`), and ``ode(z)`` -> (Ts [dq; ddq],
+    whether the contact pushes at z): eq. (1) in joint space with the
+    unilateral contact."""
+    n = plant.n
+    PZ = plant_inputs_layout(plant.task, surface)
     z = ca.SX.sym("z", 2 * n)
     pz = ca.SX.sym("pz", PZ.size)
     Z = PZ.split(pz)
 
     def ode(z):
-        """Eq. (1) in joint space with the unilateral contact; and whether the
-        contact pushes at z."""
         q, dq = z[:n], z[n:]
         _, _, J, R, X, dX = kinematics(plant, surface, q, dq, Z)
         f_env = contact_force(X[0], dX[0], Z["k_e"], Z["d_e"])
@@ -295,6 +292,17 @@ def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, cont
         ddq = plant.functions.forward_dynamics(q, dq, Z["tau"] - ca.mtimes(J[:3, :].T, F_env))
         return Z["Ts"] * ca.vertcat(dq, ddq), f_env > 0
 
+    return z, pz, ode
+
+
+def _plant_step(plant, surface, integrator: str, substeps: int, tol: float, contact_refine: int):
+    """The plant over one period, time scaled to [0, 1] so Ts is a parameter:
+    ``(coarse, choose, flow)``; ``coarse`` (fixed step) is ``(z, pz) ->
+    (zf, switched)``, ``choose`` the contact refinement (or None), ``flow``
+    the CVODES integrator (``integrator="cvodes"``); ``pz`` laid out by
+    :func:`plant_inputs_layout`."""
+    n = plant.n
+    z, pz, ode = _plant_ode(plant, surface)
     if integrator == "cvodes":
         flow = ca.integrator("plant", "cvodes", {"x": z, "p": pz, "ode": ode(z)[0]}, 0.0, 1.0,
                              {"abstol": tol, "reltol": tol, "max_num_steps": 100000,
@@ -416,28 +424,14 @@ def _surface_parameters(P: dict, surface) -> list:
     return [P[name] for name, _ in surface.fields]
 
 
-def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
-               delay: int = 0, contact_refine: int = 4, surface=Plane, hold: bool = False) -> ca.Function:
-    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
-    and a computation delay of ``delay`` samples. ``plant`` and ``model``
-    are robots (``load_robot``) with the same joints (the model may be
-    mass-scaled or carry friction to compensate); ``surface`` the surface's
-    shape (a :class:`tmtcontrol.surface.Surface` class or instance).
-
-    ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
-    in which the contact force switches on or off is integrated again with
-    ``contact_refine`` times as many steps (a branch in the compiled code:
-    the refined steps run only in those periods). The controller is expanded
-    to SX, fused with the coarse plant step, and the step can be compiled.
-    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
-    compilable; the accuracy reference). ``hold``: the held torque
-    extrapolated to the middle of the period (``controller.hold =
-    "mid_period"``, :data:`MID_PERIOD`).
-    """
+def _sampled_control(plant, model, law: Law, delay: int, surface, hold: bool):
+    """The controller's side of one period as MX: ``((s, u, p), (z0, pz,
+    rest, log))``, the step's inputs, the joints at t_k, the plant's inputs
+    over the period (the held torque, k_e, d_e, the surface's parameters,
+    Ts), the controller's next state and the period's log row."""
     task = plant.task
     if model.n != task.n:
         raise ValueError(f"plant and model must have the same joints, got {task.n} and {model.n}")
-    coarse, choose, flow = _plant_step(plant, surface, integrator, substeps, tol, contact_refine)
     STATE, PARAM = state_layout(task, law, delay, hold), param_layout(task, law, surface)
     s, u, p = ca.MX.sym("s", STATE.size), ca.MX.sym("u", INPUT.size), ca.MX.sym("p", PARAM.size)
     S, U_in, P = STATE.split(s), INPUT.split(u), PARAM.split(p)
@@ -457,6 +451,29 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
                       c["tau_wait"], c["tau_prev"], c["held"], c["law_next"])
     log = ca.vertcat(q, dq, c["tau"], pos, X, c["X_r"], c["X_c"], f_true, c["f_m"], c["b_n"], c["f_d"],
                      c["x_e_hat"], c["e_o"])
+    return (s, u, p), (z0, pz, rest, log)
+
+
+def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int = 1, tol: float = 1e-10,
+               delay: int = 0, contact_refine: int = 4, surface=Plane, hold: bool = False) -> ca.Function:
+    """One control period ``["s","u","p"] -> ["s_next","log"]`` with ``law``
+    and a computation delay of ``delay`` samples. ``plant`` and ``model``
+    are robots (``load_robot``) with the same joints (the model may be
+    mass-scaled or carry friction to compensate); ``surface`` the surface's
+    shape (a :class:`tmtcontrol.surface.Surface` class or instance).
+
+    ``integrator="fixed"``: classical RK4, ``substeps`` per period; a period
+    in which the contact force switches on or off is integrated again with
+    ``contact_refine`` times as many steps (a branch in the compiled code:
+    the refined steps run only in those periods). The controller is expanded
+    to SX, fused with the coarse plant step, and the step can be compiled.
+    ``"cvodes"``: CVODES with relative/absolute tolerance ``tol`` (MX, not
+    compilable; the accuracy reference). ``hold``: the held torque
+    extrapolated to the middle of the period (``controller.hold =
+    "mid_period"``, :data:`MID_PERIOD`).
+    """
+    coarse, choose, flow = _plant_step(plant, surface, integrator, substeps, tol, contact_refine)
+    (s, u, p), (z0, pz, rest, log) = _sampled_control(plant, model, law, delay, surface, hold)
     name = step_name(law, delay, hold)
     if flow is not None:
         zf = flow(x0=z0, p=pz)["xf"]
@@ -475,6 +492,52 @@ def build_step(plant, model, law: Law, integrator: str = "fixed", substeps: int 
     sm, um, pm = (ca.MX.sym(k, fused.size1_in(i)) for i, k in enumerate(("s", "u", "p")))
     z0m, pzm, zcm, sw, restm, logm = fused(sm, um, pm)
     return ca.Function(name, [sm, um, pm], [ca.vertcat(choose(sw, z0m, zcm, pzm), restm), logm],
+                       ["s", "u", "p"], ["s_next", "log"])
+
+
+def build_tangent(plant, model, law: Law, dynamic, substeps: int = 1, delay: int = 0, surface=Plane,
+                  hold: bool = False) -> ca.Function:
+    """The tangent-linear step of :func:`build_step` (fixed step, no contact
+    refinement), for the periodic analysis: ``["s","u","p"] -> ["s_next",
+    "log"]`` with ``s = [s; v]`` -> ``[step(s); A(s) v]``, ``A = d step/d s``
+    restricted to the state indices ``dynamic`` (``v`` and ``A v`` on them),
+    and the log the true contact force f_e (N).
+
+    Forward-mode AD (``casadi.jtimes``) piece by piece: the controller's side
+    (:func:`_sampled_control`) and the plant's right-hand side are each an SX
+    Function carrying its own directional derivative, and the Runge-Kutta
+    stages call the plant's four times, so the generated C holds each piece
+    once. The result is bit for bit the fused step's (tested); the Panda's
+    compiles in a third of the time (docs/speed.md)."""
+    idx = np.asarray(dynamic, dtype=int).tolist()
+    (s, u, p), (z0, pz, rest, log) = _sampled_control(plant, model, law, delay, surface, hold)
+    f_e = log[log_layout(plant.task)["f_e"]]
+    ctrl = ca.Function("ctrl", [s, u, p], [z0, pz, rest, f_e]).expand()
+    sx = [ca.SX.sym(k, ctrl.size1_in(i)) for i, k in enumerate(("s", "u", "p"))]
+    v = ca.SX.sym("v", len(idx))
+    direction = ca.SX.zeros(sx[0].numel())
+    direction[idx] = v
+    outs = ctrl(*sx)
+    ctrl_tan = ca.Function("ctrl_tangent", [*sx, v],
+                           ca.cse([*outs, *(ca.jtimes(o, sx[0], direction) for o in outs[:3])]))
+    z, pzs, ode = _plant_ode(plant, surface)
+    dz, dpz = ca.SX.sym("dz", z.numel()), ca.SX.sym("dpz", pzs.numel())
+    rhs = ode(z)[0]
+    ode_tan = ca.Function("ode_tangent", [z, pzs, dz, dpz],
+                          ca.cse([rhs, ca.jtimes(rhs, ca.vertcat(z, pzs), ca.vertcat(dz, dpz))]))
+    sm, um, pm = (ca.MX.sym(k, ctrl.size1_in(i)) for i, k in enumerate(("s", "u", "p")))
+    vm = ca.MX.sym("v", len(idx))
+    zf, pzm, restm, f_em, dzf, dpzm, drest = ctrl_tan(sm, um, pm, vm)
+    h = 1.0 / substeps                       # the stages of _rk4, on the value and its direction
+    for _ in range(substeps):
+        k1, d1 = ode_tan(zf, pzm, dzf, dpzm)
+        k2, d2 = ode_tan(zf + h / 2 * k1, pzm, dzf + h / 2 * d1, dpzm)
+        k3, d3 = ode_tan(zf + h / 2 * k2, pzm, dzf + h / 2 * d2, dpzm)
+        k4, d4 = ode_tan(zf + h * k3, pzm, dzf + h * d3, dpzm)
+        zf = zf + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        dzf = dzf + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+    Av = ca.vertcat(dzf, drest)[idx]
+    return ca.Function("tangent_step", [ca.vertcat(sm, vm), um, pm], [ca.vertcat(zf, restm, Av), f_em],
                        ["s", "u", "p"], ["s_next", "log"])
 
 

@@ -78,9 +78,34 @@ LEVEL: str | None = None
 benchmark's; None in use)."""
 
 
+def operations(fn: ca.Function) -> int:
+    """The operations of ``fn``'s generated code: an SX Function's
+    instructions; an MX Function's own plus those of each Function it calls,
+    counted once (the generated C holds each once, however often called);
+    other kinds (a ``Function.conditional``'s switch) count 0, their
+    branches not walked (the contact refinement's: the coarse plant step)."""
+    seen: dict[str, int] = {}
+
+    def walk(f):
+        if f.is_a("SXFunction"):
+            return f.n_instructions()
+        if not f.is_a("MXFunction"):
+            return 0
+        total = f.n_instructions()
+        for k in range(f.n_instructions()):
+            if f.instruction_id(k) == ca.OP_CALL:
+                g = f.instruction_MX(k).which_function()
+                if g.name() not in seen:
+                    seen[g.name()] = walk(g)
+                    total += seen[g.name()]
+        return total
+
+    return walk(fn)
+
+
 def optimisation_level(operations: int) -> str:
     """The compiler's -O level for a step of ``operations`` instructions
-    (``casadi.Function.n_instructions``): -O3, or -O1 from :data:`O1_FROM`."""
+    (:func:`operations`): -O3, or -O1 from :data:`O1_FROM`."""
     if LEVEL is not None:
         return LEVEL
     return "-O3" if operations < O1_FROM else "-O1"
@@ -283,7 +308,7 @@ class Rollout:
             # dense outputs: the buffers are dense, and a structurally zero entry (a monodromy row of a state
             # that is a constant, the mid-period hold's flag) would otherwise be left out of the C output
             fn = ca.Function(name, args, [ca.densify(o) for o in acc.call(args)], acc.name_in(), acc.name_out())
-            level = optimisation_level(self.step.n_instructions())
+            level = optimisation_level(operations(self.step))
         # a private build folder under the cache, removed however this ends; the compiler is killed
         # with its children if this is interrupted, and its temporaries are in the folder's tmp/
         with cache.build_folder("cg") as build:

@@ -33,7 +33,7 @@ from ..control.laws import get_law, is_package_law
 from ..files import VerdictFailed, check_interrupt
 from ..model import URDFError, load_robot
 from ..model.urdf import TipError
-from .closedloop import INPUT, build_step, log_layout, param_layout, state_layout, step_name
+from .closedloop import INPUT, build_step, build_tangent, log_layout, param_layout, state_layout, step_name
 from .geometry import surface_of, tool_orientation
 from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
@@ -428,6 +428,12 @@ class Simulator:
         s = self.scenario.simulation
         return build_step(self.plant, self.model, self.law, "fixed", s.substeps, s.tol, self.delay,
                           contact_refine, self.surface, self.hold)
+
+    def build_tangent(self, dynamic):
+        """The scenario's tangent-linear step on the state indices ``dynamic``
+        (:func:`.closedloop.build_tangent`), for the periodic analysis."""
+        return build_tangent(self.plant, self.model, self.law, dynamic, self.scenario.simulation.substeps,
+                             self.delay, self.surface, self.hold)
 
     def run(self, scenario: Scenario | None = None, max_steps: int | None = None) -> SimulationResult:
         """Simulate ``scenario`` (default: the one given at construction). It

@@ -22,13 +22,16 @@ bracketing root search (``scipy.optimize.brentq`` on log k_e).
 
 The Jacobians are exact (CasADi's forward mode, ``casadi.jtimes``) and
 multiplied along the rollout itself: the tangent-linear step
-``(s, v) -> (step(s), A(s) v)`` is compiled once per loop structure (about
-three times the step's operations: 7,025 on the PUMA, 29,046 on the UR5,
-46,363 on the Panda; 1 s, 8 s and 18 s of compiling at -O1, where the
-earlier augmented step ``(s, vec Phi)``, 12 to 22 times the step, took 6 s,
-25 s and 52 s; docs/speed.md), and one rollout of one period from ``(s_0, e_j)`` gives the
-orbit's end point and the monodromy's column j, so a period costs one
-rollout per dynamic state (16 on the UR5, 18 on the Panda, without delay).
+``(s, v) -> (step(s), A(s) v)`` (``simulation.closedloop.build_tangent``:
+the controller's side and the plant's right-hand side each carry their own
+directional derivative, the Runge-Kutta stages call the plant's) is
+compiled once per loop structure (4,002 operations on the PUMA, 14,870 on
+the UR5, 27,534 on the Panda; docs/speed.md gives the compile times, the
+Panda's 4 s where the derivative of the whole fused step took 13 s and the
+earlier augmented step ``(s, vec Phi)`` 52 s), and one rollout of one
+period from ``(s_0, e_j)`` gives the orbit's end point and the monodromy's
+column j, so a period costs one rollout per dynamic state (16 on the UR5,
+18 on the Panda, without delay).
 The step is built without the
 contact-switch refinement; along an orbit in permanent contact (checked:
 the force stays > 0) it is the simulated step. The controller's bookkeeping
@@ -45,7 +48,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from .continuous import AnalysisError
@@ -94,19 +96,9 @@ class PeriodicLoop:
 def _tangent(loop, dynamic):
     """``(s; v) -> (step(s); A(s) v)`` with log ``f_e``, ``A = d step/d s`` on
     the dynamic states: the orbit and one column of the monodromy in one
-    rollout (``loop``: the scenario's ``simulation.Simulator``). Forward-mode
-    AD (``casadi.jtimes``): about three times the step's operations, where
-    the Jacobian itself would be the step's times the dynamic states."""
-    step = loop.build_step(contact_refine=1)
-    s, u, p = step.sx_in()
-    s_next, log = step(s, u, p)
-    idx = dynamic.tolist()
-    v = ca.SX.sym("v", len(idx))
-    direction = ca.SX.zeros(s.numel())
-    direction[idx] = v
-    Av = ca.jtimes(s_next, s, direction)[idx]
-    return ca.Function("tangent_step", [ca.vertcat(s, v), u, p],
-                       [ca.vertcat(s_next, Av), log[loop.f_e]], ["s", "u", "p"], ["s_next", "log"])
+    rollout (``loop``: the scenario's ``simulation.Simulator``;
+    ``simulation.closedloop.build_tangent``)."""
+    return loop.build_tangent(dynamic)
 
 
 class PeriodicModel:
@@ -144,7 +136,7 @@ class PeriodicModel:
                 if len(_BUILT) >= 16:
                     _BUILT.clear()
                 _BUILT[memo] = Rollout(make, compile=compile, structure=(f"tangent_{loop.name}",
-                                                                         key + "|tangent" + loop.cache_tag))
+                                                                         key + "|tangent-pieces" + loop.cache_tag))
             self.rollout = _BUILT[memo]
         U, self.P = self.frozen.U, self.frozen.P
         self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()

@@ -1,0 +1,87 @@
+"""The periodic analysis's tangent-linear step (``closedloop.build_tangent``),
+built piece by piece (the controller's side and the plant's right-hand side,
+each an SX Function with its own directional derivative, the Runge-Kutta
+stages calling the plant's), against the forward derivative of the whole
+fused step (``casadi.jtimes`` on :func:`build_step`'s one SX Function, the
+construction it replaced): the same arithmetic, so equal to rounding (the
+pieces evaluate the same operations; 1e-12 relative allows for CasADi
+ordering a sum differently), and the Jacobian columns against central
+differences of the simulated step."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from tmtcontrol.simulation.rollout import O1_FROM, operations, optimisation_level
+from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+from tmtcontrol.stability.periodic import PeriodicModel
+
+
+def _fused_tangent(loop, dynamic):
+    step = loop.build_step(contact_refine=1)
+    s, u, p = step.sx_in()
+    s_next, log = step(s, u, p)
+    idx = dynamic.tolist()
+    v = ca.SX.sym("v", len(idx))
+    direction = ca.SX.zeros(s.numel())
+    direction[idx] = v
+    Av = ca.jtimes(s_next, s, direction)[idx]
+    return ca.Function("fused", [ca.vertcat(s, v), u, p], [ca.vertcat(s_next, Av), log[loop.f_e]])
+
+
+@pytest.mark.parametrize("name,overrides", [
+    ("paper", []),
+    ("paper", ["controller.delay_samples=1", "controller.hold=\"mid_period\"", "simulation.substeps=2"]),
+    ("ur5-pipe", []),
+])
+def test_the_tangent_step_is_the_fused_steps_forward_derivative(name, overrides):
+    sc = apply_overrides(load_scenario(name), overrides)
+    mdl = PeriodicModel(sc, compile=False)
+    loop, dyn = mdl.frozen.loop, mdl.dynamic
+    pieces, fused = loop.build_tangent(dyn), _fused_tangent(loop, dyn)
+    s = mdl._start(5000.0)
+    U = mdl._inputs(5000.0)
+    rng = np.random.default_rng(7)
+    for j in (0, dyn.size // 2, dyn.size - 1):
+        x = np.r_[s + 1e-4 * rng.standard_normal(s.size) * np.isin(np.arange(s.size), dyn),
+                  np.eye(1, dyn.size, j).ravel()]
+        for col in (0, U.shape[1] // 3):
+            a = [np.asarray(o).ravel() for o in pieces(x, U[:, col], mdl.P)]
+            b = [np.asarray(o).ravel() for o in fused(x, U[:, col], mdl.P)]
+            for ai, bi in zip(a, b):
+                np.testing.assert_allclose(ai, bi, rtol=1e-12, atol=1e-12 * np.max(np.abs(bi)))
+    # a column of A against central differences of the simulated (refinement-free) step; h = 1e-6 of
+    # a state of order 1: the difference's truncation ~h^2 and rounding ~1e-16/h, so 1e-6 relative
+    step = loop.build_step(contact_refine=1)
+    ns, j, h = s.size, int(dyn[1]), 1e-6
+    e = np.zeros(ns)
+    e[j] = h
+    fd = (np.asarray(step(s + e, U[:, 0], mdl.P)[0]).ravel() - np.asarray(step(s - e, U[:, 0], mdl.P)[0]).ravel())
+    Av = np.asarray(pieces(np.r_[s, np.eye(1, dyn.size, 1).ravel()], U[:, 0], mdl.P)[0]).ravel()[ns:]
+    np.testing.assert_allclose(Av, (fd / (2 * h))[dyn], rtol=1e-6, atol=1e-6 * np.max(np.abs(Av)))
+
+
+def test_the_generated_codes_operations_count_each_called_function_once():
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f", [x], [ca.sin(x) * x])
+    y = ca.MX.sym("y", 2)
+    g = ca.Function("g", [y], [f(f(y)) + f(y)], {"never_inline": True})
+    assert f.n_instructions() > 3
+    assert operations(f) == f.n_instructions()
+    assert operations(g) == g.n_instructions() + f.n_instructions()     # f's code once, called three times
+    h = ca.Function("h", [y], [g(y) * 2])                               # nested: g's calls walked
+    assert operations(h) == h.n_instructions() + g.n_instructions() + f.n_instructions()
+
+
+@pytest.mark.parametrize("name", ["paper", "panda"])
+def test_the_tangent_step_is_compiled_at_the_level_of_its_pieces_size(name):
+    """The Panda's pieces (27,534 operations in all) are compiled at -O1, the PUMA's (4,002)
+    at -O3: the level rule (rollout.O1_FROM) sees the generated code's size, not the
+    wrapping MX Function's few call instructions (which alone would pick -O3 everywhere)."""
+    mdl = PeriodicModel(load_scenario(name), compile=False)
+    fn = mdl.rollout.step
+    assert fn.n_instructions() < 200
+    expected = "-O1" if name == "panda" else "-O3"
+    assert (operations(fn) >= O1_FROM) == (name == "panda")
+    assert optimisation_level(operations(fn)) == expected
