@@ -85,3 +85,56 @@ def test_the_tangent_step_is_compiled_at_the_level_of_its_pieces_size(name):
     expected = "-O1" if name == "panda" else "-O3"
     assert (operations(fn) >= O1_FROM) == (name == "panda")
     assert optimisation_level(operations(fn)) == expected
+
+
+def test_one_compiled_period_is_the_rollouts_first_period_and_the_virtual_machines():
+    """Rollout.once calls the library's single period: the same numbers as the
+    first column of a run and as CasADi's virtual machine (bit for bit: the
+    same operations, -ffp-contract=off), and wrong sizes are refused, not read
+    past (as Rollout.run, review 30)."""
+    from tmtcontrol.simulation.rollout import Rollout
+
+    s, u, p = ca.SX.sym("s", 2), ca.SX.sym("u", 1), ca.SX.sym("p", 1)
+    step = ca.Function("toy_once", [s, u, p], [ca.vertcat(s[0] * u + ca.sin(s[1]), s[1] * p), ca.vertcat(s, u)],
+                       ["s", "u", "p"], ["s_next", "log"])
+    r = Rollout(step, compile=True)
+    assert r.how in ("compiled", "cached")
+    s0, u0, p0 = np.array([0.3, -1.7]), np.array([1.25]), np.array([0.999])
+    S, L = r.run(s0, u0[:, None], p0)
+    a, b = r.once(s0, u0, p0)
+    vm = [np.ravel(np.array(o)) for o in step(s0, u0, p0)]
+    assert np.array_equal(a, S[:, 0]) and np.array_equal(b, L[:, 0])
+    assert np.array_equal(a, vm[0]) and np.array_equal(b, vm[1])
+    assert np.array_equal(a, [0.3 * 1.25 + np.sin(-1.7), -1.7 * 0.999])
+    for bad in ((s0[:1], u0, p0), (s0, np.r_[u0, 1.0], p0), (s0, u0, np.r_[p0, 1.0])):
+        with pytest.raises(ValueError, match="the step takes"):
+            r.once(*bad)
+
+
+@pytest.mark.parametrize("name,overrides", [
+    ("paper", []),
+    ("ur5-pipe", ["controller.hold=\"mid_period\""]),
+])
+def test_the_frozen_loops_jacobian_from_the_compiled_tangent_step_is_casadis(name, overrides):
+    """WholeLoopModel with a compiled tangent step (the deciding limit's: its
+    Jacobians are the tangent's columns) against the same model on CasADi's
+    Jacobian (the virtual machine, MX forward sweeps through the step with the
+    contact refinement): at a fixed point in contact the same matrix to
+    rounding (1e-10 of its largest entry: two AD paths, the fixed points
+    found by Newton to 1e-11), the same spectral radius to 1e-9, and the
+    same frozen-point limit (bisected to 1e-4, so equal decisions)."""
+    from tmtcontrol.stability.wholeloop import WholeLoopModel, whole_loop_limit
+
+    sc = apply_overrides(load_scenario(name), overrides)
+    plain, fast = WholeLoopModel(sc), WholeLoopModel(sc)
+    fast.tangent = PeriodicModel(sc, compile=True).rollout
+    assert fast.tangent.how in ("compiled", "cached")
+    k_e = 2e4 if name == "paper" else 2e5
+    for t in (0.0, 0.7):
+        a, b = plain.at(k_e, t), fast.at(k_e, t)
+        np.testing.assert_allclose(b.A, a.A, rtol=0, atol=1e-10 * np.max(np.abs(a.A)))
+        assert abs(b.spectral_radius - a.spectral_radius) < 1e-9
+        assert b.f_eq == pytest.approx(a.f_eq, rel=1e-9)
+    if name == "paper":
+        assert whole_loop_limit(sc, points=2, model=WholeLoopModel(sc))[0] == \
+            whole_loop_limit(sc, points=2, model=fast)[0]

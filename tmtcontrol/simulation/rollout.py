@@ -117,10 +117,10 @@ COMPILE_AFTER = 10_000
 step is compiled (~0.18 ms per step there; compiling costs ~2.5 s, about
 13,000 steps). A library already in the cache is always used."""
 
-_WRAPPER = "dense-outputs"
+_WRAPPER = "dense-outputs+once"
 """How the chunk's C is wrapped (in the cache key): a library built before
-the outputs were made dense (a structurally zero entry shifted the columns)
-is not reused."""
+the outputs were made dense (a structurally zero entry shifted the columns),
+or without the single period (:meth:`Rollout.once`), is not reused."""
 
 
 _SYMBOLIC = threading.RLock()
@@ -308,6 +308,9 @@ class Rollout:
             # dense outputs: the buffers are dense, and a structurally zero entry (a monodromy row of a state
             # that is a constant, the mid-period hold's flag) would otherwise be left out of the C output
             fn = ca.Function(name, args, [ca.densify(o) for o in acc.call(args)], acc.name_in(), acc.name_out())
+            one = self.step.mx_in()
+            once = ca.Function(f"{name}_once", one, [ca.densify(o) for o in self.step.call(one)],
+                               self.step.name_in(), self.step.name_out())
             level = optimisation_level(operations(self.step))
         # a private build folder under the cache, removed however this ends; the compiler is killed
         # with its children if this is interrupted, and its temporaries are in the folder's tmp/
@@ -315,6 +318,7 @@ class Rollout:
             with _SYMBOLIC:
                 gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
                 gen.add(fn)
+                gen.add(once)           # one period (the step's code is generated once, for both)
                 cfile = pathlib.Path(gen.generate(str(build) + os.sep))
             tmp_lib = build / "lib.so"
             run_compiler([compiler(), level, *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
@@ -359,13 +363,18 @@ class Rollout:
         return built
 
     def _bind(self, dll, name):
-        work = getattr(dll, f"{name}_work")
         ll = ctypes.c_longlong  # casadi_int
-        work.argtypes = [ctypes.POINTER(ll)] * 4
-        sz = [ll() for _ in range(4)]
-        if work(*[ctypes.byref(x) for x in sz]) != 0:
-            raise RuntimeError(f"{name}_work failed")
-        sz_arg, sz_res, sz_iw, sz_w = (x.value for x in sz)
+
+        def work_sizes(fname):
+            work = getattr(dll, f"{fname}_work")
+            work.argtypes = [ctypes.POINTER(ll)] * 4
+            sz = [ll() for _ in range(4)]
+            if work(*[ctypes.byref(x) for x in sz]) != 0:
+                raise RuntimeError(f"{fname}_work failed")
+            return [x.value for x in sz]
+
+        # the work buffers serve the chunk and the single period
+        sz_arg, sz_res, sz_iw, sz_w = map(max, zip(work_sizes(name), work_sizes(f"{name}_once")))
         if self.ns is None:         # the step was not built: its sizes are in the library
             rows = []
             for which, count in (("in", 3), ("out", 2)):
@@ -373,16 +382,39 @@ class Rollout:
                 sparsity.argtypes, sparsity.restype = [ll], ctypes.POINTER(ll)
                 rows += [sparsity(i)[0] for i in range(count)]
             self.ns, self.nu, self.np, _, self.nl = rows
-        fn = getattr(dll, name)
-        fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
-        fn.restype = ctypes.c_int
-        self._fn = fn
+        self._fn, self._once = (getattr(dll, f) for f in (name, f"{name}_once"))
+        for fn in (self._fn, self._once):
+            fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
+            fn.restype = ctypes.c_int
         # the work buffers' sizes: each run allocates its own, so runs may go side by side in threads
         # (ctypes releases the GIL during the call; the generated code keeps no state of its own)
         self._work = (max(sz_arg, 3), max(sz_res, 2), max(sz_iw, 1), max(sz_w, 1))
         self._lib = dll
 
     # -- running ------------------------------------------------------------------
+    def once(self, s, u, p) -> tuple[np.ndarray, np.ndarray]:
+        """One period ``(s_next, log)`` from ``s`` with inputs ``u`` and
+        parameters ``p``: the compiled step called directly (microseconds; a
+        :meth:`run` of one period computes a whole chunk), or the step on
+        CasADi's virtual machine before it is compiled. Sizes as :meth:`run`;
+        not counted toward compiling."""
+        if self._lib is None:
+            out = self.step(s, u, p)
+            return np.ravel(np.array(out[0])), np.ravel(np.array(out[1]))
+        s, u, p = (np.ascontiguousarray(x, dtype=float).ravel() for x in (s, u, p))
+        for name, got, want in (("s", s.size, self.ns), ("u", u.size, self.nu), ("p", p.size, self.np)):
+            if got != want:
+                raise ValueError(f"{name}: size {got}, the step takes {want}")
+        s_next, log = np.empty(self.ns), np.empty(self.nl)
+        n_arg, n_res, n_iw, n_w = self._work
+        arg, res = (ctypes.c_void_p * n_arg)(), (ctypes.c_void_p * n_res)()
+        iw, w = np.zeros(n_iw, dtype=np.int64), np.zeros(n_w)
+        arg[0], arg[1], arg[2] = s.ctypes.data, u.ctypes.data, p.ctypes.data
+        res[0], res[1] = s_next.ctypes.data, log.ctypes.data
+        if self._once(arg, res, iw.ctypes.data, w.ctypes.data, 0) != 0:
+            raise RuntimeError("compiled step failed")
+        return s_next, log
+
     def run(self, s0, U, p) -> tuple[np.ndarray, np.ndarray]:
         """Advance ``U.shape[1]`` periods from ``s0``.
 

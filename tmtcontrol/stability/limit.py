@@ -199,9 +199,25 @@ def _computed_limit(scenario, points, along_path, runner):
     guess = _one_d(scenario)
     small = None if scenario.controller.hold == "mid_period" else guess
     p = scenario_parameters(scenario)
+    note = periodic_note(scenario) if along_path else None
+    frozen_model = model = None
+    if along_path and note is None:
+        from ..simulation.rollout import COMPILE_AFTER, compile_together
+        from .first_contact import LoopRunner
+        from .periodic import PeriodicModel
+        from .wholeloop import WholeLoopModel
+
+        model, runner = PeriodicModel(scenario), runner or LoopRunner(scenario)
+        # both searches run their loops for far more than COMPILE_AFTER periods: the tangent step and the
+        # scenario's step compile side by side (issue 42: the Panda's, 13 s and 6 s in turn), first, so that
+        # the frozen points' Jacobians are the compiled tangent step's columns (a UR5's 17 in 0.5 ms, 8 ms on
+        # CasADi's virtual machine)
+        compile_together([model.rollout, runner.sim.rollout], COMPILE_AFTER + 1)
+        frozen_model = WholeLoopModel(scenario)
+        frozen_model.tangent = model.rollout
     # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
     whole, per_point = whole_loop_limit(scenario, points=points, rtol=WHOLE_LOOP_RTOL, guess=guess,
-                                        within=p["k_e_min"])
+                                        within=p["k_e_min"], model=frozen_model)
     # the bisection ends with a stable and an unstable stiffness at most WHOLE_LOOP_RTOL apart
     bracket = (whole, whole * (1 + WHOLE_LOOP_RTOL)) if 0 < whole < np.inf else (whole, whole)
     frozen = dict(small_signal=small, whole_loop=float(whole), whole_loop_bracket=tuple(map(float, bracket)),
@@ -211,16 +227,10 @@ def _computed_limit(scenario, points, along_path, runner):
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)
     if not along_path:
         return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
-    from ..simulation.rollout import COMPILE_AFTER, compile_together
-    from .first_contact import LoopRunner, first_contact_limit
-    from .periodic import PeriodicModel, periodic_limit
+    from .first_contact import first_contact_limit
+    from .periodic import periodic_limit
 
-    note = periodic_note(scenario)
     if note is None:
-        model, runner = PeriodicModel(scenario), runner or LoopRunner(scenario)
-        # both searches run their loops for far more than COMPILE_AFTER periods: the tangent step and the
-        # scenario's step compile side by side (issue 42: the Panda's, 13 s and 6 s in turn)
-        compile_together([model.rollout, runner.sim.rollout], COMPILE_AFTER + 1)
         hi = max(l for _, l in per_point)
         periodic = periodic_limit(scenario, model=model, bracket=(whole / 1.02, hi * 1.02))
     else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in

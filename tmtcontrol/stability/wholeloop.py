@@ -179,6 +179,14 @@ class WholeLoopModel:
         self.U, self.P, self.s0, self.t = self.loop.inputs(sc, self.path)
         self._warm: dict = {}
         self._found: dict = {}         # per path point: the fallback guess that found its last equilibrium
+        self.tangent = None
+        """A compiled tangent-linear step of this loop on :func:`dynamic_states`
+        (``simulation.closedloop.build_tangent``, a ``Rollout``; the periodic
+        analysis's), set by a caller that has one: the Jacobians are then its
+        columns, one compiled period each (~0.5 ms for the UR5's 17 where the
+        virtual machine's Jacobian takes ~8 ms); the same derivative wherever
+        the contact does not switch within the period (the tangent step has no
+        contact refinement), at a fixed point in contact always."""
 
     def _u(self, i: int, k_e: float) -> np.ndarray:
         from ..simulation.closedloop import INPUT
@@ -289,9 +297,7 @@ class WholeLoopModel:
             raise NoFixedPoint(f"k_e = {k_e:.6g} N/m: no fixed point found at path time {self.t[i]:g} s "
                                + ("(the Newton iteration diverged)" if not np.isfinite(residual) else
                                   f"(Newton's relative residual {relative:.2g} from every start)"))
-        A_full = np.array(self._jac(s_eq, u))
-        d = self.dynamic
-        A = A_full[np.ix_(d, d)]
+        A = self._jacobian(s_eq, u)
         if not np.all(np.isfinite(A)):
             raise AnalysisError(f"k_e = {k_e:.6g} N/m: the loop's Jacobian at its fixed point (path time "
                                 f"{self.t[i]:g} s) is not finite")
@@ -316,6 +322,18 @@ class WholeLoopModel:
             s[L["tau_prev"]] = np.ravel(np.array(self._f(s, u)[0]))[L["tau_prev"]]
         return s
 
+    def _jacobian(self, s, u) -> np.ndarray:
+        """``d step/d s`` at ``s`` on the dynamic states (``u``: inputs and
+        parameters stacked): from the compiled tangent step when there is one
+        (:attr:`tangent`), else CasADi's Jacobian on its virtual machine."""
+        d = self.dynamic
+        t = self.tangent
+        if t is None or t.how == "vm":
+            return np.array(self._jac(s, u))[np.ix_(d, d)]
+        uu, p = u[:t.nu], u[t.nu:]
+        eye = np.eye(d.size)
+        return np.column_stack([t.once(np.r_[s, eye[j]], uu, p)[0][s.size:] for j in range(d.size)])
+
     def _residual(self, s, u) -> np.ndarray:
         return (np.ravel(np.array(self._f(s, u)[0])) - s)[self.dynamic]
 
@@ -332,7 +350,7 @@ class WholeLoopModel:
                 break
             if np.max(np.abs(r) / (1.0 + np.abs(s[d]))) < tol:
                 break
-            J = np.array(self._jac(s, u))[np.ix_(d, d)] - eye
+            J = self._jacobian(s, u) - eye
             if not np.all(np.isfinite(J)):       # review 17: lstsq's LAPACK error escaped as a crash of simulate
                 return s, math.inf
             try:
