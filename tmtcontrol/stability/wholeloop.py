@@ -13,8 +13,10 @@ loop of every arm (on a 6-D task the tool orientation held too).
 At that point the step is an autonomous map ``s -> s_next``. Its fixed
 point (Newton, started from the law's 1-D equilibrium, ``stability.lawloop``)
 is the steady state in contact; the Jacobian ``A = d s_next / d s`` there
-(CasADi, exact) and its spectral radius decide local stability of the
-sampled loop at that point. The state is the joints q, dq (n each), the
+(CasADi, exact: on its virtual machine, or, where the deciding limit has
+compiled the periodic analysis's tangent-linear step, that step's columns,
+``WholeLoopModel.tangent``) and its spectral radius decide local stability
+of the sampled loop at that point. The state is the joints q, dq (n each), the
 force filter, the normal damping, the delay queue and the law's state; the
 controller's bookkeeping states (approach phase, approach command, f_d ramp,
 surface estimate) are constants in contact and are left out of ``A``. :func:`whole_loop_limit` bisects on k_e
