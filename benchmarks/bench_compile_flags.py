@@ -2,7 +2,8 @@
 the compiled steps at each optimisation level, with the results' difference.
 
 For each scenario, two Functions that ``simulation.rollout.Rollout`` compiles:
-the simulated closed-loop step (``step``) and the periodic analysis's
+the simulated closed-loop step (``step``, with the scenario's contact
+refinement, as ``simulate`` compiles it) and the periodic analysis's
 tangent-linear step (``tangent``: the step and its Jacobian times one
 direction, ``simulation.closedloop.build_tangent``: the controller's side and
 the plant's right-hand side each with its own directional derivative, the
@@ -46,7 +47,7 @@ def _one(name: str, levels: list[str]) -> list[dict]:
     s0 = np.r_[mdl._start(k_e), np.eye(1, nd, 0).ravel()]
     sim_U, sim_P, sim_s0, _ = loop.inputs(sc, loop.path(sc))
     cases = {
-        "step": (loop.build_step(contact_refine=1), sim_s0, sim_U, sim_P, 1),
+        "step": (loop.step, sim_s0, sim_U, sim_P, 1),       # as simulated: with the contact refinement
         "tangent": (loop.build_tangent(mdl.dynamic), s0, U, mdl.P, nd),       # nd rollouts: the monodromy
     }
     rows = []

@@ -39,6 +39,7 @@ import hashlib
 import os
 import pathlib
 import platform
+import re
 import subprocess
 import threading
 import warnings
@@ -62,14 +63,14 @@ the shared library's PLT (the rollout 6 % faster, the same arithmetic). The
 optimisation level is :func:`optimisation_level`'s."""
 
 O1_FROM = 20_000
-"""Operations of a step (``casadi.Function.n_instructions``) from which it is
+"""Operations of a step's generated C (:func:`operations`) from which it is
 compiled at -O1 rather than -O3. Measured by
-``benchmarks/bench_compile_flags.py`` (table in docs/speed.md): the simulated
-steps (2,668 operations for the PUMA, 10,083 for the UR5, 16,491 for the
-Panda) run 16,000 times per simulation and keep -O3; the periodic analysis's
-tangent-linear steps (7,025, 29,046 and 46,363) are compiled once per loop
-structure: the UR5's in 8 s instead of 17 s and the Panda's in 18 s instead
-of 42 s, running 30 % slower (UR5) or as fast (Panda). No level changes a result: with
+``benchmarks/bench_compile_flags.py`` (table in docs/speed.md): the
+simulated steps of the PUMA (4,655 operations with the contact refinement)
+and the UR5 (18,606) and the UR5's tangent-linear step (14,718) keep -O3;
+the Panda's simulated step (29,647: 9 s to compile at -O3, 3.5 s at -O1,
+running 30 % slower) and its tangent step (27,372: 10.6 s against 4.4 s, as
+fast) are compiled at -O1. No level changes a result: with
 ``-ffp-contract=off`` and no fast-math flag every level computes the same
 IEEE arithmetic (the benchmark prints the difference: 0)."""
 
@@ -79,28 +80,21 @@ benchmark's; None in use)."""
 
 
 def operations(fn: ca.Function) -> int:
-    """The operations of ``fn``'s generated code: an SX Function's
-    instructions; an MX Function's own plus those of each Function it calls,
-    counted once (the generated C holds each once, however often called);
-    other kinds (a ``Function.conditional``'s switch) count 0, their
-    branches not walked (the contact refinement's: the coarse plant step)."""
-    seen: dict[str, int] = {}
+    """The operations of ``fn``'s generated C: its elementary assignments
+    (``aN=...``, one per SX instruction), each Function it calls counted
+    once, however often called, and whatever kind calls it (an MX call, a
+    ``map``, a ``Function.conditional``'s branches: the contact refinement's
+    coarse plant step). Counted in the code CasADi generates, which is what
+    the compiler sees (review 36: a count of the called Functions missed the
+    switch's branches, whose API does not list them)."""
+    with _SYMBOLIC:
+        gen = ca.CodeGenerator("operations.c", {"with_header": False})
+        gen.add(fn)
+        text = gen.dump()
+    return len(_ASSIGNMENT.findall(text))
 
-    def walk(f):
-        if f.is_a("SXFunction"):
-            return f.n_instructions()
-        if not f.is_a("MXFunction"):
-            return 0
-        total = f.n_instructions()
-        for k in range(f.n_instructions()):
-            if f.instruction_id(k) == ca.OP_CALL:
-                g = f.instruction_MX(k).which_function()
-                if g.name() not in seen:
-                    seen[g.name()] = walk(g)
-                    total += seen[g.name()]
-        return total
 
-    return walk(fn)
+_ASSIGNMENT = re.compile(r"^\s*a\d+=", re.M)
 
 
 def optimisation_level(operations: int) -> str:
