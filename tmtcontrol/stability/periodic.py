@@ -25,10 +25,10 @@ multiplied along the rollout itself: the tangent-linear step
 ``(s, v) -> (step(s), A(s) v)`` (``simulation.closedloop.build_tangent``:
 the controller's side and the plant's right-hand side each carry their own
 directional derivative, the Runge-Kutta stages call the plant's) is
-compiled once per loop structure (4,002 operations on the PUMA, 14,870 on
-the UR5, 27,534 on the Panda; docs/speed.md gives the compile times: the
-Panda's 4.4 s at -O1, where the derivative of the whole fused step took
-13.2 s on the same machine), and one rollout of one
+compiled once per loop structure (3,880 operations of generated C on the
+PUMA, 14,718 on the UR5, 27,372 on the Panda; docs/speed.md gives the
+compile times: the Panda's 4.75 s at -O1, where the derivative of the whole
+fused step took 13.2 s on the same machine), and one rollout of one
 period from ``(s_0, e_j)`` gives the orbit's end point and the monodromy's
 column j, so a period costs one rollout per dynamic state (16 on the UR5,
 18 on the Panda, without delay).
