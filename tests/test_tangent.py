@@ -161,3 +161,29 @@ def test_the_pandas_simulated_step_is_sized_with_its_contact_refinement():
     sizes = {name: operations(Simulator(load_scenario(name), compile=False).step) for name in ("ur5", "panda")}
     assert sizes["panda"] >= O1_FROM > sizes["ur5"]
     assert optimisation_level(sizes["panda"]) == "-O1" and optimisation_level(sizes["ur5"]) == "-O3"
+
+
+def test_the_periodic_search_alone_starts_from_the_band_of_the_smallest_stiffness(monkeypatch):
+    """Review 36: periodic_limit without a bracket searched the frozen loop's
+    limit on a log grid from 10 N/m when the 1-D guess did not bracket it
+    (ur5-pipe with a 2-sample delay), where the equilibrium, f_d/k_e = 1 m
+    deep, is outside the workspace: AnalysisError. It now searches the band
+    that holds the scenario's smallest stiffness, as the deciding limit does
+    (after the fix that scenario's periodic limit is 35,368 N/m)."""
+    from tmtcontrol.stability import periodic, wholeloop
+    from tmtcontrol.stability.onedim import scenario_parameters
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def record(scenario, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", record)
+    sc = load_scenario("paper")
+    with pytest.raises(Stop):
+        periodic.periodic_limit(sc, model=PeriodicModel(sc, compile=False))
+    assert seen["within"] == scenario_parameters(sc)["k_e_min"] == 2000.0          # the paper's softest segment

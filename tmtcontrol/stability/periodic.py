@@ -335,12 +335,15 @@ def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[
         return seen[log_k]
 
     if bracket is None:
-        from .onedim import scenario_stiffness_limit
+        from .onedim import scenario_parameters, scenario_stiffness_limit
         from .wholeloop import whole_loop_limit
 
-        # the 1-D limit as the frozen search's guess (its log grid would start at 10 N/m, 1 m deep)
+        # the 1-D limit as the frozen search's guess (its log grid would start at 10 N/m, 1 m deep), and the
+        # band that holds the scenario's smallest stiffness, as the deciding limit's (review 36: on the pipe
+        # with a 2-sample delay the guess did not bracket and the grid's 10 N/m left the workspace)
         lo_lim, per_point = whole_loop_limit(mdl.scenario, points=8, rtol=1e-3, model=mdl.frozen,
-                                             guess=scenario_stiffness_limit(mdl.scenario))
+                                             guess=scenario_stiffness_limit(mdl.scenario),
+                                             within=scenario_parameters(mdl.scenario)["k_e_min"])
         hi_lim = max(l for _, l in per_point)
         if not (np.isfinite(lo_lim) and lo_lim > 0):
             raise AnalysisError("the frozen loop has no finite stiffness limit to start the periodic search from")
