@@ -68,9 +68,9 @@ compiled at -O1 rather than -O3. Measured by
 ``benchmarks/bench_compile_flags.py`` (table in docs/speed.md): the
 simulated steps of the PUMA (4,655 operations with the contact refinement)
 and the UR5 (18,606) and the UR5's tangent-linear step (14,718) keep -O3;
-the Panda's simulated step (29,647: 9 s to compile at -O3, 3.5 s at -O1,
-running 30 % slower) and its tangent step (27,372: 10.6 s against 4.4 s, as
-fast) are compiled at -O1. No level changes a result: with
+the Panda's simulated step (29,647: 8.0 s to compile at -O3, 3.3 s at
+-O1, running 27 % slower) and its tangent step (27,372: 11.0 s against
+4.75 s, 4 % slower) are compiled at -O1. No level changes a result: with
 ``-ffp-contract=off`` and no fast-math flag every level computes the same
 IEEE arithmetic (the benchmark prints the difference: 0)."""
 
