@@ -123,8 +123,9 @@ def test_one_compiled_period_is_the_rollouts_first_period_and_the_virtual_machin
 
 
 @pytest.mark.parametrize("name,overrides", [
-    ("paper", []),
-    ("ur5-pipe", ["controller.hold=\"mid_period\""]),
+    ("paper", ["controller.delay_samples=1"]),
+    # heavy: compiles the pipe's tangent step with the hold (4 s) and runs the virtual machine's Jacobians
+    pytest.param("ur5-pipe", ["controller.hold=\"mid_period\""], marks=pytest.mark.heavy),
 ])
 def test_the_frozen_loops_jacobian_from_the_compiled_tangent_step_is_casadis(name, overrides):
     """WholeLoopModel with a compiled tangent step (the deciding limit's: its
