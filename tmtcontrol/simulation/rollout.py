@@ -90,11 +90,12 @@ def operations(fn: ca.Function) -> int:
     with _SYMBOLIC:
         gen = ca.CodeGenerator("operations.c", {"with_header": False})
         gen.add(fn)
-        text = gen.dump()
-    return len(_ASSIGNMENT.findall(text))
+        return _assignments(gen.dump())
 
 
-_ASSIGNMENT = re.compile(r"^\s*a\d+=", re.M)
+def _assignments(c_source: str) -> int:
+    """The elementary assignments (``aN=...``) of CasADi-generated C."""
+    return len(re.findall(r"^\s*a\d+=", c_source, re.M))
 
 
 def optimisation_level(operations: int) -> str:
@@ -305,7 +306,6 @@ class Rollout:
             one = self.step.mx_in()
             once = ca.Function(f"{name}_once", one, [ca.densify(o) for o in self.step.call(one)],
                                self.step.name_in(), self.step.name_out())
-            level = optimisation_level(operations(self.step))
         # a private build folder under the cache, removed however this ends; the compiler is killed
         # with its children if this is interrupted, and its temporaries are in the folder's tmp/
         with cache.build_folder("cg") as build:
@@ -314,6 +314,8 @@ class Rollout:
                 gen.add(fn)
                 gen.add(once)           # one period (the step's code is generated once, for both)
                 cfile = pathlib.Path(gen.generate(str(build) + os.sep))
+            # the step's operations, counted in the file compiled (the chunk and the period add none: MX calls)
+            level = optimisation_level(_assignments(cfile.read_text()))
             tmp_lib = build / "lib.so"
             run_compiler([compiler(), level, *_FLAGS, str(cfile), "-o", str(tmp_lib), "-lm"], build / "tmp")
             lib = self._keep(tmp_lib, target)

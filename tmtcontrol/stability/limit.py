@@ -213,6 +213,8 @@ def _computed_limit(scenario, points, along_path, runner):
         # the frozen points' Jacobians are the compiled tangent step's columns (a UR5's 17 in 0.5 ms, 8 ms on
         # CasADi's virtual machine)
         compile_together([model.rollout, runner.sim.rollout], COMPILE_AFTER + 1)
+        # its own frozen model (not model.frozen, whose equilibria seed the periodic search's first orbits: the
+        # bisection's would change them), sharing the tangent step
         frozen_model = WholeLoopModel(scenario)
         frozen_model.tangent = model.rollout
     # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)

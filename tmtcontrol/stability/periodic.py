@@ -93,14 +93,6 @@ class PeriodicLoop:
         return self.spectral_radius ** (1.0 / self.samples)
 
 
-def _tangent(loop, dynamic):
-    """``(s; v) -> (step(s); A(s) v)`` with log ``f_e``, ``A = d step/d s`` on
-    the dynamic states: the orbit and one column of the monodromy in one
-    rollout (``loop``: the scenario's ``simulation.Simulator``;
-    ``simulation.closedloop.build_tangent``)."""
-    return loop.build_tangent(dynamic)
-
-
 class PeriodicModel:
     """The scenario's tangent-linear step, its one-period inputs and the frozen
     loop (for a starting orbit), built once; :meth:`at` for a stiffness.
@@ -127,7 +119,8 @@ class PeriodicModel:
         self.dynamic = dynamic_states(self.layout)
         self.states = self._names()
         key = structure_key(sc, loop.law)
-        make = lambda: _tangent(loop, self.dynamic)
+        # (s; v) -> (step(s); A(s) v) with log f_e: the orbit and one column of the monodromy in one rollout
+        make = lambda: loop.build_tangent(self.dynamic)
         if key is None:                  # not the package's own law: keyed by its serialisation
             self.rollout = Rollout(make(), compile=compile)
         else:
