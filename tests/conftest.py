@@ -21,15 +21,15 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "fixed"))
 def _private_cache(tmp_path_factory):
     """A compile cache private to this test run, shared by its xdist workers
     (the cache's atomic, verified writes make sharing safe), so each law's
-    step is compiled once per run rather than once per worker. Analysis
-    results are not kept (TMTCONTROL_RESULT_CACHE=0): tests replace parts of
-    the analyses with stubs, whose figures must not reach another test; the
-    results cache has its own tests (tests/test_result_cache.py)."""
+    step is compiled once per run rather than once per worker. The analysis
+    results kept in it are shared the same way: by the shared fixtures (none
+    of them stubs an analysis) and by the tests :func:`_shared_results`
+    allows."""
     old = {k: os.environ.get(k) for k in ("TMTCONTROL_CACHE", "TMTCONTROL_RESULT_CACHE")}
     cache = _shared_base(tmp_path_factory) / "tmtcontrol-cache"
     cache.mkdir(exist_ok=True)
     os.environ["TMTCONTROL_CACHE"] = str(cache)
-    os.environ["TMTCONTROL_RESULT_CACHE"] = "0"
+    os.environ["TMTCONTROL_RESULT_CACHE"] = "1"
     yield
     for k, v in old.items():
         if v is None:
@@ -42,6 +42,33 @@ def _shared_base(tmp_path_factory):
     """The folder all xdist workers of this run share (the base of their temp folders)."""
     base = tmp_path_factory.getbasetemp()
     return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+# modules whose tests interrupt or time the analyses, count what they compute or
+# inject faults into them: every analysis runs in each of their tests
+_RESULTS_COMPUTED = frozenset({"test_outputs.py", "test_compile_signals.py", "test_processes.py",
+                               "test_drawing.py", "test_files_safety.py", "test_result_cache.py",
+                               "test_mutations.py"})
+
+
+@pytest.fixture(autouse=True)
+def _shared_results(request):
+    """Analysis results (the deciding limit, a design, the derivation checks)
+    kept in this run's cache, so a limit several tests' commands need is
+    computed once per run (it is the same computation: the key covers every
+    input, tests/test_result_cache.py). Off (TMTCONTROL_RESULT_CACHE=0, also
+    for the commands a test starts) where a test uses ``monkeypatch``, whose
+    stubs must neither reach another test nor be hidden by a kept result, and
+    in the modules of ``_RESULTS_COMPUTED``. The suite passes with the results
+    all computed, all read back, and mixed (the eighth session's runs)."""
+    keep = "monkeypatch" not in request.fixturenames and request.path.name not in _RESULTS_COMPUTED
+    old = os.environ.get("TMTCONTROL_RESULT_CACHE")
+    os.environ["TMTCONTROL_RESULT_CACHE"] = "1" if keep else "0"
+    yield
+    if old is None:
+        os.environ.pop("TMTCONTROL_RESULT_CACHE", None)
+    else:
+        os.environ["TMTCONTROL_RESULT_CACHE"] = old
 
 
 @pytest.fixture(scope="session")

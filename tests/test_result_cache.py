@@ -3,8 +3,8 @@ load_result; stability.limit keeps the deciding limit there): a second command r
 what the first computed, equal to the last bit, and only for the same inputs
 (issue 42: the cache key covers what changes the result and nothing else).
 
-The suite runs with TMTCONTROL_RESULT_CACHE=0 (conftest: stubs must not leak into
-other tests); each test here turns it on with a cache folder of its own."""
+The results are off in this module's tests (conftest._shared_results); each test here
+turns them on with a cache folder of its own."""
 import dataclasses
 import json
 import os
