@@ -96,6 +96,32 @@ def test_a_missing_module_raises_and_names_it(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_the_workers_get_their_data_while_this_process_holds_the_interpreters_lock(figure_module):
+    """Regression (eighth session): the data went to the workers through the
+    job pipes, written by a thread of this process; a pipe holds 64 kB, so
+    the rest waited for that thread to get the interpreter's lock, which
+    this process's next work (the tables: one long formatting call) held
+    for tens of milliseconds, and the drawing with it. Here the caller holds
+    the lock until the first worker has drawn and ended (``waitpid`` through
+    ``ctypes.PyDLL``, which keeps the lock): with the data sent by a thread
+    the worker never gets past 64 kB of 1 MB and the script hangs (the
+    timeout is a bound on that, not a timing)."""
+    module, out = figure_module
+    script = textwrap.dedent(f"""
+        import ctypes, sys
+        sys.path.insert(0, {str(out.parent / "mod")!r})
+        from tmtcontrol.drawing import FigureWorkers
+        data = list(range(200_000))                  # about 1 MB pickled: 16 pipes' worth
+        workers = FigureWorkers({module!r})
+        drawing = workers.draw([("a", "good")], data, {str(out)!r})
+        ctypes.PyDLL(None).waitpid(ctypes.c_int(workers._pid), None, 0)      # the lock held meanwhile
+        print([p.name for p in drawing.result()])
+        """)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.split() == ["['a.png']"], r.stderr
+    assert (out / "a.png").stat().st_size > 0
+
+
 def test_stopped_workers_write_nothing_and_are_reaped(figure_module):
     """Stopped while drawing (each figure takes 0.4 s): no file appears after
     stop() returns, and no worker is left."""

@@ -7,7 +7,11 @@ first thing, forks a process that imports matplotlib and the figure module
 while this one imports CasADi and simulates; that process then forks a
 second, which inherits the imports. Given the data, both draw, taking the
 figures one at a time from a shared queue (one byte per figure in a pipe),
-while this process writes its tables. The two run in a process group of
+while this process writes its tables. The data reach them through a file
+without a name (``memfd``) opened before the fork: this process writes it
+at once and tells each worker its length, so a worker still importing never
+holds up this process, nor does this process's next work (the tables, which
+hold the interpreter's lock for tens of milliseconds) hold up the data. The two run in a process group of
 their own, so they are killed together when this process stops waiting for
 them (an error, Ctrl-C, SIGTERM); they never write outside the folder given.
 
@@ -22,7 +26,6 @@ import os
 import pickle
 import signal
 import sys
-import threading
 import traceback
 from collections.abc import Sequence
 
@@ -91,10 +94,10 @@ class FigureWorkers:
             raise ValueError(f"processes: an integer from 0 to 8, got {processes!r}")
         self.module = module
         self._pid: int | None = None
-        self._jobs: list[int] = []        # write ends: one job message per worker
+        self._jobs: list[int] = []        # write ends: the data's length, per worker
         self._results: list[int] = []     # read ends: one result message per worker
         self._tokens: int | None = None   # write end of the shared queue
-        self._sender: threading.Thread | None = None
+        self._data: int | None = None     # the file the data are written to, shared with the workers
         if processes and can_fork():
             self._start(processes)
 
@@ -102,9 +105,10 @@ class FigureWorkers:
         jobs = [os.pipe() for _ in range(processes)]
         results = [os.pipe() for _ in range(processes)]
         tokens = os.pipe()
+        self._data = _unnamed_file()
         pid = os.fork()
         if pid == 0:                                          # pragma: no cover - runs in the worker
-            _worker(self.module, jobs, results, tokens)
+            _worker(self.module, jobs, results, tokens, self._data)
         self._pid = pid
         os.close(tokens[0])
         self._tokens = tokens[1]
@@ -134,23 +138,19 @@ class FigureWorkers:
             os.close(self._tokens)
             self._tokens = None
             message = pickle.dumps((figures, data, str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
-            # a pipe holds 64 kB: a thread writes, so this process does not wait for the workers to read
-            self._sender = threading.Thread(target=self._send, args=(message,), name="tmtcontrol-figures",
-                                            daemon=True)
-            self._sender.start()
+            # the data into the shared file, then its length (8 bytes: a pipe takes them at once) to each worker
+            write_all(self._data, message)
+            os.close(self._data)
+            self._data = None
+            jobs, self._jobs = self._jobs, []
+            for fd in jobs:
+                try:
+                    write_all(fd, len(message).to_bytes(8, "little"))
+                except OSError:          # the worker is gone (stopped, or failed: its result says)
+                    pass
+                finally:
+                    os.close(fd)
         return Drawing(self, figures, data, folder)
-
-    def _send(self, message: bytes) -> None:
-        """The job to every worker; closes the job pipes (only here, so no
-        descriptor is closed while it is written to)."""
-        jobs, self._jobs = self._jobs, []
-        for fd in jobs:
-            try:
-                write_all(fd, message)
-            except OSError:              # the worker is gone (stopped, or failed: its result says)
-                pass
-            finally:
-                os.close(fd)
 
     def stop(self) -> None:
         """Kill the workers unless they have finished, and release their
@@ -161,11 +161,9 @@ class FigureWorkers:
             os.killpg(self._pid, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):
             pass
-        if self._sender is not None:
-            self._sender.join()          # its writes fail at once: the readers are gone
-        for fd in [*self._jobs, *self._results, *([self._tokens] if self._tokens is not None else [])]:
+        for fd in [*self._jobs, *self._results, *(fd for fd in (self._tokens, self._data) if fd is not None)]:
             os.close(fd)
-        self._jobs, self._results, self._tokens = [], [], None
+        self._jobs, self._results, self._tokens, self._data = [], [], None, None
         try:
             os.waitpid(self._pid, 0)
         except ChildProcessError:
@@ -227,7 +225,33 @@ class Drawing:
         return [pathlib.Path(written[n]) for n, _ in self._figures]
 
 
-def _worker(module, jobs, results, tokens):               # pragma: no cover - runs in the worker
+def _unnamed_file() -> int:
+    """A descriptor of a file without a name (Linux's ``memfd_create``;
+    where that is refused, an unnamed temporary file): its data live while a
+    process holds it open and vanish with the last, however it ends."""
+    try:
+        return os.memfd_create("tmtcontrol-figures", os.MFD_CLOEXEC)
+    except (AttributeError, OSError):
+        import tempfile
+
+        with tempfile.TemporaryFile() as f:
+            return os.dup(f.fileno())
+
+
+def read_at(fd: int, n: int) -> bytes:
+    """``n`` bytes of the file ``fd`` from its start (``os.pread``, which
+    leaves the offset it shares with the other processes alone)."""
+    chunks, got = [], 0
+    while got < n:
+        chunk = os.pread(fd, n - got, got)
+        if not chunk:
+            raise EOFError(f"the figures' data end at {got} of {n} bytes")
+        chunks.append(chunk)
+        got += len(chunk)
+    return b"".join(chunks)
+
+
+def _worker(module, jobs, results, tokens, data):         # pragma: no cover - runs in the worker
     """The first worker: own process group, import, fork the second, draw."""
     code = 1
     try:
@@ -257,21 +281,22 @@ def _worker(module, jobs, results, tokens):               # pragma: no cover - r
             if i != me:
                 os.close(r)
                 os.close(rw)
-        code = _draw(module, jobs[me][0], results[me][1], tokens[0])
+        code = _draw(module, jobs[me][0], results[me][1], tokens[0], data)
     finally:
         os._exit(code)
 
 
-def _draw(module, job_fd, result_fd, token_fd) -> int:      # pragma: no cover - runs in the worker
-    """Read the job, draw the figures this process takes from the queue,
-    report ``("ok", {name: path})`` or ``("error", traceback)``."""
+def _draw(module, job_fd, result_fd, token_fd, data_fd) -> int:   # pragma: no cover - runs in the worker
+    """Read the job (the length of the data in ``data_fd``), draw the
+    figures this process takes from the queue, report ``("ok", {name:
+    path})`` or ``("error", traceback)``."""
     raw = read_all(job_fd)
     if not raw:                                              # nothing to draw: the caller stopped
         return 0
     try:
         import importlib
 
-        figures, data, folder = pickle.loads(raw)
+        figures, data, folder = pickle.loads(read_at(data_fd, int.from_bytes(raw, "little")))
         functions = importlib.import_module(module)
         written = {}
         while token := os.read(token_fd, 1):
