@@ -122,6 +122,31 @@ def test_the_workers_get_their_data_while_this_process_holds_the_interpreters_lo
     assert (out / "a.png").stat().st_size > 0
 
 
+def test_data_that_cannot_be_written_is_one_error_and_stops_the_workers(figure_module, monkeypatch):
+    """Writing the data for the workers fails (no memory for the memfd, or a
+    full temporary folder without one): a FigureProcessError saying so, not
+    an OSError the command line would take for its own output's, and no
+    worker left."""
+    import errno
+
+    from tmtcontrol import drawing as drawing_module
+
+    module, out = figure_module
+    write_all = drawing_module.write_all
+
+    def full(fd, data):
+        if len(data) > 1000:                 # the data, not the queue's few bytes
+            raise OSError(errno.ENOSPC, "No space left on device")
+        write_all(fd, data)
+
+    monkeypatch.setattr(drawing_module, "write_all", full)
+    workers = FigureWorkers(module)
+    pid = workers._pid
+    with pytest.raises(FigureProcessError, match="figures' data could not be handed .* No space left"):
+        workers.draw([("a", "good")], list(range(10_000)), out)
+    assert not _alive(pid) and list(out.iterdir()) == []
+
+
 def test_stopped_workers_write_nothing_and_are_reaped(figure_module):
     """Stopped while drawing (each figure takes 0.4 s): no file appears after
     stop() returns, and no worker is left."""

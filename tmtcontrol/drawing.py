@@ -11,9 +11,10 @@ while this process writes its tables. The data reach them through a file
 without a name (``memfd``) opened before the fork: this process writes it
 at once and tells each worker its length, so a worker still importing never
 holds up this process, nor does this process's next work (the tables, which
-hold the interpreter's lock for tens of milliseconds) hold up the data. The two run in a process group of
-their own, so they are killed together when this process stops waiting for
-them (an error, Ctrl-C, SIGTERM); they never write outside the folder given.
+hold the interpreter's lock for tens of milliseconds) hold up the data.
+The two run in a process group of their own, so they are killed together
+when this process stops waiting for them (an error, Ctrl-C, SIGTERM); they
+never write outside the folder given.
 
 On platforms without a safe ``fork`` (anything but Linux) or with
 ``processes=0``, the figures are drawn here when their result is asked for:
@@ -139,7 +140,12 @@ class FigureWorkers:
             self._tokens = None
             message = pickle.dumps((figures, data, str(folder)), protocol=pickle.HIGHEST_PROTOCOL)
             # the data into the shared file, then its length (8 bytes: a pipe takes them at once) to each worker
-            write_all(self._data, message)
+            try:
+                write_all(self._data, message)
+            except OSError as exc:       # no memory (or, without memfd, no room in the temporary folder)
+                self.stop()
+                raise FigureProcessError(f"the figures' data could not be handed to the figure processes: {exc}") \
+                    from exc
             os.close(self._data)
             self._data = None
             jobs, self._jobs = self._jobs, []
