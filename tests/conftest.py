@@ -59,8 +59,9 @@ def _shared_results(request):
     input, tests/test_result_cache.py). Off (TMTCONTROL_RESULT_CACHE=0, also
     for the commands a test starts) where a test uses ``monkeypatch``, whose
     stubs must neither reach another test nor be hidden by a kept result, and
-    in the modules of ``_RESULTS_COMPUTED``. The suite passes with the results
-    all computed, all read back, and mixed (the eighth session's runs)."""
+    in the modules of ``_RESULTS_COMPUTED``. Checked: the suite passes with
+    the results all computed (TMTCONTROL_RESULT_CACHE=0 throughout, as it
+    ran before), read back from an earlier run's cache, and mixed."""
     keep = "monkeypatch" not in request.fixturenames and request.path.name not in _RESULTS_COMPUTED
     old = os.environ.get("TMTCONTROL_RESULT_CACHE")
     os.environ["TMTCONTROL_RESULT_CACHE"] = "1" if keep else "0"
