@@ -388,6 +388,14 @@ class Rollout:
         self._lib = dll
 
     # -- running ------------------------------------------------------------------
+    def _buffers(self):
+        """A call's own argument, result and work buffers (``arg, res, iw, w``)
+        for the compiled chunk or period: each call allocates its own, so
+        calls may go side by side in threads."""
+        n_arg, n_res, n_iw, n_w = self._work
+        return ((ctypes.c_void_p * n_arg)(), (ctypes.c_void_p * n_res)(), np.zeros(n_iw, dtype=np.int64),
+                np.zeros(n_w))
+
     def once(self, s, u, p) -> tuple[np.ndarray, np.ndarray]:
         """One period ``(s_next, log)`` from ``s`` with inputs ``u`` and
         parameters ``p``: the compiled step called directly (microseconds; a
@@ -402,9 +410,7 @@ class Rollout:
             if got != want:
                 raise ValueError(f"{name}: size {got}, the step takes {want}")
         s_next, log = np.empty(self.ns), np.empty(self.nl)
-        n_arg, n_res, n_iw, n_w = self._work
-        arg, res = (ctypes.c_void_p * n_arg)(), (ctypes.c_void_p * n_res)()
-        iw, w = np.zeros(n_iw, dtype=np.int64), np.zeros(n_w)
+        arg, res, iw, w = self._buffers()
         arg[0], arg[1], arg[2] = s.ctypes.data, u.ctypes.data, p.ctypes.data
         res[0], res[1] = s_next.ctypes.data, log.ctypes.data
         if self._once(arg, res, iw.ctypes.data, w.ctypes.data, 0) != 0:
@@ -452,9 +458,7 @@ class Rollout:
         # mapaccum's C code reads p per period (CasADi's Python call broadcasts it)
         Pblk = np.asfortranarray(np.repeat(p[:, None], C, axis=1))
         state = s0.copy()
-        n_arg, n_res, n_iw, n_w = self._work
-        arg, res = (ctypes.c_void_p * n_arg)(), (ctypes.c_void_p * n_res)()
-        iw, w = np.zeros(n_iw, dtype=np.int64), np.zeros(n_w)
+        arg, res, iw, w = self._buffers()
         for i in range(nchunks):
             cols = slice(i * C, (i + 1) * C)
             Ui, Si = Upad[:, cols], S[:, cols]
