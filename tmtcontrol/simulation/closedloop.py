@@ -98,8 +98,8 @@ from .geometry import rotation_vector
 
 __all__ = ["INPUT", "Layout", "state_layout", "param_layout", "log_layout", "damping_schedule",
            "operational_space_torque", "build_step", "build_tangent", "step_name", "build_plant",
-           "build_controller", "controller_state_layout", "controller_param_layout", "measurement_layout", "command_layout",
-           "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics",
+           "build_controller", "controller_state_layout", "controller_param_layout", "measurement_layout",
+           "command_layout", "diagnostics_layout", "ik_steps", "IK_NEWTON_STEPS", "plant_inputs_layout", "kinematics",
            "MID_PERIOD", "believed"]
 
 
