@@ -60,6 +60,57 @@ def test_monodromy_of_a_path_standing_still_is_the_frozen_jacobian_to_the_period
         assert np.max(np.abs(per.monodromy - want)) <= 1e-6 * max(1.0, np.max(np.abs(want)))
         assert per.spectral_radius == pytest.approx(frozen.spectral_radius ** per.samples, rel=1e-6)
         assert per.residual < 1e-8
+        # the transient growth: max over t of ||A^t|| / ||A||
+        powers = [np.linalg.norm(np.linalg.matrix_power(frozen.A, t), 2) for t in range(1, per.samples + 1)]
+        assert per.transient_growth == pytest.approx(max(powers) / powers[0], rel=1e-6)
+
+
+class _Measured:
+    """A stand-in for PeriodicModel whose orbit at k_e has closed-form measures:
+    spectral radius (k_e / k_rho), transient growth GROWTH_BOUND (k_e / k_g)^2,
+    and no orbit above k_lost (AnalysisError)."""
+
+    scenario = None
+
+    def __init__(self, k_rho, k_g, k_lost):
+        self.k_rho, self.k_g, self.k_lost, self.asked = k_rho, k_g, k_lost, []
+
+    def at(self, k_e):
+        from types import SimpleNamespace
+
+        from tmtcontrol.stability.continuous import AnalysisError
+        from tmtcontrol.stability.periodic import GROWTH_BOUND
+
+        self.asked.append(k_e)
+        if k_e > self.k_lost:
+            raise AnalysisError("no orbit")
+        return SimpleNamespace(spectral_radius=k_e / self.k_rho, transient_growth=GROWTH_BOUND * (k_e / self.k_g) ** 2)
+
+
+@pytest.mark.parametrize("k_rho, k_g, k_lost, want, set_by", [
+    (1e5, 3e5, 9e5, 1e5, "spectral radius"),
+    (3e5, 1e5, 9e5, 1e5, "transient growth"),
+    (3e5, 2e5, 1e5, 1e5, "orbit lost"),
+], ids=["floquet", "growth", "lost"])
+def test_the_periodic_search_ends_where_the_first_of_its_measures_fails(k_rho, k_g, k_lost, want, set_by):
+    """periodic_search's limit is the smallest of three stiffnesses known in closed form (the
+    spectral radius reaching 1, the transient growth reaching GROWTH_BOUND, the orbit lost) and
+    says which; the radius and growth it reports are the stable side's (xtol 1e-5 in log k_e:
+    1e-5 relative). Without the growth bound (inf) the growth case ends at the next measure."""
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.periodic import GROWTH_BOUND, periodic_search
+
+    model = _Measured(k_rho, k_g, k_lost)
+    found = periodic_search(None, model=model, bracket=(3e4, 2e6))
+    assert found.k_e == pytest.approx(want, rel=2e-5) and found.set_by == set_by
+    assert found.spectral_radius == pytest.approx(found.k_e / k_rho, rel=2e-5)
+    assert found.transient_growth == pytest.approx(GROWTH_BOUND * (found.k_e / k_g) ** 2, rel=5e-5)
+    assert found.spectral_radius < 1 and found.transient_growth < GROWTH_BOUND
+    if set_by == "transient growth":
+        assert periodic_search(None, model=_Measured(k_rho, k_g, k_lost), bracket=(3e4, 2e6),
+                               growth_bound=float("inf")).k_e == pytest.approx(k_rho, rel=2e-5)
+    with pytest.raises(AnalysisError, match="^growth_bound: must be > 1"):
+        periodic_search(None, model=model, bracket=(3e4, 2e6), growth_bound=1.0)
 
 
 def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):
@@ -85,6 +136,14 @@ def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobia
     assert np.ptp(U[0]) > 0.01                   # the path moves (a circle, not a point)
     assert np.max(np.abs(per.monodromy - want)) <= 1e-9 * np.max(np.abs(want))
     assert per.spectral_radius == pytest.approx(np.max(np.abs(np.linalg.eigvals(want))), rel=1e-9)
+    # the transient growth: max over t of ||A_(t-1) ... A_0|| / ||A_0|| from the same independent Jacobians
+    # (1e-9: products as above; 2-norms of matrices whose entries agree to that)
+    prod, norms = np.eye(d.size), []
+    for j in range(per.samples):
+        prod = np.array(mdl.frozen._jac(states[:, j], np.r_[U[:, j], mdl.P]))[np.ix_(d, d)] @ prod
+        norms.append(np.linalg.norm(prod, 2))
+    assert per.transient_growth == pytest.approx(max(norms) / norms[0], rel=1e-9)
+    assert per.transient_growth >= 1.0
 
 
 @pytest.mark.heavy   # a bisection in the simulator (5.5 s): the cross-check runs in CI's heavy step
@@ -145,7 +204,8 @@ def test_the_smaller_limit_decides_the_scenario_verdict(monkeypatch):
     from tmtcontrol.stability import analysis, first_contact, periodic, wholeloop
 
     monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **k: (1e5, [(0.0, 1e5), (1.0, 1.1e5)]))
-    monkeypatch.setattr(periodic, "periodic_limit", lambda *a, **k: 1.05e5)
+    monkeypatch.setattr(periodic, "periodic_search",
+                        lambda *a, **k: periodic.PeriodicLimit(1.05e5, "spectral radius", 0.99, 1.0))
     for first, stable in ((1.9e4, False), (2.1e4, True), (2e5, True)):
         monkeypatch.setattr(first_contact, "first_contact_limit", lambda sc, hi, **k: min(first, hi))
         a = analysis.analyze_scenario(paper_scenario(), limits=True)
@@ -163,7 +223,8 @@ def test_the_smaller_limit_decides_the_scenario_verdict(monkeypatch):
         assert f"small-signal k_e     {a['max_stable_stiffness']:.6g} N/m" in text and "not a safe limit" in text
     # a deciding limit above the 1-D figure: that figure is a safe limit and says so
     monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **k: (1.9e5, [(0.0, 1.9e5), (1.0, 2e5)]))
-    monkeypatch.setattr(periodic, "periodic_limit", lambda *a, **k: 2e5)
+    monkeypatch.setattr(periodic, "periodic_search",
+                        lambda *a, **k: periodic.PeriodicLimit(2e5, "spectral radius", 0.99, 1.0))
     a = analysis.analyze_scenario(paper_scenario(), limits=True)
     assert a["limit"] == 2e5 > a["max_stable_stiffness"]
     assert f"max stable k_e       {a['max_stable_stiffness']:.6g} N/m" in analysis.format_analysis(a)
@@ -765,7 +826,7 @@ def test_the_orbit_is_shot_to_the_tolerance_not_stopped_after_three_steps():
     assert three.residual > 1e-10                          # the case needs a fourth step
     # out of steps, the start, residual and monodromy returned are one iterate's (the start was
     # one Newton step past the residual and monodromy reported): one period from it, run again
-    end, Phi, _ = model._period(three.s_orbit, model._inputs(4.5e4))
+    end, Phi, _, _ = model._period(three.s_orbit, model._inputs(4.5e4))
     d = model.dynamic
     again = float(np.max(np.abs(end - three.s_orbit)[d] / (1.0 + np.abs(three.s_orbit[d]))))
     assert again == pytest.approx(three.residual, rel=1e-6) and np.array_equal(Phi, three.monodromy)

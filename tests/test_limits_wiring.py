@@ -25,7 +25,7 @@ def test_analyze_scenario_with_a_period_not_whole_samples_falls_back_to_the_froz
     from tmtcontrol.stability import periodic, wholeloop
 
     monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **k: (4e4, [(0.0, 4e4), (0.5, 4.2e4)]))
-    monkeypatch.setattr(periodic, "periodic_limit", lambda *a, **k: pytest.fail("periodic analysis called"))
+    monkeypatch.setattr(periodic, "periodic_search", lambda *a, **k: pytest.fail("periodic analysis called"))
 
     path = tmp_path / "s.toml"
     path.write_text(dump_scenario(apply_overrides(paper_scenario(), NOT_WHOLE)))

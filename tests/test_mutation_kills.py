@@ -612,8 +612,8 @@ def frozen_limits(monkeypatch):
 
     def set_limits(frozen, per_point, periodic_at=None, first_at=None):
         monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda *a, **kw: (frozen, per_point))
-        monkeypatch.setattr(periodic, "periodic_limit",
-                            lambda scenario, bracket=None, **kw: calls.setdefault("bracket", bracket) and periodic_at)
+        monkeypatch.setattr(periodic, "periodic_search", lambda scenario, bracket=None, **kw: calls.setdefault(
+            "bracket", bracket) and periodic.PeriodicLimit(periodic_at, "spectral radius", 0.99, 1.0))
         monkeypatch.setattr(first_contact, "first_contact_limit",
                             lambda scenario, bound, **kw: calls.setdefault("bound", bound) and first_at)
         return calls
@@ -650,8 +650,8 @@ def test_the_deciding_limit_compiles_the_tangent_beside_the_step_and_searches_wi
     seen, models, runners = {}, [], []
     monkeypatch.setattr(rollout, "compile_together",
                         lambda rollouts, steps, threads=2: seen.update(rollouts=list(rollouts), steps=steps))
-    monkeypatch.setattr(periodic, "periodic_limit",
-                        lambda scenario, bracket=None, model=None, **kw: models.append(model) or 1.2e4)
+    monkeypatch.setattr(periodic, "periodic_search", lambda scenario, bracket=None, model=None, **kw: models.append(
+        model) or periodic.PeriodicLimit(1.2e4, "spectral radius", 0.99, 1.0))
     monkeypatch.setattr(first_contact, "first_contact_limit",
                         lambda scenario, bound, runner=None, **kw: runners.append(runner) or 1.5e4)
     analyze_scenario(paper_scenario(), limits=True)

@@ -283,7 +283,7 @@ def test_pipe_orbit_where_single_shooting_stalls_is_found_by_running_the_loop():
     mdl = PeriodicModel(sc)
     k = 6.02e5
     U = mdl._inputs(k)
-    *_, shot, _ = mdl._shoot(mdl._start(k), U, 12, 1e-10)
+    *_, shot, _, _ = mdl._shoot(mdl._start(k), U, 12, 1e-10)
     assert shot > 1e-5                                   # single shooting alone fails here
     w = mdl.at(k)
     assert w.stable and w.residual < 1e-8

@@ -266,6 +266,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     from ..stability import analyze_scenario
     from ..stability import figures as sf
     from ..stability.analysis import closed_form_applies, scenario_stiffness_limit
+    from ..stability.periodic import GROWTH_BOUND
 
     a = analyze_scenario(sc, limits=True)     # as `analyze --scenario`: the smaller of the limits decides
     limit_1d = a["max_stable_stiffness"]
@@ -279,6 +280,12 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
             else "monodromy over one period"
         how = (f"the smaller of the limit along the path ({path}) and the limit from first contact (the "
                f"scenario's own start): {a['limit_from']}")
+        if a.get("periodic_set_by") == "transient growth":
+            how += (f"; the limit along the path is where a perturbation grows more than {GROWTH_BOUND:.0e}-fold "
+                    f"within a period (spectral radius {a['periodic_radius']:.3g} there: the radius is no margin)")
+        elif a.get("periodic_set_by") == "orbit lost":
+            how += (f"; the limit along the path is where the periodic orbit is lost (spectral radius "
+                    f"{a['periodic_radius']:.3g} just below: the radius is no margin)")
     elif whole is not None:
         how = f"whole-loop linearisation of the compiled step at {len(a.get('whole_loop_points', []))} path points"
     else:

@@ -17,7 +17,8 @@ from .sampled import (SampledModel, StiffnessBand, effective_mass, max_stable_st
                       spectral_radii, spectral_radius, stability_region, stable_band, stiffness_band,
                       stiffness_margin, switch_response)
 from .wholeloop import WholeLoop, WholeLoopModel, equilibrium_damping, whole_loop, whole_loop_limit
-from .periodic import PeriodicLoop, PeriodicModel, periodic_limit, periodic_loop
+from .periodic import (GROWTH_BOUND, PeriodicLimit, PeriodicLoop, PeriodicModel, periodic_limit, periodic_loop,
+                       periodic_search)
 from .first_contact import FirstContactRun, first_contact_limit, first_contact_run, simulated_limit
 
 __all__ = [
@@ -31,6 +32,7 @@ __all__ = [
     "format_analysis", "scenario_stiffness_limit", "LawLoop", "law_loop", "law_stiffness_limit",
     "continuous_limit", "stiffness_sequence", "analyze_scenario", "WholeLoop", "WholeLoopModel", "whole_loop",
     "whole_loop_limit", "equilibrium_damping", "PeriodicLoop", "PeriodicModel", "periodic_limit", "periodic_loop",
+    "PeriodicLimit", "periodic_search", "GROWTH_BOUND",
     "FirstContactRun", "first_contact_limit", "first_contact_run", "simulated_limit",
     "ScenarioLimit", "deciding_limit", "with_stiffness_limit",
 ]

@@ -241,10 +241,29 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
         elif limits:
             if lim.periodic_note is not None:
                 out["periodic_note"] = lim.periodic_note
+            if lim.periodic_set_by is not None:
+                out.update({"periodic_set_by": lim.periodic_set_by, "periodic_radius": lim.periodic_radius,
+                            "periodic_growth": lim.periodic_growth})
             out.update({"periodic_limit": lim.periodic, "first_contact_limit": lim.first_contact,
                         "limit": lim.limit, "limit_from": lim.limit_from,
                         "sampled_stable": bool(k_max < lim.limit)})
     return out
+
+
+def _set_by_rows(d: dict) -> list[str]:
+    """What ends the periodic search, when it is not the spectral radius
+    crossing 1 (then the radius just below the limit is no margin)."""
+    how, rho, growth = d.get("periodic_set_by"), d.get("periodic_radius"), d.get("periodic_growth")
+    if how == "transient growth":
+        from .periodic import GROWTH_BOUND
+
+        return [f"set by               transient growth: above it a perturbation grows more than "
+                f"{GROWTH_BOUND:.0e}-fold within a period (spectral radius {rho:.3g}, growth {growth:.3g} "
+                "just below: the radius is no margin)"]
+    if how == "orbit lost":
+        return [f"set by               the orbit is lost above it (spectral radius {rho:.3g}, transient growth "
+                f"{growth:.3g} just below: the radius is no margin)"]
+    return []
 
 
 def format_analysis(d: dict) -> str:
@@ -333,6 +352,7 @@ def format_analysis(d: dict) -> str:
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (periodic orbit: monodromy "
                      "over one period; " + ("below the frozen-point minimum: the moving path lowers it)" if below
                                             else "the frozen-point minimum above is the conservative bound)")]
+            rows += _set_by_rows(d)
         if "periodic_limit" in d:
             # the search stops at the periodic limit: a start that settles all the way up to it has a first-contact
             # limit at or above it, not equal to it (review 21; the report's ">=")

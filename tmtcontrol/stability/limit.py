@@ -53,10 +53,13 @@ class ScenarioLimit:
     ``whole_loop_bracket`` (stable, unstable) and ``whole_loop_points``
     ((path time s, limit) per point); ``periodic`` the limit along the path
     (the frozen minimum when ``periodic_note`` says why there is no periodic
-    analysis); ``first_contact`` the large-signal limit from the start.
-    ``periodic`` and ``first_contact`` are None when only the frozen loop was
-    asked for (``along_path=False``) or the loop is unstable at the smallest
-    stiffness."""
+    analysis); ``periodic_set_by`` what ends the periodic search
+    (``stability.periodic.PeriodicLimit.set_by``: "spectral radius",
+    "transient growth" or "orbit lost") with the ``periodic_radius`` and
+    ``periodic_growth`` just below it; ``first_contact`` the large-signal limit
+    from the start. ``periodic`` and ``first_contact`` are None when only the
+    frozen loop was asked for (``along_path=False``) or the loop is unstable at
+    the smallest stiffness."""
     limit: float
     limit_from: str
     small_signal: float | None
@@ -66,6 +69,9 @@ class ScenarioLimit:
     periodic: float | None = None
     periodic_note: str | None = None
     first_contact: float | None = None
+    periodic_set_by: str | None = None
+    periodic_radius: float | None = None
+    periodic_growth: float | None = None
 
     @property
     def small_signal_is_safe(self) -> bool:
@@ -230,17 +236,21 @@ def _computed_limit(scenario, points, along_path, runner):
     if not along_path:
         return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
     from .first_contact import first_contact_limit
-    from .periodic import periodic_limit
+    from .periodic import periodic_search
 
+    search = {}
     if note is None:
         hi = max(l for _, l in per_point)
-        periodic = periodic_limit(scenario, model=model, bracket=(whole / 1.02, hi * 1.02))
+        found = periodic_search(scenario, model=model, bracket=(whole / 1.02, hi * 1.02))
+        periodic = found.k_e
+        search = dict(periodic_set_by=found.set_by, periodic_radius=found.spectral_radius,
+                      periodic_growth=found.transient_growth)
     else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in
         periodic = float(whole)
     first = first_contact_limit(scenario, periodic, runner=runner)
     return ScenarioLimit(min(periodic, first), "first contact" if first < periodic else (
         "periodic orbit" if note is None else "frozen-point minimum"), periodic=float(periodic),
-        periodic_note=note, first_contact=float(first), **frozen)
+        periodic_note=note, first_contact=float(first), **search, **frozen)
 
 
 def _has_surface_error(scenario) -> bool:
