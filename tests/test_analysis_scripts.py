@@ -15,6 +15,7 @@ SCRIPTS = {
     "noise.py": ["--cycles", "0.5", "--sigmas", "0.2"],
     "regenerate_robots.py": ["--from", str(ROOT / "tmtcontrol" / "model" / "data")],
     "sweep_example.py": ["--points", "2", "--cycles", "0.25", "--workers", "1", "--rates", "1000"],
+    "transient_growth.py": ["--cycles", "2"],
 }
 
 
@@ -22,8 +23,9 @@ def test_every_script_is_listed():
     assert {p.name for p in (ROOT / "analysis").glob("*.py")} == set(SCRIPTS)
 
 
-HEAVY = {"sweep_example.py"}
-"""Scripts run by the heavy step, which .ci/run also runs (the sweep example: ~7 s)."""
+HEAVY = {"sweep_example.py", "transient_growth.py"}
+"""Scripts run by the heavy step, which .ci/run also runs (the sweep example: ~7 s; the transient
+growth's two periodic searches: ~12 s)."""
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.heavy) if n in HEAVY else n for n in sorted(SCRIPTS)])
