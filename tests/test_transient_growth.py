@@ -55,14 +55,14 @@ def test_a_limit_set_by_transient_growth_holds_in_the_simulator_where_the_orbit_
     assert rows["0.99 x limit"]["transient_growth"] < s["growth_bound"] < rows["1.13 x limit"]["transient_growth"]
     assert rows["0.8 x limit"]["worst_error_noise"] > 1.0
     (paper,) = [r for r in s["rows"] if r["scenario"] == "paper"]
-    assert paper["worst_error_noise"] < 0.1 and paper["transient_growth"] < 2
+    assert paper["worst_error_noise"] < 0.1 and paper["transient_growth"] < 50
 
 
 @pytest.mark.heavy
 def test_the_pages_table_is_what_the_script_prints(summary):
     """docs/theory.md's transient-growth block is analysis/transient_growth.py's table. Cells to 2 %
-    relative (3-4 significant digits printed) where the loop amplifies little (growth below 1e3);
-    where it amplifies a perturbation 1e3-fold or more, a change of k_e in the sixth digit (the
+    relative (3-4 significant digits printed) where the loop amplifies little (growth below 1e4);
+    where it amplifies a perturbation 1e4-fold or more, a change of k_e in the sixth digit (the
     search's xtol) moves the runs' errors by more (2.18 and 1.93 mN at 1.13 x the limit in two
     runs), so those are compared within a factor of 2 and on the same side of the tolerance. The
     orbit-loss edge moves by a few percent with the Newton starts its search is given (744,267 and
@@ -89,7 +89,7 @@ def test_the_pages_table_is_what_the_script_prints(summary):
             if cw[2] == "edge":
                 assert kg == pytest.approx(kw, rel=0.05) and rg == pytest.approx(rw, rel=0.2), (g, w)
                 assert 0.1 < gg / gw < 10 and min(eg, ew) > tol_mN, (g, w)
-            elif gw < 1e3:
+            elif gw < 1e4:
                 assert [kg, rg, gg, eg, ng_] == pytest.approx([kw, rw, gw, ew, nw_], rel=2e-2), (g, w)
             else:
                 assert [kg, rg, gg] == pytest.approx([kw, rw, gw], rel=2e-2), (g, w)
@@ -108,8 +108,11 @@ def test_analyze_names_what_sets_the_arms_periodic_limit():
     a = analyze_scenario(load_scenario(str(ROOT / "analysis" / "data" / "arm4_plane.toml")), limits=True)
     text = format_analysis(a)
     assert a["periodic_set_by"] == "transient growth" and a["limit"] == a["periodic_limit"]
-    assert a["periodic_radius"] < 0.1 and 1e3 < a["periodic_growth"] <= 1e4
-    assert "set by               transient growth: above it a perturbation grows more than 1e+04-fold" in text
+    from tmtcontrol.stability.periodic import GROWTH_BOUND
+
+    assert a["periodic_radius"] < 0.1 and GROWTH_BOUND / 10 < a["periodic_growth"] <= GROWTH_BOUND
+    assert ("set by               transient growth: above it a perturbation grows more than "
+            f"{GROWTH_BOUND:.0e}-fold") in text
     assert f"{a['whole_loop_limit']:,.0f} N/m" in " ".join(THEORY.read_text().split())
 
 
@@ -128,7 +131,29 @@ def test_the_reports_verdict_says_the_radius_is_no_margin():
     p = scenario_parameters(sc)
     _sampled(rep, sc, p)
     (v,) = [v for v in rep.verdicts if v.name.startswith("Stable in the sampled implementation")]
-    assert "the limit along the path is where a perturbation grows more than 1e+04-fold within a period" in v.check
+    from tmtcontrol.stability.periodic import GROWTH_BOUND
+
+    assert (f"the limit along the path is where a perturbation grows more than {GROWTH_BOUND:.0e}-fold within a "
+            "period") in v.check
     assert "the radius is no margin" in v.check
     limit = analyze_scenario(sc, limits=True)["limit"]
     assert f"{limit / p['k_e_max']:.3g}" in v.value.replace("×", "")
+
+
+@pytest.mark.heavy   # two periodic searches on the arm: about 10 s
+def test_the_growth_limit_does_not_depend_on_which_end_of_a_line_the_period_starts_at():
+    """Review 38: the same line drawn from either end (direction 135 deg and -45 deg: the one path half a
+    period apart) had limits 731,719 and 818,217 N/m, one "set by transient growth", the other "orbit lost"
+    with a growth of 1.0 (measured from path time 0 only, where a 7.5e6-fold growth started later in the
+    period); the simulator treats the two alike (errors 8.0 and 6.8 mN at 8.15e5 N/m, both missing at 9e5).
+    Now both are set by the growth and agree to 1e-4 (both searches' xtol, 1e-5, apart from the pieces'
+    starts falling on the same samples of the path either way)."""
+    from tmtcontrol import apply_overrides, load_scenario
+    from tmtcontrol.stability.periodic import periodic_search
+
+    base = load_scenario(str(ROOT / "analysis" / "data" / "arm4_plane.toml"))
+    one, other = (periodic_search(apply_overrides(base, ['trajectory.path="line"', f"trajectory.direction_deg={d}"]))
+                  for d in (135.0, -45.0))
+    assert one.set_by == other.set_by == "transient growth"
+    assert one.k_e == pytest.approx(other.k_e, rel=1e-4)
+    assert one.k_e < 8.15e5                            # inside the simulated limit (runs hold 10 mN there)

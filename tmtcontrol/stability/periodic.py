@@ -80,14 +80,15 @@ class PeriodicLoop:
     a frozen point's radius), ``residual`` max |s_N - s_0|/(1 + |s_0|) on
     the dynamic states, ``force_range`` the (min, max) contact force along the orbit
     (N), ``newton_iterations`` the shooting iterations used and
-    ``transient_growth`` the largest amplification of a perturbation within the
-    period: max over t of ||Phi(t, 0)|| / ||Phi(1, 0)|| (2-norms; Phi(t, 0) the
-    product of the first t Jacobians from the period's start), 1 when a
-    perturbation only decays after its first step. A lower bound of the growth
-    over every window of the path (a perturbation entering at path time 0 has
-    crossed the rest of the period first). The spectral radius can be far below 1
-    while this is huge: the orbit is then stable only against perturbations
-    too small to matter (:func:`periodic_limit`, :data:`GROWTH_BOUND`)."""
+    ``transient_growth`` the largest amplification of a perturbation within a
+    period: max of ||Phi(t, s)||_2 over starts s every :data:`GROWTH_CHUNK`
+    samples and ends t up to one period later (Phi(t, s) the product of the
+    per-sample Jacobians from s to t), in balanced coordinates (unit-free, see
+    :func:`_window_growth`), divided by the largest one-step norm: 1 when a
+    perturbation only decays after its first step. The spectral radius can be
+    far below 1 while this is huge: the orbit is then stable only against
+    perturbations too small to matter (:func:`periodic_limit`,
+    :data:`GROWTH_BOUND`)."""
     k_e: float
     Ts: float
     samples: int
@@ -138,13 +139,13 @@ class PeriodicModel:
         # (s; v) -> (step(s); A(s) v) with log f_e: the orbit and one column of the monodromy in one rollout
         make = lambda: loop.build_tangent(self.dynamic)
         if key is None:                  # not the package's own law: keyed by its serialisation
-            self.rollout = Rollout(make(), compile=compile)
+            self.rollout = Rollout(make(), compile=compile, chunk=GROWTH_CHUNK)
         else:
             memo = (key, compile)        # a virtual-machine rollout (compile=False) never serves "auto" or True
             if memo not in _BUILT:
                 if len(_BUILT) >= 16:
                     _BUILT.clear()
-                _BUILT[memo] = Rollout(make, compile=compile, structure=(f"tangent_{loop.name}",
+                _BUILT[memo] = Rollout(make, compile=compile, chunk=GROWTH_CHUNK, structure=(f"tangent_{loop.name}",
                                                                          key + "|tangent-pieces" + loop.cache_tag))
             self.rollout = _BUILT[memo]
         U, self.P = self.frozen.U, self.frozen.P
@@ -205,8 +206,7 @@ class PeriodicModel:
         """One period from ``s``: the end state, the monodromy (one tangent
         rollout per column; compiled rollouts two at a time in threads,
         ``processes.threads_for_side_by_side``), the contact force along
-        the period (N) and the tangent rollouts' trajectories (column j of
-        Phi(t, 0) at every sample t: :func:`_growth`)."""
+        the period (N) and the states along it (after each sample)."""
         from ..processes import threads_for_side_by_side
 
         ns, nd = self.layout.size, self.dynamic.size
@@ -221,12 +221,11 @@ class PeriodicModel:
                     rest = list(pool.map(run, range(1, nd)))
             else:
                 rest = [run(j) for j in range(1, nd)]
-        runs = [S[ns:] for S, _ in (first, *rest)]
-        Phi = np.column_stack([S[:, -1] for S in runs])
+        Phi = np.column_stack([S[ns:, -1] for S, _ in (first, *rest)])
         S, F = first
-        return S[:ns, -1], Phi, F, runs
+        return S[:ns, -1], Phi, F, S[:ns]
 
-    def at(self, k_e: float, iters: int = 12, tol: float = 1e-10) -> PeriodicLoop:
+    def at(self, k_e: float, iters: int = 12, tol: float = 1e-10, growth: str = "always") -> PeriodicLoop:
         """The loop at constant stiffness ``k_e`` (N/m) linearised along its
         periodic orbit (Newton shooting to ``tol``, relative).
 
@@ -237,7 +236,13 @@ class PeriodicModel:
         short way off the orbit and Newton stalls although the orbit
         attracts. Then the orbit is found as the simulator finds it: up to
         :data:`RELAX_PERIODS` periods run from the start until they repeat,
-        and Newton again from there."""
+        and Newton again from there.
+
+        ``growth``: ``"always"`` computes the transient growth (one more period
+        of tangent rollouts), ``"if stable"`` only where the spectral radius is
+        below 1 (else NaN: the orbit is unstable whatever it is)."""
+        if growth not in ("always", "if stable"):
+            raise AnalysisError(f"growth: expected 'always' or 'if stable', got {growth!r}")
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         if not (isinstance(iters, int) and iters >= 1):
@@ -246,11 +251,11 @@ class PeriodicModel:
             raise AnalysisError(f"tol: must be finite and > 0, got {tol!r}")
         U = self._inputs(float(k_e))
         start = self._start(float(k_e))
-        s, Phi, F, residual, it, runs = self._shoot(start, U, iters, tol)
+        s, Phi, F, residual, it, states = self._shoot(start, U, iters, tol)
         if residual > 1e-5:
             relaxed = self._relax(start, U, tol)
             if relaxed is not None:
-                s, Phi, F, residual, more, runs = self._shoot(relaxed, U, iters, tol)
+                s, Phi, F, residual, more, states = self._shoot(relaxed, U, iters, tol)
                 it += more
         f = np.ravel(F)
         if residual == math.inf:
@@ -264,19 +269,49 @@ class PeriodicModel:
         self._warm = (float(k_e), s.copy())
         rho = float(np.max(np.abs(np.linalg.eigvals(Phi))))
         return PeriodicLoop(float(k_e), self.scenario.controller.Ts, self.samples, s, Phi, self.states, rho,
-                            residual, (float(f.min()), float(f.max())), it, _growth(runs))
+                            residual, (float(f.min()), float(f.max())), it,
+                            self._growth(s, states, U) if growth == "always" or rho < 1.0 else math.nan)
+
+    def _growth(self, s: np.ndarray, states: np.ndarray, U: np.ndarray) -> float:
+        """:attr:`PeriodicLoop.transient_growth` of the orbit from ``s``
+        (``states`` after each sample): the tangent step restarted from the
+        identity at every :data:`GROWTH_CHUNK`-th sample gives each piece's
+        transition matrices Phi(b + tau, b) (one more period of tangent
+        rollouts, in pieces), and :func:`_window_growth` multiplies them out."""
+        from ..processes import threads_for_side_by_side
+
+        ns, nd, N = self.layout.size, self.dynamic.size, self.samples
+        eye = np.eye(nd)
+
+        def piece(b):
+            x = s if b == 0 else states[:, b - 1]
+            Ub = U[:, b:b + GROWTH_CHUNK]
+            cols = [self.rollout.run(np.r_[x, eye[j]], Ub, self.P)[0][ns:] for j in range(nd)]
+            return np.moveaxis(np.stack(cols, axis=1), 2, 0)          # (sample, state, column)
+
+        with np.errstate(all="ignore"):
+            starts = range(0, N, GROWTH_CHUNK)
+            threads = threads_for_side_by_side() if self.rollout.how != "vm" else 1
+            if threads > 1 and len(starts) > 1:
+                from concurrent.futures import ThreadPoolExecutor
+
+                with ThreadPoolExecutor(threads) as pool:
+                    pieces = list(pool.map(piece, starts))
+            else:
+                pieces = [piece(b) for b in starts]
+        return _window_growth(pieces)
 
     def _shoot(self, s: np.ndarray, U: np.ndarray, iters: int, tol: float):
         """Newton shooting on one period from ``s``: (the orbit's start, the
         monodromy, the force along the period, the residual, iterations, the
-        tangent trajectories), all of one iterate: the last one run, also when
-        ``iters`` run out."""
+        states along the period), all of one iterate: the last one run, also
+        when ``iters`` run out."""
         d, eye = self.dynamic, np.eye(self.dynamic.size)
         residual, it, previous = math.inf, 0, math.inf
         for it in range(1, iters + 1):
-            end, Phi, F, runs = self._period(s, U)
+            end, Phi, F, states = self._period(s, U)
             if not (np.all(np.isfinite(end)) and np.all(np.isfinite(Phi))):
-                return s, Phi, F, math.inf, it, runs         # diverged
+                return s, Phi, F, math.inf, it, states       # diverged
             r = (end - s)[d]
             residual = float(np.max(np.abs(r) / (1.0 + np.abs(s[d]))))
             # converged, or stalled at the rounding of one period's arithmetic (f = k_e x: ~1e-6 relative at 2.6e6 N/m)
@@ -285,7 +320,7 @@ class PeriodicModel:
             previous = residual
             s = s.copy()
             s[d] += np.linalg.lstsq(Phi - eye, -r, rcond=None)[0]
-        return s, Phi, F, residual, it, runs
+        return s, Phi, F, residual, it, states
 
     def _relax(self, s: np.ndarray, U: np.ndarray, tol: float) -> np.ndarray | None:
         """The state at the start of the period after running periods of the
@@ -311,23 +346,113 @@ class PeriodicModel:
         return None
 
 
-def _growth(runs: list) -> float:
-    """:attr:`PeriodicLoop.transient_growth` from the tangent rollouts of one
-    period (``runs[j]``: column j of Phi(t, 0) at t = 1..N, one column per
-    sample)."""
-    P = np.moveaxis(np.stack(runs, axis=1), 2, 0)   # (sample, state, column)
-    first = np.linalg.norm(P[0], 2)
-    if not first > 0:
-        return math.inf
-    # the 2-norm is at most the Frobenius norm: the samples in decreasing Frobenius norm until none can exceed
-    # the largest 2-norm found (a few SVDs, not one per sample: 50 ms a period on the Panda)
-    frobenius = np.sqrt(np.einsum("tij,tij->t", P, P))
-    best = first
-    for t in np.argsort(frobenius)[::-1]:
-        if frobenius[t] <= best:
+GROWTH_CHUNK = 50
+"""Samples between the window starts of :attr:`PeriodicLoop.transient_growth`
+(and the tangent rollout's compiled chunk, so that a piece runs no more)."""
+
+
+def _balancing(A: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
+    """The diagonal d that balances the nonnegative matrix ``A``: in D^-1 A D
+    every state's off-diagonal row and column have equal 2-norms. That d
+    minimises sum_(i != j) (A_ij d_j / d_i)^2, a convex function of log d
+    (Osborne's condition is its gradient), found here by Newton steps on log d
+    (its Hessian a weighted graph Laplacian; least squares for its null
+    space, the common scale) with a backtracking line search, to ``rtol``
+    relative between each row and column. Not ``scipy.linalg.matrix_balance``:
+    LAPACK rounds the scales to powers of 2 and stops early, so a state's unit
+    moved the balanced figure up to 11-fold (a made-up 6-state case); the
+    minimiser is covariant (scaling state i by u multiplies d_i by u), so
+    D^-1 A D does not depend on the units. It exists where every state reaches
+    every other through A's nonzero entries (one strongly connected group:
+    :func:`_window_growth` balances each group on its own)."""
+    W = np.array(A, dtype=float) ** 2
+    np.fill_diagonal(W, 0.0)
+    x = np.zeros(W.shape[0])
+
+    def parts(x):
+        m = W * np.exp(2.0 * (x[None, :] - x[:, None]))          # squared entries of D^-1 A D
+        return m, m.sum(axis=0), m.sum(axis=1)                   # columns, rows
+
+    m, col, row = parts(x)
+    for _ in range(200):
+        scale = col + row
+        coupled = scale > 0
+        if not np.any(coupled) or np.max(np.abs(col - row)[coupled] / scale[coupled]) < rtol:
             break
-        best = max(best, np.linalg.norm(P[t], 2))
-    return float(best / first)
+        H = 4.0 * (np.diag(scale) - m - m.T)
+        step = np.linalg.lstsq(H, -2.0 * (col - row), rcond=None)[0]
+        f, t = m.sum(), 1.0
+        while t > 1e-12:
+            m_new, col_new, row_new = parts(x + t * step)
+            if m_new.sum() <= f:
+                break
+            t *= 0.5
+        x = x + t * step
+        m, col, row = m_new, col_new, row_new
+    return np.exp(x)
+
+
+def _window_growth(pieces: list) -> float:
+    """The transient growth from the transition matrices of consecutive pieces
+    of one period (``pieces[j][tau - 1]`` = Phi(b_j + tau, b_j)): the largest
+    ||Phi(t, b_j)||_2 over every start b_j and every t up to one period later
+    (wrapping round the period), in balanced coordinates, divided by the
+    largest one-step norm at the starts. The coordinates: D^-1 X D with D
+    balancing the mean |one-step Jacobian| over the starts
+    (:func:`_balancing`), so the figure does not depend on the states' units
+    (N or kN, rad or mrad; review 38: 7,244 in SI, 11,345 with the filter in
+    kN, unbalanced). Exact: the 2-norm is taken wherever the Frobenius norms
+    (an upper bound) do not rule a window out."""
+    from scipy.sparse.csgraph import connected_components
+
+    A = np.array([p[0] for p in pieces])
+    if not np.all(np.isfinite(A)):
+        return math.inf
+    mean = np.abs(A).mean(axis=0)
+    # one-way couplings between groups of states have no unit-free size (balancing would shrink them without
+    # end): each strongly connected group's own transition, Phi's diagonal block (the products' diagonal
+    # blocks are the blocks' products, the groups ordered triangularly), balanced on its own
+    count, group = connected_components(mean != 0, directed=True, connection="strong")
+    growth = 1.0
+    for g in range(count):
+        keep = np.flatnonzero(group == g)
+        block = np.ix_(keep, keep)
+        growth = max(growth, _group_growth([p[(slice(None), *block)] for p in pieces], mean[block]))
+    return growth
+
+
+def _group_growth(pieces: list, mean: np.ndarray) -> float:
+    """:func:`_window_growth` for one strongly connected group of states."""
+    M, nd = len(pieces), pieces[0].shape[1]
+    scale = _balancing(mean)
+    ratio = scale[None, :] / scale[:, None]                         # D^-1 X D, elementwise
+    pieces = [p * ratio for p in pieces]
+    one = max(np.linalg.norm(p[0], 2) for p in pieces)
+    if not one > 0:                 # a group the step overwrites (a held value): nothing of it carries on
+        return 1.0
+    ends = np.array([p[-1] for p in pieces])
+    bound = np.array([np.sqrt(np.einsum("tij,tij->t", p, p)).max() for p in pieces])   # >= each ||Phi(., b_m)||_2
+    best = one
+    P = np.broadcast_to(np.eye(nd), (M, nd, nd)).copy()            # P[j] = Phi(b_(j+i), b_j)
+    starts = np.arange(M)
+    with np.errstate(all="ignore"):
+        for i in range(M):
+            m = (starts + i) % M
+            reach = bound[m] * np.sqrt(np.einsum("jab,jab->j", P, P))  # ||C P||_2 <= ||C||_F ||P||_F
+            for j in np.flatnonzero(~(reach <= best)):
+                if reach[j] <= best:
+                    continue
+                W = pieces[m[j]] @ P[j]
+                columns, rows = np.einsum("tij,tij->tj", W, W), np.einsum("tij,tij->ti", W, W)
+                if not np.all(np.isfinite(columns)):
+                    return math.inf
+                # the largest column or row norm is at most the 2-norm: it raises the bar before any SVD
+                best = max(best, float(np.sqrt(max(columns.max(), rows.max()))))
+                left = W[np.sqrt(columns.sum(axis=1)) > best]      # the Frobenius norm rules out the rest
+                if len(left):
+                    best = max(best, float(np.linalg.norm(left, 2, axis=(1, 2)).max()))
+            P = ends[m] @ P
+    return float(best / one)
 
 
 RELAX_PERIODS = 40
@@ -340,18 +465,21 @@ def periodic_loop(scenario, k_e: float) -> PeriodicLoop:
     return PeriodicModel(scenario).at(k_e)
 
 
-GROWTH_BOUND = 1e4
+GROWTH_BOUND = 1e5
 """The largest transient growth (:attr:`PeriodicLoop.transient_growth`) the
 periodic limit accepts. Where a perturbation grows this much within a period
 the spectral radius says nothing useful: the orbit attracts only
 perturbations too small to meet (a sensor's noise, a model's error, the
 rounding of a run), and the simulated loop leaves it. Calibrated on measured
-cases: the bundled scenarios stay at or below 3.7e3 at their limits (the
-``ur5-pipe``, whose simulated limit is within 1 % of its periodic one; the
-paper 1.04), while on review 37's 4-joint arm the growth was 1.6e3 at 5e5
-N/m, 6e5 at 6e5 and 2e8 at 7e5 N/m with the spectral radius 0.03 throughout,
-and its simulated runs missed the 10 mN force tolerance from 6e5-6.6e5 N/m
-(docs/theory.md)."""
+cases, not derived: at their limits the bundled scenarios' growth is at most
+1.8e4 (the paper with the scheduled damping, an orbit-loss edge that a
+simulated bisection confirms), the ``ur5-pipe``'s 3.4e3 and the rest below
+50; on review 37's 4-joint arm, whose orbit keeps a spectral radius of 0.03
+up to where it is lost (7.3e5-7.6e5 N/m), it is 1.5e3 at 4.5e5 N/m, 5.4e6 at
+6e5 and 2.8e7 at 6.3e5, and constant-k_e runs hold the 10 mN tolerance up
+to 6.2e5 N/m and miss it from 6.4e5 (review 38; the same arm along a line:
+1.2e7 at 8.2e5 N/m, runs missing from 8.5e5-9e5). The bound puts that arm's
+limits 15-25 % inside its simulated ones (docs/theory.md)."""
 
 
 @dataclass(frozen=True)
@@ -397,13 +525,14 @@ def periodic_search(scenario, model: PeriodicModel | None = None, bracket: tuple
     def g(log_k):       # remembered: brentq evaluates the bracket's ends again (the orbit's Newton is warm-started)
         if log_k not in seen:
             try:
-                w = mdl.at(math.exp(log_k))
+                w = mdl.at(math.exp(log_k), growth="if stable")
                 rho, growth = w.spectral_radius, w.transient_growth
                 log_rho = math.log(rho) if rho > 0 else -math.inf
-                # below the bound the radius alone (the Floquet search's own path and root, to the last digit,
-                # wherever the growth never reaches the bound); at or above it >= 0: unstable
-                seen[log_k] = (log_rho if growth < growth_bound else max(log_rho, math.log(growth / growth_bound)),
-                               rho, growth)
+                # below the bound (or not computed: the radius >= 1) the radius alone (the Floquet search's own
+                # path and root, to the last digit, wherever the growth never reaches the bound); at or above
+                # it >= 0: unstable
+                seen[log_k] = (max(log_rho, math.log(growth / growth_bound)) if growth >= growth_bound
+                               else log_rho, rho, growth)
             except AnalysisError:
                 seen[log_k] = (1.0, None, None)
         return seen[log_k][0]
