@@ -84,11 +84,13 @@ class PeriodicLoop:
     period: max of ||Phi(t, s)||_2 over starts s every :data:`GROWTH_CHUNK`
     samples and ends t up to one period later (Phi(t, s) the product of the
     per-sample Jacobians from s to t), in balanced coordinates (unit-free, see
-    :func:`_window_growth`), divided by the largest one-step norm: 1 when a
-    perturbation only decays after its first step. The spectral radius can be
-    far below 1 while this is huge: the orbit is then stable only against
-    perturbations too small to matter (:func:`periodic_limit`,
-    :data:`GROWTH_BOUND`)."""
+    :func:`_window_growth`; each strongly connected group of states on its
+    own, the largest group's figure), divided by the largest one-step norm: 1
+    when a perturbation only decays after its first step; NaN when not computed
+    (``at(growth="if stable")`` on an orbit whose radius is >= 1). The
+    spectral radius can be far below 1 while this is huge: the orbit is then
+    stable only against perturbations too small to matter
+    (:func:`periodic_limit`, :data:`GROWTH_BOUND`)."""
     k_e: float
     Ts: float
     samples: int
@@ -397,7 +399,9 @@ def _window_growth(pieces: list) -> float:
     of one period (``pieces[j][tau - 1]`` = Phi(b_j + tau, b_j)): the largest
     ||Phi(t, b_j)||_2 over every start b_j and every t up to one period later
     (wrapping round the period), in balanced coordinates, divided by the
-    largest one-step norm at the starts. The coordinates: D^-1 X D with D
+    largest one-step norm at the starts, for each strongly connected group of
+    states (the largest figure over the groups, at least 1). The
+    coordinates: D^-1 X D with D
     balancing the mean |one-step Jacobian| over the starts
     (:func:`_balancing`), so the figure does not depend on the states' units
     (N or kN, rad or mrad; review 38: 7,244 in SI, 11,345 with the filter in
