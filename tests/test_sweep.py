@@ -75,6 +75,33 @@ def test_bad_sweep_files_exit_2_naming_the_key(tmp_path, capsys, text, needle):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]          # nothing written
 
 
+@pytest.mark.parametrize("robot,grid,needle", [
+    # the schema checks each axis without the arm: this sweep passed it and stopped at its 7-joint case with the
+    # 6-joint case's results written (noticed in the eighth session's note)
+    ('model = "ur5"\nq0 = [0.0, -1.5, 1.5, -1.5, -1.5, 0.0]', '"robot.model" = ["ur5", "panda"]',
+     r"^error: robot\.q0: expected 7 values \(one per joint of panda\), got 6 \(case 1: robot\.model = 'panda'\)$"),
+    ('model = "puma560"\ntau_max = [100.0, 100.0, 100.0]', '"robot.model" = ["puma560", "ur5"]',
+     r"^error: robot\.tau_max: expected 6 values \(one per joint of ur5\), got 3 \(case 1: robot\.model = 'ur5'\)$"),
+    ('model = "ur5"', '"robot.q0" = [[0.0, -1.5, 1.5, -1.5, -1.5, 0.0], [0.0, -1.5, 1.5, -1.5, -1.5, 9.0]]',
+     r"^error: robot\.q0\[5\]: 9 is outside .*'s limits .* \(case 1: robot\.q0 = "),
+])
+def test_a_case_whose_arm_does_not_fit_its_joint_settings_is_refused_before_any_case_runs(tmp_path, robot, grid,
+                                                                                         needle):
+    (tmp_path / "base.toml").write_text(f'name = "fit"\n[robot]\n{robot}\n[trajectory]\ncycles = 1\nperiod = 1.0\n')
+    (tmp_path / "s.toml").write_text(f'scenario = "base.toml"\n[grid]\n{grid}\n')
+    r = _cli(str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"), "--limits", "off", cwd=tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert re.search(needle, lines[0]), lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["base.toml", "s.toml"]    # nothing written, no o.partial
+    # the API refuses it too, before its output folder exists
+    from tmtcontrol.simulation.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError, match=needle[len("^error: "):]):
+        save_sweep(load_sweep(tmp_path / "s.toml"), tmp_path / "o")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["base.toml", "s.toml"]
+
+
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     path = tmp_path_factory.mktemp("sweep") / "s.toml"

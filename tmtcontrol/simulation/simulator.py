@@ -44,8 +44,8 @@ from .traces import SimulationTraces
 from .trajectory import path_extent, path_reference
 
 __all__ = ["Simulator", "SimulationResult", "SimulationError", "PosePath", "check_run_size", "MAX_STEPS", "robot_task",
-           "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "structure",
-           "structure_key", "normal_mass", "simulator_for"]
+           "contact_detection_threshold", "contact_threshold_of", "robot_of", "path_of", "check_joint_settings",
+           "structure", "structure_key", "normal_mass", "simulator_for"]
 
 STIFFNESS_ESTIMATE_FORCE = 0.5
 """Force (N) above which the logged stiffness estimate f_m/(x - x_e) of
@@ -230,6 +230,26 @@ def orientation_at(sc: Scenario, surface, points, R_d):
 _PATHS: dict = {}
 
 
+def check_joint_settings(robot, sc: Scenario, limits: bool = True) -> None:
+    """A :class:`ScenarioError` naming the key if ``sc``'s per-joint settings
+    do not fit ``robot``: ``robot.q0`` (one value per joint, each within
+    its joint's limits, and only for an arm whose path is solved from a
+    seed) and, with ``limits``, ``robot.tau_max`` / ``robot.dq_max``
+    (:func:`.limits.limits_of`). Cheap (no path is solved): a sweep checks
+    every arm its cases run before the first case (``sweep.spec``)."""
+    r = sc.robot
+    if r.q0 is not None and len(r.q0) != robot.n:
+        raise ScenarioError(f"robot.q0: expected {robot.n} values (one per joint of {robot.name}), got {len(r.q0)}")
+    if r.q0 is not None and robot.position_ik is not None and not robot_task(robot).rotational:
+        raise ScenarioError(f"robot.q0: not used: {robot.name}'s path is solved by its closed-form inverse "
+                            "kinematics (one configuration), not from a seed; leave q0 unset")
+    for i, (v, lo, hi) in enumerate(zip(r.q0 or (), robot.q_min, robot.q_max)):
+        if not lo <= v <= hi:          # the seed itself: not the path's fault
+            raise ScenarioError(f"robot.q0[{i}]: {v:g} is outside {robot.joint_names[i]}'s limits [{lo:.4g}, {hi:.4g}]")
+    if limits:
+        limits_of(robot, sc)
+
+
 def path_of(robot, sc: Scenario) -> PosePath:
     """:func:`.posture.check_pose_path` over one period of the path
     (:data:`.posture.PATH_SAMPLES` points), seeded by ``robot.q0`` (default
@@ -237,14 +257,7 @@ def path_of(robot, sc: Scenario) -> PosePath:
     arrays are read-only)."""
     tr, r = sc.trajectory, sc.robot
     surface, R_d = _frames(sc)
-    if r.q0 is not None and len(r.q0) != robot.n:
-        raise ScenarioError(f"robot.q0: expected {robot.n} values (one per joint of {robot.name}), got {len(r.q0)}")
-    if r.q0 is not None and robot.position_ik is not None and not robot.task.rotational:
-        raise ScenarioError(f"robot.q0: not used: {robot.name}'s path is solved by its closed-form inverse "
-                            "kinematics (one configuration), not from a seed; leave q0 unset")
-    for i, (v, lo, hi) in enumerate(zip(r.q0 or (), robot.q_min, robot.q_max)):
-        if not lo <= v <= hi:          # the seed itself: not the path's fault
-            raise ScenarioError(f"robot.q0[{i}]: {v:g} is outside {robot.joint_names[i]}'s limits [{lo:.4g}, {hi:.4g}]")
+    check_joint_settings(robot, sc, limits=False)
     finite = np.isfinite(robot.q_min) & np.isfinite(robot.q_max)
     seed = np.asarray(r.q0, float) if r.q0 is not None else np.where(
         finite, (np.where(finite, robot.q_min, 0.0) + np.where(finite, robot.q_max, 0.0)) / 2, 0.0)

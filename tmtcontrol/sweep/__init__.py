@@ -11,7 +11,7 @@ import time
 
 from ..files import OutputFolder, write_json
 from .run import PartialFolder, Progress, case_row, check_dask, limits_by_default, run_cases
-from .spec import EXAMPLE, Case, Sweep, SweepError, load_sweep, sweep_from_dict
+from .spec import EXAMPLE, Case, Sweep, SweepError, check_sweep_robots, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
            "sweep_summary", "boundary_lines", "axis_labels", "EXAMPLE", "case_row"]
@@ -206,10 +206,13 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
     """Run the sweep into ``out``: finished chunks go to ``OUT.partial/`` as
     they complete; at the end ``results.parquet``, ``summary.json`` and the
     figures are committed to ``out`` (replaced atomically) and the partial
-    folder is removed. Returns the summary."""
+    folder is removed. Returns the summary. A case whose arm or per-joint
+    settings do not fit it is refused before anything is written
+    (:func:`.spec.check_sweep_robots`)."""
     import pyarrow.parquet as pq
 
     check_dask(dask)                               # a scheduler address that answers nothing: refused first
+    check_sweep_robots(sweep)
     folder = OutputFolder(out, "--out")            # checked before anything runs
     with folder:
         why = None

@@ -63,7 +63,7 @@ from ..simulation.scenario import (BUILTIN_ARMS, NOT_INTERVALS, SAMPLED_KEYS, Sc
                                    scenario_to_dict, set_key)
 
 __all__ = ["SweepError", "Sweep", "Case", "Cases", "load_sweep", "sweep_from_dict", "EXAMPLE", "DEFAULT_MAX_CASES",
-           "check_sweep_size"]
+           "check_sweep_size", "check_sweep_robots"]
 
 EXAMPLE = '''# tmtcontrol sweep file: a base scenario, then axes over dotted scenario keys.
 # Cases = every grid combination x every random sample. SI units, as in scenarios.
@@ -356,6 +356,31 @@ def check_sweep_size(sweep: Sweep, max_steps: int | None = None) -> None:
         check_run_size(sweep.scenario(case), max_steps)
     except ScenarioError as exc:
         raise ScenarioError(f"{exc} (case {index}: {_describe(case.values)})") from None
+
+
+def check_sweep_robots(sweep: Sweep) -> None:
+    """Refuse (:class:`ScenarioError`, naming the key and the case) a sweep in
+    which a case's arm cannot be loaded or its per-joint settings
+    (``robot.q0``, ``robot.tau_max``, ``robot.dq_max``) do not fit it
+    (:func:`~tmtcontrol.simulation.simulator.check_joint_settings`): the
+    schema checks each axis without the arm, so a grid over ``robot.model``
+    with a base's 6-value ``q0`` passed it and stopped at its first 7-joint
+    case, with the finished cases written. Once per combination of the grid
+    axes under ``robot`` (a case's arm and per-joint values come from those
+    and the base; a random axis is a number that changes neither), before
+    any case runs."""
+    from ..simulation.simulator import check_joint_settings, robot_of
+
+    keys = [k for k in sweep.grid if _covers(k, "robot")]
+    strides = dict(zip(sweep.grid, sweep.cases._strides))
+    for combo in itertools.product(*(range(len(sweep.grid[k])) for k in keys)):
+        index = sum(i * strides[k] for k, i in zip(keys, combo)) * sweep.cases.samples
+        case = sweep.cases.case(index)
+        try:
+            sc = sweep.scenario(case)
+            check_joint_settings(robot_of(sc), sc)
+        except ScenarioError as exc:
+            raise ScenarioError(f"{exc} (case {index}: {_describe(case.values)})") from None
 
 
 def _covers(axis: str, key: str) -> bool:
