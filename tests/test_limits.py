@@ -196,6 +196,9 @@ def test_the_periodic_search_ends_where_the_first_of_its_measures_fails(k_rho, k
     spectral radius reaching 1, the transient growth reaching GROWTH_BOUND, the orbit lost) and
     says which; the radius and growth it reports are the stable side's (xtol 1e-5 in log k_e:
     1e-5 relative). Without the growth bound (inf) the growth case ends at the next measure."""
+    import math
+    import re
+
     from tmtcontrol.stability.continuous import AnalysisError
     from tmtcontrol.stability.periodic import GROWTH_BOUND, periodic_search
 
@@ -210,6 +213,13 @@ def test_the_periodic_search_ends_where_the_first_of_its_measures_fails(k_rho, k
                                growth_bound=float("inf")).k_e == pytest.approx(k_rho, rel=2e-5)
     with pytest.raises(AnalysisError, match="^growth_bound: must be > 1"):
         periodic_search(None, model=model, bracket=(3e4, 2e6), growth_bound=1.0)
+    # review 39: a bound below the growth at the smallest stiffness the search widens to (8 steps of 0.1 in
+    # log k_e below 3e4: 1.348e4 N/m, growth 1e5 (1.348e4 / k_g)^2 = 1.8e3) is said so, not "no boundary found"
+    k_low = 3e4 * math.exp(-0.8)
+    with pytest.raises(AnalysisError, match="^" + re.escape(f"growth_bound: the transient growth is "
+                                                         f"{GROWTH_BOUND * (k_low / k_g) ** 2:.4g} already at "
+                                                         f"{k_low:.4g} N/m")):
+        periodic_search(None, model=_Measured(k_rho, k_g, k_lost), bracket=(3e4, 2e6), growth_bound=100.0)
 
 
 def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):

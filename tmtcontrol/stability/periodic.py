@@ -565,6 +565,11 @@ def periodic_search(scenario, model: PeriodicModel | None = None, bracket: tuple
         if g_hi <= 0:
             hi, g_hi = hi + 0.1, g(hi + 0.1)
     else:
+        _, rho_lo, growth_lo = seen[lo]
+        if g_lo >= 0 and rho_lo is not None and rho_lo < 1.0:    # review 39: said as what it is, not "no boundary"
+            raise AnalysisError(f"growth_bound: the transient growth is {growth_lo:.4g} already at {math.exp(lo):.4g} "
+                                f"N/m (spectral radius {rho_lo:.3g}), at or above the bound {growth_bound:.4g}: no "
+                                "stiffness the search reached meets it")
         raise AnalysisError(f"no stability boundary found between {math.exp(lo):.4g} and {math.exp(hi):.4g} N/m")
     root = brentq(g, lo, hi, xtol=xtol)
     stable = max((k for k, v in seen.items() if v[0] < 0 and k <= root), default=lo)
