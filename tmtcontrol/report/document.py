@@ -286,6 +286,10 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         elif a.get("periodic_set_by") == "orbit lost":
             how += (f"; the limit along the path is where the periodic orbit is lost (spectral radius "
                     f"{a['periodic_radius']:.3g} just below: the radius is no margin)")
+        if a.get("periodic_set_by") in ("transient growth", "orbit lost"):
+            how += (f". The analysis is of the noise-free loop: near this limit sensor noise grows up to "
+                    f"{a['periodic_growth']:.3g}-fold within a period, so the margin is one of stability, not "
+                    "of the force's accuracy under noise at a stiffer surface")
     elif whole is not None:
         how = f"whole-loop linearisation of the compiled step at {len(a.get('whole_loop_points', []))} path points"
     else:

@@ -405,8 +405,11 @@ def _window_growth(pieces: list) -> float:
     balancing the mean |one-step Jacobian| over the starts
     (:func:`_balancing`), so the figure does not depend on the states' units
     (N or kN, rad or mrad; review 38: 7,244 in SI, 11,345 with the filter in
-    kN, unbalanced). Exact: the 2-norm is taken wherever the Frobenius norms
-    (an upper bound) do not rule a window out."""
+    kN, unbalanced). Exact over those starts: the 2-norm is taken wherever
+    the Frobenius norms (an upper bound) do not rule a window out; a start
+    between two of them can see more, by at most the growth from it to the
+    next start, and the groups come from the starts' Jacobians only (review
+    39; docs/theory.md)."""
     from scipy.sparse.csgraph import connected_components
 
     A = np.array([p[0] for p in pieces])
