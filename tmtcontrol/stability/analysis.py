@@ -256,6 +256,8 @@ def _set_by_rows(d: dict) -> list[str]:
     what that means for sensor noise (review 39: 5 mN of noise cost 22.7 N
     of force error at 0.9 x such a limit, where the noise-free run held 3 mN)."""
     how, rho, growth = d.get("periodic_set_by"), d.get("periodic_radius"), d.get("periodic_growth")
+    if how not in ("transient growth", "orbit lost"):
+        return []
     noise = (f"noise                the analysis is of the noise-free loop: near this limit a perturbation such "
              f"as sensor noise grows up to {growth:.3g}-fold within a period; simulate with sensor.noise_std at "
              "your stiffness before relying on a margin")
@@ -265,10 +267,8 @@ def _set_by_rows(d: dict) -> list[str]:
         return [f"set by               transient growth: above it a perturbation grows more than "
                 f"{GROWTH_BOUND:.0e}-fold within a period (spectral radius {rho:.3g}, growth {growth:.3g} "
                 "just below: the radius is no margin)", noise]
-    if how == "orbit lost":
-        return [f"set by               the orbit is lost above it (spectral radius {rho:.3g}, transient growth "
-                f"{growth:.3g} just below: the radius is no margin)", noise]
-    return []
+    return [f"set by               the orbit is lost above it (spectral radius {rho:.3g}, transient growth "
+            f"{growth:.3g} just below: the radius is no margin)", noise]
 
 
 def format_analysis(d: dict) -> str:
