@@ -35,7 +35,9 @@ __all__ = ["save_figures", "FigureWorkers", "Drawing", "FigureProcessError"]
 
 def save_figures(makers, data, folder, dpi: int = 120) -> list:
     """Write ``NAME.png`` for each ``(NAME, make)`` of ``makers``, the figure
-    being ``make(data)``, in the house style; return the paths."""
+    being ``make(data)``, in the house style, into ``folder`` (replacing a
+    file of that name, as ``savefig`` does; the commands write into their
+    own fresh output folders); return the paths."""
     import pathlib
 
     from .plotstyle import plain_log_labels, styled

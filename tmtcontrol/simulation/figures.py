@@ -245,7 +245,10 @@ def crosscheck_figure(c) -> Figure:
 def save_simulation_figures(res: SimulationResult | SimulationTraces,
                             folder: str | pathlib.Path) -> list[pathlib.Path]:
     """Write fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png
-    (and orientation_error.png for a 6-D arm)."""
+    (and orientation_error.png for a 6-D arm) into ``folder``, which must
+    exist, replacing files of those names there and touching nothing else
+    (as matplotlib's ``savefig``: the Python API writes where it is told;
+    the commands' output folders are what protect a user's files)."""
     tr = _traces(res)
     return save_figures([(name, globals()[make]) for name, make in simulation_figures(tr)], tr, folder)
 
