@@ -215,11 +215,58 @@ def test_the_periodic_search_ends_where_the_first_of_its_measures_fails(k_rho, k
         periodic_search(None, model=model, bracket=(3e4, 2e6), growth_bound=1.0)
     # review 39: a bound below the growth at the smallest stiffness the search widens to (8 steps of 0.1 in
     # log k_e below 3e4: 1.348e4 N/m, growth 1e5 (1.348e4 / k_g)^2 = 1.8e3) is said so, not "no boundary found"
+    # alone; review 40: and what the other end was
     k_low = 3e4 * math.exp(-0.8)
-    with pytest.raises(AnalysisError, match="^" + re.escape(f"growth_bound: the transient growth is "
-                                                         f"{GROWTH_BOUND * (k_low / k_g) ** 2:.4g} already at "
-                                                         f"{k_low:.4g} N/m")):
+    with pytest.raises(AnalysisError, match=re.escape(
+            f"(at {k_low:.4g} N/m the transient growth {GROWTH_BOUND * (k_low / k_g) ** 2:.3g} is at or above the "
+            f"bound 100 (spectral radius {k_low / k_rho:.3g}); at 2e+06 N/m ")):
         periodic_search(None, model=_Measured(k_rho, k_g, k_lost), bracket=(3e4, 2e6), growth_bound=100.0)
+
+
+class _Given:
+    """A stand-in for PeriodicModel with ``measures(k_e)`` = (spectral radius, transient growth) or None
+    (no orbit: AnalysisError)."""
+
+    scenario = None
+
+    def __init__(self, measures):
+        self.measures = measures
+
+    def at(self, k_e, growth="always"):
+        from types import SimpleNamespace
+
+        from tmtcontrol.stability.continuous import AnalysisError
+
+        m = self.measures(k_e)
+        if m is None:
+            raise AnalysisError("no orbit")
+        return SimpleNamespace(spectral_radius=m[0], transient_growth=m[1])
+
+
+def test_the_periodic_searchs_last_widening_is_tried_and_a_failure_names_both_ends():
+    """Review 40: (a) the bracket's eighth widening (3e4 e^-0.8 = 13,480 N/m) was computed and never tested:
+    a loop stable below 3e4 e^-0.75 = 14,170 N/m said "no stability boundary found" although that bracket
+    holds; (b) a failure named neither end's state, so an inverted bracket (a growth falling with k_e, met
+    at the stiff end only), a loop unstable everywhere and an orbit never found read alike."""
+    import math
+
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.periodic import periodic_search
+
+    edge = 3e4 * math.exp(-0.75)
+    found = periodic_search(None, model=_Given(lambda k: (0.5, 10.0) if k < edge else (2.0, math.nan)),
+                            bracket=(3e4, 2e6))
+    assert found.k_e == pytest.approx(edge, rel=2e-5) and found.set_by == "spectral radius"
+    with pytest.raises(AnalysisError, match=r"\(at 1\.348e\+04 N/m the transient growth 7\.42e\+05 is at or above "
+                       r"the bound 1e\+05 \(spectral radius 0\.1\); at 4\.451e\+06 N/m the orbit is stable "
+                       r"\(spectral radius 0\.1, transient growth 2\.25e\+03\)\)$"):
+        periodic_search(None, model=_Given(lambda k: (0.1, 1e5 * 1e5 / k)), bracket=(3e4, 2e6))
+    with pytest.raises(AnalysisError, match=r"\(at 1\.348e\+04 N/m the orbit is unstable \(spectral radius 2\); "
+                       r"at 2e\+06 N/m the orbit is unstable \(spectral radius 2\)\)$"):
+        periodic_search(None, model=_Given(lambda k: (2.0, math.nan)), bracket=(3e4, 2e6))
+    with pytest.raises(AnalysisError, match=r"\(at 1\.348e\+04 N/m no periodic orbit in contact was found; "
+                       r"at 2e\+06 N/m no periodic orbit in contact was found\)$"):
+        periodic_search(None, model=_Given(lambda k: None), bracket=(3e4, 2e6))
 
 
 def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):

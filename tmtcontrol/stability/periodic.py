@@ -560,20 +560,17 @@ def periodic_search(scenario, model: PeriodicModel | None = None, bracket: tuple
         bracket = (lo_lim / 1.02, hi_lim * 1.02)
     lo, hi = (math.log(float(v)) for v in bracket)
     g_lo, g_hi = g(lo), g(hi)
-    for _ in range(8):               # widen until the bracket holds
+    for widened in range(9):         # widen (8 times at most) until the bracket holds
         if g_lo < 0 < g_hi:
             break
+        if widened == 8:             # review 40: the eighth widening's bracket is tested too
+            a, b = math.exp(lo), math.exp(hi)
+            raise AnalysisError(f"no stability boundary found between {a:.4g} and {b:.4g} N/m (at {a:.4g} N/m "
+                                f"{_state(seen[lo], growth_bound)}; at {b:.4g} N/m {_state(seen[hi], growth_bound)})")
         if g_lo >= 0:
             lo, g_lo = lo - 0.1, g(lo - 0.1)
         if g_hi <= 0:
             hi, g_hi = hi + 0.1, g(hi + 0.1)
-    else:
-        _, rho_lo, growth_lo = seen[lo]
-        if g_lo >= 0 and rho_lo is not None and rho_lo < 1.0:    # review 39: said as what it is, not "no boundary"
-            raise AnalysisError(f"growth_bound: the transient growth is {growth_lo:.4g} already at {math.exp(lo):.4g} "
-                                f"N/m (spectral radius {rho_lo:.3g}), at or above the bound {growth_bound:.4g}: no "
-                                "stiffness the search reached meets it")
-        raise AnalysisError(f"no stability boundary found between {math.exp(lo):.4g} and {math.exp(hi):.4g} N/m")
     root = brentq(g, lo, hi, xtol=xtol)
     stable = max((k for k, v in seen.items() if v[0] < 0 and k <= root), default=lo)
     above = min((k for k, v in seen.items() if v[0] >= 0 and k >= root), default=hi)
@@ -582,6 +579,20 @@ def periodic_search(scenario, model: PeriodicModel | None = None, bracket: tuple
     set_by = ("orbit lost" if rho_above is None else
               "spectral radius" if rho_above >= 1.0 else "transient growth")
     return PeriodicLimit(float(math.exp(root)), set_by, rho, growth)
+
+
+def _state(value: tuple, growth_bound: float) -> str:
+    """What :func:`periodic_search` found at one stiffness, in words (its
+    failure message names both ends of the bracket: review 40)."""
+    _, rho, growth = value
+    if rho is None:
+        return "no periodic orbit in contact was found"
+    if rho >= 1.0:
+        return f"the orbit is unstable (spectral radius {rho:.3g})"
+    if growth >= growth_bound:
+        return (f"the transient growth {growth:.3g} is at or above the bound {growth_bound:.3g} (spectral radius "
+                f"{rho:.3g})")
+    return f"the orbit is stable (spectral radius {rho:.3g}, transient growth {growth:.3g})"
 
 
 def periodic_limit(scenario, model: PeriodicModel | None = None, bracket: tuple[float, float] | None = None,
