@@ -129,13 +129,22 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
     return out
 
 
+def _number(v) -> bool:
+    """A value with an order: a number, or a list of one number (a one-segment stiffness profile)."""
+    if isinstance(v, (list, tuple)) and len(v) == 1:
+        v = v[0]
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def boundary_axis(sweep: Sweep) -> str | None:
     """The axis the boundary is found along: the first grid axis with more
-    than one value, else the first random axis (with more than one sample);
-    None when every axis holds one value (review 31: a one-valued
-    ``trajectory.cycles`` grid axis was blamed, "not converged from the
-    smallest, 0.5", for what random draws of the stiffness did)."""
-    several = [a for a, v in sweep.grid.items() if len(v) > 1]
+    than one value, all numbers, else the first random axis (with more than
+    one sample); None when every axis holds one value (review 31: a
+    one-valued ``trajectory.cycles`` grid axis was blamed, "not converged
+    from the smallest, 0.5", for what random draws of the stiffness did) or
+    only names vary (review 40: arms sorted by their names gave "converged
+    up to arm4.urdf, not from panda" beside a converged ur5)."""
+    several = [a for a, v in sweep.grid.items() if len(v) > 1 and all(_number(x) for x in v)]
     several += [a for a in sweep.random if sweep.samples > 1]
     return several[0] if several else None
 
