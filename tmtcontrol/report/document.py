@@ -275,6 +275,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     verdict_limit = a["limit"] if "limit" in a else whole if whole is not None else limit_1d
     margin = verdict_limit / p["k_e_max"]
     Ts = p["Ts"]
+    noise = ""
     if "limit" in a:
         path = "frozen-point minimum; the path period is not whole control periods" if "periodic_note" in a \
             else "monodromy over one period"
@@ -287,9 +288,10 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
             how += (f"; the limit along the path is where the periodic orbit is lost (spectral radius "
                     f"{a['periodic_radius']:.3g} just below: the radius is no margin)")
         if a.get("periodic_set_by") in ("transient growth", "orbit lost"):
-            how += (f". The analysis is of the noise-free loop: near this limit sensor noise grows up to "
-                    f"{a['periodic_growth']:.3g}-fold within a period, so the margin is one of stability, not "
-                    "of the force's accuracy under noise at a stiffer surface")
+            noise = (f". The analysis is of the noise-free loop: near this limit the loop amplifies perturbations, "
+                     f"sensor noise among them, up to {a['periodic_growth']:.3g}-fold within a period, so the "
+                     "margin is one of stability, not of the force's accuracy under noise at a stiffer surface "
+                     "(simulate with the sensor's noise over several periods to see that)")
     elif whole is not None:
         how = f"whole-loop linearisation of the compiled step at {len(a.get('whole_loop_points', []))} path points"
     else:
@@ -298,7 +300,8 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         f"Stable in the sampled implementation (Ts = {fmt.qty(Ts, 's')})", bool(a["sampled_stable"]),
         f"largest stable stiffness {fmt.qty(verdict_limit, 'N/m')} vs k_e max {fmt.qty(p['k_e_max'], 'N/m')} "
         f"(margin {fmt.ratio(margin)})",
-        how + f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"))
+        how + f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"
+        + noise))
     points_ = a.get("whole_loop_points", [])
     times = _cells([w["path_time"] for w in points_], "s")          # one unit for the column (not 0 s beside 500 ms)
     rows = [[times[i], fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])] for i, w in enumerate(points_)]

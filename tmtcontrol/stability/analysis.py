@@ -258,9 +258,9 @@ def _set_by_rows(d: dict) -> list[str]:
     how, rho, growth = d.get("periodic_set_by"), d.get("periodic_radius"), d.get("periodic_growth")
     if how not in ("transient growth", "orbit lost"):
         return []
-    noise = (f"noise                the analysis is of the noise-free loop: near this limit a perturbation such "
-             f"as sensor noise grows up to {growth:.3g}-fold within a period; simulate with sensor.noise_std at "
-             "your stiffness before relying on a margin")
+    noise = (f"noise                the analysis is of the noise-free loop: near this limit it amplifies "
+             f"perturbations, sensor noise among them, up to {growth:.3g}-fold within a period; simulate with "
+             "sensor.noise_std over several periods (trajectory.cycles >= 5) before relying on a margin")
     if how == "transient growth":
         from .periodic import GROWTH_BOUND
 
