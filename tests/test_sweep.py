@@ -82,6 +82,11 @@ def test_bad_sweep_files_exit_2_naming_the_key(tmp_path, capsys, text, needle):
      r"^error: robot\.q0: expected 7 values \(one per joint of panda\), got 6 \(case 1: robot\.model = 'panda'\)$"),
     ('model = "puma560"\ntau_max = [100.0, 100.0, 100.0]', '"robot.model" = ["puma560", "ur5"]',
      r"^error: robot\.tau_max: expected 6 values \(one per joint of ur5\), got 3 \(case 1: robot\.model = 'ur5'\)$"),
+    # axes over the per-joint lists themselves (review 41: ARM_KEYS' tau_max and dq_max entries survived removal)
+    ('model = "ur5"', '"robot.tau_max" = [[100.0, 100.0, 100.0, 100.0, 100.0, 100.0], [100.0, 100.0]]',
+     r"^error: robot\.tau_max: expected 6 values \(one per joint of ur5\), got 2 \(case 1: robot\.tau_max = "),
+    ('model = "ur5"', '"robot.dq_max" = [[3.0, 3.0, 3.0, 3.0, 3.0, 3.0], [3.0]]',
+     r"^error: robot\.dq_max: expected 6 values \(one per joint of ur5\), got 1 \(case 1: robot\.dq_max = "),
     ('model = "ur5"', '"robot.q0" = [[0.0, -1.5, 1.5, -1.5, -1.5, 0.0], [0.0, -1.5, 1.5, -1.5, -1.5, 9.0]]',
      r"^error: robot\.q0\[5\]: 9 is outside .*'s limits .* \(case 1: robot\.q0 = "),
 ])
