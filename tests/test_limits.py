@@ -100,6 +100,28 @@ def _brute_growth(As, chunk):
     return out
 
 
+def test_the_window_growth_multiplies_in_order_over_whole_periods():
+    """Review 41's survivors: pieces multiplied in the wrong order (P @ end instead of end @ P) and the last
+    round of windows (those ending a whole period of pieces after their start) dropped both passed, the
+    tests' Jacobians nearly commuting and their growth peaking inside a period. Here every sample has its
+    own random, non-normal Jacobian and a slow expansion (1.004 a sample), so the growth peaks at the
+    longest windows: the pruned figure is the brute-force one (1e-10, rounding of the products)."""
+    from tmtcontrol.stability.periodic import GROWTH_CHUNK, _window_growth
+
+    rng = np.random.default_rng(41)
+    n, N = 5, 4 * GROWTH_CHUNK
+    As = [1.004 * (np.eye(n) + 0.08 * rng.standard_normal((n, n))) for _ in range(N)]
+    pieces = []
+    for b in range(0, N, GROWTH_CHUNK):
+        P, run = np.eye(n), []
+        for A in As[b:b + GROWTH_CHUNK]:
+            P = A @ P
+            run.append(P)
+        pieces.append(np.array(run))
+    want = _brute_growth(As, GROWTH_CHUNK)
+    assert _window_growth(pieces) == pytest.approx(want, rel=1e-10) and want > 2.0
+
+
 def test_the_transient_growth_does_not_depend_on_units_or_on_where_the_period_starts():
     """Review 38: the growth was ||Phi(t, 0)|| / ||Phi(1, 0)|| in SI units, so a state in kN instead of N moved
     it 1.6-fold (and the limit with it), and a path starting half a period later hid a 7.5e6-fold growth

@@ -82,6 +82,13 @@ def test_bad_sweep_files_exit_2_naming_the_key(tmp_path, capsys, text, needle):
      r"^error: robot\.q0: expected 7 values \(one per joint of panda\), got 6 \(case 1: robot\.model = 'panda'\)$"),
     ('model = "puma560"\ntau_max = [100.0, 100.0, 100.0]', '"robot.model" = ["puma560", "ur5"]',
      r"^error: robot\.tau_max: expected 6 values \(one per joint of ur5\), got 3 \(case 1: robot\.model = 'ur5'\)$"),
+    # review 41's survivors: a case's index counts the random samples (the panda's first case is 2 here, not 1),
+    # and a q0 longer than the arm is refused as a shorter one is
+    ('model = "ur5"\nq0 = [0.0, -1.5, 1.5, -1.5, -1.5, 0.0]',
+     '"robot.model" = ["ur5", "panda"]\n[random]\nsamples = 2\n"sensor.noise_std" = { uniform = [0.0, 0.001] }',
+     r"^error: robot\.q0: expected 7 values \(one per joint of panda\), got 6 \(case 2: robot\.model = 'panda', "),
+    ('model = "ur5"', '"robot.q0" = [[0.0, -1.5, 1.5, -1.5, -1.5, 0.0], [0.0, -1.5, 1.5, -1.5, -1.5, 0.0, 0.0]]',
+     r"^error: robot\.q0: expected 6 values \(one per joint of ur5\), got 7 \(case 1: robot\.q0 = "),
     # axes over the per-joint lists themselves (review 41: ARM_KEYS' tau_max and dq_max entries survived removal)
     ('model = "ur5"', '"robot.tau_max" = [[100.0, 100.0, 100.0, 100.0, 100.0, 100.0], [100.0, 100.0]]',
      r"^error: robot\.tau_max: expected 6 values \(one per joint of ur5\), got 2 \(case 1: robot\.tau_max = "),
