@@ -11,7 +11,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from tmtcontrol.sweep import EXAMPLE, load_sweep, run_sweep, save_sweep, sweep_from_dict
+from tmtcontrol.sweep import EXAMPLE, load_sweep, run_sweep, save_sweep, sweep_from_dict, sweep_summary
 from tmtcontrol.sweep.run import PartialFolder, case_row
 
 SMALL = """
@@ -127,6 +127,38 @@ def test_the_arm_check_runs_once_per_arm_not_per_value_of_other_robot_keys(monke
     check_sweep_robots(sweep_from_dict({"grid": {"robot.posture_kp": list(np.linspace(1.0, 50.0, 500)),
                                                  "robot.model": ["ur5", "panda"]}}))
     assert loaded == ["ur5", "panda"]
+
+
+def test_the_boundary_is_the_first_value_with_a_case_not_converged():
+    """Review 41's survivors in sweep_summary's boundary loop (every test had one case per value, with
+    monotone verdicts): a value where one of two cases diverged is not converged (.any() for .all()
+    passed), and a larger value converging again does not move "converged up to" past the first failure
+    (dropping the first-failure guard passed). Verdicts made up, no case run."""
+    k = "environment.stiffness.values"
+    sweep = sweep_from_dict({"grid": {k: [[1e3], [2e4], [5e4]], "trajectory.cycles": [0.5, 1.0]}})
+    df = pd.DataFrame({"case": range(6), k: [1e3, 1e3, 2e4, 2e4, 5e4, 5e4], "trajectory.cycles": [0.5, 1.0] * 3,
+                       "verdict": ["converged", "converged", "converged", "diverged", "converged", "converged"],
+                       "max_steady_error": [0.0] * 6})
+    (at1,) = [b for b in sweep_summary(sweep, df)["boundary"] if b["trajectory.cycles"] == 1.0]
+    assert at1[f"largest {k} with every case converged"] == 1e3
+    assert at1[f"smallest {k} with a case not converged"] == 2e4
+    two = sweep_from_dict({"grid": {k: [[1e3], [2e4]]}, "random": {"samples": 2,
+                                                                     "sensor.noise_std": {"uniform": [0.0, 0.01]}}})
+    df = pd.DataFrame({"case": range(4), k: [1e3, 1e3, 2e4, 2e4], "sensor.noise_std": [0.0] * 4,
+                       "verdict": ["converged", "diverged", "converged", "converged"], "max_steady_error": [0.0] * 4})
+    (b,) = sweep_summary(two, df)["boundary"]
+    assert b[f"largest {k} with every case converged"] is None and b[f"smallest {k} with a case not converged"] == 1e3
+
+
+def test_a_seed_on_a_joint_limit_passes_the_arm_check():
+    """Review 41: the limits are closed (lo <= q0 <= hi); a strict check passed every test."""
+    from tmtcontrol.simulation.simulator import robot_of
+    from tmtcontrol.sweep.spec import check_sweep_robots
+
+    sweep = sweep_from_dict({"grid": {"robot.model": ["ur5"]}})
+    hi = float(robot_of(sweep.scenario(next(iter(sweep.cases)))).q_max[0])
+    check_sweep_robots(sweep_from_dict({"grid": {"robot.model": ["ur5"],
+                                                 "robot.q0": [[hi, -1.5, 1.5, -1.5, -1.5, 0.0]]}}))
 
 
 @pytest.fixture(scope="module")
@@ -522,5 +554,6 @@ def test_the_boundary_axis_prefers_a_varied_grid_axis_and_needs_two_values():
     arms = {"robot.model": ["ur5", "panda", "puma560"]}
     assert boundary_axis(sweep_from_dict({"grid": {**arms, k: [[5e3], [2e4]]}})) == k
     assert boundary_axis(sweep_from_dict({"grid": arms})) is None
+    assert boundary_axis(sweep_from_dict({"grid": {"robot.saturate": [False, True]}})) is None   # bools: no order
     laws = {"controller.law.kind": ["tmt", "known"]}
     assert boundary_axis(sweep_from_dict({"grid": {**laws, "controller.f_d": [5.0, 10.0]}})) == "controller.f_d"
