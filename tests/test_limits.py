@@ -100,6 +100,19 @@ def _brute_growth(As, chunk):
     return out
 
 
+def _pieces(As, chunk):
+    """The transition matrices of the ``chunk``-sample pieces of the period ``As`` as
+    ``PeriodicModel._growth`` hands them to ``_window_growth``: ``pieces[j][tau - 1]`` = A_(b+tau-1) ... A_b."""
+    out = []
+    for b in range(0, len(As), chunk):
+        P, run = np.eye(As[0].shape[0]), []
+        for A in As[b:b + chunk]:
+            P = A @ P
+            run.append(P)
+        out.append(np.array(run))
+    return out
+
+
 def test_the_window_growth_multiplies_in_order_over_whole_periods():
     """Review 41's survivors: pieces multiplied in the wrong order (P @ end instead of end @ P) and the last
     round of windows (those ending a whole period of pieces after their start) dropped both passed, the
@@ -111,15 +124,8 @@ def test_the_window_growth_multiplies_in_order_over_whole_periods():
     rng = np.random.default_rng(41)
     n, N = 5, 4 * GROWTH_CHUNK
     As = [1.004 * (np.eye(n) + 0.08 * rng.standard_normal((n, n))) for _ in range(N)]
-    pieces = []
-    for b in range(0, N, GROWTH_CHUNK):
-        P, run = np.eye(n), []
-        for A in As[b:b + GROWTH_CHUNK]:
-            P = A @ P
-            run.append(P)
-        pieces.append(np.array(run))
     want = _brute_growth(As, GROWTH_CHUNK)
-    assert _window_growth(pieces) == pytest.approx(want, rel=1e-10) and want > 2.0
+    assert _window_growth(_pieces(As, GROWTH_CHUNK)) == pytest.approx(want, rel=1e-10) and want > 2.0
 
 
 def test_the_transient_growth_does_not_depend_on_units_or_on_where_the_period_starts():
@@ -141,15 +147,7 @@ def test_the_transient_growth_does_not_depend_on_units_or_on_where_the_period_st
     As = [unstable if 60 <= j < 120 else base for j in range(N)]
     As = [A * np.array([1, 1e3, 1, 1e-2, 1, 1])[:, None] / np.array([1, 1e3, 1, 1e-2, 1, 1])[None, :] for A in As]
 
-    def pieces(seq):
-        out = []
-        for b in range(0, N, GROWTH_CHUNK):
-            P, run = np.eye(n), []
-            for A in seq[b:b + GROWTH_CHUNK]:
-                P = A @ P
-                run.append(P)
-            out.append(np.array(run))
-        return out
+    pieces = lambda seq: _pieces(seq, GROWTH_CHUNK)
 
     g = _window_growth(pieces(As))
     assert g == pytest.approx(_brute_growth(As, GROWTH_CHUNK), rel=1e-10) and g > 50
