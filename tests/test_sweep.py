@@ -96,6 +96,9 @@ def test_bad_sweep_files_exit_2_naming_the_key(tmp_path, capsys, text, needle):
      r"^error: robot\.dq_max: expected 6 values \(one per joint of ur5\), got 1 \(case 1: robot\.dq_max = "),
     ('model = "ur5"', '"robot.q0" = [[0.0, -1.5, 1.5, -1.5, -1.5, 0.0], [0.0, -1.5, 1.5, -1.5, -1.5, 9.0]]',
      r"^error: robot\.q0\[5\]: 9 is outside .*'s limits .* \(case 1: robot\.q0 = "),
+    # an arm without torque limits (the paper's PUMA) cannot clip at them (review 41: ARM_KEYS' saturate entry)
+    ('model = "puma560"', '"robot.saturate" = [false, true]',
+     r"^error: robot\.saturate: no torque limit to clip at for .* \(case 1: robot\.saturate = True\)$"),
 ])
 def test_a_case_whose_arm_does_not_fit_its_joint_settings_is_refused_before_any_case_runs(tmp_path, robot, grid,
                                                                                          needle):
