@@ -289,6 +289,36 @@ def test_the_periodic_searchs_last_widening_is_tried_and_a_failure_names_both_en
         periodic_search(None, model=_Given(lambda k: None), bracket=(3e4, 2e6))
 
 
+def test_the_periodic_searchs_own_bracket_is_the_frozen_limits_widened_two_percent(monkeypatch):
+    """Review 41's survivor: periodic_search called without a bracket (as periodic_limit(scenario) is)
+    starts from the frozen loop's smallest and largest limits along the path, each 2 % outward; the low
+    end's / 1.02 mutated away passed every test (the deciding limit passes its own bracket). The frozen
+    limits are stubbed (1e4 and 1.3e4 N/m) and the first two stiffnesses asked are recorded (exp(log k):
+    1e-12 relative). A frozen loop without a finite limit is refused in one sentence."""
+    import math
+
+    from tmtcontrol.stability import onedim, wholeloop
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.periodic import periodic_search
+
+    monkeypatch.setattr(onedim, "scenario_parameters", lambda sc: {"k_e_min": 5e3})
+    monkeypatch.setattr(onedim, "scenario_stiffness_limit", lambda sc: 1.1e4)
+    frozen = []
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda sc, **kw: frozen.append(kw) or (
+        1e4, [(0.0, 1e4), (1.0, 1.3e4), (2.0, 1.1e4)]))
+    asked = []
+    model = _Given(lambda k: asked.append(k) or ((0.5, 10.0) if k < 1.15e4 else (2.0, math.nan)))
+    model.frozen = "the frozen model"
+    found = periodic_search(None, model=model)
+    assert asked[:2] == [pytest.approx(1e4 / 1.02, rel=1e-12), pytest.approx(1.3e4 * 1.02, rel=1e-12)]
+    assert found.k_e == pytest.approx(1.15e4, rel=2e-5)
+    (kw,) = frozen
+    assert kw["model"] == "the frozen model" and kw["guess"] == 1.1e4 and kw["within"] == 5e3
+    monkeypatch.setattr(wholeloop, "whole_loop_limit", lambda sc, **kw: (math.inf, [(0.0, math.inf)]))
+    with pytest.raises(AnalysisError, match="^the frozen loop has no finite stiffness limit"):
+        periodic_search(None, model=model)
+
+
 def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):
     """The tangent-linear rollouts (forward-mode AD in the compiled-step form,
     stability.periodic) against the product A_(N-1) ... A_0 of the whole-loop
