@@ -1,6 +1,8 @@
 """Stiffness limits along the moving path (monodromy, stability.periodic) and from the
 scenario's own start (stability.first_contact), against closed forms and bisection in
 the simulator (issue 28, items 1, 2 and 4)."""
+import math
+
 import numpy as np
 import pytest
 
@@ -126,6 +128,31 @@ def test_the_window_growth_multiplies_in_order_over_whole_periods():
     As = [1.004 * (np.eye(n) + 0.08 * rng.standard_normal((n, n))) for _ in range(N)]
     want = _brute_growth(As, GROWTH_CHUNK)
     assert _window_growth(_pieces(As, GROWTH_CHUNK)) == pytest.approx(want, rel=1e-10) and want > 2.0
+
+
+def test_a_window_growth_beyond_the_floats_is_infinite_not_an_error():
+    """Found in the eleventh session (review 41 left the NaN pre-check's removal alive): a period whose
+    one-step Jacobians are finite but whose products overflow (entries of 1e150: a piece's second product
+    is 1e300, its third inf) raised numpy's LinAlgError out of the balancing (the squared entries
+    overflowed) instead of an infinite growth; a NaN anywhere, at a piece's start or inside it, is
+    infinite too. Scaling every Jacobian by 1e-200 (products underflow to 0) leaves the floor of 1
+    (exact). The balancing does not depend on the matrix's scale (1e-12)."""
+    from tmtcontrol.stability.periodic import GROWTH_CHUNK, _balancing, _window_growth
+
+    rng = np.random.default_rng(11)
+    As = [np.eye(3) + 0.3 * rng.standard_normal((3, 3)) for _ in range(2 * GROWTH_CHUNK)]
+    assert np.isfinite(_window_growth(_pieces(As, GROWTH_CHUNK)))
+    with np.errstate(all="ignore"):
+        assert _window_growth(_pieces([1e150 * A for A in As], GROWTH_CHUNK)) == math.inf
+        assert _window_growth(_pieces([1e-200 * A for A in As], GROWTH_CHUNK)) == 1.0
+        for at in (0, 3, GROWTH_CHUNK):
+            bad = [A.copy() for A in As]
+            bad[at][1, 2] = np.nan
+            assert _window_growth(_pieces(bad, GROWTH_CHUNK)) == math.inf
+    M = np.abs(rng.standard_normal((4, 4)))
+    d = _balancing(M)
+    for c in (1e200, 1e-300):
+        assert _balancing(c * M) / _balancing(c * M)[0] == pytest.approx(d / d[0], rel=1e-12)
 
 
 def test_the_transient_growth_does_not_depend_on_units_or_on_where_the_period_starts():

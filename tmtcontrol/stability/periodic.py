@@ -367,7 +367,9 @@ def _balancing(A: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
     D^-1 A D does not depend on the units. It exists where every state reaches
     every other through A's nonzero entries (one strongly connected group:
     :func:`_window_growth` balances each group on its own)."""
-    W = np.array(A, dtype=float) ** 2
+    W = np.array(A, dtype=float)
+    top = np.abs(W).max(initial=0.0)
+    W = (W / top if np.isfinite(top) and top > 0 else W) ** 2   # d does not depend on A's scale; no overflow
     np.fill_diagonal(W, 0.0)
     x = np.zeros(W.shape[0])
 
@@ -412,9 +414,9 @@ def _window_growth(pieces: list) -> float:
     39; docs/theory.md)."""
     from scipy.sparse.csgraph import connected_components
 
-    A = np.array([p[0] for p in pieces])
-    if not np.all(np.isfinite(A)):
+    if not all(np.all(np.isfinite(p)) for p in pieces):     # a NaN, or a piece's product overflowed
         return math.inf
+    A = np.array([p[0] for p in pieces])
     mean = np.abs(A).mean(axis=0)
     # one-way couplings between groups of states have no unit-free size (balancing would shrink them without
     # end): each strongly connected group's own transition, Phi's diagonal block (the products' diagonal
