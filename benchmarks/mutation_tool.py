@@ -130,6 +130,17 @@ TESTS: dict[str, tuple[str, ...]] = {
     "tmtcontrol/processes.py": ("tests/test_processes_units.py", "tests/test_processes.py", "tests/test_compile_signals.py",
                                 "tests/test_files_safety.py"),
     "tmtcontrol/checks/arm.py": ("tests/test_arm_checks.py", "tests/test_model_checks.py"),
+    # review 42 (the sixth run): modules the tool had never measured
+    "tmtcontrol/surface": ("tests/test_surfaces.py", "tests/test_curved_refusals.py", "tests/test_curved_acceptance.py",
+                           "tests/test_mujoco_plant.py"),
+    "tmtcontrol/simulation/limits.py": ("tests/test_joint_limits.py", "tests/test_report_arm.py", "tests/test_export.py"),
+    "tmtcontrol/stability/wholeloop.py": ("tests/test_wholeloop_units.py", "tests/test_tangent.py",
+                                          "tests/test_verdicts.py", "tests/test_stiffness_band.py",
+                                          "tests/test_stability.py", "tests/test_limits.py",
+                                          "tests/test_stability_6d.py"),
+    "tmtcontrol/simulation/mujoco_plant.py": ("tests/test_mujoco_plant.py", "tests/test_crosscheck_verdicts.py",
+                                              "tests/test_curved_refusals.py", "tests/test_report_arm.py",
+                                              "tests/test_export_6d.py"),
 }
 
 
