@@ -114,6 +114,24 @@ def test_the_drive_clip_is_the_unclipped_torque_clipped_and_keeps_the_run_inside
     assert not np.array_equal(sat.contact_force, res.contact_force)     # the clip changes what follows
 
 
+def test_a_converged_run_on_the_torque_clip_says_so_on_screen(tmp_path, capsys):
+    """Review 43: with robot.saturate the PUMA sat on its clip for 7, 7 and 3 ms, every segment converged
+    (exit 0) and only summary.json said so. simulate prints a note naming each clipped joint and its time on
+    the clip, counted here from timeseries.csv (samples with |tau| at tau_max, times Ts; exact)."""
+    import pandas as pd
+
+    out, tau_max = tmp_path / "run", [15.0, 25.0, 40.0]
+    assert main(["simulate", "paper", "--set", "robot.saturate=true", "--set", f"robot.tau_max={tau_max}",
+                 "--no-plots", "--out", str(out)]) == 0
+    (note,) = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: the torque sat")]
+    ts = pd.read_csv(out / "timeseries.csv")
+    Ts = paper_scenario().controller.Ts
+    want = [f"joint {j} (joint{j}) {np.count_nonzero(np.abs(ts[f'tau{j}']) >= m) * Ts:.3g} s"
+            for j, m in enumerate(tau_max, 1) if np.any(np.abs(ts[f"tau{j}"]) >= m)]
+    assert len(want) == 3 and note == f"note: the torque sat on its clip (robot.saturate): {', '.join(want)}; " \
+        "the run holds its limits because the loop clips the torque, as the drive must"
+
+
 def test_simulate_exits_1_naming_the_joint_and_summary_json_carries_the_margins(tmp_path, capsys):
     out = tmp_path / "run"
     sets = ["--set", "robot.tau_max=[5.0, 18.0, 10.0]", "--set", "trajectory.cycles=0.5"]

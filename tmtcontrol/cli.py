@@ -344,6 +344,10 @@ def _simulate_with(args, workers) -> int:
     else:
         print(f"first contact at {fc.time:.3f} s: peak {fc.peak_force:.2f} N = {fc.peak_ratio:.2f} f_d, "
               f"{fc.bounces} bounce(s) in the next second")
+    if (use := res.limit_use()) is not None and (clipped := use.on_clip()):
+        # review 43: a converged run on the clip said so only in summary.json
+        print(f"note: the torque sat on its clip (robot.saturate): {clipped}; the run holds its limits because the "
+              "loop clips the torque, as the drive must")
     print(f"wrote {out.out}/")
     return _verdict_exit(sc, segs, memo)
 

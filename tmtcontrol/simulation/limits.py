@@ -188,6 +188,12 @@ class LimitUse:
         return (f"{len(self.excursions)} excursion{'s' if len(self.excursions) > 1 else ''} ({where}); "
                 f"the largest: {worst.text}")
 
+    def on_clip(self) -> str:
+        """The joints whose torque sat on its clip (``robot.saturate``) and
+        for how long, in words (``""`` when none did)."""
+        return ", ".join(f"joint {j + 1} ({self.limits.names[j]}) {self.saturated[j]:.3g} s"
+                         for j in np.flatnonzero(self.saturated > 0))
+
     def rows(self) -> list[dict]:
         """One dict per joint: its name, peaks, limits and margins (JSON-ready: inf as None)."""
         L = self.limits

@@ -653,9 +653,7 @@ def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, toleranc
     (``robot.saturate``)."""
     if use is not None and verdict != "converged" and np.any(use.saturated > 0):
         # the drive's clip (robot.saturate) shapes the force: say so beside what the verdict blames
-        on = [f"joint {j + 1} ({use.limits.names[j]}) {use.saturated[j]:.3g} s"
-              for j in np.flatnonzero(use.saturated > 0)]
-        reason = f"{reason}; the torque sat on its clip (robot.saturate): {', '.join(on)}"
+        reason = f"{reason}; the torque sat on its clip (robot.saturate): {use.on_clip()}"
     if use is not None and use.excursions:
         shown = "; ".join(e.text for e in use.excursions[:3])
         more = f" (and {len(use.excursions) - 3} more)" if len(use.excursions) > 3 else ""
