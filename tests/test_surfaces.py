@@ -363,6 +363,10 @@ def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     (np.zeros((9, 9)), [], "trajectory.radius: the path leaves the height map"),
     (np.zeros((41, 41)), ["environment.radius=0.3"], "environment.radius: not used by shape = 'heightmap'"),
     (np.zeros((41, 41)), ["environment.grid_spacing=0.0"], "environment.grid_spacing: must be > 0"),
+    # review 43: 5 (mm written as m) and 1e300 ran as the flat plane's results
+    (np.zeros((41, 41)), ["environment.grid_spacing=5.0"], "environment.grid_spacing: must be <= 1, got 5.0"),
+    (np.zeros((41, 41)), ["environment.grid_spacing=1e300"], "environment.grid_spacing: must be <= 1"),
+    (np.zeros((11, 11)), [], "reaches 0.05 m, a path 0.03 m (two spacings kept as margin)"),
 ])
 def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
     np.savetxt(tmp_path / "part.csv", grid, delimiter=",")

@@ -242,8 +242,10 @@ class EnvironmentSettings(Section):
     heightmap: str | None = Field(None, min_length=1, description=(
         "heightmap: a CSV (rows of numbers) or .npy file of heights [m] along the outward normal, rows along "
         "task axis 1, columns along task axis 2, the grid centred on trajectory.center"))
-    grid_spacing: float | None = Field(None, description="heightmap: the grid's spacing [m]", allow_inf_nan=False,
-                                       strict=True, gt=0, json_schema_extra={"unit": "m"})
+    grid_spacing: float | None = Field(None, description=(
+        "heightmap: the grid's spacing [m], at most 1 m (a wider cell than an arm's reach is a unit mistake: "
+        "millimetres written as metres)"), allow_inf_nan=False, strict=True, gt=0, le=1.0,
+        json_schema_extra={"unit": "m"})
     tilt_deg: float = num(45.0, "deg", "tilt of the plane (or a curved part's tangent plane at "
                           "trajectory.center) about the base y axis (the shorthand for the inward normal "
                           "(sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)

@@ -143,7 +143,8 @@ def _domain_problem(sc: Scenario) -> str | None:
             if reach > half - 2 * env.grid_spacing:
                 return (f"trajectory.radius: the path leaves the height map: it reaches {reach:.6g} m from its "
                         f"centre along task axis {axis + 1}{turned}, the grid ({shape[0]} x {shape[1]} at "
-                        f"{env.grid_spacing:g} m) reaches {half:g} m (two spacings kept as margin)")
+                        f"{env.grid_spacing:g} m) reaches {half:g} m, a path {half - 2 * env.grid_spacing:g} m "
+                        "(two spacings kept as margin)")
         return None
     limit = 1.2 if env.shape == "sphere" else 2.5
     for axis, reach in enumerate(extent):
