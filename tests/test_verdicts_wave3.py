@@ -181,6 +181,30 @@ def test_tolerance_and_band_on_synthetic_forces():
     assert judge_segment(np.full(10, 10.5), 10.0, 0.1, 0.01)[0] == "off_target"
 
 
+def test_an_excursion_before_the_last_window_is_named_not_called_a_bias():
+    """Review 43: a 2 mm step of a measured part met once, 3.23 s into a 4 s segment of one path period, gave
+    "|f_e - f_d| up to 137 mN ...: a bias of +82.1 uN": the last window (the last half of the last quarter) held
+    80 uN and the bias named was its mean, the excursion outside it. Made-up forces (N): 80 uN off f_d with a
+    dip of 137 mN for 20 ms at 3.23 s. The reason names the excursion, when, and what the last window held;
+    with two whole periods in the segment (the dip in the first only: no forced response) it does so without
+    the caveat; a dip inside the last window is judged on that window's own terms (the old words)."""
+    f = np.full(4000, 10.0 + 80e-6)
+    f[3230:3250] -= 0.137
+    verdict, why = judge_segment(f, 10.0, 0.1, 0.01, periods=(4000,), Ts=1e-3)
+    assert verdict == "off_target"
+    assert why == ("|f_e - f_d| up to 137 mN at the end (tolerance 10 mN): an excursion to \u2212137 mN 3.23 s into "
+                   "the segment, the last 0.5 s within 80 µN (a segment of fewer than two periods of the forcing "
+                   "cannot tell a transient from a forced response)"), why
+    f2 = np.full(4000, 10.0 + 80e-6)
+    f2[3050:3070] -= 0.137               # periods of 0.4 s: the last window is 0.8 s, from 3.2 s
+    verdict, why = judge_segment(f2, 10.0, 0.1, 0.01, periods=(400,), Ts=1e-3)
+    assert verdict == "off_target" and why.endswith("an excursion to \u2212137 mN 3.05 s into the segment, the last "
+                                                    "0.8 s (whole periods) within 80 µN"), why
+    g = np.full(4000, 10.0 + 80e-6)
+    g[3800:3820] -= 0.137
+    assert "an excursion" not in judge_segment(g, 10.0, 0.1, 0.01, periods=(4000,), Ts=1e-3)[1]
+
+
 # -- issue 27 item 17: tests that tell each mutation apart ---------------------------------------
 
 def _synthetic(result, force, *sets):

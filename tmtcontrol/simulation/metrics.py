@@ -420,6 +420,15 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         why = f"a periodic forced response of {_N(a_B)} peak-to-peak"
     elif a_B > band:
         why = f"still decaying ({a_B / max(a_A, 1e-300):.3g}x over {over})"
+    elif (at := n - last.size + int(np.argmax(np.abs(e[n - last.size:])))) < n - W \
+            and float(np.max(np.abs(e_B))) <= tolerance:
+        # review 43: the worst sample before the last window (a step in a measured part met once), which is
+        # within the tolerance: no bias of the last window explains it
+        why = (f"an excursion to {_N(float(e[at]), sign=True)} {at * Ts:.3g} s into the segment, the last {over} "
+               f"within {_N(float(np.max(np.abs(e_B))))} (a segment of fewer than two periods of the forcing "
+               "cannot tell a transient from a forced response)" if P is None else
+               f"an excursion to {_N(float(e[at]), sign=True)} {at * Ts:.3g} s into the segment, the last {over} "
+               f"within {_N(float(np.max(np.abs(e_B))))}")
     else:
         drift = float(np.mean(e_B) - np.mean(e_A))
         why = f"a bias of {_N(float(np.mean(e_B)), sign=True)}" + (f", drifting {_N(drift, sign=True)} over {over}"
