@@ -31,6 +31,24 @@ def test_rounding_residue_in_a_column_prints_as_zero_and_a_small_real_value_does
     assert fmt.column([9.81e-14, 30.0, -9.0, 40.0], "N")[1] == ["0", "30.0", "−9.00", "40.0"]
     assert fmt.column([4e-5, 40.0], "N")[1][0] != "0"
     assert "0" not in fmt.column([1e-20, 2e-20], "N")[1]                     # alone, a small column is a value
+    # review 43: alone in its column (a one-segment run) the residue printed as "9.81 x 10^-5 nN"; against
+    # the size of what it was computed from (the run's forces) it is 0, and 1e-6 of that is still a value
+    assert fmt.column([9.81e-14], "N", reference=12.4) == ("N", ["0"])
+    assert fmt.column([1.24e-5], "N", reference=12.4)[1] != ["0"]
+
+
+def test_a_one_segment_runs_table_prints_a_first_jump_of_rounding_residue_as_0():
+    """metrics.format_table passes the run's peak force as the jump column's reference (review 43)."""
+    import dataclasses
+
+    from tmtcontrol.simulation.metrics import SegmentMetrics, format_table
+
+    fields = {f.name: 1.0 for f in dataclasses.fields(SegmentMetrics) if f.type in ("float", float)}
+    seg = SegmentMetrics(**{**fields, "switch_jump": 9.81e-14, "peak_force": 12.4, "contact_lost_steady": False,
+                            "verdict": "converged"})
+    header, _, row = format_table([seg]).splitlines()
+    assert "jump (N)" in header and "10⁻" not in row
+    assert row.split()[5] == "0"              # segment, t, k_e, ss err, peak, jump
 
 
 @pytest.mark.parametrize("value, bound, text", [(4.995, 5.0, "4.995"), (5.0, 5.0, "5"), (3.2, 5.0, "3.2"),

@@ -95,7 +95,8 @@ table prints it as 0: a switch jump of 9.81e-14 N beside jumps of 30 N is
 the arithmetic, not a force."""
 
 
-def column(values, unit: str = "", sig: int = 3, attach: bool = False) -> tuple[str, list[str]]:
+def column(values, unit: str = "", sig: int = 3, attach: bool = False,
+           reference: float = 0.0) -> tuple[str, list[str]]:
     """One table column: ``(unit, cells)`` with a single unit for the whole
     column (for s, N, m and Hz the SI prefix of its largest magnitude: 0.500 s
     and 1.50 s, never 500 ms beside 1.5 s) and every cell to ``sig``
@@ -103,10 +104,12 @@ def column(values, unit: str = "", sig: int = 3, attach: bool = False) -> tuple[
     Non-finite values and None read as in :func:`num`. ``attach``: each
     number cell carries the column's unit (4.20 mN), for tables read on
     narrow screens where the header scrolls away. A value below
-    :data:`RESIDUE` times the column's largest magnitude prints as 0."""
+    :data:`RESIDUE` times the column's largest magnitude, or ``reference``
+    (the size of the quantities it was computed from, for a column that may
+    hold residue alone), prints as 0."""
     finite = [abs(float(v)) for v in values if v is not None and math.isfinite(float(v)) and v != 0]
     if finite:
-        floor = RESIDUE * max(finite)
+        floor = RESIDUE * max(*finite, float(reference))
         values = [0.0 if v is not None and math.isfinite(float(v)) and abs(float(v)) < floor else v for v in values]
         finite = [a for a in finite if a >= floor]
     scale, prefix = 1.0, ""

@@ -721,8 +721,8 @@ def format_table(metrics: list[SegmentMetrics]) -> str:
     (``fmt.column``)."""
     from .. import fmt
 
-    def col(name, values, unit, sig=3, nan="never"):
-        unit, cells = fmt.column(values, unit, sig)
+    def col(name, values, unit, sig=3, nan="never", reference=0.0):
+        unit, cells = fmt.column(values, unit, sig, reference=reference)
         return (f"{name} ({unit})" if unit else name, [nan if c == "–" else c for c in cells])
 
     return fmt.text_table([
@@ -731,7 +731,9 @@ def format_table(metrics: list[SegmentMetrics]) -> str:
         col("k_e", [m.stiffness for m in metrics], "N/m", 4),
         col("ss err", [m.steady_state_error for m in metrics], "N"),
         col("peak", [m.peak_force for m in metrics], "N"),
-        col("jump", [m.switch_jump for m in metrics], "N"),
+        # a first segment's jump is the force at its first sample: rounding residue when the tool starts on the
+        # surface (review 43: 9.81e-14 N printed as "9.81 x 10^-5 nN" alone in its column)
+        col("jump", [m.switch_jump for m in metrics], "N", reference=max(m.peak_force for m in metrics)),
         col("overshoot", [m.overshoot_pct for m in metrics], "%"),
         col("settle 2 %", [m.settling_time for m in metrics], "s"),
         col("tang RMS", [m.tangential_rms for m in metrics], "m"),
