@@ -85,6 +85,12 @@ class Surface(abc.ABC):
     """Whether the task frame turns along the surface (a curved shape)."""
     noun: str = "surface"
     """What the shape is called in figures and reports."""
+    step_cost: float = 0.0
+    """What the shape adds to a loop step's time, in units of a 3-joint
+    arm's step on a plane (the sweep's estimate: ``Sweep.estimate_seconds``);
+    0 for a shape whose chart costs a few operations."""
+    analysis_cost: float = 0.0
+    """Likewise for a scenario's limit analysis (``stability.limit``)."""
 
     @abc.abstractmethod
     def values(self) -> dict[str, np.ndarray]:

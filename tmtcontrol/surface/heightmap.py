@@ -62,6 +62,11 @@ class HeightMap(_Curved):
 
     kind = "heightmap"
     noun = "measured part"
+    # CasADi's B-spline and its derivatives in every step (generic de Boor code): the PUMA's step and limit
+    # analysis on a 61 x 61 dome's map beside its plane, benchmarks/bench_heightmap.py
+    # (benchmarks/heightmap_results.json: 12.4x and 11.1x extra; tests/test_inputs_wave3.py checks them within 10 %)
+    step_cost = 12.0
+    analysis_cost = 11.0
     fields = (("R", 9), ("c", 3))
 
     def __init__(self, R, c, heights, spacing):

@@ -327,6 +327,34 @@ class Sweep:
         picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
         return float(np.mean([cost(i) for i in picks]))
 
+    def surface_cost(self) -> tuple[float, float]:
+        """What the cases' surfaces add to a step's and to a limit
+        analysis's cost, in units of a 3-joint arm's on a plane
+        (:attr:`~tmtcontrol.surface.Surface.step_cost`,
+        :attr:`~tmtcontrol.surface.Surface.analysis_cost`: a measured height
+        map's spline costs about 12x the plane's step; review 43: a 4-case
+        sweep over height maps was estimated at 11 s and took 324 s); with an
+        axis under ``environment``, the mean over up to
+        :data:`ARM_COST_CASES` cases spread evenly over the sweep, as
+        :meth:`arm_cost`; (0, 0) for a case that cannot be built."""
+        from ..simulation.geometry import surface_of
+
+        def cost(index: int) -> tuple[float, float]:
+            try:
+                surface = surface_of(self.scenario(self.cases.case(index)))
+            except (ValueError, OSError):          # ScenarioError among them
+                return 0.0, 0.0
+            return surface.step_cost, surface.analysis_cost
+
+        total = self.cases.total
+        if total == 0:
+            return 0.0, 0.0
+        if not any(_covers(axis, "environment") for axis in self.axes):
+            return cost(0)
+        picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
+        step, analysis = np.mean([cost(i) for i in picks], axis=0)
+        return float(step), float(analysis)
+
     def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
         """A rough run time (s) of ``cases`` of the cases (default all) on
         ``workers`` processes: :data:`SECONDS_TO_START`, then
@@ -334,13 +362,17 @@ class Sweep:
         and :data:`SECONDS_PER_CASE` per case shared by the workers, before
         any compilation; with ``limits``, :data:`SECONDS_PER_LIMIT` (times
         :meth:`arm_cost`) per limit analysis (the families' share of
-        ``cases``), which every worker computes for itself."""
+        ``cases``), which every worker computes for itself. The surfaces'
+        own costs (:meth:`surface_cost`) add to the arm's."""
         n = self.cases.total if cases is None else cases
         share = n / max(self.cases.total, 1)
         total = self.steps()[0] * share
         cost = self.arm_cost()
-        analyses = self.limit_families() * share * SECONDS_PER_LIMIT * cost if limits else 0.0
-        return SECONDS_TO_START + (total * SECONDS_PER_STEP * cost + n * SECONDS_PER_CASE) / max(1, workers) + analyses
+        step_extra, analysis_extra = self.surface_cost()
+        analyses = (self.limit_families() * share * SECONDS_PER_LIMIT * (cost + analysis_extra) if limits
+                    else 0.0)
+        return SECONDS_TO_START + (total * SECONDS_PER_STEP * (cost + step_extra)
+                                   + n * SECONDS_PER_CASE) / max(1, workers) + analyses
 
 
 def check_sweep_size(sweep: Sweep, max_steps: int | None = None) -> None:
