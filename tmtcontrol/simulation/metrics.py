@@ -421,9 +421,11 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     elif a_B > band:
         why = f"still decaying ({a_B / max(a_A, 1e-300):.3g}x over {over})"
     elif (at := n - last.size + int(np.argmax(np.abs(e[n - last.size:])))) < n - W \
-            and float(np.max(np.abs(e_B))) <= tolerance:
+            and 2.0 * float(np.max(np.abs(e_B))) < min(worst, 2.0 * tolerance):
         # review 43: the worst sample before the last window (a step in a measured part met once), which is
-        # within the tolerance: no bias of the last window explains it
+        # within the tolerance and less than half of it: no bias of the last window explains it (under sensor
+        # noise a bias's worst sample falls anywhere in the last quarter, at most a few noise widths above the
+        # last window's)
         why = (f"an excursion to {_N(float(e[at]), sign=True)} {at * Ts:.3g} s into the segment, the last {over} "
                f"within {_N(float(np.max(np.abs(e_B))))} (a segment of fewer than two periods of the forcing "
                "cannot tell a transient from a forced response)" if P is None else
