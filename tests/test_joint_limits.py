@@ -129,7 +129,7 @@ def test_a_converged_run_on_the_torque_clip_says_so_on_screen(tmp_path, capsys):
     want = [f"joint {j} (joint{j}) {np.count_nonzero(np.abs(ts[f'tau{j}']) >= m) * Ts:.3g} s"
             for j, m in enumerate(tau_max, 1) if np.any(np.abs(ts[f"tau{j}"]) >= m)]
     assert len(want) == 3 and note == f"note: the torque sat on its clip (robot.saturate): {', '.join(want)}; " \
-        "the run holds its limits because the loop clips the torque, as the drive must"
+        "the run's torques are within tau_max only because the loop clips them, as the drive must"
 
 
 def test_simulate_exits_1_naming_the_joint_and_summary_json_carries_the_margins(tmp_path, capsys):

@@ -367,6 +367,7 @@ def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     (np.zeros((41, 41)), ["environment.grid_spacing=5.0"], "environment.grid_spacing: must be <= 1, got 5.0"),
     (np.zeros((41, 41)), ["environment.grid_spacing=1e300"], "environment.grid_spacing: must be <= 1"),
     (np.zeros((11, 11)), [], "reaches 0.05 m, a path 0.03 m (two spacings kept as margin)"),
+    (np.zeros((4, 4)), [], "reaches 0.015 m, no path at all (two spacings kept as margin)"),      # review 44
 ])
 def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
     np.savetxt(tmp_path / "part.csv", grid, delimiter=",")
@@ -917,6 +918,33 @@ def test_a_height_maps_chart_error_is_the_sphere_maps_own_error():
     assert Plane(R0, C0).chart_error(np.zeros((3, 2))) is None
     assert Sphere(R0, C0, r).chart_error(np.zeros((3, 2))) is None
     assert [a.shape for a in s.chart_error(np.zeros((3, 0)))] == [(0,), (0,)]
+
+
+def test_a_height_maps_chart_error_finds_the_closest_point_deeper_than_the_curvature():
+    """Review 44: Gauss-Newton from the point's own (u, v) converges at the rate X_0 kappa; on a corrugated map
+    (2 mm amplitude, 40 mm wavelength: kappa up to 49 1/m) at 33 mm depth (10 N at 300 N/m, X_0 kappa 1.6) it
+    cycled, and its "closest point" was 34.6 mm away where one 33.1 mm away exists (the force error 5x too
+    large, a segment wrongly off_target). Now seeded from a grid within the projection's foot distance: the
+    distance to the closest point is the brute-force one over the spline itself (v-independent map: a dense
+    1-D search along u, 2 um steps), within 1e-8 m; so is the normal, within 1e-4 rad."""
+    from tmtcontrol.surface import HeightMap
+
+    s = HeightMap(R0, C0, _grid(lambda U, V: 0.002 * np.cos(2 * np.pi * U / 0.04), 61, 0.005), 0.005)
+    for u_p in (0.0, 0.007, 0.013, 0.021, -0.03):
+        X = np.array([0.033, u_p, 0.01])
+        h, hu, _ = s._slope_np([u_p], [0.01])
+        g = np.sqrt(1 + hu[0] ** 2)
+        z = X[0] * g - h[0]
+        u = u_p + np.arange(-0.04, 0.04, 2e-6)
+        hh, hhu, _ = s._slope_np(u, np.full(u.size, 0.01))
+        d2 = (u - u_p) ** 2 + (z + hh) ** 2
+        j = int(np.argmin(d2))
+        n_chart = np.array([1.0, hu[0]]) / g
+        n_true = np.array([1.0, hhu[j]]) / np.sqrt(1 + hhu[j] ** 2)
+        (depth,), (normal,) = s.chart_error(X)
+        assert abs(depth - abs(X[0] - np.sqrt(d2[j]))) < 1e-8, u_p
+        sin = abs(n_chart[0] * n_true[1] - n_chart[1] * n_true[0])
+        assert abs(normal - np.arctan2(sin, n_chart @ n_true)) < 1e-4, u_p
 
 
 def test_a_segment_within_its_tolerance_in_the_height_maps_chart_only_is_not_converged(tmp_path):

@@ -346,8 +346,8 @@ def _simulate_with(args, workers) -> int:
               f"{fc.bounces} bounce(s) in the next second")
     if (use := res.limit_use()) is not None and (clipped := use.on_clip()):
         # review 43: a converged run on the clip said so only in summary.json
-        print(f"note: the torque sat on its clip (robot.saturate): {clipped}; the run holds its limits because the "
-              "loop clips the torque, as the drive must")
+        print(f"note: the torque sat on its clip (robot.saturate): {clipped}; the run's torques are within tau_max "
+              "only because the loop clips them, as the drive must")
     print(f"wrote {out.out}/")
     return _verdict_exit(sc, segs, memo)
 

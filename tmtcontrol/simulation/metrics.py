@@ -603,9 +603,16 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
 def _chart_error(surface, result: SimulationResult, i0: int, i1: int) -> tuple[float, float]:
     """The largest ``(k_e depth error (N), normal error (rad))`` of the
     surface's chart (:meth:`~tmtcontrol.surface.Surface.chart_error`) at the
-    tool points of samples ``i0:i1``."""
-    depth, normal = surface.chart_error(surface.from_base(result.position[:, i0:i1]))
-    return float(np.max(result.stiffness[i0:i1] * depth)), float(np.max(normal))
+    tool points of samples ``i0:i1``, at most :data:`CHART_SAMPLES` of them
+    evenly spread (the error follows the path smoothly; each sample's closest
+    point is a search)."""
+    pick = np.unique(np.linspace(i0, i1 - 1, min(i1 - i0, CHART_SAMPLES)).round().astype(int))
+    depth, normal = surface.chart_error(surface.from_base(result.position[:, pick]))
+    return float(np.max(result.stiffness[pick] * depth)), float(np.max(normal))
+
+
+CHART_SAMPLES = 250
+"""Samples of a segment's last quarter at which :func:`_chart_error` asks the surface."""
 
 
 def _chart_rule(verdict: str, reason: str, worst: float, chart: tuple[float, float], tolerance: float,
@@ -735,7 +742,8 @@ def format_table(metrics: list[SegmentMetrics]) -> str:
         col("peak", [m.peak_force for m in metrics], "N"),
         # a first segment's jump is the force at its first sample: rounding residue when the tool starts on the
         # surface (review 43: 9.81e-14 N printed as "9.81 x 10^-5 nN" alone in its column)
-        col("jump", [m.switch_jump for m in metrics], "N", reference=max(m.peak_force for m in metrics)),
+        col("jump", [m.switch_jump for m in metrics], "N",
+            reference=max((m.peak_force for m in metrics if math.isfinite(m.peak_force)), default=0.0)),
         col("overshoot", [m.overshoot_pct for m in metrics], "%"),
         col("settle 2 %", [m.settling_time for m in metrics], "s"),
         col("tang RMS", [m.tangential_rms for m in metrics], "m"),

@@ -54,6 +54,9 @@ MIN_POINTS = 4
 MAX_POINTS = 256
 """Most grid points along each axis (the heights are constants of the compiled loop)."""
 
+CLOSEST_SEEDS = 31
+"""Seeds per axis of :meth:`HeightMap.chart_error`'s search for the closest point."""
+
 
 class HeightMap(_Curved):
     """Heights ``heights`` (m, rows along t_1, columns along t_2) on a grid
@@ -189,9 +192,9 @@ class HeightMap(_Curved):
 
     def chart_error(self, X) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`.base.Surface.chart_error`, computed, not estimated: for
-        each point the closest point of the spline surface (Gauss-Newton on
-        ``|(u - u_p, v - v_p, z_p + h(u, v))|^2``, from the point's own (u, v);
-        it converges at the rate ``X_0 kappa``), then how far the chart's
+        each point the closest point of the spline surface (the best of a
+        grid of seeds within the projection foot's distance, then damped
+        Gauss-Newton on ``|(u - u_p, v - v_p, z_p + h(u, v))|^2``), then how far the chart's
         depth is from the distance to it (m) and the chart's normal from its
         normal (rad); 0 off the part (``X_0 <= 0``: no force to misplace).
         The module's terms ``X_0^2 kappa s^2 / 2`` and ``X_0 kappa s`` are
@@ -205,23 +208,51 @@ class HeightMap(_Curved):
         g = np.sqrt(1 + hu * hu + hv * hv)
         z = X[0] * g - h                            # the point's height along e_n (the chart's inverse)
         n_chart = np.vstack([np.ones_like(hu), hu, hv]) / g          # in (e_n, t_1, t_2)
-        u, v = X[1].copy(), X[2].copy()
-        for _ in range(60):
+        k = X.shape[1]
+
+        def far(u, v):                              # the squared distance from the point to S(u, v)
+            return (u - X[1]) ** 2 + (v - X[2]) ** 2 + (z + self._slope_np(u, v)[0]) ** 2
+
+        # the closest point is no further from the point than the projection's foot (X_0 g away), so its (u, v)
+        # lies in that square around (u_p, v_p): the best of CLOSEST_SEEDS^2 seeds there (review 44: from the
+        # point's own (u, v) alone, Gauss-Newton converges at the rate X_0 kappa and cycled beyond 1), then
+        # Gauss-Newton with a step halved until the distance falls
+        a = np.linspace(-1.0, 1.0, CLOSEST_SEEDS)
+        A, B = (m.ravel() for m in np.meshgrid(a, a, indexing="ij"))
+        reach = np.abs(X[0]) * g
+        uu, vv = X[1][:, None] + reach[:, None] * A, X[2][:, None] + reach[:, None] * B
+        D = (uu - X[1][:, None]) ** 2 + (vv - X[2][:, None]) ** 2 \
+            + (z[:, None] + self._slope_np(uu.ravel(), vv.ravel())[0].reshape(uu.shape)) ** 2
+        best = np.argmin(D, axis=1)
+        u, v, D = uu[np.arange(k), best], vv[np.arange(k), best], D[np.arange(k), best]
+        for _ in range(100):
             h, hu, hv = self._slope_np(u, v)
             r = np.vstack([u - X[1], v - X[2], z + h])
             # J = [[1, 0], [0, 1], [h_u, h_v]]: the normal equations' 2 x 2 solve, in closed form
-            a, b, c = 1 + hu * hu, hu * hv, 1 + hv * hv
+            a11, b, c = 1 + hu * hu, hu * hv, 1 + hv * hv
             ru, rv = r[0] + hu * r[2], r[1] + hv * r[2]
-            det = a * c - b * b
-            du, dv = (c * ru - b * rv) / det, (a * rv - b * ru) / det
-            u, v = u - du, v - dv
-            if np.max(np.abs(du) + np.abs(dv)) < 1e-13 * (1.0 + np.max(np.abs(X[1:]))):
+            det = a11 * c - b * b
+            du, dv = (c * ru - b * rv) / det, (a11 * rv - b * ru) / det
+            t = np.ones(k)
+            for _ in range(40):
+                D_new = far(u - t * du, v - t * dv)
+                worse = D_new > D
+                if not np.any(worse):
+                    break
+                t = np.where(worse, t / 2, t)
+            D_new = far(u - t * du, v - t * dv)
+            keep = D_new <= D                       # a step that cannot lower it: the point has converged
+            u, v = np.where(keep, u - t * du, u), np.where(keep, v - t * dv, v)
+            moved = np.where(keep, np.abs(t * du) + np.abs(t * dv), 0.0)
+            D = np.where(keep, D_new, D)
+            if np.max(moved) < 1e-13 * (1.0 + np.max(np.abs(X[1:]))):
                 break
         h, hu, hv = self._slope_np(u, v)
         g = np.sqrt(1 + hu * hu + hv * hv)
         distance = np.sign(z + h) * np.sqrt((u - X[1]) ** 2 + (v - X[2]) ** 2 + (z + h) ** 2)
         n_true = np.vstack([np.ones_like(hu), hu, hv]) / g
-        angle = np.arccos(np.clip(np.sum(n_chart * n_true, axis=0), -1.0, 1.0))
+        cross = np.linalg.norm(np.cross(n_chart.T, n_true.T), axis=1)
+        angle = np.arctan2(cross, np.sum(n_chart * n_true, axis=0))       # exact near 0, unlike arccos
         inside = X[0] > 0
         return np.where(inside, np.abs(X[0] - distance), 0.0), np.where(inside, angle, 0.0)
 

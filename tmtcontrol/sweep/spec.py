@@ -336,20 +336,22 @@ class Sweep:
         sweep over height maps was estimated at 11 s and took 324 s); with an
         axis under ``environment``, the mean over up to
         :data:`ARM_COST_CASES` cases spread evenly over the sweep, as
-        :meth:`arm_cost`; (0, 0) for a case that cannot be built."""
-        from ..simulation.geometry import surface_of
+        :meth:`arm_cost`, read from each case's ``environment.shape`` (the
+        shape's class: no surface is built; review 44, a 256 x 256 map took 2 s
+        a case); (0, 0) for a case that cannot be built."""
+        from ..surface import SHAPES
 
         def cost(index: int) -> tuple[float, float]:
             try:
-                surface = surface_of(self.scenario(self.cases.case(index)))
-            except (ValueError, OSError):          # ScenarioError among them
+                shape = SHAPES[self.scenario(self.cases.case(index)).environment.shape]
+            except (ValueError, OSError, KeyError):          # ScenarioError among them
                 return 0.0, 0.0
-            return surface.step_cost, surface.analysis_cost
+            return shape.step_cost, shape.analysis_cost
 
         total = self.cases.total
         if total == 0:
             return 0.0, 0.0
-        if not any(_covers(axis, "environment") for axis in self.axes):
+        if not any(_covers(axis, "environment.shape") for axis in self.axes):     # only the shape chooses it
             return cost(0)
         picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
         step, analysis = np.mean([cost(i) for i in picks], axis=0)

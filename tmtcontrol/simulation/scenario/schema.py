@@ -143,8 +143,9 @@ def _domain_problem(sc: Scenario) -> str | None:
             if reach > half - 2 * env.grid_spacing:
                 return (f"trajectory.radius: the path leaves the height map: it reaches {reach:.6g} m from its "
                         f"centre along task axis {axis + 1}{turned}, the grid ({shape[0]} x {shape[1]} at "
-                        f"{env.grid_spacing:g} m) reaches {half:g} m, a path {half - 2 * env.grid_spacing:g} m "
-                        "(two spacings kept as margin)")
+                        f"{env.grid_spacing:g} m) reaches {half:g} m, "
+                        + (f"a path {half - 2 * env.grid_spacing:g} m" if half > 2 * env.grid_spacing
+                           else "no path at all") + " (two spacings kept as margin)")
         return None
     limit = 1.2 if env.shape == "sphere" else 2.5
     for axis, reach in enumerate(extent):
