@@ -10,6 +10,7 @@ import itertools
 import pathlib
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -918,6 +919,12 @@ def test_a_height_maps_chart_error_is_the_sphere_maps_own_error():
     assert Plane(R0, C0).chart_error(np.zeros((3, 2))) is None
     assert Sphere(R0, C0, r).chart_error(np.zeros((3, 2))) is None
     assert [a.shape for a in s.chart_error(np.zeros((3, 0)))] == [(0,), (0,)]
+    # a diverged run's points (NaN, 1e300 deep, 10 km away): no exception and no warning, NaN or inf there only
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        depth, normal = s.chart_error(np.array([[np.nan, 5e-3, 1e300, 5e-3], [0.0, np.nan, 0.0, 1e4],
+                                                [0.0, 0.0, 0.0, 0.0]]))
+    assert np.isnan(depth[:2]).all() and not np.isfinite(depth[2]) and np.isfinite(depth[3])
 
 
 def test_a_height_maps_chart_error_finds_the_closest_point_deeper_than_the_curvature():

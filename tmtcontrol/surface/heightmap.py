@@ -204,6 +204,10 @@ class HeightMap(_Curved):
         X = np.asarray(X, dtype=float).reshape(3, -1)
         if X.shape[1] == 0:
             return np.zeros(0), np.zeros(0)
+        with np.errstate(all="ignore"):             # a diverged run's points: NaN or inf where they are
+            return self._chart_error(X)
+
+    def _chart_error(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         h, hu, hv = self._slope_np(X[1], X[2])
         g = np.sqrt(1 + hu * hu + hv * hv)
         z = X[0] * g - h                            # the point's height along e_n (the chart's inverse)
@@ -253,8 +257,8 @@ class HeightMap(_Curved):
         n_true = np.vstack([np.ones_like(hu), hu, hv]) / g
         cross = np.linalg.norm(np.cross(n_chart.T, n_true.T), axis=1)
         angle = np.arctan2(cross, np.sum(n_chart * n_true, axis=0))       # exact near 0, unlike arccos
-        inside = X[0] > 0
-        return np.where(inside, np.abs(X[0] - distance), 0.0), np.where(inside, angle, 0.0)
+        off = X[0] <= 0                             # off the part: nothing to misplace (a NaN stays NaN)
+        return np.where(off, 0.0, np.abs(X[0] - distance)), np.where(off, 0.0, angle)
 
     # the base's: none (the chart is linear in X_0 along e_n, it never folds; review 14: the curved shapes' rule,
     # inherited, read a radius a height map does not have)
