@@ -176,11 +176,11 @@ class Surface(abc.ABC):
         return np.full(np.asarray(s, dtype=float).reshape(2, -1).shape[1], np.inf)
 
     def chart_error(self, X) -> tuple[np.ndarray, np.ndarray] | None:
-        """The leading error terms of an approximate chart at task
-        coordinates ``X`` (3 x k): ``(depth, normal)``, how far the chart's
-        depth X_0 (m) and its normal (rad) may be off the distance to the
-        part's closest point and that point's normal; None for a chart that
-        is exact at every depth (the default: a plane, a sphere, a cylinder).
+        """An approximate chart's error at task coordinates ``X`` (3 x k):
+        ``(depth, normal)``, how far the chart's depth X_0 (m) and its normal
+        (rad) are from the distance to the part's closest point and that
+        point's normal; None for a chart that is exact at every depth (the
+        default: a plane, a sphere, a cylinder).
         The verdicts add them to the force and orientation errors
         (:func:`tmtcontrol.simulation.metrics.segment_metrics`)."""
         return None

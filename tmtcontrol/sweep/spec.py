@@ -334,7 +334,7 @@ class Sweep:
         :attr:`~tmtcontrol.surface.Surface.analysis_cost`: a measured height
         map's spline costs about 12x the plane's step; review 43: a 4-case
         sweep over height maps was estimated at 11 s and took 324 s); with an
-        axis under ``environment``, the mean over up to
+        axis that sets ``environment.shape``, the mean over up to
         :data:`ARM_COST_CASES` cases spread evenly over the sweep, as
         :meth:`arm_cost`, read from each case's ``environment.shape`` (the
         shape's class: no surface is built; review 44, a 256 x 256 map took 2 s
