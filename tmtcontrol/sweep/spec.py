@@ -319,13 +319,19 @@ class Sweep:
                 return 1.0
             return (max(joints, 3) / 3.0) ** 2
 
+        return float(self._over_cases(cost, "robot", 1.0))
+
+    def _over_cases(self, cost, key: str, empty):
+        """``cost(case index)`` of the first case, or (an axis covering
+        ``key``) its mean over up to :data:`ARM_COST_CASES` cases spread
+        evenly over the sweep; ``empty`` for a sweep without cases."""
         total = self.cases.total
         if total == 0:
-            return 1.0
-        if not any(_covers(axis, "robot") for axis in self.axes):
+            return empty
+        if not any(_covers(axis, key) for axis in self.axes):
             return cost(0)
         picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
-        return float(np.mean([cost(i) for i in picks]))
+        return np.mean([cost(i) for i in picks], axis=0)
 
     def surface_cost(self) -> tuple[float, float]:
         """What the cases' surfaces add to a step's and to a limit
@@ -348,13 +354,7 @@ class Sweep:
                 return 0.0, 0.0
             return shape.step_cost, shape.analysis_cost
 
-        total = self.cases.total
-        if total == 0:
-            return 0.0, 0.0
-        if not any(_covers(axis, "environment.shape") for axis in self.axes):     # only the shape chooses it
-            return cost(0)
-        picks = sorted({int(i) for i in np.linspace(0, total - 1, min(total, ARM_COST_CASES))})
-        step, analysis = np.mean([cost(i) for i in picks], axis=0)
+        step, analysis = self._over_cases(cost, "environment.shape", (0.0, 0.0))    # only the shape chooses it
         return float(step), float(analysis)
 
     def estimate_seconds(self, cases: int | None = None, workers: int = 1, limits: bool = False) -> float:
