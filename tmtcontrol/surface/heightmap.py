@@ -214,8 +214,9 @@ class HeightMap(_Curved):
         n_chart = np.vstack([np.ones_like(hu), hu, hv]) / g          # in (e_n, t_1, t_2)
         k = X.shape[1]
 
-        def far(u, v):                              # the squared distance from the point to S(u, v)
-            return (u - X[1]) ** 2 + (v - X[2]) ** 2 + (z + self._slope_np(u, v)[0]) ** 2
+        def far(u, v):          # the squared distance from each point to S(u, v); u, v: (k,) or (k, seeds)
+            up, vp, zp = (a.reshape(-1, *[1] * (u.ndim - 1)) for a in (X[1], X[2], z))
+            return (u - up) ** 2 + (v - vp) ** 2 + (zp + self._slope_np(u.ravel(), v.ravel())[0].reshape(u.shape)) ** 2
 
         # the closest point is no further from the point than the projection's foot (X_0 g away), so its (u, v)
         # lies in that square around (u_p, v_p): the best of CLOSEST_SEEDS^2 seeds there (review 44: from the
@@ -225,8 +226,7 @@ class HeightMap(_Curved):
         A, B = (m.ravel() for m in np.meshgrid(a, a, indexing="ij"))
         reach = np.abs(X[0]) * g
         uu, vv = X[1][:, None] + reach[:, None] * A, X[2][:, None] + reach[:, None] * B
-        D = (uu - X[1][:, None]) ** 2 + (vv - X[2][:, None]) ** 2 \
-            + (z[:, None] + self._slope_np(uu.ravel(), vv.ravel())[0].reshape(uu.shape)) ** 2
+        D = far(uu, vv)
         best = np.argmin(D, axis=1)
         u, v, D = uu[np.arange(k), best], vv[np.arange(k), best], D[np.arange(k), best]
         for _ in range(100):
@@ -238,13 +238,13 @@ class HeightMap(_Curved):
             det = a11 * c - b * b
             du, dv = (c * ru - b * rv) / det, (a11 * rv - b * ru) / det
             t = np.ones(k)
+            D_new = far(u - du, v - dv)
             for _ in range(40):
-                D_new = far(u - t * du, v - t * dv)
                 worse = D_new > D
                 if not np.any(worse):
                     break
                 t = np.where(worse, t / 2, t)
-            D_new = far(u - t * du, v - t * dv)
+                D_new = far(u - t * du, v - t * dv)
             keep = D_new <= D                       # a step that cannot lower it: the point has converged
             u, v = np.where(keep, u - t * du, u), np.where(keep, v - t * dv, v)
             moved = np.where(keep, np.abs(t * du) + np.abs(t * dv), 0.0)
