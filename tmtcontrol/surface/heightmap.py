@@ -58,6 +58,39 @@ CLOSEST_SEEDS = 31
 """Seeds per axis of :meth:`HeightMap.chart_error`'s search for the closest point."""
 
 
+def _splines(H: np.ndarray, u: np.ndarray, v: np.ndarray, du: float, dv: float):
+    """The map's spline through the path's centre and its slope Function,
+    built once per grid of heights and spacing (:data:`_SPLINES`):
+    ``(heights, h, height_slope, digest)``, ``heights`` read-only.
+
+    CasADi's B-spline ``interpolant`` solves for the coefficients of the
+    whole grid when it is made: 1.1 s for a 256 x 256 grid, twice per map
+    (the shift through the centre is read off a first spline). A sweep
+    validates every case's scenario and each case builds its surface, all
+    with the same heights: without this, a 64-value stiffness sweep over a
+    256 x 256 map spent 136 s building the same splines before its first case."""
+    raw = hashlib.sha256(np.ascontiguousarray(H).tobytes() + np.array([du, dv, *H.shape], float).tobytes()).digest()
+    if raw not in _SPLINES:
+        spline = ca.interpolant("height", "bspline", [u, v], H.ravel(order="F"))
+        heights = H - float(spline([0.0, 0.0]))          # through the path's centre
+        heights.setflags(write=False)
+        h_fn = ca.interpolant("height", "bspline", [u, v], heights.ravel(order="F"))
+        x = ca.SX.sym("x", 2)
+        h = h_fn(x)
+        slope = ca.Function("height_slope", [x], [h, ca.jacobian(h, x)], ["uv"], ["h", "dh"])
+        digest = hashlib.sha256(heights.tobytes() + np.array([du, dv, *H.shape], float).tobytes()).hexdigest()[:16]
+        if len(_SPLINES) >= 8:
+            _SPLINES.pop(next(iter(_SPLINES)))
+        _SPLINES[raw] = (heights, h_fn, slope, digest)
+    return _SPLINES[raw]
+
+
+_SPLINES: dict = {}
+"""The maps' splines by the digest of their heights and spacing, the oldest
+dropped beyond 8 (the heights are in the digest, so a map is never served
+another's spline)."""
+
+
 class HeightMap(_Curved):
     """Heights ``heights`` (m, rows along t_1, columns along t_2) on a grid
     of ``spacing`` (m; one number or (du, dv)) centred on ``c`` in the
@@ -87,14 +120,7 @@ class HeightMap(_Curved):
             raise ValueError(f"grid_spacing: must be finite and > 0, got {spacing!r}")
         self.u = (np.arange(H.shape[0]) - (H.shape[0] - 1) / 2) * du
         self.v = (np.arange(H.shape[1]) - (H.shape[1] - 1) / 2) * dv
-        spline = ca.interpolant("height", "bspline", [self.u, self.v], H.ravel(order="F"))
-        self.heights = H - float(spline([0.0, 0.0]))          # through the path's centre
-        self._h = ca.interpolant("height", "bspline", [self.u, self.v], self.heights.ravel(order="F"))
-        x = ca.SX.sym("x", 2)
-        h = self._h(x)
-        self._hfn = ca.Function("height_slope", [x], [h, ca.jacobian(h, x)], ["uv"], ["h", "dh"])
-        digest = hashlib.sha256(np.ascontiguousarray(self.heights).tobytes()
-                                + np.array([du, dv, *H.shape], float).tobytes()).hexdigest()[:16]
+        self.heights, self._h, self._hfn, digest = _splines(H, self.u, self.v, du, dv)
         self._key = f"heightmap-{digest}"
         self.spacing = (float(du), float(dv))
 
