@@ -354,6 +354,49 @@ def test_the_limit_family_of_a_damped_contact_includes_the_smallest_stiffness():
     assert _family_key(soft, 1e2) != _family_key(stiff, 1e4)
 
 
+def test_the_drive_limits_are_one_limit_family_unless_the_torque_is_clipped():
+    """The analyses never read the joint-rate limits nor the reserve held below
+    each limit (the verdicts judge them along the run), and see the torque
+    limits only through the loop's clip (robot.saturate): a sweep over tau_max
+    made a new limit analysis per value (a UR5 analysis takes 10-40 s). With
+    saturate on, tau_max is the clip and its values are families again; the
+    estimate counts them alike."""
+    from tmtcontrol.simulation.scenario import apply_overrides, arm_scenario
+    from tmtcontrol.sweep import sweep_from_dict
+    from tmtcontrol.sweep.run import _family_key
+
+    base = arm_scenario("ur5")
+    sets = [[], ["robot.tau_max=[10.0, 20.0, 30.0, 40.0, 50.0, 60.0]"], ["robot.dq_max=[1.0, 1.0, 1.0, 1.0, 1.0, 1.0]"],
+            ["robot.limit_margin=0.2"]]
+    keys = {_family_key(apply_overrides(base, s), 2e3) for s in sets}
+    assert len(keys) == 1
+    clipped = {_family_key(apply_overrides(base, ["robot.saturate=true", *s]), 2e3) for s in sets}
+    assert len(clipped) == 2 and not clipped & keys      # tau_max is the clip; the rates and the reserve are not
+    grid = {"robot.tau_max": [[150.0, 150.0, 150.0, 28.0, 28.0, 28.0], [300.0, 300.0, 300.0, 56.0, 56.0, 56.0]],
+            "robot.limit_margin": [0.0, 0.1, 0.2], "controller.f_d": [5.0, 10.0]}
+    assert sweep_from_dict({"scenario": "ur5", "grid": grid}).limit_families() == 2
+    # with a saturate axis the estimate counts tau_max x f_d x saturate = 8 (6 are distinct: unclipped cases share
+    # one per f_d), never the limit margin's 3
+    assert sweep_from_dict({"scenario": "ur5", "grid": grid | {"robot.saturate": [False, True]}}).limit_families() == 8
+
+
+@pytest.mark.heavy
+def test_the_stiffness_limit_does_not_depend_on_unclipped_torque_limits(monkeypatch):
+    """The independent check behind the family key above: the deciding limit of
+    the paper loop computed afresh (no result cache) with torque limits 10x
+    apart, saturate off, is the same number (the limits enter no expression
+    of the analysed loop; 0 difference expected, 1e-12 relative allowed for
+    the searches' floating point)."""
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.stability.limit import deciding_limit
+
+    monkeypatch.setenv("TMTCONTROL_RESULT_CACHE", "0")
+    a, b = (deciding_limit(apply_overrides(paper_scenario(), [f"robot.tau_max=[{t}, {t}, {t}]",
+                                                                f"robot.dq_max=[{t / 10}, {t / 10}, {t / 10}]"]))
+            for t in (50.0, 500.0))
+    assert a.limit == pytest.approx(b.limit, rel=1e-12) and a.limit_from == b.limit_from
+
+
 # -- review 10 (an independent attack on the sweep): each test failed on the code it found -------------------------
 
 def test_a_grid_over_profiles_of_different_lengths_writes_one_text_column(tmp_path):

@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
-from .spec import Case, Sweep, case_scenario, changes_analysis
+from .spec import CLIP_KEYS, VERDICT_ONLY_KEYS, Case, Sweep, case_scenario, changes_analysis
 
 __all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
@@ -113,9 +113,13 @@ _LIMITS: dict = {}     # per worker process: the deciding limit per case family 
 def _family_key(sc, k_e_min: float) -> str:
     """What a case's limits depend on: the scenario without its stiffness
     profile, sensor noise and run length (the analyses run at constant k_e,
-    without noise, for their own durations)."""
+    without noise, for their own durations), the limits only its verdicts
+    read (``spec.VERDICT_ONLY_KEYS``) and, unless the case clips its torque,
+    the torque limits (``spec.CLIP_KEYS``)."""
     d = sc.model_dump(mode="json")
     d.pop("name", None)
+    d["robot"] = {k: v for k, v in d["robot"].items()
+                  if f"robot.{k}" not in VERDICT_ONLY_KEYS + (() if sc.robot.saturate else CLIP_KEYS)}
     d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
     d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
     d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
@@ -134,7 +138,7 @@ def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
     distinct case families (the limit is memoised per worker and family;
     a few seconds each), but every draw of, e.g., the x_e error is a new
     analysis of the loop."""
-    costly = [k for k in sweep.random if changes_analysis(k)]
+    costly = [k for k in sweep.random if changes_analysis(k, sweep.may_saturate())]
     if costly:
         return False, (f"sweep: predicted limits off (random {', '.join(costly)}: each draw is a new stability "
                        "analysis, seconds per case); --limits on computes them")

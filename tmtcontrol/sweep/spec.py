@@ -126,10 +126,22 @@ not depend on k_e, the noise or the run length), so the memoised limit is
 reused across their values and draws."""
 
 
-def changes_analysis(axis: str) -> bool:
-    """Whether a sweep axis changes a case's limit analysis (not under
-    :data:`ANALYSIS_FREE_PREFIXES`)."""
-    return not axis.startswith(ANALYSIS_FREE_PREFIXES)
+VERDICT_ONLY_KEYS = ("robot.dq_max", "robot.limit_margin")
+"""Robot keys only the verdicts read (the joint rates and the reserve held
+below each limit are judged along the run; no analysis clips or reads them)."""
+
+CLIP_KEYS = ("robot.tau_max",)
+"""Robot keys the analyses see only through the loop's torque clip
+(``robot.saturate`` on; off, the clip is infinite whatever the limits:
+``simulation.limits.ArmLimits.torque_clip``)."""
+
+
+def changes_analysis(axis: str, saturates: bool = True) -> bool:
+    """Whether a sweep axis changes a case's limit analysis: not under
+    :data:`ANALYSIS_FREE_PREFIXES` nor :data:`VERDICT_ONLY_KEYS`, nor under
+    :data:`CLIP_KEYS` when no case clips its torque (``saturates`` False)."""
+    return not (axis.startswith(ANALYSIS_FREE_PREFIXES + VERDICT_ONLY_KEYS)
+                or (not saturates and axis.startswith(CLIP_KEYS)))
 
 
 STEP_KEYS = ("trajectory.cycles", "trajectory.period", "controller.rate")
@@ -297,8 +309,16 @@ class Sweep:
         ``sweep.run.case_limits``): the combinations of the grid axes that
         change the analysis (all but :data:`ANALYSIS_FREE_PREFIXES`), times
         the random samples if a random axis changes it too."""
-        n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a))
-        return n * (self.samples if any(changes_analysis(a) for a in self.random) else 1)
+        saturates = self.may_saturate()
+        n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a, saturates))
+        return n * (self.samples if any(changes_analysis(a, saturates) for a in self.random) else 1)
+
+    def may_saturate(self) -> bool:
+        """Whether some case may clip its torque (``robot.saturate`` on in the
+        base scenario, or an axis that sets it): only then do the torque
+        limits change a case's analysis (:data:`CLIP_KEYS`)."""
+        return bool(self.base["robot"].get("saturate")) or any(_covers(a, "robot.saturate")
+                                                                for a in (*self.grid, *self.random))
 
     def arm_cost(self) -> float:
         """How much a control step and a limit analysis of the cases' arm cost
