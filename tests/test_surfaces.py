@@ -185,11 +185,35 @@ def test_builtin_curved_scenarios_print_and_load():
     ('[environment]\nradius = 0.3\n', "environment.radius: not used by shape = 'plane'"),
     ('[environment]\nshape = "sphere"\nradius = 0.3\naxis = [0.0, 1.0, 0.0]\n', "environment.axis: not used"),
     ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [1.0, 0.0, 0.0]\n', "environment.axis: must be perpendicular"),
+    # review 46: an axis of length 2 or 0.001 ran as the unit axis, as normal refuses it
+    ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [0.0, 2.0, 0.0]\n', "environment.axis: must be a unit vector"),
+    ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [0.0, 0.001, 0.0]\n', "|a| = 0.001"),
     ('[environment]\nshape = "sphere"\nradius = 0.05\n', "trajectory.radius: the path leaves the sphere's domain"),
     ('[environment]\nshape = "cone"\nradius = 0.3\n', "environment.shape"),
 ])
 def test_bad_surface_input_is_one_line_exit_2_nothing_written(tmp_path, content, needle):
     _refused(tmp_path, content, needle)
+
+
+def test_a_radius_that_reads_as_millimetres_is_noted_by_every_command_that_loads_it(tmp_path):
+    """Review 46: ``radius = 300`` meant 300 mm ran as a 300 m sphere, nearly its
+    tangent plane, and analyze quoted the plane's limit (4.5 % above the 0.3 m
+    part's), saying nothing. A large part is valid (a hull, a wing skin), so
+    it is a note on stderr, not a refusal: its sag 10 cm from the centre is
+    the closed form R - sqrt(R^2 - 0.01) = 16.7 µm at 300 m; a 0.3 m radius
+    and a --set back to it print none."""
+    path = tmp_path / "s.toml"
+    path.write_text('[environment]\nshape = "sphere"\nradius = 300.0\n')
+    sag = 300.0 - np.sqrt(300.0 ** 2 - 0.1 ** 2)
+    note = (f"note: environment.radius = 300 m: a part this large is within {sag * 1e6:.3g} µm of its tangent "
+            "plane 10 cm from the path's centre; if the radius is in millimetres, write 0.3 (SI units: m)")
+    assert f"{sag * 1e6:.3g}" == "16.7"
+    for args in (["check", "--scenario", str(path), "--json"], ["export", str(path), "--out", str(tmp_path / "e")]):
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", *args], capture_output=True, text=True)
+        assert r.stderr.splitlines()[0] == note, (args, r.stderr)
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "export", str(path), "--set", "environment.radius=0.3",
+                        "--out", str(tmp_path / "f")], capture_output=True, text=True)
+    assert r.returncode == 0 and "note" not in r.stderr, r.stderr
 
 
 def _refused(tmp_path, content, needle, sets=()):

@@ -254,13 +254,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _load(args):
-    from .simulation.scenario import apply_overrides, load_scenario
+    from .simulation.scenario import apply_overrides
 
-    sc = load_scenario(args.scenario)
+    sc = _load_named(args.scenario, notes=False)
     sets = list(getattr(args, "set", []) or [])
     if getattr(args, "integrator", None):
         sets.append(f"simulation.integrator={args.integrator}")
-    return apply_overrides(sc, sets) if sets else sc
+    return _noted(apply_overrides(sc, sets) if sets else sc)
+
+
+def _load_named(name, notes: bool = True):
+    """The scenario ``name`` (a file or a built-in), its :func:`_noted` lines printed."""
+    from .simulation.scenario import load_scenario
+
+    sc = load_scenario(name)
+    return _noted(sc) if notes else sc
+
+
+def _noted(sc):
+    """``sc``, after printing a note on stderr for each value that reads like a unit mistake."""
+    for note in sc.environment.unit_notes():
+        print(f"note: {note}", file=sys.stderr)
+    return sc
 
 
 def _simulate(args) -> int:
@@ -482,12 +497,10 @@ def _analyze(args) -> int:
 
     flags = ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp", "delay", "x_e_error")
     if args.scenario:
-        from .simulation.scenario import load_scenario
-
         for flag in flags:
             if getattr(args, flag) is not None:
                 raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario (set it in the scenario)")
-        sc = load_scenario(args.scenario)
+        sc = _load_named(args.scenario)
         run = lambda: analyze_scenario(sc, limits=True)
     else:
         for flag in ("m", "b", "k"):
@@ -577,10 +590,9 @@ def _design(args) -> int:
 
     _check_numbers(args)
     if args.scenario is not None:
-        from .simulation.scenario import load_scenario
         from .stability.design import scenario_design_spec
 
-        sc = load_scenario(args.scenario)
+        sc = _load_named(args.scenario)
         Ts = args.ts if args.ts is not None else sc.controller.Ts
         if args.filter_hz is not None:
             _check_numbers(argparse.Namespace(ts=Ts, filter_hz=args.filter_hz))
@@ -634,9 +646,8 @@ def _check(args) -> int:
     sc = None
     if args.scenario is not None:
         from .simulation.simulator import robot_of
-        from .simulation.scenario import load_scenario
 
-        sc = load_scenario(args.scenario)
+        sc = _load_named(args.scenario)
         robot_of(sc)                        # an arm that cannot be loaded: one line, exit 2, before any check
     results = all_checks(scenario=sc)
     if args.json:

@@ -219,6 +219,11 @@ def _is_number(cell: str) -> bool:
         return False
 
 
+LARGE_RADIUS = 10.0
+"""A radius (m) above which :meth:`EnvironmentSettings.unit_notes` asks
+whether it was meant in millimetres (valid: a large part is nearly a plane)."""
+
+
 class EnvironmentSettings(Section):
     """The surface and its unilateral spring contact, ``f_e = max(0, k_e(t) d +
     damping d')`` while the penetration d > 0. The tilted plane (Fig. 2) by
@@ -237,7 +242,7 @@ class EnvironmentSettings(Section):
         "sphere or cylinder: the tool works on the outside (a dome, a pipe) or the inside (a bowl, a bore); "
         "default outside"))
     axis: tuple[F, F, F] | None = Field(None, description=(
-        "cylinder: direction of its axis, base frame, perpendicular to the normal; default task axis 2"),
+        "cylinder: unit direction of its axis, base frame, perpendicular to the normal; default task axis 2"),
         json_schema_extra={"unit": "1"})
     heightmap: str | None = Field(None, min_length=1, description=(
         "heightmap: a CSV (rows of numbers) or .npy file of heights [m] along the outward normal, rows along "
@@ -287,11 +292,24 @@ class EnvironmentSettings(Section):
                              "leave point unset")
         if self.axis is not None:
             norm = math.sqrt(sum(x * x for x in self.axis))
-            if not norm > 0:
-                raise ValueError("axis: must be a non-zero vector")
+            if abs(norm - 1.0) > 1e-6:       # as normal (review 46: [0, 2, 0] and [0, 0.001, 0] ran as [0, 1, 0])
+                raise ValueError(f"axis: must be a unit vector (|a| = 1 within 1e-6), got |a| = {norm:.6g}")
             if self.normal is not None and abs(sum(a * b for a, b in zip(self.axis, self.normal))) > 1e-6 * norm:
                 raise ValueError("axis: must be perpendicular to normal (the axis lies in the tangent plane)")
         return self
+
+    def unit_notes(self) -> list[str]:
+        """Valid values that read like a unit mistake, one line each for the
+        command line to print: a sphere's or cylinder's radius above
+        :data:`LARGE_RADIUS` (review 46: 300 for 300 mm ran as a 300 m part,
+        nearly its tangent plane, and quoted the plane's limit, 4.5 % above
+        the 0.3 m part's)."""
+        if self.radius is None or self.radius <= LARGE_RADIUS:
+            return []
+        sag = 0.1 ** 2 / (self.radius + math.sqrt(self.radius ** 2 - 0.1 ** 2))    # R - sqrt(R^2 - 0.1^2)
+        return [f"environment.radius = {self.radius:g} m: a part this large is within {sag * 1e6:.3g} µm of its "
+                f"tangent plane 10 cm from the path's centre; if the radius is in millimetres, write "
+                f"{self.radius / 1000:g} (SI units: m)"]
 
     @model_validator(mode="after")
     def _unit_normal(self):
