@@ -47,7 +47,9 @@ def save_figures(makers, data, folder, dpi: int = 120) -> list:
     for name, make in makers:
         path = folder / f"{name}.png"
         with styled():                      # the package's one figure style
-            plain_log_labels(make(data)).savefig(path, dpi=dpi)
+            # zlib level 1, not Pillow's 6: the four simulation figures' drawing and encoding took 0.46 s of CPU
+            # against 0.54 s (median of 6, 2026-12-06) for files 8 % larger (311 kB against 288 kB)
+            plain_log_labels(make(data)).savefig(path, dpi=dpi, pil_kwargs={"compress_level": 1})
         out.append(path)
     return out
 
