@@ -973,6 +973,9 @@ def test_a_height_maps_chart_error_is_the_sphere_maps_own_error():
     assert Plane(R0, C0).chart_error(np.zeros((3, 2))) is None
     assert Sphere(R0, C0, r).chart_error(np.zeros((3, 2))) is None
     assert [a.shape for a in s.chart_error(np.zeros((3, 0)))] == [(0,), (0,)]
+    # the flag the verdicts read says the same as chart_error (an exact chart adds nothing to the errors)
+    for shape in (Plane(R0, C0), Sphere(R0, C0, r), Cylinder(R0, C0, r), s):
+        assert shape.exact_chart == (shape.chart_error(np.zeros((3, 1))) is None), shape
     # a diverged run's points (NaN, 1e300 deep, 10 km away): no exception and no warning, NaN or inf there only
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -532,7 +532,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     from .geometry import surface_of
 
     surface = surface_of(sc)
-    if surface.chart_error(np.zeros((3, 0))) is None:       # an exact chart: nothing to add
+    if surface.exact_chart:                                 # nothing to add
         surface = None
     for i0, i1 in segments(result):
         t = result.time[i0:i1]

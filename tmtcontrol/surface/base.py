@@ -91,6 +91,10 @@ class Surface(abc.ABC):
     0 for a shape whose chart costs a few operations."""
     analysis_cost: float = 0.0
     """Likewise for a scenario's limit analysis (``stability.limit``)."""
+    exact_chart: bool = True
+    """Whether the chart's depth and normal are the part's own at every depth
+    (a plane, a sphere, a cylinder); False where :meth:`chart_error` computes
+    how far they are (a measured map)."""
 
     @abc.abstractmethod
     def values(self) -> dict[str, np.ndarray]:
@@ -179,8 +183,8 @@ class Surface(abc.ABC):
         """An approximate chart's error at task coordinates ``X`` (3 x k):
         ``(depth, normal)``, how far the chart's depth X_0 (m) and its normal
         (rad) are from the distance to the part's closest point and that
-        point's normal; None for a chart that is exact at every depth (the
-        default: a plane, a sphere, a cylinder).
+        point's normal; None for a chart that is exact at every depth
+        (:attr:`exact_chart`, the default: a plane, a sphere, a cylinder).
         The verdicts add them to the force and orientation errors
         (:func:`tmtcontrol.simulation.metrics.segment_metrics`)."""
         return None
