@@ -438,6 +438,56 @@ def test_the_step_overshoot_is_the_second_order_closed_form(zeta):
     assert a.settling_time == pytest.approx(settled, rel=2e-3)
 
 
+@pytest.mark.parametrize("zeta", [0.0, -0.3])
+def test_an_undamped_or_negatively_damped_step_never_settles(zeta):
+    """Review 45: settling_time_2nd_order returned 0.155 s at zeta = 0 (and
+    0.131 s at -0.3) for w_n = 10 rad/s, where the step error is cos(w_n t)
+    (growing for zeta < 0): the analytic error, sampled over 20 periods after
+    that time, is never back within the 2 % band for good; the answer is inf."""
+    from tmtcontrol.stability.continuous import settling_time_2nd_order
+
+    w_n = 10.0
+    w_d, r = w_n * math.sqrt(1 - zeta ** 2), zeta / math.sqrt(1 - zeta ** 2)
+    t = np.linspace(0.0, 40 * math.pi / w_d, 200_001)
+    e = np.exp(-zeta * w_n * t) * (np.cos(w_d * t) + r * np.sin(w_d * t))
+    assert np.abs(e[t > t[-1] / 2]).max() > 0.5                  # still swinging at least half the step
+    assert settling_time_2nd_order(zeta, w_n) == math.inf
+    # just above zero damping it does settle, after about ln(1/0.02) / (zeta w_n) (the envelope's closed form)
+    assert settling_time_2nd_order(1e-3, w_n) == pytest.approx(math.log(50) / (1e-3 * w_n), rel=0.01)
+    for bad in (dict(w_n=0.0), dict(w_n=-1.0), dict(band=0.0), dict(band=1.0), dict(zeta=math.nan)):
+        with pytest.raises(AnalysisError, match=next(iter(bad))):
+            settling_time_2nd_order(**({"zeta": 0.5, "w_n": w_n} | bad))
+
+
+def test_stiffness_sweep_natural_frequency_and_damping_are_the_poles_own():
+    """Review 45 (a surviving mutant: ``(k + k_e) / m`` -> ``// m`` passed every
+    test): the natural frequency of m s^2 + b s + (k + k_e) is the modulus of
+    its roots (|p|^2 = (k + k_e)/m by Vieta) and the damping ratio -Re(p)/|p|;
+    roots by numpy.roots (1e-15 relative on this well-conditioned quadratic;
+    rtol 1e-9 leaves margin, the mutant is 1e-4 off at m = 0.3)."""
+    from tmtcontrol.stability.continuous import stiffness_sweep
+
+    m, b, k = 0.3, 2.0, 1000.0
+    k_e = np.array([1000.0, 3.3e4, 2.5e5])
+    out = stiffness_sweep(m, b, k, k_e)
+    for i, ke in enumerate(k_e):
+        p = np.roots([m, b, k + ke])
+        assert abs(p[0].imag) > 0                                     # underdamped: a conjugate pair
+        assert out["natural_frequency"][i] == pytest.approx(abs(p[0]), rel=1e-9)
+        assert out["damping_ratio"][i] == pytest.approx(-p[0].real / abs(p[0]), rel=1e-9)
+
+
+@pytest.mark.parametrize("kw, key", [(dict(k_e=0.0), "k_e"), (dict(k=-1.0), "k"), (dict(f_d=math.inf), "f_d"),
+                                     (dict(delta=math.nan), "delta"), (dict(law="tnt"), "law"),
+                                     (dict(law="known", assumed_stiffness=0.0), "assumed_stiffness")])
+def test_x_e_error_force_refuses_bad_input_naming_it(kw, key):
+    """Review 45: k_e = 0 divided by zero instead of the AnalysisError naming
+    the parameter that the module's other functions raise; an unknown law ran as
+    the known-stiffness one."""
+    with pytest.raises(AnalysisError, match=f"^{key}:"):
+        x_e_error_force(**({"f_d": 10.0, "k": 100.0, "k_e": 5e3, "delta": 1e-3} | kw))
+
+
 @pytest.mark.heavy
 def test_an_undamped_impedance_is_judged_unstable_not_refused(tmp_path, capsys):
     """Regression (review 9): b = 0 (the schema allows it) was refused by the

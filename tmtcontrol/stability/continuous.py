@@ -257,9 +257,19 @@ def settling_time_2nd_order(zeta: float, w_n: float, band: float = 0.02) -> floa
     critical damping, whose extrema at k pi / w_d are e^(-zeta w_n k pi /
     w_d), so the last crossing lies between the last extremum above the
     band and the next zero (root-found there); above it the error falls
-    monotonically and is root-found on its own."""
+    monotonically and is root-found on its own. Undamped or negatively
+    damped (zeta <= 0), the error never stays within the band: inf (review
+    45: zeta = 0 gave 0.155 s at w_n = 10 rad/s for an error of cos w_n t)."""
     from scipy.optimize import brentq
 
+    for name, v in (("zeta", zeta), ("w_n", w_n), ("band", band)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+            raise AnalysisError(f"{name}: expected a finite number, got {v!r}")
+    _pos("w_n", w_n)
+    if not 0.0 < band < 1.0:
+        raise AnalysisError(f"band: must lie in (0, 1) (a fraction of the unit step), got {band!r}")
+    if zeta <= 0.0:
+        return math.inf
     if zeta < 1.0:
         w_d, r = w_n * math.sqrt(1.0 - zeta * zeta), zeta / math.sqrt(1.0 - zeta * zeta)
         sigma = zeta * w_n
@@ -366,11 +376,20 @@ def x_e_error_force(f_d, k, k_e, delta, law="tmt", assumed_stiffness=None) -> fl
 
     Known law (eqs. 11-12): ``f_e = f_d k_eff(k_e)/k_eff(k_e^) + k_eff(k_e) delta``.
     """
+    _pos("f_d", f_d)
+    _pos("k", k)
+    _pos("k_e", k_e)
+    if isinstance(delta, bool) or not isinstance(delta, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(delta):
+        raise AnalysisError(f"delta: expected a finite number (m), got {delta!r}")
+    if law not in ("tmt", "known"):
+        raise AnalysisError(f"law: expected 'tmt' or 'known', got {law!r}")
     keff = k * k_e / (k + k_e)
     if law == "tmt":
         return f_d if delta < f_d / k_e else keff * (delta + f_d / k)
     if assumed_stiffness is None:
         raise AnalysisError("assumed_stiffness: required for law = 'known'")
+    _pos("assumed_stiffness", assumed_stiffness)
     keff_hat = k * assumed_stiffness / (k + assumed_stiffness)
     return f_d * keff / keff_hat + keff * delta
 
