@@ -141,6 +141,16 @@ TESTS: dict[str, tuple[str, ...]] = {
     "tmtcontrol/simulation/mujoco_plant.py": ("tests/test_mujoco_plant.py", "tests/test_crosscheck_verdicts.py",
                                               "tests/test_curved_refusals.py", "tests/test_report_arm.py",
                                               "tests/test_export_6d.py"),
+    # review 45: four modules the tool had never measured (each file under 60 s alone)
+    "tmtcontrol/stability/limit.py": ("tests/test_limits_wiring.py", "tests/test_limits.py",
+                                      "tests/test_mutation_kills.py", "tests/test_hold.py", "tests/test_edges_wave4.py",
+                                      "tests/test_result_cache.py"),
+    "tmtcontrol/stability/continuous.py": ("tests/test_stability.py", "tests/test_mutation_kills.py",
+                                           "tests/test_derivations.py", "tests/test_laws.py"),
+    "tmtcontrol/simulation/rollout.py": ("tests/test_codegen.py", "tests/test_tangent.py", "tests/test_mutation_kills.py",
+                                         "tests/test_files_safety.py", "tests/test_simulate.py"),
+    "tmtcontrol/cache.py": ("tests/test_compile_signals.py", "tests/test_codegen.py", "tests/test_files_safety.py",
+                            "tests/test_result_cache.py"),
 }
 
 
