@@ -397,6 +397,49 @@ def test_the_stiffness_limit_does_not_depend_on_unclipped_torque_limits(monkeypa
     assert a.limit == pytest.approx(b.limit, rel=1e-12) and a.limit_from == b.limit_from
 
 
+def test_a_file_rewritten_in_place_is_a_new_family_structure_and_arm(tmp_path):
+    """Review 47: in one process (a notebook calling run_sweep twice), a height
+    map rewritten in place between two sweeps kept the old map's memoised
+    limits (the family key held the file's path, not its heights), and the
+    second sweep called a stable case beyond_limit. The same for a URDF: the
+    loaded arm was cached by path. Here the family key, the loop structure and
+    the loaded arm follow the files' contents, and return to the old key with
+    the old content."""
+    import numpy as np
+
+    from importlib import resources
+
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+    from tmtcontrol.simulation.simulator import robot_of, structure
+    from tmtcontrol.sweep.run import _family_key
+
+    u = (np.arange(31) - 15) * 0.01
+    U, V = np.meshgrid(u, u, indexing="ij")
+    part = tmp_path / "part.csv"
+    np.savetxt(part, np.zeros((31, 31)), delimiter=",")
+    sc = apply_overrides(paper_scenario(), ['environment.shape="heightmap"', f'environment.heightmap="{part}"',
+                                            "environment.grid_spacing=0.01"])        # 0.15 m: the path and margin
+    keys = []
+    for r in (0.3, 0.5, 0.3):
+        np.savetxt(part, -(r - np.sqrt(r * r - U * U - V * V)), delimiter=",", fmt="%.12g")
+        keys.append((_family_key(sc, 2e3), structure(sc)))
+    for which in (0, 1):               # the memoised limits' key, and the simulator's and analyses' own
+        assert keys[0][which] != keys[1][which] and keys[0][which] == keys[2][which]
+
+    text = resources.files("tmtcontrol.model").joinpath("data", "ur5.urdf").read_text()
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(text)
+    arm = apply_overrides(paper_scenario(), [f'robot.model="{urdf}"', 'robot.tip="tool0"'])
+    masses = []
+    for scale in ("", "2"):            # the first link's mass 3.7 kg, then 23.7 kg
+        urdf.write_text(text.replace('<mass value="3.7"/>', f'<mass value="{scale}3.7"/>', 1))
+        robot = robot_of(arm)
+        masses.append(sum(robot.link_masses.values()))
+        keys.append((_family_key(arm, 2e3), structure(arm)))
+    assert masses[1] - masses[0] == pytest.approx(20.0, abs=1e-9)
+    assert keys[3][0] != keys[4][0] and keys[3][1] != keys[4][1]
+
+
 # -- review 10 (an independent attack on the sweep): each test failed on the code it found -------------------------
 
 def test_a_grid_over_profiles_of_different_lengths_writes_one_text_column(tmp_path):

@@ -147,8 +147,20 @@ class SimulationError(VerdictFailed):
 
 
 @functools.lru_cache(maxsize=8)
-def _robot(model: str, tip, friction, armature: bool, mass_scale: float):
+def _robot(model: str, tip, friction, armature: bool, mass_scale: float, stamp=None):
+    # ``stamp``: the file's identity (:func:`_file_stamp`), so that a URDF rewritten in place is loaded again
     return load_robot(model, tip=tip, friction=friction, armature=armature, mass_scale=mass_scale)
+
+
+def _file_stamp(model: str):
+    """``(inode, size, mtime in ns)`` of the file ``model`` names, None for a
+    built-in arm's name (review 47: in one process, a notebook's, a file
+    rewritten in place between two runs must not be served the old one)."""
+    try:
+        st = os.stat(model)
+    except (OSError, ValueError):
+        return None
+    return st.st_ino, st.st_size, st.st_mtime_ns
 
 
 def robot_of(scenario: Scenario, controller: bool = False):
@@ -159,7 +171,8 @@ def robot_of(scenario: Scenario, controller: bool = False):
     r = scenario.robot
     friction = ("smooth" if r.compensate_friction else False) if controller else ("smooth" if r.friction else False)
     try:
-        return _robot(r.model, r.tip, friction, r.armature, r.model_mass_scale if controller else 1.0)
+        return _robot(r.model, r.tip, friction, r.armature, r.model_mass_scale if controller else 1.0,
+                      _file_stamp(r.model))
     except URDFError as exc:
         key = "robot.tip" if isinstance(exc, TipError) else "robot.model"
         raise ScenarioError(f"{key}: {exc}") from None
@@ -175,12 +188,14 @@ def robot_task(robot):
 
 
 def structure(scenario: Scenario):
-    """What changes the compiled step (everything else is a runtime input)."""
+    """What changes the compiled step (everything else is a runtime input):
+    the files a scenario names (a URDF, a height map) by their content, so
+    that one rewritten in place is another structure (review 47)."""
     r, s = scenario.robot, scenario.simulation
     return (r.model, r.tip, r.armature, r.friction, r.model_mass_scale, r.compensate_friction,
             s.integrator, (s.substeps, s.contact_refine) if s.integrator == "fixed" else s.tol,
             scenario.controller.law.kind, scenario.controller.delay_samples, scenario.controller.hold,
-            surface_of(scenario).key)
+            surface_of(scenario).key, robot_of(scenario).key)
 
 
 @functools.lru_cache(maxsize=1)

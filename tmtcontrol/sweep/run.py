@@ -115,7 +115,9 @@ def _family_key(sc, k_e_min: float) -> str:
     profile, sensor noise and run length (the analyses run at constant k_e,
     without noise, for their own durations), the limits only its verdicts
     read (``spec.VERDICT_ONLY_KEYS``) and, unless the case clips its torque,
-    the torque limits (``spec.CLIP_KEYS``)."""
+    the torque limits (``spec.CLIP_KEYS``); the files it names, by content."""
+    from ..simulation.simulator import structure
+
     d = sc.model_dump(mode="json")
     d.pop("name", None)
     d["robot"] = {k: v for k, v in d["robot"].items()
@@ -123,6 +125,9 @@ def _family_key(sc, k_e_min: float) -> str:
     d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
     d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
     d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
+    # the files the scenario names by path, by their content (review 47: a height map rewritten in place between
+    # two run_sweep calls in one process kept the old map's limits): the structure holds the part's and the arm's keys
+    d["content"] = repr(structure(sc))
     if sc.environment.damping > 0:
         # a contact damper can make the loop unstable on soft surfaces: the searches then take the stable
         # band that contains the smallest stiffness, so that stiffness is part of the family
