@@ -252,6 +252,21 @@ def test_first_contact_counts_losses_of_contact_not_samples(paper_result):
     assert fc.time == pytest.approx(0.1) and fc.bounces == 2 and fc.peak_force == 10.0
 
 
+def test_first_contact_ignores_a_rounding_force_at_the_start(paper_result):
+    """Review 47: a height map's spline leaves 7.6e-14 N at t = 0 where the path
+    starts on the part, and first contact read 0.000 s against the analytic
+    sphere's 0.001 s. A force below f_d x 1e-9 (10 nN here) is not a touch; the
+    paper's own first step (25 mN) is, and so is 1 uN."""
+    from tmtcontrol.simulation.metrics import first_contact
+
+    f = np.full(paper_result.time.size, 10.0)
+    f[0], f[1], f[2] = 7.6e-14, 0.0, 9.6e-13
+    assert first_contact(_synthetic(paper_result, f)).time == pytest.approx(0.003)
+    f[1] = 1e-6
+    assert first_contact(_synthetic(paper_result, f)).time == pytest.approx(0.001)
+    assert first_contact(paper_result).time == pytest.approx(0.001)
+
+
 def test_first_contact_window_ends_with_the_first_segment(paper_result):
     from tmtcontrol.simulation.metrics import first_contact
 
