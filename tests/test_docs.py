@@ -159,3 +159,17 @@ def test_the_force_filters_quoted_response_is_its_own():
     assert f"({corner(100.0):.1f} Hz for 100 Hz at 1 kHz, {corner(200.0):.1f} Hz for 200 Hz;" in text
     edge = brentq(lambda fc: (1 - pole(fc)) / (1 + pole(fc)) - 2 ** -0.5, 100.0, 499.0) / 500.0
     assert f"from {edge:.3f} of the Nyquist frequency up it never falls 3 dB: {gain_db(300.0)[-1]:.2f} dB" in text
+
+
+def test_design_example_on_the_page_is_what_design_prints(capsys):
+    """docs/design.md quotes the output of its example command: the block
+    below the command line must be what the command prints now (it went stale
+    when the limits came to be rounded down, review 47)."""
+    from tmtcontrol.cli import main
+
+    text = (ROOT / "docs" / "design.md").read_text()
+    cmd = "tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5"
+    block = text.split(f"    $ {cmd}\n")[1].split("\n\n")[0]
+    quoted = [line[4:] for line in block.splitlines()]
+    assert main(cmd.split()[1:]) == 0
+    assert capsys.readouterr().out.splitlines() == quoted

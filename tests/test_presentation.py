@@ -17,6 +17,22 @@ from tmtcontrol import fmt
 
 # -- item 12: one formatter for table columns ----------------------------------------------
 
+@pytest.mark.parametrize("v, sig, shown", [(159774.0, 3, "159,000"), (167249.0, 3, "167,000"), (31.95, 3, "31.9"),
+                                            (435035.0, 4, "435,000"), (0.29, 2, "0.29"), (136000.0, 3, "136,000"),
+                                            (135999.9999, 3, "135,000"), (-2.5e-7, 2, "−2.5 × 10⁻⁷")])
+def test_a_limit_is_shown_rounded_down_never_above_the_computed_value(v, sig, shown):
+    """Review 47: the report read "largest stable stiffness 160,000 N/m" for a
+    computed 159,774 (and design 435,100 for 435,035): a user's safe value above
+    the computed limit. fmt.down rounds towards zero at the shown digits (0.29
+    and 136,000 exactly: no binary-rounding step down); the shown number never
+    exceeds the value and is less than one unit of its last digit below it."""
+    d = fmt.down(v, sig)
+    assert fmt.num(d, sig).replace("\u00a0", " ") == shown
+    unit = 10.0 ** (np.floor(np.log10(abs(v))) - sig + 1)
+    assert abs(d) <= abs(v) and abs(v) - abs(d) < unit
+    assert fmt.down(None) is None and fmt.down(0.0) == 0.0 and fmt.down(float("inf")) == float("inf")
+
+
 def test_a_column_has_one_unit_and_the_same_significant_digits_in_every_cell():
     assert fmt.column([0.5, 1.5], "s") == ("s", ["0.500", "1.50"])          # not "500 ms" beside "1.5 s"
     assert fmt.column([0.0005, 0.0012], "s") == ("ms", ["0.500", "1.20"])   # the prefix of the largest

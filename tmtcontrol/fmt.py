@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["num", "qty", "pct", "ratio", "value", "column", "against", "text_table", "RESIDUE"]
+__all__ = ["num", "qty", "pct", "ratio", "down", "value", "column", "against", "text_table", "RESIDUE"]
 
 _SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 _PREFIXED = {"s", "N", "m", "Hz"}          # units that read better with a prefix (ms, mN, mm, kHz)
@@ -67,6 +67,18 @@ def qty(v, unit: str, sig: int = 3) -> str:
 def pct(v, sig: int = 3) -> str:
     """A percentage."""
     return num(v, sig) + ("" if v is None or not math.isfinite(float(v)) else NBSP + "%")
+
+
+def down(v, sig: int = 3):
+    """``v`` rounded towards zero to ``sig`` significant digits, for a limit
+    shown rounded: 159,774 N/m reads 159,000, not 160,000 (review 47: the
+    report rounded a stiffness limit up, a user's safe value above the
+    computed one); ``v`` unchanged if None, 0 or not finite."""
+    if v is None or isinstance(v, bool) or not math.isfinite(float(v)) or v == 0:
+        return v
+    step = 10.0 ** (math.floor(math.log10(abs(float(v)))) - sig + 1)
+    # the quotient rounded to 12 digits first: 0.29 / 0.01 is 28.999999999999996 in binary, not a step below
+    return math.copysign(math.floor(round(abs(float(v)) / step, 12)) * step, float(v))
 
 
 def ratio(v, sig: int = 3) -> str:

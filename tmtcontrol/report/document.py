@@ -298,13 +298,14 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         how = a["sampled_model"]
     rep.verdicts.append(Verdict(
         f"Stable in the sampled implementation (Ts = {fmt.qty(Ts, 's')})", bool(a["sampled_stable"]),
-        f"largest stable stiffness {fmt.qty(verdict_limit, 'N/m')} vs k_e max {fmt.qty(p['k_e_max'], 'N/m')} "
-        f"(margin {fmt.ratio(margin)})",
+        f"largest stable stiffness {fmt.qty(fmt.down(verdict_limit), 'N/m')} vs k_e max "
+        f"{fmt.qty(p['k_e_max'], 'N/m')} (margin {fmt.ratio(fmt.down(margin))})",
         how + f"; delay {sc.controller.delay_samples} samples, x_e error {fmt.qty(sc.controller.x_e_error, 'm')}"
         + noise))
     points_ = a.get("whole_loop_points", [])
     times = _cells([w["path_time"] for w in points_], "s")          # one unit for the column (not 0 s beside 500 ms)
-    rows = [[times[i], fmt.num(w["limit"]), fmt.ratio(w["limit"] / p["k_e_max"])] for i, w in enumerate(points_)]
+    rows = [[times[i], fmt.num(fmt.down(w["limit"])), fmt.ratio(fmt.down(w["limit"] / p["k_e_max"]))]
+            for i, w in enumerate(points_)]
     # the boundary against Ts: the same law loop at other rates
     closed_form = closed_form_applies(sc.controller.law.kind, sc.controller.delay_samples, sc.controller.x_e_error)
     Ts_grid = np.geomspace(Ts / 8, Ts * 8, 13 if closed_form else 5)
@@ -313,7 +314,8 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         lim = scenario_stiffness_limit(sc, dict(p, Ts=T, alpha=sc.sensor.pole(T)))
         limits.append(np.nan if lim is None else lim)
     points = [(Ts, ke, fmt.num(ke)) for ke in _stiffness_points(p)]
-    cell = lambda v: [fmt.num(v), fmt.ratio(v / p["k_e_max"])] if v is not None else ["–", "–"]
+    # limits and margins rounded down (fmt.down): a rounded limit never reads above the computed one
+    cell = lambda v: [fmt.num(fmt.down(v)), fmt.ratio(fmt.down(v / p["k_e_max"]))] if v is not None else ["–", "–"]
     # the 1-D model leaves out the mid-period hold and has no verdict for some laws: then it predicts nothing
     # for this loop (scenario_stiffness_limit is None at every rate above, no boundary in the figure) and is shown
     # for reference only (review 15: the pipe's 133,000 N/m row stood beside the loop's own 561,000-603,000 as if

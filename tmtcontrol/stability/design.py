@@ -778,7 +778,7 @@ def with_scenario_loop(scenario, r: DesignResult) -> DesignResult:
 
 
 def format_design(r: DesignResult) -> str:
-    from ..fmt import against, num
+    from ..fmt import against, down, num
 
     s = r.spec
     return "\n".join([
@@ -792,9 +792,10 @@ def format_design(r: DesignResult) -> str:
         f"eq. (22) would say {r.info['continuous_overshoot']:.4g} %",
         f"damping ratio        {r.info['damping_ratio_at_k_e_min']:.4g} at k_e_min, "
         f"{r.info['damping_ratio_at_k_e_max']:.4g} at k_e_max",
-        f"sampled stability    stable up to k_e = {num(r.sampled_limit, 4)} N/m at Ts "
-        f"(margin {r.sampled_limit / s.k_e_max:.3g}x k_e_max)",
-    ] + (["scenario's loop      " + (f"stable up to k_e = {num(r.info['scenario_loop_limit'], 4)} N/m"
+        # limits rounded down (fmt.down: review 46 read 435,100 N/m for a computed 435,035)
+        f"sampled stability    stable up to k_e = {num(down(r.sampled_limit, 4), 4)} N/m at Ts "
+        f"(margin {num(down(r.sampled_limit / s.k_e_max))}x k_e_max)",
+    ] + (["scenario's loop      " + (f"stable up to k_e = {num(down(r.info['scenario_loop_limit'], 4), 4)} N/m"
                                         if r.info["scenario_loop_limit"] > 0 else "unstable from k_e_min")
           + f" with its {r.info['scenario_hold']} hold (whole loop, 8 path points; the 1-D model above leaves "
           "the hold out, so its overshoot is the zero-order hold's: the scenario's may differ slightly)"]
