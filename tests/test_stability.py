@@ -89,6 +89,20 @@ def test_bibo_uses_minimal_realization():
     assert bibo_stable(ct.tf([1.0], [1.0, 2.0, 1.0]))
 
 
+@pytest.mark.parametrize("pole, stable", [(0.5, True), (-0.999, True), (1.0 - 1e-12, False), (1.0, False),
+                                         (-1.0, False), (1.5, False), (0.6 + 0.9j, False), (0.6 + 0.7j, True)])
+def test_discrete_time_stability_is_the_open_unit_disc(pole, stable):
+    """Review 45's second run: a mutant accepting any |z| < 1e9 as stable
+    passed every test of the module (only continuous-time verdicts were
+    tested). A sampled system z -> pole (and its conjugate) is BIBO and
+    internally stable iff |pole| < 1 by more than MARGINAL: |0.6 + 0.9j| =
+    1.08, |0.6 + 0.7j| = 0.92; a pole 1e-12 inside the circle is rounding,
+    not stability."""
+    poles = [pole, np.conj(pole)] if np.iscomplex(pole) else [pole]
+    sys = ct.tf([1.0], np.real(np.poly(poles)), 1e-3)              # sampled at Ts = 1 ms
+    assert bibo_stable(sys) is stable and internally_stable(sys) is stable
+
+
 def test_root_locus_matches_closed_form_poles():
     k_e = np.array([1e2, 1e3, 1e4])
     sw = stiffness_sweep(1.0, 60.0, 100.0, k_e)
