@@ -64,18 +64,22 @@ def _splines(H: np.ndarray, u: np.ndarray, v: np.ndarray, du: float, dv: float):
     ``(heights, h, height_slope, digest)``, ``heights`` read-only.
 
     CasADi's B-spline ``interpolant`` solves for the coefficients of the
-    whole grid when it is made: 1.1 s for a 256 x 256 grid, twice per map
-    (the shift through the centre is read off a first spline). A sweep
+    whole grid when it is made: 1.1 s for a 256 x 256 grid. A sweep
     validates every case's scenario and each case builds its surface, all
     with the same heights: without this, a 64-value stiffness sweep over a
-    256 x 256 map spent 136 s building the same splines before its first case."""
+    256 x 256 map spent 136 s building the same splines before its first
+    case. The shift through the centre is subtracted from the spline of
+    the measured heights (the interpolating spline of ``H - s`` is that of
+    ``H`` less ``s``: a cubic B-spline reproduces constants), not made by a
+    second solve."""
     raw = hashlib.sha256(np.ascontiguousarray(H).tobytes() + np.array([du, dv, *H.shape], float).tobytes()).digest()
     if raw not in _SPLINES:
         spline = ca.interpolant("height", "bspline", [u, v], H.ravel(order="F"))
-        heights = H - float(spline([0.0, 0.0]))          # through the path's centre
+        shift = float(spline([0.0, 0.0]))                  # through the path's centre
+        heights = H - shift
         heights.setflags(write=False)
-        h_fn = ca.interpolant("height", "bspline", [u, v], heights.ravel(order="F"))
         x = ca.SX.sym("x", 2)
+        h_fn = ca.Function("height", [x], [spline(x) - shift], ["uv"], ["h"])
         h = h_fn(x)
         slope = ca.Function("height_slope", [x], [h, ca.jacobian(h, x)], ["uv"], ["h", "dh"])
         digest = hashlib.sha256(heights.tobytes() + np.array([du, dv, *H.shape], float).tobytes()).hexdigest()[:16]
