@@ -147,8 +147,9 @@ TESTS: dict[str, tuple[str, ...]] = {
                                       "tests/test_result_cache.py"),
     "tmtcontrol/stability/continuous.py": ("tests/test_stability.py", "tests/test_mutation_kills.py",
                                            "tests/test_derivations.py", "tests/test_laws.py"),
-    "tmtcontrol/simulation/rollout.py": ("tests/test_codegen.py", "tests/test_tangent.py", "tests/test_mutation_kills.py",
-                                         "tests/test_files_safety.py", "tests/test_simulate.py"),
+    "tmtcontrol/simulation/rollout.py": ("tests/test_codegen.py", "tests/test_tangent.py",
+                                         "tests/test_mutation_kills.py", "tests/test_files_safety.py",
+                                         "tests/test_simulate.py"),
     "tmtcontrol/cache.py": ("tests/test_compile_signals.py", "tests/test_codegen.py", "tests/test_files_safety.py",
                             "tests/test_result_cache.py"),
 }

@@ -186,7 +186,8 @@ def test_builtin_curved_scenarios_print_and_load():
     ('[environment]\nshape = "sphere"\nradius = 0.3\naxis = [0.0, 1.0, 0.0]\n', "environment.axis: not used"),
     ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [1.0, 0.0, 0.0]\n', "environment.axis: must be perpendicular"),
     # review 46: an axis of length 2 or 0.001 ran as the unit axis, as normal refuses it
-    ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [0.0, 2.0, 0.0]\n', "environment.axis: must be a unit vector"),
+    ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [0.0, 2.0, 0.0]\n',
+     "environment.axis: must be a unit vector"),
     ('[environment]\nshape = "cylinder"\nradius = 0.3\naxis = [0.0, 0.001, 0.0]\n', "|a| = 0.001"),
     ('[environment]\nshape = "sphere"\nradius = 0.05\n', "trajectory.radius: the path leaves the sphere's domain"),
     ('[environment]\nshape = "cone"\nradius = 0.3\n', "environment.shape"),
@@ -377,8 +378,9 @@ def test_two_height_maps_are_two_loop_structures(tmp_path):
 
 def test_a_height_maps_spline_is_built_once_per_grid_and_spacing(monkeypatch):
     """A sweep validates and builds every case's surface from the same heights:
-    the B-spline's coefficient solve (1.1 s on a 256 x 256 grid) ran again for each (a 64-value stiffness sweep over such a map spent 136 s
-    before its first case). Counted here by the calls to CasADi's interpolant;
+    the B-spline's coefficient solve (1.1 s on a 256 x 256 grid) ran again for
+    each (a 64-value stiffness sweep over such a map spent 136 s before its
+    first case). Counted here by the calls to CasADi's interpolant;
     another grid or spacing is another spline, and the shared heights cannot be
     changed through one map."""
     import casadi as ca
