@@ -325,3 +325,19 @@ def test_the_scenario_loop_check_runs_the_design_that_was_made(monkeypatch):
     assert any("scenario's own loop (mid-period hold" in v for v in out.violations)         # 4e4 < k_e_max
     seen.clear()
     assert design.with_scenario_loop(paper_scenario(), dataclasses.replace(r)) == r and not seen
+
+
+def test_a_violation_message_shows_the_limit_below_the_requirement(optimum):
+    """Review 48: the verification's message printed "stable only up to k_e =
+    2e+05 N/m < margin x k_e_max = 2e+05 N/m" for a limit of 199,960 N/m
+    ({:.4g} rounded it up to the requirement). The limit is now shown in whole
+    N/m rounded down and the requirement rounded up, so the "<" reads true."""
+    import dataclasses
+
+    spec = dataclasses.replace(optimum.spec, k_e_max=1e5, k_e_min=min(optimum.spec.k_e_min, 1e5))
+    for limit, shown in ((199_960.4, "199,960"), (199_999.99, "199,999")):
+        bad = dataclasses.replace(optimum, spec=spec, sampled_limit=limit)
+        line = next(v for v in bad.violations if v.startswith("sampled loop"))
+        assert line == f"sampled loop stable only up to k_e = {shown} N/m < margin x k_e_max = 200,000 N/m", line
+    assert not any(v.startswith("sampled loop") for v in dataclasses.replace(optimum, spec=spec,
+                                                                               sampled_limit=2e5).violations)

@@ -31,6 +31,7 @@ def test_a_limit_is_shown_rounded_down_never_above_the_computed_value(v, sig, sh
     unit = 10.0 ** (np.floor(np.log10(abs(v))) - sig + 1)
     assert abs(d) <= abs(v) and abs(v) - abs(d) < unit
     assert fmt.down(None) is None and fmt.down(0.0) == 0.0 and fmt.down(float("inf")) == float("inf")
+    assert fmt.down(5e-324) == 5e-324                       # review 48: a subnormal divided by 10**-326 = 0
 
 
 def test_a_column_has_one_unit_and_the_same_significant_digits_in_every_cell():

@@ -217,6 +217,30 @@ def test_a_radius_that_reads_as_millimetres_is_noted_by_every_command_that_loads
     assert r.returncode == 0 and "note" not in r.stderr, r.stderr
 
 
+def test_a_sweep_notes_a_radius_that_reads_as_millimetres_once(tmp_path):
+    """Review 48: the note above was printed by every command but sweep, whose
+    base scenario or radius axis can hold the same mistake. Each large value
+    is noted once, from the base, the grid and a random range's ends; a
+    0.3 m part none."""
+    from tmtcontrol.sweep import load_sweep
+
+    (tmp_path / "s.toml").write_text('[environment]\nshape = "sphere"\nradius = 0.3\n')
+    (tmp_path / "w.toml").write_text('scenario = "s.toml"\n[grid]\n"environment.radius" = [0.3, 300.0, 300.0]\n'
+                                     '"trajectory.cycles" = [0.25]\n')
+    notes = load_sweep(tmp_path / "w.toml").unit_notes()
+    assert len(notes) == 1 and notes[0].startswith("environment.radius = 300 m:") and "write 0.3" in notes[0]
+    (tmp_path / "r.toml").write_text('scenario = "s.toml"\n[random]\nsamples = 2\n'
+                                     '"environment.radius" = { uniform = [0.3, 50.0] }\n')
+    assert [n.split(":")[0] for n in load_sweep(tmp_path / "r.toml").unit_notes()] == ["environment.radius = 50 m"]
+    (tmp_path / "p.toml").write_text('scenario = "s.toml"\n[grid]\n"controller.f_d" = [5.0, 10.0]\n')
+    assert load_sweep(tmp_path / "p.toml").unit_notes() == []
+    # the command line prints it, before refusing the sweep for its size here (nothing run)
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", str(tmp_path / "w.toml"), "--out",
+                        str(tmp_path / "o"), "--max-steps", "10"], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.splitlines()[0] == "note: " + notes[0], r.stderr
+    assert not (tmp_path / "o").exists()
+
+
 def _refused(tmp_path, content, needle, sets=()):
     """``simulate`` of the scenario ``content`` (TOML, with ``--set`` each of
     ``sets``): exit 2, one line holding ``needle``, nothing on stdout, no
@@ -404,6 +428,8 @@ def test_a_height_maps_spline_is_built_once_per_grid_and_spacing(monkeypatch):
     assert d.height(0.01, 0.0) - a.height(0.01, 0.0) == pytest.approx(-1e-9, abs=1e-15)
     with pytest.raises(ValueError):
         a.heights[0, 0] = 1.0
+    with pytest.raises(ValueError):                     # review 48: nor made writeable again (a view of the cache)
+        a.heights.setflags(write=True)
     # the spline less its shift is the spline of the shifted heights (a cubic B-spline reproduces constants),
     # to rounding: a second solve through a.heights, at points between and on the nodes
     twice = real("again", "bspline", [a.u, a.v], np.asarray(a.heights).ravel(order="F"))

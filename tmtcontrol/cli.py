@@ -678,6 +678,8 @@ def _sweep(args) -> int:
     from .sweep.spec import check_sweep_size
 
     sweep = load_sweep(args.sweep, max_cases=args.max_cases)
+    for note in sweep.unit_notes():
+        print(f"note: {note}", file=sys.stderr)
     check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,

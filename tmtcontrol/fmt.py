@@ -77,6 +77,8 @@ def down(v, sig: int = 3):
     if v is None or isinstance(v, bool) or not math.isfinite(float(v)) or v == 0:
         return v
     step = 10.0 ** (math.floor(math.log10(abs(float(v)))) - sig + 1)
+    if step == 0.0:                 # a subnormal v (review 48: 5e-324 divided by 10**-326 = 0)
+        return v
     # the quotient rounded to 12 digits first: 0.29 / 0.01 is 28.999999999999996 in binary, not a step below
     return math.copysign(math.floor(round(abs(float(v)) / step, 12)) * step, float(v))
 

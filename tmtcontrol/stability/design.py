@@ -85,6 +85,18 @@ TMT_MIN_STIFFNESS = TmtParameters().min_stiffness
 the scenario's law states another."""
 
 
+def _below(v) -> str:
+    """A limit (N/m) in a violation message: whole N/m rounded down (review 48:
+    ``{:.4g}`` printed 2e+05 for 199,960 beside a requirement of 2e+05)."""
+    return f"{math.floor(v):,}" if math.isfinite(v) else str(v)
+
+
+def _above(v) -> str:
+    """A requirement (N/m) in a violation message: whole N/m rounded up, so a
+    limit below it always reads below it."""
+    return f"{math.ceil(v):,}" if math.isfinite(v) else str(v)
+
+
 def _clip_violation(spec: DesignSpec, k: float) -> list[str]:
     """The TMT cannot track f_d on a surface softer than its ``min_stiffness``:
     its compliance estimate sits on the clip 1/min_stiffness there and the
@@ -206,15 +218,16 @@ class DesignResult:
         s, out = self.spec, _clip_violation(self.spec, self.k)
         if self.worst_overshoot > s.max_overshoot + OVERSHOOT_SLACK:
             out.append(f"first-contact overshoot {self.worst_overshoot:.4g} % > max_overshoot {s.max_overshoot:g} %")
-        if not self.sampled_limit >= s.stiffness_margin * s.k_e_max:
-            out.append(f"sampled loop stable only up to k_e = {self.sampled_limit:.4g} N/m < margin x k_e_max "
-                       f"= {s.stiffness_margin * s.k_e_max:.4g} N/m")
+        need = s.stiffness_margin * s.k_e_max
+        if not self.sampled_limit >= need:
+            out.append(f"sampled loop stable only up to k_e = {_below(self.sampled_limit)} N/m < margin x k_e_max "
+                       f"= {_above(need)} N/m")
         loop = getattr(self, "info", {}).get("scenario_loop_limit")        # (ImpedanceCheck shares these rules)
         if loop is not None and not loop >= s.stiffness_margin * s.k_e_max:
             out.append(f"the scenario's own loop ({self.info['scenario_hold']} hold, which the design's 1-D model "
                        "leaves out) " + ("unstable from k_e_min" if loop == 0 else
-                                         f"stable only up to k_e = {loop:.4g} N/m < margin x k_e_max "
-                                         f"= {s.stiffness_margin * s.k_e_max:.4g} N/m"))
+                                         f"stable only up to k_e = {_below(loop)} N/m < margin x k_e_max "
+                                         f"= {_above(need)} N/m"))
         return out
 
     @property

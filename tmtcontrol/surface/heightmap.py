@@ -125,7 +125,11 @@ class HeightMap(_Curved):
             raise ValueError(f"grid_spacing: must be finite and > 0, got {spacing!r}")
         self.u = (np.arange(H.shape[0]) - (H.shape[0] - 1) / 2) * du
         self.v = (np.arange(H.shape[1]) - (H.shape[1] - 1) / 2) * dv
-        self.heights, self._h, self._hfn, digest = _splines(H, self.u, self.v, du, dv)
+        heights, self._h, self._hfn, digest = _splines(H, self.u, self.v, du, dv)
+        # a read-only view of the shared grid: its WRITEABLE flag cannot be set again (review 48: the cached array
+        # itself could be, and a change then reached every later map of the same grid)
+        self.heights = heights.view()
+        self.heights.setflags(write=False)
         self._key = f"heightmap-{digest}"
         self.spacing = (float(du), float(dv))
 

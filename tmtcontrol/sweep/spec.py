@@ -313,6 +313,21 @@ class Sweep:
         n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a, saturates))
         return n * (self.samples if any(changes_analysis(a, saturates) for a in self.random) else 1)
 
+    def unit_notes(self) -> list[str]:
+        """The notes of values that read like a unit mistake (a part's radius
+        above ``LARGE_RADIUS``) in the base scenario and on the axes, each
+        once (review 48: a sweep printed none)."""
+        from ..simulation.scenario.environment import large_radius_note
+
+        radii = [self.base["environment"].get("radius")]
+        for axis, values in self.grid.items():
+            if axis == "environment.radius":
+                radii += values
+            elif axis == "environment":
+                radii += [v.get("radius") for v in values if isinstance(v, dict)]
+        radii += [end for axis, spec in self.random.items() if axis == "environment.radius" for end in _range(spec)]
+        return list(dict.fromkeys(note for r in radii if (note := large_radius_note(r))))
+
     def may_saturate(self) -> bool:
         """Whether some case may clip its torque (``robot.saturate`` on in the
         base scenario, or an axis that sets it): only then do the torque

@@ -14,8 +14,8 @@ from pydantic import Field, model_serializer, model_validator
 from .fields import MAX_STIFFNESS, MIN_STIFFNESS, F, NonNeg, Section, Stiff, num, tag_default
 from .textfiles import InputFileError, read_text_file
 
-__all__ = ["SHAPES", "read_height_grid", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness", "SinusoidalStiffness", "TableStiffness",
-           "StiffnessProfile", "read_stiffness_table", "EnvironmentSettings"]
+__all__ = ["SHAPES", "read_height_grid", "large_radius_note", "PiecewiseConstantStiffness", "PiecewiseLinearStiffness",
+           "SinusoidalStiffness", "TableStiffness", "StiffnessProfile", "read_stiffness_table", "EnvironmentSettings"]
 
 
 class PiecewiseConstantStiffness(Section):
@@ -224,6 +224,19 @@ LARGE_RADIUS = 10.0
 whether it was meant in millimetres (valid: a large part is nearly a plane)."""
 
 
+def large_radius_note(radius) -> str | None:
+    """The note for a sphere's or cylinder's radius (m) above
+    :data:`LARGE_RADIUS`, naming its sag 10 cm from the centre and the
+    millimetre reading; None for a smaller radius or none."""
+    if radius is None or isinstance(radius, bool) or not isinstance(radius, (int, float)) or \
+            not LARGE_RADIUS < radius < math.inf:
+        return None
+    sag = 0.1 ** 2 / (radius + math.sqrt(radius ** 2 - 0.1 ** 2))    # R - sqrt(R^2 - 0.1^2)
+    return (f"environment.radius = {radius:g} m: a part this large is within {sag * 1e6:.3g} µm of its tangent "
+            f"plane 10 cm from the path's centre; if the radius is in millimetres, write {radius / 1000:g} "
+            "(SI units: m)")
+
+
 class EnvironmentSettings(Section):
     """The surface and its unilateral spring contact, ``f_e = max(0, k_e(t) d +
     damping d')`` while the penetration d > 0. The tilted plane (Fig. 2) by
@@ -293,7 +306,7 @@ class EnvironmentSettings(Section):
         if self.axis is not None:
             norm = math.sqrt(sum(x * x for x in self.axis))
             if abs(norm - 1.0) > 1e-6:       # as normal (review 46: [0, 2, 0] and [0, 0.001, 0] ran as [0, 1, 0])
-                raise ValueError(f"axis: must be a unit vector (|a| = 1 within 1e-6), got |a| = {norm:.6g}")
+                raise ValueError(f"axis: must be a unit vector (|a| = 1 within 1e-6), got |a| = {norm:.9g}")
             if self.normal is not None and abs(sum(a * b for a, b in zip(self.axis, self.normal))) > 1e-6 * norm:
                 raise ValueError("axis: must be perpendicular to normal (the axis lies in the tangent plane)")
         return self
@@ -304,19 +317,15 @@ class EnvironmentSettings(Section):
         :data:`LARGE_RADIUS` (review 46: 300 for 300 mm ran as a 300 m part,
         nearly its tangent plane, and quoted the plane's limit, 4.5 % above
         the 0.3 m part's)."""
-        if self.radius is None or self.radius <= LARGE_RADIUS:
-            return []
-        sag = 0.1 ** 2 / (self.radius + math.sqrt(self.radius ** 2 - 0.1 ** 2))    # R - sqrt(R^2 - 0.1^2)
-        return [f"environment.radius = {self.radius:g} m: a part this large is within {sag * 1e6:.3g} µm of its "
-                f"tangent plane 10 cm from the path's centre; if the radius is in millimetres, write "
-                f"{self.radius / 1000:g} (SI units: m)"]
+        note = large_radius_note(self.radius)
+        return [note] if note else []
 
     @model_validator(mode="after")
     def _unit_normal(self):
         if self.normal is not None:
             norm = math.sqrt(sum(x * x for x in self.normal))
             if abs(norm - 1.0) > 1e-6:
-                raise ValueError(f"normal: must be a unit vector (|n| = 1 within 1e-6), got |n| = {norm:.6g}")
+                raise ValueError(f"normal: must be a unit vector (|n| = 1 within 1e-6), got |n| = {norm:.9g}")
             if "tilt_deg" in self.model_fields_set:   # the shorthand given too: it must be the same plane
                 t = math.radians(self.tilt_deg)
                 if max(abs(a - b) for a, b in zip((math.sin(t), 0.0, -math.cos(t)), self.normal)) > 1e-6:
