@@ -440,12 +440,12 @@ def test_a_file_rewritten_in_place_is_a_new_family_structure_and_arm(tmp_path):
     assert keys[3][0] != keys[4][0] and keys[3][1] != keys[4][1]
     # a built-in arm's name is read before any file of that name (review 48: a folder ./ur5, an --out, gave the
     # UR5 a stamp that changed with every file written into it); a folder is no file either
-    from tmtcontrol.simulation.simulator import _file_stamp
+    from tmtcontrol.model.robot import source_stamp
 
     (tmp_path / "ur5").mkdir()
     for name in (str(tmp_path / "ur5"), "ur5", "UR5", "puma560", str(tmp_path / "gone.urdf")):
-        assert _file_stamp(name) is None, name
-    assert _file_stamp(str(urdf)) is not None
+        assert source_stamp(name) is None, name
+    assert source_stamp(str(urdf)) is not None
 
 
 # -- review 10 (an independent attack on the sweep): each test failed on the code it found -------------------------

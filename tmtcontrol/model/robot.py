@@ -35,6 +35,7 @@ import dataclasses
 import hashlib
 import math
 import os
+import stat
 import pathlib
 from dataclasses import dataclass
 from importlib import resources
@@ -44,7 +45,8 @@ import numpy as np
 
 from .urdf import Chain, ChainError, TipError, URDFError, parse_chain, read_urdf
 
-__all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of"]
+__all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of",
+           "source_stamp"]
 
 BUNDLED = {
     "ur5": ("ur5.urdf", "tool0"),
@@ -330,6 +332,23 @@ class Robot:
             return float(l2.a + math.hypot(l3.a, WRIST_OFFSET) + abs(l3.d))
         pts = [j.p for j in self.chain.joints[1:]] + [self.chain.tip_p]
         return float(sum(np.linalg.norm(p) for p in pts))
+
+
+def source_stamp(source) -> tuple[int, int, int] | None:
+    """``(inode, size, mtime in ns)`` of the URDF file :func:`load_robot`
+    reads for ``source``; None for the PUMA or a bundled arm (read before any
+    file of that name: review 48, a folder ``./ur5`` gave the UR5 a stamp
+    that changed with each file written into it) and for a path that is not
+    a regular file. A cache of loaded arms keyed on it loads a file rewritten
+    in place again (review 47)."""
+    name = os.fspath(source)
+    if name.lower() in ("puma560", *BUNDLED):
+        return None
+    try:
+        st = os.stat(name)
+    except (OSError, ValueError):
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns) if stat.S_ISREG(st.st_mode) else None
 
 
 def load_robot(source, tip: str | None = None, base: str | None = None, joints=None, *,

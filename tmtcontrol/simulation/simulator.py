@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import functools
 import os
-import stat
 import sys
 import time
 from dataclasses import dataclass, field
@@ -33,7 +32,7 @@ import numpy as np
 from ..control.laws import get_law, is_package_law
 from ..files import VerdictFailed, check_interrupt
 from ..model import URDFError, load_robot
-from ..model.robot import BUNDLED
+from ..model.robot import source_stamp
 from ..model.urdf import TipError
 from .closedloop import INPUT, build_step, build_tangent, log_layout, param_layout, state_layout, step_name
 from .geometry import surface_of, tool_orientation
@@ -150,24 +149,8 @@ class SimulationError(VerdictFailed):
 
 @functools.lru_cache(maxsize=8)
 def _robot(model: str, tip, friction, armature: bool, mass_scale: float, stamp=None):
-    # ``stamp``: the file's identity (:func:`_file_stamp`), so that a URDF rewritten in place is loaded again
+    # ``stamp``: the file's identity (``model.robot.source_stamp``), so that a URDF rewritten in place is loaded again
     return load_robot(model, tip=tip, friction=friction, armature=armature, mass_scale=mass_scale)
-
-
-def _file_stamp(model: str):
-    """``(inode, size, mtime in ns)`` of the file ``model`` names, None for a
-    built-in arm's name (which ``load_robot`` reads before any file: review
-    48, a folder ``./ur5`` gave the UR5 a stamp that changed with each file
-    written into it) or a path that is not a regular file (review 47: in one
-    process, a notebook's, a file rewritten in place between two runs must
-    not be served the old one)."""
-    if model.lower() in ("puma560", *BUNDLED):
-        return None
-    try:
-        st = os.stat(model)
-    except (OSError, ValueError):
-        return None
-    return (st.st_ino, st.st_size, st.st_mtime_ns) if stat.S_ISREG(st.st_mode) else None
 
 
 def robot_of(scenario: Scenario, controller: bool = False):
@@ -179,7 +162,7 @@ def robot_of(scenario: Scenario, controller: bool = False):
     friction = ("smooth" if r.compensate_friction else False) if controller else ("smooth" if r.friction else False)
     try:
         return _robot(r.model, r.tip, friction, r.armature, r.model_mass_scale if controller else 1.0,
-                      _file_stamp(r.model))
+                      source_stamp(r.model))
     except URDFError as exc:
         key = "robot.tip" if isinstance(exc, TipError) else "robot.model"
         raise ScenarioError(f"{key}: {exc}") from None
