@@ -4,6 +4,7 @@ design of ``design --scenario`` and the arm's checks; the verdict exit code
 computed from the verdicts. The whole report is heavy (~15 s of CPU: every
 law compiled and simulated on the UR5, the sweep, IPOPT); the simulation
 stage alone runs in the default suite."""
+import math
 import re
 
 import numpy as np
@@ -146,7 +147,9 @@ def test_report_ur5_html(tmp_path):
     if "whole_loop_note" in a:
         assert "6-D arm" in sampled
     limit = float(re.sub(r"[^\d.]", "", table(sampled, "the models")[2][-1 if "limit" in a else 1][1]))
-    assert limit == pytest.approx(a.get("limit", a["max_stable_stiffness"]), rel=5e-3)    # 3 significant digits
+    # 3 significant digits rounded down (a shown limit never above the computed one: review 47)
+    computed = a.get("limit", a["max_stable_stiffness"])
+    assert limit <= computed < limit + 10 ** (math.floor(math.log10(computed)) - 2)
     # the design of design --scenario ur5
     from tmtcontrol.stability.design import design_impedance, scenario_design_spec
 
