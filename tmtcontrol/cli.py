@@ -254,28 +254,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _load(args):
-    from .simulation.scenario import apply_overrides
+    from .simulation.scenario import apply_overrides, load_scenario
 
-    sc = _load_named(args.scenario, notes=False)
+    sc = load_scenario(args.scenario)
     sets = list(getattr(args, "set", []) or [])
     if getattr(args, "integrator", None):
         sets.append(f"simulation.integrator={args.integrator}")
     return _noted(apply_overrides(sc, sets) if sets else sc)
 
 
-def _load_named(name, notes: bool = True):
+def _load_named(name):
     """The scenario ``name`` (a file or a built-in), its :func:`_noted` lines printed."""
     from .simulation.scenario import load_scenario
 
-    sc = load_scenario(name)
-    return _noted(sc) if notes else sc
+    return _noted(load_scenario(name))
 
 
 def _noted(sc):
-    """``sc``, after printing a note on stderr for each value that reads like a unit mistake."""
-    for note in sc.environment.unit_notes():
-        print(f"note: {note}", file=sys.stderr)
+    """``sc``, after :func:`_print_notes` of its values that read like a unit mistake."""
+    _print_notes(sc.environment.unit_notes())
     return sc
+
+
+def _print_notes(notes) -> None:
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
 
 
 def _simulate(args) -> int:
@@ -678,8 +681,7 @@ def _sweep(args) -> int:
     from .sweep.spec import check_sweep_size
 
     sweep = load_sweep(args.sweep, max_cases=args.max_cases)
-    for note in sweep.unit_notes():
-        print(f"note: {note}", file=sys.stderr)
+    _print_notes(sweep.unit_notes())
     check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
