@@ -2,12 +2,33 @@
 and the paper scenario simulated once."""
 import fcntl
 import os
+import pathlib
 import pickle
 
 import pytest
 from hypothesis import settings
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+def _installed() -> bool:
+    """Whether the tmtcontrol these tests import is an installed copy (in a
+    site-packages folder, as CI's ``pip install '.[test]'`` leaves it)."""
+    import site
+
+    import tmtcontrol
+
+    home = pathlib.Path(tmtcontrol.__file__).resolve().parent.parent
+    return any(home == pathlib.Path(p).resolve() for p in site.getsitepackages())
+
+
+# The commands the tests start (python -m tmtcontrol.cli, python -c, the analysis scripts) run the package the
+# tests import. `python -m` and `-c` put the working folder first on sys.path: from a checkout (CI's fresh clone)
+# every command ran the clone's sources, not the installed copy the in-process tests run, and with
+# PYTHONDONTWRITEBYTECODE set (CI's machines) compiled them afresh each time: 0.3 s of bytecode compilation in each
+# of the README suite's ~190 commands. PYTHONSAFEPATH (Python >= 3.11) leaves the working folder off the path.
+if _installed():
+    os.environ.setdefault("PYTHONSAFEPATH", "1")
 
 # property tests are deterministic: a fixed seed per test (derandomize) and no example
 # database carried between runs, so CI and a fresh clone draw the same examples; a failure
