@@ -89,6 +89,56 @@ def test_a_changed_input_is_a_new_key(kept, counted, monkeypatch, tmp_path):
     assert limit._result_key(sc, 8, True) != key
 
 
+UNREAD_CHANGES = ["name=\"another\"", "robot.dq_max=[1.0, 1.0, 1.0]", "robot.limit_margin=0.3",
+                  "robot.tool_radius=0.02", "controller.force_tolerance=0.5", "controller.orientation_tolerance=0.2",
+                  "sensor.noise_std=0.05", "sensor.seed=7", "simulation.mujoco_contact=\"contact\"",
+                  "simulation.mujoco_friction=0.3", "requirements.first_contact_overshoot=20"]
+"""One change of every key of ``limit.UNREAD_KEYS`` (each a value the paper scenario does not have)."""
+
+
+def test_unread_changes_cover_every_unread_key():
+    """The list above changes each unread key (so the tests below try them all)."""
+    changed = {c.split("=")[0] for c in UNREAD_CHANGES}
+    assert {k for k in limit.UNREAD_KEYS if any(c == k or c.startswith(k + ".") for c in changed)} \
+        == set(limit.UNREAD_KEYS)
+    sc = paper_scenario()
+    for c in UNREAD_CHANGES:                                    # each is a change of the scenario
+        assert apply_overrides(sc, [c]).model_dump() != sc.model_dump(), c
+
+
+@pytest.mark.parametrize("change", UNREAD_CHANGES)
+def test_a_key_no_limit_reads_keeps_the_key_and_one_that_does_changes_it(change):
+    """Issue 42: the key covers what changes the result and nothing else. A
+    value no limit reads (the verdicts' tolerances and limits, the noise, the
+    MuJoCo plant's settings; that they are unread is computed in
+    test_the_limits_are_the_same_with_every_unread_key_changed) gives the same
+    key; the torque limits count only where the loop clips its torque."""
+    sc = paper_scenario()
+    assert limit._result_key(apply_overrides(sc, [change]), 8, True) == limit._result_key(sc, 8, True)
+
+
+def test_the_torque_limits_are_in_the_key_only_where_the_loop_clips_its_torque():
+    sc = paper_scenario()
+    tau = "robot.tau_max=[50.0, 50.0, 50.0]"
+    assert limit._result_key(apply_overrides(sc, [tau]), 8, True) == limit._result_key(sc, 8, True)
+    clipped = apply_overrides(sc, ["robot.saturate=true"])
+    assert limit._result_key(apply_overrides(clipped, [tau]), 8, True) != limit._result_key(clipped, 8, True)
+    for read in ("controller.rate=500", "sensor.filter_cutoff=40", "trajectory.approach_gap=0.002",
+                 "controller.contact_threshold=0.2"):
+        assert limit._result_key(apply_overrides(sc, [read]), 8, True) != limit._result_key(sc, 8, True), read
+
+
+@pytest.mark.heavy
+def test_the_limits_are_the_same_with_every_unread_key_changed():
+    """The independent check of ``limit.UNREAD_KEYS``: the deciding limit
+    (periodic orbit, first contact, the frozen loop, the 1-D figure) computed
+    afresh with every unread key changed at once is the paper scenario's, to
+    the last bit (nothing of them enters the computation)."""
+    sc = paper_scenario()
+    changed = apply_overrides(sc, UNREAD_CHANGES)
+    assert limit._computed_limit(changed, 8, True, None) == limit._computed_limit(sc, 8, True, None)
+
+
 @pytest.mark.parametrize("damage", ["not json {", "another key", "fields", "\xff\xfe"])
 def test_a_damaged_or_foreign_result_is_computed_again(kept, counted, damage):
     """A file that is not JSON, holds another key (a hash collision) or another

@@ -27,18 +27,51 @@ limit to a simulation, whose segment verdicts then call a segment above it
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 
 import numpy as np
 
 from .continuous import AnalysisError
 
-__all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL"]
+__all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL",
+           "UNREAD_KEYS", "CLIP_KEYS", "analysed_settings"]
 
 WHOLE_LOOP_RTOL = 1e-6
 """Relative width of the whole-loop limit's final bracket (stable at its
 lower end, unstable at its upper): the search starts at the 1-D limit, so a
 coarser bracket would often return the 1-D value itself."""
+
+UNREAD_KEYS = ("name", "robot.dq_max", "robot.limit_margin", "robot.tool_radius", "controller.force_tolerance",
+               "controller.orientation_tolerance", "sensor.noise_std", "sensor.seed", "simulation.mujoco_contact",
+               "simulation.mujoco_friction", "requirements")
+"""Scenario keys (dotted; a section for all its keys) no limit reads: the
+scenario's name, the joint rates and the reserve held below each limit (the
+verdicts judge them along the run), the tool sphere and the contact and
+friction of ``--plant mujoco`` (the analyses model the built-in loop), the
+verdicts' tolerances, the sensor noise and its seed (the analyses and the
+first-contact runs are noise-free) and the design requirements. They are
+left out of the key the limits are kept under (:func:`analysed_settings`),
+so a run that changes only these reads the limits computed before."""
+
+CLIP_KEYS = ("robot.tau_max",)
+"""Keys the analyses see only through the loop's torque clip
+(``robot.saturate`` on; off, the clip is infinite whatever the limits:
+``simulation.limits.ArmLimits.torque_clip``)."""
+
+
+def analysed_settings(scenario) -> dict:
+    """The scenario's settings (``model_dump(mode="json")``) without
+    :data:`UNREAD_KEYS`, nor :data:`CLIP_KEYS` unless the loop clips its
+    torque: what the limits are computed from, as the key they are kept under."""
+    d = scenario.model_dump(mode="json")
+    for key in UNREAD_KEYS + (() if scenario.robot.saturate else CLIP_KEYS):
+        section, _, field = key.partition(".")
+        if field:
+            d[section].pop(field)
+        else:
+            d.pop(section)
+    return d
 
 
 @dataclass(frozen=True)
@@ -167,7 +200,9 @@ def _deciding_limit(scenario, points, along_path, runner):
 def _result_key(scenario, points, along_path) -> str | None:
     """What the deciding limit depends on: the compiled loop's structure key
     (the package's sources, the arm's and the controller model's content,
-    the surface's, the law's declaration), every value of the scenario, its
+    the surface's, the law's declaration), every value of the scenario the
+    limits read (:func:`analysed_settings`; issue 42: the key covers what
+    changes the result and nothing else), its
     analysis parameters (a stiffness table's range), the numerical
     libraries' versions and the search's settings. None for a law that is not
     the package's own declaration (its code is not in the key: not kept)."""
@@ -182,8 +217,9 @@ def _result_key(scenario, points, along_path) -> str | None:
     if structure is None:
         return None
     params = sorted((k, repr(v)) for k, v in scenario_parameters(scenario).items())
-    return repr((structure, scenario.model_dump_json(), params, casadi.__version__, np.__version__,
-                 scipy.__version__, int(points), bool(along_path)))
+    settings = json.dumps(analysed_settings(scenario), sort_keys=True)
+    return repr((structure, settings, params, casadi.__version__, np.__version__, scipy.__version__, int(points),
+                 bool(along_path)))
 
 
 def _from_json(data: dict) -> ScenarioLimit:

@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
-from .spec import CLIP_KEYS, VERDICT_ONLY_KEYS, Case, Sweep, case_scenario, changes_analysis
+from .spec import Case, Sweep, case_scenario, changes_analysis
 
 __all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
@@ -111,19 +111,17 @@ _LIMITS: dict = {}     # per worker process: the deciding limit per case family 
 
 
 def _family_key(sc, k_e_min: float) -> str:
-    """What a case's limits depend on: the scenario without its stiffness
-    profile, sensor noise and run length (the analyses run at constant k_e,
-    without noise, for their own durations), the limits only its verdicts
-    read (``spec.VERDICT_ONLY_KEYS``) and, unless the case clips its torque,
-    the torque limits (``spec.CLIP_KEYS``); the files it names, by content."""
+    """What a case's limits depend on: the settings they read
+    (``stability.limit.analysed_settings``: not the noise, the joint rates,
+    the verdicts' tolerances, ..., nor the torque limits unless the case clips
+    its torque) without the stiffness profile and the run length (the
+    analyses run at constant k_e for their own durations); the files it
+    names, by content."""
     from ..simulation.simulator import structure
+    from ..stability.limit import analysed_settings
 
-    d = sc.model_dump(mode="json")
-    d.pop("name", None)
-    d["robot"] = {k: v for k, v in d["robot"].items()
-                  if f"robot.{k}" not in VERDICT_ONLY_KEYS + (() if sc.robot.saturate else CLIP_KEYS)}
+    d = analysed_settings(sc)
     d["environment"] = {k: v for k, v in d["environment"].items() if k != "stiffness"}
-    d["sensor"] = {k: v for k, v in d["sensor"].items() if k not in ("noise_std", "seed")}
     d["trajectory"] = {k: v for k, v in d["trajectory"].items() if k != "cycles"}
     # the files the scenario names by path, by their content (review 47: a height map rewritten in place between
     # two run_sweep calls in one process kept the old map's limits): the structure holds the part's and the arm's keys

@@ -120,27 +120,22 @@ SECONDS_TO_START = 0.5
 step and each family's noise-free twin (review 31: a 32-case sweep of 1 s
 was estimated at 0.2 s)."""
 
-ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "sensor.noise_std", "trajectory.cycles")
+ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "trajectory.cycles")
 """Axes under these keys leave a case's analysis as it was (the limit does
-not depend on k_e, the noise or the run length), so the memoised limit is
-reused across their values and draws."""
-
-
-VERDICT_ONLY_KEYS = ("robot.dq_max", "robot.limit_margin")
-"""Robot keys only the verdicts read (the joint rates and the reserve held
-below each limit are judged along the run; no analysis clips or reads them)."""
-
-CLIP_KEYS = ("robot.tau_max",)
-"""Robot keys the analyses see only through the loop's torque clip
-(``robot.saturate`` on; off, the clip is infinite whatever the limits:
-``simulation.limits.ArmLimits.torque_clip``)."""
+not depend on k_e or the run length), so the memoised limit is reused across
+their values and draws; so do the keys no limit reads at all
+(``stability.limit.UNREAD_KEYS``: the noise, the joint rates, the reserve
+held below each limit, the verdicts' tolerances, the MuJoCo plant's settings)."""
 
 
 def changes_analysis(axis: str, saturates: bool = True) -> bool:
     """Whether a sweep axis changes a case's limit analysis: not under
-    :data:`ANALYSIS_FREE_PREFIXES` nor :data:`VERDICT_ONLY_KEYS`, nor under
-    :data:`CLIP_KEYS` when no case clips its torque (``saturates`` False)."""
-    return not (axis.startswith(ANALYSIS_FREE_PREFIXES + VERDICT_ONLY_KEYS)
+    :data:`ANALYSIS_FREE_PREFIXES` nor ``stability.limit.UNREAD_KEYS``, nor
+    under ``stability.limit.CLIP_KEYS`` when no case clips its torque
+    (``saturates`` False)."""
+    from ..stability.limit import CLIP_KEYS, UNREAD_KEYS
+
+    return not (axis.startswith(ANALYSIS_FREE_PREFIXES + UNREAD_KEYS)
                 or (not saturates and axis.startswith(CLIP_KEYS)))
 
 
@@ -331,7 +326,7 @@ class Sweep:
     def may_saturate(self) -> bool:
         """Whether some case may clip its torque (``robot.saturate`` on in the
         base scenario, or an axis that sets it): only then do the torque
-        limits change a case's analysis (:data:`CLIP_KEYS`)."""
+        limits change a case's analysis (``stability.limit.CLIP_KEYS``)."""
         return bool(self.base["robot"].get("saturate")) or any(_covers(a, "robot.saturate")
                                                                 for a in (*self.grid, *self.random))
 
