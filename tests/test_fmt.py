@@ -1,0 +1,37 @@
+"""Number formatting (tmtcontrol.fmt) against values written out by hand: the
+scientific form's digits and its carry into the next decade, and the residue
+floor of a table column, relative to the column's largest magnitude. Found by
+the mutation tool's first run on fmt.py (the thirteenth session, seed 7)."""
+import pytest
+
+from tmtcontrol import fmt
+
+NBSP = "\u00a0"
+
+
+@pytest.mark.parametrize("v, sig, shown", [
+    (3.14159e-5, 2, "3.1 × 10⁻⁵"),
+    (-2.71828e-7, 3, "−2.72 × 10⁻⁷"),
+    (6.02214076e23, 4, "6.022 × 10²³"),
+    (9.9996e-5, 3, "1 × 10⁻⁴"),            # 9.9996 rounds to 10.0: carried into the next decade, not "10 × 10⁻⁵"
+    (1.25e9, 3, "1.25 × 10⁹"),
+])
+def test_the_scientific_form_shows_sig_significant_digits(v, sig, shown):
+    assert fmt.num(v, sig).replace(NBSP, " ") == shown
+
+
+def test_a_column_keeps_trailing_zeros_in_the_scientific_form():
+    _, cells = fmt.column([3.1e-5, 2.0e-5], "1")
+    assert [c.replace(NBSP, " ") for c in cells] == ["3.10 × 10⁻⁵", "2.00 × 10⁻⁵"]
+
+
+def test_the_residue_floor_is_relative_to_the_columns_largest_magnitude():
+    """fmt.RESIDUE (1e-9) times the largest magnitude: beside 3e6 N/m, 1e-4 N/m
+    is residue and prints 0; a column of values all near 1e-12 keeps them (an
+    absolute floor of 1e-9 would blank a column of nanometre-scale values)."""
+    _, cells = fmt.column([3.0e6, 1.0e-4], "N/m")
+    assert cells[1] == "0" and cells[0] != "0"
+    _, cells = fmt.column([2.0e-12, 1.5e-12], "1")
+    assert [c.replace(NBSP, " ") for c in cells] == ["2.00 × 10⁻¹²", "1.50 × 10⁻¹²"]
+    _, cells = fmt.column([1.0e-4], "N/m", reference=3.0e6)      # residue alone, sized by the reference
+    assert cells == ["0"]
