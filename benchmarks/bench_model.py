@@ -6,12 +6,16 @@ Prints the median build time and its ratio to a plain reference run in the same
 process (building just forward kinematics with CasADi), so the number can be
 compared across machines.
 """
+import pathlib
+import sys
+
 import casadi as ca
 
 from tmtcontrol import Puma560
 from tmtcontrol.model.puma560 import PUMA560_LINKS, _dh
 
-from bench_all import median_time      # this folder is on the path when run as a script
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))   # also under PYTHONSAFEPATH (review 49)
+from bench_all import median_time  # noqa: E402
 
 
 def reference():

@@ -176,7 +176,7 @@ def test_without_opengl_libraries_the_animation_falls_back_to_matplotlib(tmp_pat
     site.mkdir()
     (site / "sitecustomize.py").write_text(_NO_GL)
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL")}
-    env["PYTHONPATH"] = str(site) + os.pathsep + env.get("PYTHONPATH", "")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(site), env.get("PYTHONPATH")]))
     out = tmp_path / "o"
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "ur5", "--set", "trajectory.cycles=0.1",
                         "--no-plots", "--animate", "--out", str(out)], capture_output=True, text=True, env=env)
@@ -207,7 +207,8 @@ def test_a_renderer_that_aborts_the_process_falls_back_to_matplotlib(tmp_path):
     site = tmp_path / "abort"
     site.mkdir()
     (site / "sitecustomize.py").write_text(_RENDERER_ABORTS)
-    env = {**os.environ, "MUJOCO_GL": "egl", "PYTHONPATH": str(site) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env = {**os.environ, "MUJOCO_GL": "egl",
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")]))}
     out = tmp_path / "o"
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "ur5", "--set", "trajectory.cycles=0.1",
                         "--no-plots", "--animate", "--out", str(out)], capture_output=True, text=True, env=env)

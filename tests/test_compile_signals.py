@@ -513,7 +513,7 @@ def test_ctrl_c_to_report_alone_does_not_wait_for_its_second_process(tmp_path):
     site.mkdir()
     (site / "sitecustomize.py").write_text(_REMOTE_HANGS)
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONUNBUFFERED": "1",
-           "PYTHONPATH": str(site) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")]))}
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "tmtcontrol.cli", "report", "paper", "--format", "html",
                              "--out", str(out)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,

@@ -35,3 +35,11 @@ def test_the_residue_floor_is_relative_to_the_columns_largest_magnitude():
     assert [c.replace(NBSP, " ") for c in cells] == ["2.00 × 10⁻¹²", "1.50 × 10⁻¹²"]
     _, cells = fmt.column([1.0e-4], "N/m", reference=3.0e6)      # residue alone, sized by the reference
     assert cells == ["0"]
+
+
+def test_a_text_table_right_aligns_numbers_and_left_aligns_the_last_column_by_default():
+    t = fmt.text_table([("k_e", ["5,000", "20,000"]), ("error", ["1.2", "0.45"]), ("verdict", ["converged", "off"])])
+    assert t.splitlines() == ["   k_e  error  verdict",
+                              "-" * 22,
+                              " 5,000    1.2  converged",
+                              "20,000   0.45  off"]

@@ -720,7 +720,11 @@ def test_the_estimate_counts_one_limit_analysis_per_case_family():
         assert sweep.estimate_seconds(workers=workers, limits=True) - sweep.estimate_seconds(workers=workers) == \
             pytest.approx(6 * SECONDS_PER_LIMIT, rel=1e-12)
     noisy = sweep_from_dict({"grid": grid, "random": {"samples": 10, "sensor.noise_std": {"uniform": [0.0, 0.1]}}})
-    assert noisy.limit_families() == 6                     # the noise changes no analysis
+    assert noisy.limit_families() == 6                     # the noise changes no analysis without an approach
+    approach = {"trajectory.approach_gap": [0.002]}
+    noisy = sweep_from_dict({"grid": grid | approach, "random": {"samples": 10,
+                                                                "sensor.noise_std": {"uniform": [0.0, 0.1]}}})
+    assert noisy.limit_families() == 60                    # review 49: with one, 6 sigma of it move the surface belief
     drawn = sweep_from_dict({"grid": grid, "random": {"samples": 10, "controller.x_e_error": {"uniform": [-1e-3, 0.0]}}})
     assert drawn.limit_families() == 60                    # every draw of the x_e error is a new analysis
     assert "(estimate, 60 limit analyses included)" in drawn.plan(limits=True)

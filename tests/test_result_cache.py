@@ -91,7 +91,7 @@ def test_a_changed_input_is_a_new_key(kept, counted, monkeypatch, tmp_path):
 
 UNREAD_CHANGES = ["name=\"another\"", "robot.dq_max=[1.0, 1.0, 1.0]", "robot.limit_margin=0.3",
                   "robot.tool_radius=0.02", "controller.force_tolerance=0.5", "controller.orientation_tolerance=0.2",
-                  "sensor.noise_std=0.05", "sensor.seed=7", "simulation.mujoco_contact=\"contact\"",
+                  "sensor.seed=7", "simulation.mujoco_contact=\"contact\"",
                   "simulation.mujoco_friction=0.3", "requirements.first_contact_overshoot=20"]
 """One change of every key of ``limit.UNREAD_KEYS`` (each a value the paper scenario does not have)."""
 
@@ -128,15 +128,61 @@ def test_the_torque_limits_are_in_the_key_only_where_the_loop_clips_its_torque()
         assert limit._result_key(apply_overrides(sc, [read]), 8, True) != limit._result_key(sc, 8, True), read
 
 
+def test_the_noise_is_in_the_key_only_with_a_guarded_approach():
+    """Review 49: the guarded approach's detection threshold adds 6 sigma of the
+    filtered noise, which moves where the approach finds the surface, so the
+    surface-location error the limits are computed with (``x_e_error`` of the
+    analysis parameters, computed here). Without an approach the noise is not
+    read (computed in test_the_limits_are_the_same_with_every_unread_key_changed)."""
+    from tmtcontrol.stability.onedim import scenario_parameters
+
+    sc = paper_scenario()
+    noisy = ["sensor.noise_std=0.5"]
+    assert limit._result_key(apply_overrides(sc, noisy), 8, True) == limit._result_key(sc, 8, True)
+    approach = apply_overrides(sc, ["trajectory.approach_gap=0.002"])
+    assert scenario_parameters(apply_overrides(approach, noisy))["x_e_error"] != \
+        scenario_parameters(approach)["x_e_error"]
+    assert "sensor.noise_std" not in json.dumps(limit.analysed_settings(sc))
+    assert limit.analysed_settings(apply_overrides(approach, noisy))["sensor"]["noise_std"] == 0.5
+    assert limit._result_key(apply_overrides(approach, noisy), 8, True) != limit._result_key(approach, 8, True)
+
+
+def test_a_kept_limit_does_not_skip_the_per_joint_checks(kept, counted):
+    """Review 49: a limit read from the results skipped building the loop, where
+    a robot.dq_max of the wrong length is refused: the same command exited 0
+    with the results on and 2 with them off. The checks now run first."""
+    from tmtcontrol.simulation.scenario import ScenarioError
+
+    sc = paper_scenario()
+    limit.deciding_limit(sc)
+    for bad in ("robot.dq_max=[1.0, 1.0]", "robot.tau_max=[50.0, 50.0]", "robot.q0=[0.1, 0.2, 0.3]"):
+        with pytest.raises(ScenarioError, match=f"^{bad.split('=')[0].replace('.', '[.]')}: "):
+            limit.deciding_limit(apply_overrides(sc, [bad]))
+    assert counted == [10.0]
+
+
 @pytest.mark.heavy
 def test_the_limits_are_the_same_with_every_unread_key_changed():
     """The independent check of ``limit.UNREAD_KEYS``: the deciding limit
     (periodic orbit, first contact, the frozen loop, the 1-D figure) computed
-    afresh with every unread key changed at once is the paper scenario's, to
-    the last bit (nothing of them enters the computation)."""
+    afresh with every unread key changed at once, and the sensor noise (read
+    only with a guarded approach, which the paper has not), is the paper
+    scenario's, to the last bit (nothing of them enters the computation)."""
     sc = paper_scenario()
-    changed = apply_overrides(sc, UNREAD_CHANGES)
+    changed = apply_overrides(sc, [*UNREAD_CHANGES, "sensor.noise_std=0.05"])
     assert limit._computed_limit(changed, 8, True, None) == limit._computed_limit(sc, 8, True, None)
+
+
+@pytest.mark.heavy
+def test_the_noise_moves_the_limits_of_a_scenario_with_a_guarded_approach():
+    """Review 49's case, computed afresh: paper with a 2 mm guarded approach
+    and x_e_error = -2 mm; 0.5 N of noise raises the detection threshold and
+    moves every limit (its 1-D figure 159,499 -> 160,775 N/m): the noise must
+    be in the key of such a scenario."""
+    sc = apply_overrides(paper_scenario(), ["trajectory.approach_gap=0.002", "controller.x_e_error=-0.002"])
+    quiet = limit._computed_limit(sc, 8, True, None)
+    noisy = limit._computed_limit(apply_overrides(sc, ["sensor.noise_std=0.5"]), 8, True, None)
+    assert noisy.small_signal > quiet.small_signal * (1 + 1e-3) and noisy.limit != quiet.limit
 
 
 @pytest.mark.parametrize("damage", ["not json {", "another key", "fields", "\xff\xfe"])

@@ -330,13 +330,19 @@ def test_a_diverged_case_row_has_no_limit_object_and_writes(monkeypatch, tmp_pat
     from tmtcontrol.sweep import run
     from tmtcontrol.sweep.spec import Case
 
+    clock = [100.0]
+
     def boom(self, *a, **k):
+        clock[0] += 0.25                                # the simulation ran 0.25 s before it blew up
         raise SimulationError("simulation diverged (test)")
 
     monkeypatch.setattr(Simulator, "run", boom)
     base = scenario_to_dict(paper_scenario())
+    row = run.case_row(base, Case(0, {"trajectory.cycles": 0.25}))     # (its limits computed on the real clock)
+    monkeypatch.setattr(run.time, "perf_counter", lambda: clock[0])
     row = run.case_row(base, Case(0, {"trajectory.cycles": 0.25}))
     assert row["verdict"] == "diverged" and "_limit" not in row and row["predicted_limit"] > 0
+    assert row["run_time_s"] == 0.25                  # the run's own time (mutation tool, seed 7: `/ t0` survived)
     pa.Table.from_pylist([row])                       # the chunk's rows convert
 
 

@@ -35,7 +35,8 @@ import numpy as np
 from .continuous import AnalysisError
 
 __all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL",
-           "UNREAD_KEYS", "CLIP_KEYS", "analysed_settings"]
+           "UNREAD_KEYS", "CLIP_KEYS", "APPROACH_KEYS", "analysed_settings",
+           "has_approach"]
 
 WHOLE_LOOP_RTOL = 1e-6
 """Relative width of the whole-loop limit's final bracket (stable at its
@@ -43,29 +44,45 @@ lower end, unstable at its upper): the search starts at the 1-D limit, so a
 coarser bracket would often return the 1-D value itself."""
 
 UNREAD_KEYS = ("name", "robot.dq_max", "robot.limit_margin", "robot.tool_radius", "controller.force_tolerance",
-               "controller.orientation_tolerance", "sensor.noise_std", "sensor.seed", "simulation.mujoco_contact",
+               "controller.orientation_tolerance", "sensor.seed", "simulation.mujoco_contact",
                "simulation.mujoco_friction", "requirements")
 """Scenario keys (dotted; a section for all its keys) no limit reads: the
 scenario's name, the joint rates and the reserve held below each limit (the
 verdicts judge them along the run), the tool sphere and the contact and
 friction of ``--plant mujoco`` (the analyses model the built-in loop), the
-verdicts' tolerances, the sensor noise and its seed (the analyses and the
-first-contact runs are noise-free) and the design requirements. They are
-left out of the key the limits are kept under (:func:`analysed_settings`),
-so a run that changes only these reads the limits computed before."""
+verdicts' tolerances, the noise's seed (the analyses and the first-contact
+runs are noise-free) and the design requirements. They are left out of the
+key the limits are kept under (:func:`analysed_settings`), so a run that
+changes only these reads the limits computed before."""
 
 CLIP_KEYS = ("robot.tau_max",)
 """Keys the analyses see only through the loop's torque clip
 (``robot.saturate`` on; off, the clip is infinite whatever the limits:
 ``simulation.limits.ArmLimits.torque_clip``)."""
 
+APPROACH_KEYS = ("sensor.noise_std",)
+"""Keys the analyses see only through a guarded approach
+(``trajectory.approach_gap`` and ``controller.approach_speed`` above 0): its
+detection threshold adds 6 sigma of the filtered noise, which sets how deep
+the approach finds the surface and so the surface-location error it leaves
+(``simulation.environment.approach_depth``; review 49: 0.5 N of noise moved
+an approach scenario's limits by 0.01-0.8 %)."""
+
+
+def has_approach(scenario) -> bool:
+    """Whether ``scenario`` starts with a guarded approach."""
+    return scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0
+
 
 def analysed_settings(scenario) -> dict:
     """The scenario's settings (``model_dump(mode="json")``) without
     :data:`UNREAD_KEYS`, nor :data:`CLIP_KEYS` unless the loop clips its
-    torque: what the limits are computed from, as the key they are kept under."""
+    torque, nor :data:`APPROACH_KEYS` unless it starts with a guarded
+    approach: what the limits are computed from, as the key they are kept
+    under."""
     d = scenario.model_dump(mode="json")
-    for key in UNREAD_KEYS + (() if scenario.robot.saturate else CLIP_KEYS):
+    for key in (UNREAD_KEYS + (() if scenario.robot.saturate else CLIP_KEYS)
+                + (() if has_approach(scenario) else APPROACH_KEYS)):
         section, _, field = key.partition(".")
         if field:
             d[section].pop(field)
@@ -191,7 +208,11 @@ def _deciding_limit(scenario, points, along_path, runner):
     ``TMTCONTROL_RESULT_CACHE=0`` turns it off (always computed, nothing
     kept)."""
     from ..cache import kept_result, results_enabled
+    from ..simulation.simulator import check_joint_settings, robot_of
 
+    # the per-joint settings no limit reads are still checked (review 49: a kept limit skipped building the loop,
+    # where a 2-value robot.dq_max for a 3-joint arm is refused, and a wrong one was accepted)
+    check_joint_settings(robot_of(scenario), scenario)
     key = _result_key(scenario, points, along_path) if results_enabled() else None
     return kept_result("deciding_limit", key, lambda: _computed_limit(scenario, points, along_path, runner),
                        lambda lim: None if lim is None else dataclasses.asdict(lim), _from_json)

@@ -112,11 +112,11 @@ _LIMITS: dict = {}     # per worker process: the deciding limit per case family 
 
 def _family_key(sc, k_e_min: float) -> str:
     """What a case's limits depend on: the settings they read
-    (``stability.limit.analysed_settings``: not the noise, the joint rates,
-    the verdicts' tolerances, ..., nor the torque limits unless the case clips
-    its torque) without the stiffness profile and the run length (the
-    analyses run at constant k_e for their own durations); the files it
-    names, by content."""
+    (``stability.limit.analysed_settings``: not the joint rates, the
+    verdicts' tolerances, ..., nor the torque limits unless the case clips
+    its torque, nor the noise unless it starts with a guarded approach)
+    without the stiffness profile and the run length (the analyses run at
+    constant k_e for their own durations); the files it names, by content."""
     from ..simulation.simulator import structure
     from ..stability.limit import analysed_settings
 
@@ -141,7 +141,7 @@ def limits_by_default(sweep: Sweep) -> tuple[bool, str]:
     distinct case families (the limit is memoised per worker and family;
     a few seconds each), but every draw of, e.g., the x_e error is a new
     analysis of the loop."""
-    costly = [k for k in sweep.random if changes_analysis(k, sweep.may_saturate())]
+    costly = [k for k in sweep.random if changes_analysis(k, sweep.may_saturate(), sweep.may_approach())]
     if costly:
         return False, (f"sweep: predicted limits off (random {', '.join(costly)}: each draw is a new stability "
                        "analysis, seconds per case); --limits on computes them")

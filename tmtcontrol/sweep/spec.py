@@ -124,19 +124,22 @@ ANALYSIS_FREE_PREFIXES = ("environment.stiffness", "trajectory.cycles")
 """Axes under these keys leave a case's analysis as it was (the limit does
 not depend on k_e or the run length), so the memoised limit is reused across
 their values and draws; so do the keys no limit reads at all
-(``stability.limit.UNREAD_KEYS``: the noise, the joint rates, the reserve
-held below each limit, the verdicts' tolerances, the MuJoCo plant's settings)."""
+(``stability.limit.UNREAD_KEYS``: the joint rates, the reserve held below
+each limit, the verdicts' tolerances, the MuJoCo plant's settings)."""
 
 
-def changes_analysis(axis: str, saturates: bool = True) -> bool:
+def changes_analysis(axis: str, saturates: bool = True, approaches: bool = True) -> bool:
     """Whether a sweep axis changes a case's limit analysis: not under
     :data:`ANALYSIS_FREE_PREFIXES` nor ``stability.limit.UNREAD_KEYS``, nor
     under ``stability.limit.CLIP_KEYS`` when no case clips its torque
-    (``saturates`` False)."""
-    from ..stability.limit import CLIP_KEYS, UNREAD_KEYS
+    (``saturates`` False), nor under ``stability.limit.APPROACH_KEYS`` (the
+    sensor noise) when no case starts with a guarded approach (``approaches``
+    False)."""
+    from ..stability.limit import APPROACH_KEYS, CLIP_KEYS, UNREAD_KEYS
 
     return not (axis.startswith(ANALYSIS_FREE_PREFIXES + UNREAD_KEYS)
-                or (not saturates and axis.startswith(CLIP_KEYS)))
+                or (not saturates and axis.startswith(CLIP_KEYS))
+                or (not approaches and axis.startswith(APPROACH_KEYS)))
 
 
 STEP_KEYS = ("trajectory.cycles", "trajectory.period", "controller.rate")
@@ -304,9 +307,9 @@ class Sweep:
         ``sweep.run.case_limits``): the combinations of the grid axes that
         change the analysis (all but :data:`ANALYSIS_FREE_PREFIXES`), times
         the random samples if a random axis changes it too."""
-        saturates = self.may_saturate()
-        n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a, saturates))
-        return n * (self.samples if any(changes_analysis(a, saturates) for a in self.random) else 1)
+        flags = self.may_saturate(), self.may_approach()
+        n = math.prod(len(v) for a, v in self.grid.items() if changes_analysis(a, *flags))
+        return n * (self.samples if any(changes_analysis(a, *flags) for a in self.random) else 1)
 
     def unit_notes(self) -> list[str]:
         """The notes of values that read like a unit mistake (a part's radius
@@ -329,6 +332,15 @@ class Sweep:
         limits change a case's analysis (``stability.limit.CLIP_KEYS``)."""
         return bool(self.base["robot"].get("saturate")) or any(_covers(a, "robot.saturate")
                                                                 for a in (*self.grid, *self.random))
+
+    def may_approach(self) -> bool:
+        """Whether some case may start with a guarded approach (in the base
+        scenario, or an axis that sets its gap or speed): only then does the
+        sensor noise change a case's analysis (``stability.limit.APPROACH_KEYS``)."""
+        t, c = self.base["trajectory"], self.base["controller"]
+        return (t.get("approach_gap", 0) > 0 and c.get("approach_speed", 0) > 0) or any(
+            _covers(a, k) for a in (*self.grid, *self.random) for k in ("trajectory.approach_gap",
+                                                                        "controller.approach_speed"))
 
     def arm_cost(self) -> float:
         """How much a control step and a limit analysis of the cases' arm cost
