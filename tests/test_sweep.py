@@ -317,6 +317,8 @@ def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
     assert rows[0]["first_contact_limit"] == real(family[0], rows[0]["periodic_limit"])
     run.case_limits(apply_overrides(paper_scenario(), [*base[1:], "controller.x_e_error=-0.005"]))
     assert calls == [-0.01, -0.005]
+    run.case_limits(family[2])                  # the first family again: still memoised beside the second
+    assert calls == [-0.01, -0.005]             # (mutation tool, seed 7: the memo cleared at every new family)
 
 
 def test_a_diverged_case_row_has_no_limit_object_and_writes(monkeypatch, tmp_path):
