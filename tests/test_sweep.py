@@ -662,3 +662,25 @@ def test_the_boundary_axis_prefers_a_varied_grid_axis_and_needs_two_values():
     assert boundary_axis(sweep_from_dict({"grid": {"robot.saturate": [False, True]}})) is None   # bools: no order
     laws = {"controller.law.kind": ["tmt", "known"]}
     assert boundary_axis(sweep_from_dict({"grid": {**laws, "controller.f_d": [5.0, 10.0]}})) == "controller.f_d"
+
+
+def test_the_cluster_shutdown_silences_dasks_loggers_and_restores_each_one_after():
+    """sweep.run._quiet_dask disables distributed's, tornado's, asyncio's and
+    bokeh's loggers (their children too) while an interrupted cluster stops,
+    and gives each back its own setting: a logger the user had disabled stays
+    so, the others log again (mutation tool, seed 7: restoring nothing survived)."""
+    import logging
+
+    from tmtcontrol.sweep import run
+
+    child, quiet, other = (logging.getLogger(n) for n in ("distributed.test_sweep_child", "tornado", "tmt_other"))
+    before = [(lg, lg.disabled) for lg in (child, quiet, other)]
+    try:
+        child.disabled, quiet.disabled, other.disabled = False, True, False
+        with run._quiet_dask():
+            assert child.disabled and quiet.disabled and logging.getLogger("asyncio").disabled
+            assert not other.disabled
+        assert (child.disabled, quiet.disabled, other.disabled) == (False, True, False)
+    finally:
+        for lg, d in before:
+            lg.disabled = d
