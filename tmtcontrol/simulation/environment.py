@@ -19,7 +19,7 @@ from .scenario import read_stiffness_table
 
 __all__ = ["task_frame", "contact_force", "stiffness_samples", "CONTACT_NOISE_SIGMAS", "contact_detection_threshold",
            "surface_error", "approach_depth", "approach_normal",
-           "belief_after_approach"]
+           "belief_after_approach", "has_approach"]
 
 
 def stiffness_samples(profile, t: np.ndarray, default_segment: float) -> np.ndarray:
@@ -95,6 +95,12 @@ def approach_depth(scenario) -> float:
     return float(v * Ts * j)
 
 
+def has_approach(scenario) -> bool:
+    """Whether ``scenario`` starts with a guarded approach
+    (``trajectory.approach_gap`` and ``controller.approach_speed`` above 0)."""
+    return scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0
+
+
 def belief_after_approach(scenario) -> tuple[float, np.ndarray]:
     """The controller's surface belief as a guarded approach leaves it:
     ``(x_e_error, part_offset)`` with the estimate :func:`approach_depth`
@@ -103,7 +109,7 @@ def belief_after_approach(scenario) -> tuple[float, np.ndarray]:
     it has no guarded approach."""
     sc = scenario
     offset = np.asarray(sc.controller.part_offset, dtype=float)
-    if not (sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0):
+    if not has_approach(sc):
         return float(sc.controller.x_e_error), offset
     m = approach_normal(sc)
     return float(sc.controller.x_e_error + approach_depth(sc)), offset - (offset @ m) * m

@@ -39,7 +39,7 @@ from .geometry import surface_of, tool_orientation
 from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
-from .environment import CONTACT_NOISE_SIGMAS, contact_detection_threshold, stiffness_samples
+from .environment import CONTACT_NOISE_SIGMAS, contact_detection_threshold, has_approach, stiffness_samples
 from .scenario import Scenario, ScenarioError, ScheduledDamping, paper_scenario
 from .traces import SimulationTraces
 from .trajectory import path_extent, path_reference
@@ -70,7 +70,7 @@ def contact_threshold_of(scenario: Scenario, alpha: float) -> float:
     raised it: ``sensor.noise_std`` when the noise margin does."""
     ctl = scenario.controller
     f = contact_detection_threshold(ctl.contact_threshold, scenario.sensor.noise_std, alpha)
-    if scenario.trajectory.approach_gap > 0 and ctl.approach_speed > 0 and f >= ctl.f_d:
+    if has_approach(scenario) and f >= ctl.f_d:
         if ctl.contact_threshold >= ctl.f_d:
             raise ScenarioError(f"controller.contact_threshold: {ctl.contact_threshold:g} N is not below "
                                 f"controller.f_d = {ctl.f_d:g} N; the guarded approach would push past f_d")

@@ -218,12 +218,14 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     the frozen-point minimum staying as the conservative bound. Every arm runs
     the same loop (its task declared by the robot), the 1-D model with the
     arm's effective normal mass along the path."""
+    from ..simulation.environment import has_approach
+
     p = scenario_parameters(scenario)
     bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     out["hold"] = scenario.controller.hold
-    if scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0:
+    if has_approach(scenario):
         # review 22: the x_e error printed is not only the user's (simulation.environment.surface_error)
         out["x_e_error_from"] = ("the guarded approach's estimate, set where the measured force reaches the "
                                  "detection threshold f_c (f_c/k_e inside the surface, deeper behind a force "

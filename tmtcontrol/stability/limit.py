@@ -35,8 +35,7 @@ import numpy as np
 from .continuous import AnalysisError
 
 __all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL",
-           "UNREAD_KEYS", "CLIP_KEYS", "APPROACH_KEYS", "analysed_settings",
-           "has_approach"]
+           "UNREAD_KEYS", "CLIP_KEYS", "APPROACH_KEYS", "analysed_settings"]
 
 WHOLE_LOOP_RTOL = 1e-6
 """Relative width of the whole-loop limit's final bracket (stable at its
@@ -69,17 +68,14 @@ the approach finds the surface and so the surface-location error it leaves
 an approach scenario's limits by 0.01-0.8 %)."""
 
 
-def has_approach(scenario) -> bool:
-    """Whether ``scenario`` starts with a guarded approach."""
-    return scenario.trajectory.approach_gap > 0 and scenario.controller.approach_speed > 0
-
-
 def analysed_settings(scenario) -> dict:
     """The scenario's settings (``model_dump(mode="json")``) without
     :data:`UNREAD_KEYS`, nor :data:`CLIP_KEYS` unless the loop clips its
     torque, nor :data:`APPROACH_KEYS` unless it starts with a guarded
     approach: what the limits are computed from, as the key they are kept
     under."""
+    from ..simulation.environment import has_approach
+
     d = scenario.model_dump(mode="json")
     for key in (UNREAD_KEYS + (() if scenario.robot.saturate else CLIP_KEYS)
                 + (() if has_approach(scenario) else APPROACH_KEYS)):

@@ -37,7 +37,7 @@ from ..control.laws import get_law
 from .continuous import AnalysisError, critical_damping
 from .lawloop import law_loop
 from .sampled import largest_stable
-from ..simulation.environment import belief_after_approach, surface_error
+from ..simulation.environment import belief_after_approach, has_approach, surface_error
 
 __all__ = ["WholeLoop", "WholeLoopModel", "on_the_surface", "whole_loop", "whole_loop_limit", "equilibrium_damping"]
 
@@ -148,7 +148,7 @@ def on_the_surface(sc):
     :func:`~tmtcontrol.simulation.environment.approach_depth`).
     Review 26: the offset's normal part was kept, the PUMA-on-a-dome periodic limit 6 % low (150,666
     against 160,056 N/m, a simulated bisection 158k-163k) and a stable run called beyond_limit."""
-    if sc.trajectory.approach_gap > 0 and sc.controller.approach_speed > 0:
+    if has_approach(sc):
         x_e_error, offset = belief_after_approach(sc)   # along the normal where the approach met the part
         sc = sc.replace(controller={**sc.controller.model_dump(), "x_e_error": x_e_error,
                                     "part_offset": tuple(float(v) for v in offset)})
