@@ -35,8 +35,8 @@ import dataclasses
 import hashlib
 import math
 import os
-import stat
 import pathlib
+import stat
 from dataclasses import dataclass
 from importlib import resources
 

@@ -223,7 +223,7 @@ class DesignResult:
             out.append(f"sampled loop stable only up to k_e = {_below(self.sampled_limit)} N/m < margin x k_e_max "
                        f"= {_above(need)} N/m")
         loop = getattr(self, "info", {}).get("scenario_loop_limit")        # (ImpedanceCheck shares these rules)
-        if loop is not None and not loop >= s.stiffness_margin * s.k_e_max:
+        if loop is not None and not loop >= need:
             out.append(f"the scenario's own loop ({self.info['scenario_hold']} hold, which the design's 1-D model "
                        "leaves out) " + ("unstable from k_e_min" if loop == 0 else
                                          f"stable only up to k_e = {_below(loop)} N/m < margin x k_e_max "

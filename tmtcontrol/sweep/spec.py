@@ -337,8 +337,9 @@ class Sweep:
         """Whether some case may start with a guarded approach (in the base
         scenario, or an axis that sets its gap or speed): only then does the
         sensor noise change a case's analysis (``stability.limit.APPROACH_KEYS``)."""
-        t, c = self.base["trajectory"], self.base["controller"]
-        return (t.get("approach_gap", 0) > 0 and c.get("approach_speed", 0) > 0) or any(
+        from ..simulation.environment import has_approach
+
+        return has_approach(case_scenario(self.base, {})) or any(
             _covers(a, k) for a in (*self.grid, *self.random) for k in ("trajectory.approach_gap",
                                                                         "controller.approach_speed"))
 
