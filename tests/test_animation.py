@@ -166,6 +166,7 @@ ctypes.CDLL.__init__ = _init
 '''
 
 
+@pytest.mark.heavy
 def test_without_opengl_libraries_the_animation_falls_back_to_matplotlib(tmp_path):
     """Regression (review): on a headless machine whose OpenGL libraries do
     not load (simulated by a sitecustomize that refuses them), MuJoCo fails
@@ -197,6 +198,7 @@ else:
 '''
 
 
+@pytest.mark.heavy
 def test_a_renderer_that_aborts_the_process_falls_back_to_matplotlib(tmp_path):
     """Regression (CI): on a machine whose OpenGL driver aborts the process
     when MuJoCo's renderer starts (SIGABRT inside ``mujoco.Renderer``,

@@ -117,6 +117,7 @@ def test_diverging_simulation_exit_1_with_time(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.heavy
 def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_path, capsys):
     """Review 33: `simulate --set simulation.mujoco_friction=0.3` without --plant mujoco ran the
     frictionless built-in spring and said nothing; docs/mujoco.md says friction 0.3 makes the run

@@ -463,6 +463,7 @@ def test_a_robot_compiled_with_an_unwritable_cache_leaves_nothing_in_tmp(cache_e
     assert list(cache.fallback_dir().iterdir()) == []
 
 
+@pytest.mark.heavy
 def test_simulate_with_an_exported_controller_leaves_nothing_in_the_temporary_folder(tmp_path):
     """Issue: every `simulate --controller` left a tmtcontrol-sil-* build folder in $TMPDIR that
     neither pruning nor `cache --clear` removed. The SIL library is now built in a private build

@@ -132,6 +132,7 @@ def test_bowl_contact_force_is_k_e_times_the_depth_from_pinocchio():
 
 # -- 2. the tool along the local inward normal --------------------------------------------------------
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["ur5-pipe", "panda-bowl"])
 def test_tool_z_is_the_local_inward_normal_from_pinocchio(name):
     """Acceptance of issue 40: over the last quarter of each of the four
@@ -412,6 +413,7 @@ def test_the_tilted_plane_as_a_height_map_reproduces_the_whole_plane_run(tmp_pat
     assert np.abs(a.q - b.q).max() < 1e-9
 
 
+@pytest.mark.heavy
 def test_a_sloped_height_map_is_the_plane_of_its_slope_in_steady_state(tmp_path):
     """Heights of a plane sloped within the map, ``h = 0.3 v`` over the
     paper's plane (``v`` along task axis 2): the surface is the paper's

@@ -136,6 +136,7 @@ def test_a_crashing_implementation_fails_its_check(default_impl):
     assert crashed and not any(r.passed for r in crashed)
 
 
+@pytest.mark.heavy
 def test_cli_check_table_and_json(monkeypatch, capsys):
     # one real run of the command (JSON); the table renders the same results in-process
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "check", "--json"], capture_output=True, text=True)

@@ -33,6 +33,7 @@ def test_ise_matches_cvodes_quadrature(b, k_e):
     assert ise_closed_form(1.0, b, 100.0, k_e) == pytest.approx(quad, rel=1e-7)
 
 
+@pytest.mark.heavy
 def test_optimum_is_constrained_and_beats_baseline(optimum):
     r = optimum
     assert r.status == "Solve_Succeeded"
@@ -122,6 +123,7 @@ def test_bad_spec_rejected():
         DesignSpec(m=1, k=100, k_e_min=2e3, k_e_max=2e4, Ts=0)
 
 
+@pytest.mark.heavy
 def test_cli_design_json_and_errors(tmp_path):
     cmd = [sys.executable, "-m", "tmtcontrol.cli", "design", "--m", "1", "--k", "100", "--ke-min", "2000",
            "--ke-max", "20000", "--ts", "0.001", "--max-overshoot", "5", "--mp", "3.3"]
@@ -194,6 +196,7 @@ def test_event_weights_are_the_three_events_squared_force_errors():
     np.testing.assert_allclose(w, [100 * (1 + 0 + 0.81), 100 * (1 + 4 + 0.49), 100 * (1 + 81 + 0)], rtol=1e-14)
 
 
+@pytest.mark.heavy
 def test_a_zero_overshoot_bound_is_met_to_the_solvers_tolerance(capsys):
     """Regression (review 9): ``--max-overshoot 0`` is feasible (eq. (25)'s
     critical damping at k_e_max has none; the package's own check passes b =
@@ -327,6 +330,7 @@ def test_the_scenario_loop_check_runs_the_design_that_was_made(monkeypatch):
     assert design.with_scenario_loop(paper_scenario(), dataclasses.replace(r)) == r and not seen
 
 
+@pytest.mark.heavy
 def test_a_violation_message_shows_the_limit_below_the_requirement(optimum):
     """Review 48: the verification's message printed "stable only up to k_e =
     2e+05 N/m < margin x k_e_max = 2e+05 N/m" for a limit of 199,960 N/m

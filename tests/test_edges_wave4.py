@@ -151,6 +151,7 @@ def test_robot_command_names_the_tip_flag(capsys):
     assert len(err) == 1 and err[0].startswith("error: --tip: ur5 (ur5.urdf): tip 'nope' is not a link"), err
 
 
+@pytest.mark.heavy
 def test_a_warning_on_the_command_line_is_one_line(tmp_path):
     """An unusable compile cache (its path runs through a file): the run goes on
     with the per-user fallback and says so in exactly one stderr line."""
@@ -188,6 +189,7 @@ def _run(*sets):
 RAMP_TO_2E5 = "environment.stiffness={kind='piecewise_linear', times=[0,4,6.5], values=[5e3,5e3,2e5]}"
 
 
+@pytest.mark.heavy
 def test_a_run_ending_above_the_limit_is_beyond_the_limit_not_converged():
     """F1: the last segment ramps to 2e5 N/m, above the loop's limit (periodic orbit 1.6725e5 N/m, a
     simulator bisection 1.672e5; 1-D 1.634e5): the run ends before the growth shows, and every segment looked converged.
@@ -210,6 +212,7 @@ def test_a_run_ending_above_the_limit_is_beyond_the_limit_not_converged():
     assert "this run itself: converged" in segs[1].reason
 
 
+@pytest.mark.heavy
 def test_simulate_exits_1_on_a_run_ending_above_the_limit(tmp_path, capsys):
     import json
 

@@ -160,6 +160,7 @@ def _assert_same_signals(sil, ref, names=SIGNALS):
         assert rel_err(getattr(sil, name), getattr(ref, name)) < RTOL, name
 
 
+@pytest.mark.heavy
 def test_short_6d_software_in_the_loop_run_equals_the_built_in_one(exported_ur5):
     """The default suite's one compiled 6-D check (the heavy tests run the whole 16 s on both arms):
     160 periods of the UR5 with the exported C controller in place of the built-in one equal the
@@ -421,6 +422,7 @@ def test_the_arm_an_export_was_made_for_is_checked_by_its_content(exported_ur5, 
         check_export_matches(meta, exported_ur5, paper_scenario())
 
 
+@pytest.mark.heavy
 def test_exported_c_runs_against_mujoco_as_the_built_in_controller_does(exported_ur5):
     """Issue 41: the exported C against MuJoCo's dynamics of the same URDF
     (`simulate --controller DIR --plant mujoco`): the same plant, the

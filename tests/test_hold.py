@@ -57,6 +57,7 @@ def test_mid_period_hold_is_the_extrapolation_of_the_zero_order_controllers_torq
     assert np.abs(plain.tau - held.tau).max() > 1e-6
 
 
+@pytest.mark.heavy
 def test_zero_order_ripple_is_first_order_in_Ts_mid_period_second_order():
     """On the pipe the worst steady-state force error halves when Ts halves
     with the zero-order hold (ratio 2 +- 10 %: a lag of Ts/2) and quarters
@@ -73,6 +74,7 @@ def test_zero_order_ripple_is_first_order_in_Ts_mid_period_second_order():
     assert worst["mid_period", 1000] < 1e-4 < worst["zero_order", 1000]
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["ur5-pipe", "panda-bowl"])
 def test_curved_builtins_converge_within_1e_3_N_with_the_tool_on_the_normal(name):
     """Issue 40's acceptance: every segment of the built-in curved scenario

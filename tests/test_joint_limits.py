@@ -86,6 +86,7 @@ def ur5_runs():
     return Simulator(sc).run(), Simulator(apply_overrides(sc, ["robot.saturate=true"])).run()
 
 
+@pytest.mark.heavy
 def test_the_ur5_switch_at_12_s_drives_joint_2_over_its_urdf_effort_and_the_segment_is_over_limit(ur5_runs):
     """The reviewer's numbers: 170.1 N m against 150 N m for 2 ms at 12 s; 131.5 N m at 4 s (inside)."""
     res, _ = ur5_runs
@@ -102,6 +103,7 @@ def test_the_ur5_switch_at_12_s_drives_joint_2_over_its_urdf_effort_and_the_segm
     assert [s.verdict for s in segment_metrics(res2)] == ["converged", "over_limit", "converged", "over_limit"]
 
 
+@pytest.mark.heavy
 def test_the_drive_clip_is_the_unclipped_torque_clipped_and_keeps_the_run_inside(ur5_runs):
     res, sat = ur5_runs
     k = int(np.flatnonzero(np.abs(res.tau[1]) > 150.0)[0])              # the first sample over the limit
@@ -171,6 +173,7 @@ def test_a_limit_margin_outside_0_1_is_refused():
             apply_overrides(paper_scenario(), [f"robot.limit_margin={bad}"])
 
 
+@pytest.mark.heavy
 def test_an_orientation_error_above_the_tolerance_is_off_target(ur5_runs):
     res, _ = ur5_runs
     segs = segment_metrics(res)
@@ -181,6 +184,7 @@ def test_an_orientation_error_above_the_tolerance_is_off_target(ur5_runs):
     assert any(v == "off_target" and "controller.orientation_tolerance" in r for v, r in verdicts)
 
 
+@pytest.mark.heavy
 def test_the_over_limit_line_quoted_in_the_docs_is_what_simulate_ur5_prints(ur5_runs):
     """docs/simulation.md quotes the line `simulate ur5` prints (cli._verdict_exit's format)."""
     import pathlib
@@ -193,6 +197,7 @@ def test_the_over_limit_line_quoted_in_the_docs_is_what_simulate_ur5_prints(ur5_
     assert printed == [quoted]
 
 
+@pytest.mark.heavy
 def test_the_pandas_null_space_drift_is_reported_and_a_stiffer_posture_task_holds_it(ur5_runs):
     """The path returns to its start each period; a redundant arm's joints drift in the null space. The drift is
     |q(kT) - q(0)| over whole periods (from the logged joints), shrinks with a stiffer posture task, and an arm

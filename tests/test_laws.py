@@ -316,6 +316,7 @@ def compared(run_once):
     return r, out
 
 
+@pytest.mark.heavy
 def test_compare_paper_all_laws(compared):
     r, out = compared
     summary = json.loads((out / "summary.json").read_text())
@@ -344,6 +345,7 @@ def test_compare_paper_all_laws(compared):
         for i, a, k in ((2, 4, "20,000"), (3, 8, "2,000"), (4, 12, "10,000"))]
 
 
+@pytest.mark.heavy
 def test_compare_python_api_returns_the_same_numbers(compared):
     from tmtcontrol import compare_laws
 
@@ -365,6 +367,7 @@ def test_compare_bad_laws_exit_2(tmp_path, laws_arg, msg):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.heavy
 def test_docs_comparison_tables_are_the_generated_ones(compared):
     """docs/choosing-a-law.md shows the table analysis/law_comparison.py wrote,
     and its paper numbers are today's (2 significant digits, as printed)."""

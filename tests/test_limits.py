@@ -651,6 +651,7 @@ def test_simulate_analyze_sweep_and_report_quote_the_one_deciding_limit(monkeypa
     assert (a["limit"], a["limit_from"], a["whole_loop_limit"]) == (123457.0, "first contact", 140000.0)
 
 
+@pytest.mark.heavy
 def test_the_check_beyond_the_paper_passes_and_fails_when_the_analysis_drifts(monkeypatch):
     """tmtcontrol check's analysis-vs-simulation cross-check at m = 2, delay 2, a force
     filter, a mass error, fixed and scheduled damping (issue 28 item 7; the five bugs

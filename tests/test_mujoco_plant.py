@@ -314,6 +314,7 @@ def ur5_friction():
     return runs
 
 
+@pytest.mark.heavy
 def test_mujoco_friction_drags_the_sliding_tool_with_coulombs_force(ur5_friction):
     """``simulation.mujoco_friction = 0.3``: a tool sliding along the surface
     (the UR5 on its circle, 0.16 m/s) meets Coulomb's mu f_n, inside the
@@ -339,6 +340,7 @@ def test_mujoco_friction_drags_the_sliding_tool_with_coulombs_force(ur5_friction
     assert m.verdict == "off_target" and m.steady_state_error > run.scenario.controller.force_tolerance
 
 
+@pytest.mark.heavy
 def test_contact_damping_on_the_spring_matches_the_builtin_plant():
     """environment.damping > 0 on the spring model: MuJoCo's run applies
     ``k_e x + d_e dx`` from its own tool velocity, and agrees with the
@@ -401,6 +403,7 @@ def _plant_scaled(monkeypatch, gravity=1.0, mass=1.0):
     monkeypatch.setattr(am, "mujoco_model", scaled)
 
 
+@pytest.mark.heavy
 def test_noise_on_mujoco_is_judged_against_mujocos_noise_free_run(monkeypatch):
     """Regression: a noisy MuJoCo run's noise-free twin ran on the built-in
     plant, so the plants' difference counted as noise and widened the

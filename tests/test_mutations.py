@@ -3,6 +3,7 @@ the damping sign in the analysed state space, the law wiring of the simulated lo
 sampled-data model, the TMT compliance clip."""
 import casadi as ca
 import numpy as np
+import pytest
 
 import tmtcontrol.control.laws.tmt as tmt_module
 from tmtcontrol.checks.loop import run_loop_checks
@@ -13,6 +14,7 @@ def _failed(checks):
     return {c.name for c in checks if not c.passed}
 
 
+@pytest.mark.heavy
 def test_flipped_damping_in_the_analysed_state_space_fails(monkeypatch):
     import control as ct
 

@@ -87,6 +87,7 @@ def test_previous_output_is_replaced_but_not_foreign_files(tmp_path):
     assert (out / "summary.json").exists() and hidden_litter(tmp_path) == []
 
 
+@pytest.mark.heavy
 def test_huge_run_is_refused_with_estimate_and_limit_can_be_raised(tmp_path):
     r = run(["simulate", "--set", "trajectory.cycles=1000", "--set", "controller.rate=1e4",
              "--out", str(tmp_path / "o")])
@@ -136,6 +137,7 @@ def test_interrupt_during_design_is_not_a_result(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.heavy
 def test_parallel_writers_leave_one_valid_folder(tmp_path):
     out = tmp_path / "o"
     procs = [subprocess.Popen(CLI + ["simulate", *SHORT, "--out", str(out)], stdout=subprocess.PIPE,
@@ -287,6 +289,7 @@ def test_a_signal_raised_inside_a_c_extension_is_an_interruption_not_a_traceback
         cli.main(["cache"])
 
 
+@pytest.mark.heavy
 def test_a_ctrl_c_after_the_commit_says_what_was_written(tmp_path, capsys, monkeypatch):
     """Regression (review 13): simulate commits its folder, then prints the results; a Ctrl-C during
     that printing said "nothing was written" (exit 130) of a folder it had just written, replacing

@@ -353,6 +353,7 @@ def _number(text):
     return float(re.match(r"[\d,.]+", text).group(0).replace(",", ""))
 
 
+@pytest.mark.heavy
 def test_report_sweep_is_built_around_the_scenarios_rate_and_stiffness(report_200hz, paper_report):
     """Item 7: a 200 Hz scenario with k_e in [5,000, 50,000] N/m gets a sweep at
     200 and 100 Hz from half its smallest stiffness to past its largest and
@@ -369,6 +370,7 @@ def test_report_sweep_is_built_around_the_scenarios_rate_and_stiffness(report_20
     assert max(_number(r[1]) for r in rows) > 164_000 and {r[3] for r in rows} >= {"✔ converged"}
 
 
+@pytest.mark.heavy
 def test_report_columns_carry_one_unit_and_the_overshoot_beside_its_bound_reads_apart(paper_report):
     """Item 12: every number cell of a per-segment column has the same unit;
     the design's 4.995 % does not print as "5 % (bound 5 %)"."""
@@ -393,6 +395,7 @@ def test_report_columns_carry_one_unit_and_the_overshoot_beside_its_bound_reads_
     assert optimal[1] == "193.7"            # b to four digits, as the CLI prints it (not 194 and 193.684)
 
 
+@pytest.mark.heavy
 def test_report_figures_have_alt_text_that_describes_them(paper_report):
     """Item 13: each image's alt text says what it draws (axes, curves), not its caption."""
     import html as htmllib
@@ -407,6 +410,7 @@ def test_report_figures_have_alt_text_that_describes_them(paper_report):
     assert any("normal force (N) against time (s)" in htmllib.unescape(a) for a, _ in figs)
 
 
+@pytest.mark.heavy
 def test_report_says_when_and_from_what_it_was_made(paper_report):
     html = (paper_report / "report.html").read_text()
     made = re.search(r"Made (\d{4}-\d\d-\d\d \d\d:\d\d UTC) from (tmtcontrol [^<]+)</p>", html)
@@ -415,6 +419,7 @@ def test_report_says_when_and_from_what_it_was_made(paper_report):
     assert rows["date"] == made.group(1) and rows["source"] == made.group(2)
 
 
+@pytest.mark.heavy
 def test_narrow_screens_keep_the_verdict_column_in_view_and_figures_readable(paper_report):
     """Item 13 at 390 px: tables scroll sideways inside their wrapper with the
     verdict column sticky; figures keep 560 px (text ~8 px, not 5 px) and scroll."""
@@ -429,6 +434,7 @@ def test_narrow_screens_keep_the_verdict_column_in_view_and_figures_readable(pap
     assert "break-before: page" not in html
 
 
+@pytest.mark.heavy
 def test_pdf_is_tagged_headed_by_the_right_section_and_marks_continued_tables(paper_report):
     """Item 13: a tagged PDF; each page's running header names the section at
     the top of the page; a page that opens inside a table says
@@ -473,6 +479,7 @@ def paper_design():
                                        f_d=10.0, m_p=3.718), verify_points=5)
 
 
+@pytest.mark.heavy
 def test_design_cost_figure_shows_the_bound_that_places_the_optimum(paper_design):
     """Fig. 13: the optimum lies right of the cost's minimum because smaller b
     breaks the overshoot bound; the figure's lower panel draws that overshoot
@@ -496,6 +503,7 @@ def test_design_cost_figure_shows_the_bound_that_places_the_optimum(paper_design
     _legend_clear_of_axes(fig)
 
 
+@pytest.mark.heavy
 def test_design_responses_are_the_sampled_loop_within_the_bound_with_units(paper_design):
     from tmtcontrol.stability.figures import design_response_figure
 
@@ -607,6 +615,7 @@ def test_api_page_snippets_import_a_module_before_using_it():
         visit(ast.parse(block).body)
 
 
+@pytest.mark.heavy
 def test_documented_failing_report_prints_no_warning(report_200hz_run):
     """docs/report.md's failing example (Ts = 5 ms, a 5e4 N/m segment): stderr
     holds the stage lines only, no matplotlib warning (the stiffness limit is

@@ -126,6 +126,7 @@ def test_sweep_workers_die_when_the_parent_is_killed(tmp_path):
                               "running on 2 worker processes")
 
 
+@pytest.mark.heavy
 @pytest.mark.skipif(not LINUX, reason="reads the process tree from /proc")
 def test_report_worker_dies_when_the_parent_is_killed(tmp_path):
     # the second process is forked before the first stage; killed after the first stage's line

@@ -72,6 +72,7 @@ def number(text: str) -> float:
     return float(m.group(1).replace(",", "").replace("−", "-")) * scale
 
 
+@pytest.mark.heavy
 def test_progress_by_stage_with_stage_times(paper_report):
     _, r = paper_report
     stages = re.findall(r"^\[(\d)/(\d)\] ([a-zA-Z -]+): (\d+\.\d) s$", r.stderr, flags=re.M)
@@ -80,6 +81,7 @@ def test_progress_by_stage_with_stage_times(paper_report):
     assert "derivation checks" in [s[2] for s in stages]
 
 
+@pytest.mark.heavy
 def test_sections_in_order_with_a_contents_list(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     assert re.findall(r'<section id="(\w+)"', html) == SECTIONS
@@ -87,6 +89,7 @@ def test_sections_in_order_with_a_contents_list(paper_report):
     assert re.findall(r'href="#(\w+)"', toc) == SECTIONS
 
 
+@pytest.mark.heavy
 def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     out, r = paper_report
     html = (out / "report.html").read_text()
@@ -127,6 +130,7 @@ def test_verdicts_carry_the_numbers_of_the_tables(paper_report):
     assert len(segs) == 4 and all(row[-1] == "✔ converged" for row in segs)
 
 
+@pytest.mark.heavy
 def test_segment_table_shows_the_contact_lost_behind_a_100_percent_overshoot(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     _, head, segs = table(section(html, "simulation"), "Per-segment metrics")
@@ -140,6 +144,7 @@ def test_segment_table_shows_the_contact_lost_behind_a_100_percent_overshoot(pap
     assert "tangential RMS (last quarter)" in head
 
 
+@pytest.mark.heavy
 def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     _, head, rows = table(section(html, "comparison"), "Force-tracking laws")
@@ -156,18 +161,21 @@ def test_law_comparison_says_which_laws_settle_on_f_d(paper_report):
     assert by_law["known"][settle] == "never" and by_law["tmt"][settle] != "never"
 
 
+@pytest.mark.heavy
 def test_design_tables_name_which_overshoot(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     assert "worst first-contact overshoot" in table(section(html, "design"), "Damping designs")[1]
     assert "worst overshoot after a switch" in table(section(html, "design"), "designs simulated")[1]
 
 
+@pytest.mark.heavy
 def test_reproducibility_lists_each_item_once(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     items = [row[0].lower() for row in table(section(html, "reproducibility"), "Reproducibility")[2]]
     assert len(items) == len(set(items)) and "python" in items and "casadi" in items
 
 
+@pytest.mark.heavy
 def test_every_figure_is_numbered_with_a_caption_and_inline_svg(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     figures = re.findall(r"<figure[^>]*>(.*?)</figure>", html, flags=re.S)
@@ -187,6 +195,7 @@ def test_every_figure_is_numbered_with_a_caption_and_inline_svg(paper_report):
     assert not re.search(r'(src|href)="(?!data:|#)', html)
 
 
+@pytest.mark.heavy
 def test_scenario_table_lists_only_applicable_keys_with_units(paper_report):
     html = (paper_report[0] / "report.html").read_text()
     _, head, rows = table(section(html, "scenario"), "Scenario settings")
@@ -231,6 +240,7 @@ def test_applicable_settings_follow_the_arms_task():
         assert keys & (rot | post) == want, task
 
 
+@pytest.mark.heavy
 def test_pdf_is_the_same_document_paginated(paper_report):
     out = paper_report[0]
     html = (out / "report.html").read_text()
@@ -546,6 +556,7 @@ def test_both_report_processes_compute_with_one_blas_thread():
         assert _blas_threads() == [1]
 
 
+@pytest.mark.heavy
 def test_the_report_ran_each_task_once_and_every_check_group(paper_report):
     out, _ = paper_report
     html = (out / "report.html").read_text()

@@ -14,6 +14,7 @@ from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
 from test_report import SECTIONS, make_report, section, table
 
 
+@pytest.mark.heavy
 def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error():
     from tmtcontrol.report.document import Report, _simulation
     from tmtcontrol.simulation.simulator import SimulationResult
@@ -105,6 +106,7 @@ def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
     assert "every segment's force converged; over the arm's limits (judged below): segment 1" in tracking.check
 
 
+@pytest.mark.heavy
 def test_the_pumas_report_has_no_orientation_figure(run_once):
     out, r = run_once("paper-report", lambda out: make_report(out, "paper"))
     html = (out / "report.html").read_text()

@@ -38,6 +38,7 @@ def counted(monkeypatch):
     return calls
 
 
+@pytest.mark.heavy
 def test_a_second_command_reads_the_deciding_limit_the_first_computed(kept, monkeypatch):
     """The paper's real limit: computed once, stored, read back equal to the last
     bit (every field, the bracket and the per-point limits included)."""
@@ -272,6 +273,7 @@ def test_a_limit_another_process_stored_while_this_one_waited_is_read_not_comput
     assert limit.deciding_limit(sc).limit == 99999.0 and counted == []
 
 
+@pytest.mark.heavy
 def test_the_design_is_solved_once_and_read_back_equal_for_the_same_spec_only(kept, monkeypatch):
     """design_impedance (IPOPT) kept under its spec: the second call reads the
     first's result equal in every field (the spec's tuples included); another
@@ -370,6 +372,7 @@ def test_the_small_signal_limit_is_not_kept_when_results_are_off(kept, monkeypat
     assert calls == [1, 1] and not kept.exists()
 
 
+@pytest.mark.heavy
 def test_a_law_derived_from_a_package_law_keeps_no_result_and_no_step_key(kept, monkeypatch):
     """Regression (review F1): ``TMT.replace(name="ext", ...)``, the documented way to derive
     a law, keeps TMT's ``update``; the structure key used to test only that function's

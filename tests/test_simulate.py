@@ -278,6 +278,7 @@ def _simulate_exit(tmp_path, k_e):
     return r
 
 
+@pytest.mark.heavy
 def test_limit_cycle_run_exits_1_and_names_the_segment(tmp_path):
     from tmtcontrol.stability import scenario_stiffness_limit
 

@@ -246,6 +246,7 @@ def run_cli(*args):
                           capture_output=True, text=True)
 
 
+@pytest.mark.heavy
 def test_cli_json_keys(tmp_path):
     r = run_cli("--m", "1", "--b", "60", "--k", "100", "--fd", "10", "--ke-min", "2000", "--ke-max", "20000",
                 "--ts", "0.001", "--json", "--plot", str(tmp_path / "p"))
@@ -318,6 +319,7 @@ def test_scenario_verdict_follows_the_whole_loop_limit(monkeypatch, factor, stab
     assert a["whole_loop_limit"] == factor * 2e4 and a["sampled_stable"] is stable
 
 
+@pytest.mark.heavy
 def test_contact_damping_limit_agrees_across_the_three_models():
     # with a contact damper (20 N s/m) the closed-form 1-D model, the law's own loop and
     # the whole-loop linearisation give the same limit (measured: 218,031 / 218,022 /
@@ -368,6 +370,7 @@ def test_the_whole_loop_limit_is_a_bracket_checked_at_both_ends():
     assert f"whole loop           {lo:.6g} N/m (stable there, unstable 1e-06 above;" in format_analysis(a)
 
 
+@pytest.mark.heavy
 def test_a_fixed_point_newton_cannot_find_is_no_verdict_and_counts_as_unstable(monkeypatch):
     """Regression (review 17): with the UR5's controller model 30 % heavier, Newton from
     the 1-D guess stopped with a residual of 0.98 and the whole loop's bisection took the

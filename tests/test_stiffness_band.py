@@ -133,6 +133,7 @@ def test_a_loop_stable_from_the_scan_start_keeps_its_limit_bit_for_bit(within):
     assert largest_stable(lambda ke: ke < 1e10, within=within) == math.inf
 
 
+@pytest.mark.heavy
 def test_the_paper_limit_is_bit_for_bit_the_plain_scan():
     """The paper scenario's closed-form limit (163,417 N/m at the worse mass) is
     exactly the vectorised plain scan of max_stable_stiffness before the fix."""

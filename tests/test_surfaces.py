@@ -196,6 +196,7 @@ def test_bad_surface_input_is_one_line_exit_2_nothing_written(tmp_path, content,
     _refused(tmp_path, content, needle)
 
 
+@pytest.mark.heavy
 def test_a_radius_that_reads_as_millimetres_is_noted_by_every_command_that_loads_it(tmp_path):
     """Review 46: ``radius = 300`` meant 300 mm ran as a 300 m sphere, nearly its
     tangent plane, and analyze quoted the plane's limit (4.5 % above the 0.3 m
@@ -438,6 +439,7 @@ def test_a_height_maps_spline_is_built_once_per_grid_and_spacing(monkeypatch):
     assert np.abs(np.array([a.height(*p) for p in pts.T]) - direct).max() < 1e-15
 
 
+@pytest.mark.heavy
 def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     """The B-spline is generated as C with the controller: SIL equal."""
     sc = _heightmap_scenario(tmp_path, _grid(lambda U, V: 0.01 * np.sin(10 * U) * np.cos(8 * V)),
@@ -1044,6 +1046,7 @@ def test_a_height_maps_chart_error_finds_the_closest_point_deeper_than_the_curva
         assert abs(normal - np.arctan2(sin, n_chart @ n_true)) < 1e-4, u_p
 
 
+@pytest.mark.heavy
 def test_a_segment_within_its_tolerance_in_the_height_maps_chart_only_is_not_converged(tmp_path):
     """Review 43: the PUMA on a 0.5 m sphere's map at 300 N/m (X_0 = 33 mm) held f_d to 81 uN in the chart and
     was judged converged, while k_e times its distance to the sphere (the closed form, NumPy) is up to 15 mN off

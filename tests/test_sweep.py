@@ -171,6 +171,7 @@ def small(tmp_path_factory):
     return load_sweep(path)
 
 
+@pytest.mark.heavy
 def test_rows_have_the_swept_values_verdicts_and_segment_metrics(small):
     df = run_sweep(small)
     assert list(df["case"]) == [0, 1, 2, 3]
@@ -185,6 +186,7 @@ def test_rows_have_the_swept_values_verdicts_and_segment_metrics(small):
     assert again["max_steady_error"] == df.loc[1, "max_steady_error"]
 
 
+@pytest.mark.heavy
 def test_axes_carry_their_schema_units_into_the_map(small):
     sweep = sweep_from_dict({"grid": {"environment.stiffness.values": [[1e3], [1e4]], "controller.rate": [1e3, 5e2],
                                       "controller.law": ["tmt", "known"]}})
@@ -207,6 +209,7 @@ def test_results_do_not_depend_on_workers_or_engine(small):
     pd.testing.assert_frame_equal(one, on_dask)
 
 
+@pytest.mark.heavy
 def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, tmp_path):
     (tmp_path / "s.toml").write_text(SMALL)
     r = _cli("s.toml", "--out", "o", cwd=tmp_path)
@@ -256,6 +259,7 @@ def test_resume_refuses_another_sweep_and_a_foreign_folder(small, tmp_path):
     assert (tmp_path / "mine.partial" / "notes.txt").read_text() == "a user's file"
 
 
+@pytest.mark.heavy
 def test_law_axis_draws_the_distribution(tmp_path):
     from tmtcontrol.cli import main
 
@@ -288,6 +292,7 @@ def test_predicted_boundary_agrees_with_the_simulated_verdicts(tmp_path):
     assert checked >= 14 and set(df["verdict"]) >= {"converged", "limit_cycle"}
 
 
+@pytest.mark.heavy
 def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
     """The first-contact limit runs at constant k_e, without noise, for its
     own durations: cases that differ only in their stiffness profile, sensor

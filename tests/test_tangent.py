@@ -30,6 +30,7 @@ def _fused_tangent(loop, dynamic):
     return ca.Function("fused", [ca.vertcat(s, v), u, p], [ca.vertcat(s_next, Av), log[loop.f_e]])
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name,overrides", [
     ("paper", []),
     ("paper", ["controller.delay_samples=1", "controller.hold=\"mid_period\"", "simulation.substeps=2"]),
@@ -85,6 +86,7 @@ def test_the_generated_codes_operations_count_each_called_function_once():
     assert operations(ca.Function("both", [y], [big(y) + other(y)])) == n + operations(other)
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["paper", "panda"])
 def test_the_tangent_step_is_compiled_at_the_level_of_its_pieces_size(name):
     """The Panda's pieces (27,372 operations in all) are compiled at -O1, the PUMA's (3,880)

@@ -27,6 +27,7 @@ from tmtcontrol.simulation.metrics import judge_segment
 F_D = 10.0
 
 
+@pytest.mark.heavy
 def test_a_stable_run_between_the_1d_limit_and_the_loops_limit_is_converged():
     """1.65e5 N/m on the paper loop: above the 1-D small-signal limit (163,417
     N/m), below the loop's own (the periodic orbit's 167,249 N/m; a simulator

@@ -147,6 +147,7 @@ def test_first_contact_in_summary_json(tmp_path):
     assert "first contact at" in r.stdout
 
 
+@pytest.mark.heavy
 def test_analyze_delay_and_x_e_error(capsys):
     from tmtcontrol.cli import main
     from tmtcontrol.stability import analyze
@@ -168,6 +169,7 @@ def test_analyze_delay_and_x_e_error(capsys):
     assert capsys.readouterr().err.strip().startswith("error: --delay: not allowed with --scenario")
 
 
+@pytest.mark.heavy
 def test_analyze_with_an_x_e_error_that_keeps_the_tool_off_the_surface_says_so_and_exits_1(capsys):
     """Review 34: with x_e error -0.2 m at k_e = 2,000 N/m the reference stays outside the surface
     (delta + f_d/k < 0: -0.2 + 10/100 = -0.1 m), so the steady-state force is 0 N (the law's own

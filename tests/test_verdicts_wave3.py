@@ -393,6 +393,7 @@ def test_contact_threshold_adds_six_sigma_of_the_filtered_noise():
     assert contact_detection_threshold(1.0, sigma, a) == pytest.approx(1.0 + 6 * std, rel=0.01)
 
 
+@pytest.mark.heavy
 def test_the_reports_tracking_verdict_uses_the_scenarios_tolerance():
     # the known law with k_e assumed 50 % high settles 0.065 N off f_d (eqs. 11-12): it fails the
     # default 0.01 N tolerance and passes a scenario tolerance of 0.07 N, which the verdict quotes
@@ -413,6 +414,7 @@ def test_the_reports_tracking_verdict_uses_the_scenarios_tolerance():
     assert passed == [False, True]
 
 
+@pytest.mark.heavy
 def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, capsys):
     from tmtcontrol.cli import main
 
