@@ -10,6 +10,7 @@ clipped torque is exactly clip(unclipped)), and the UR5 reviewer's figures
 from __future__ import annotations
 
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -360,3 +361,47 @@ def test_a_position_excursion_is_weighed_against_the_joints_range():
     assert LimitUse(L, z, z, z, z, z, z, (position, torque)).worst is torque
     at_zero = Excursion("position", 1, "j6", -0.001, 0.0, 2.0, 0.005, "rad")
     assert LimitUse(L, z, z, z, z, z, z, (at_zero, torque)).worst is torque
+
+
+SATURATED = ["robot.saturate=true", "robot.tau_max=[15.0, 15.0, 15.0]"]
+"""The paper's PUMA with a 15 N m drive clip: joint 2 sits on it at some frozen path points."""
+
+
+def test_a_frozen_equilibrium_on_the_torque_clip_names_the_joint_and_holds_no_f_d():
+    """The TMT's equilibrium holds f_e = f_d (eqs. 23-24) wherever the torque is free: the paper's
+    frozen point at path time 1 s does, to 1e-6 N (the fixed point's Newton tolerance, 1e-11 on the
+    states, times the contact stiffness), with joint 2's torque above 15 N m. With a 15 N m clip
+    joint 2 sits on it there and the force is then what the clip holds, off f_d by more than 1 N:
+    the clip, not the loop, sets that equilibrium, and the point says which joint."""
+    from tmtcontrol.stability.wholeloop import WholeLoopModel
+
+    unclipped = WholeLoopModel(paper_scenario())
+    free = unclipped.at(2000.0, 1.0)
+    assert free.clipped == () and abs(free.f_eq - 10.0) < 1e-6
+    step, i = unclipped.sim.step, int(round(1.0 / 1e-3))
+    up = np.r_[unclipped._u(i, 2000.0), unclipped.P]
+    tau = np.ravel(np.array(step(free.s_eq, up[:step.size1_in(1)], up[step.size1_in(1):])[1]))[unclipped.sim.log["tau"]]
+    assert abs(tau[1]) > 15.0 and np.all(np.abs(tau[[0, 2]]) < 15.0)
+    model = WholeLoopModel(apply_overrides(paper_scenario(), SATURATED))
+    held = model.at(2000.0, 1.0)
+    assert held.clipped == (2,) and abs(held.f_eq - 10.0) > 1.0
+    assert model.clipped_at(2000.0, 1.0) == (2,)           # as the bisection found it, not found again
+    assert WholeLoopModel(apply_overrides(paper_scenario(), SATURATED)).at(2000.0, 0.0).clipped == ()
+
+
+@pytest.mark.heavy      # the frozen limit over 8 path points, with and without the clip (~10 s)
+def test_analyze_says_when_the_torque_clip_sets_the_frozen_minimum():
+    """Review 49's remark: the paper with a 15 N m clip printed a frozen-point minimum of 4,642 N/m
+    beside a deciding limit of 160,114 N/m without saying why: at that point joint 2 sits on its
+    clip. The analysis names it (JSON and text, and the report's sampled section reads the same
+    note); without the clip there is no note."""
+    from tmtcontrol.stability.analysis import analyze_scenario, format_analysis
+
+    out = analyze_scenario(apply_overrides(paper_scenario(), SATURATED), limits=False)
+    assert out["whole_loop_clipped"] == [2] and out["whole_loop_limit"] < 10_000
+    doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "simulation.md").read_text()
+    assert f"15 N m clip: {out['whole_loop_limit']:,.0f} N/m, set where joint 2" in " ".join(doc.split())
+    assert "joint 2's torque sits on the drive's clip" in out["whole_loop_note"]
+    assert "note                 at the path point that sets the frozen-point minimum" in format_analysis(out)
+    plain = analyze_scenario(paper_scenario(), limits=False)
+    assert plain["whole_loop_clipped"] == [] and "whole_loop_note" not in plain

@@ -237,7 +237,10 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
         one_d = scenario.controller.hold != "mid_period"
         out.update({"whole_loop_limit": lim.whole_loop, "whole_loop_bracket": list(lim.whole_loop_bracket),
                     "whole_loop_points": [{"path_time": t, "limit": l} for t, l in lim.whole_loop_points],
+                    "whole_loop_clipped": list(lim.whole_loop_clipped),
                     "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < lim.whole_loop)})
+        if lim.whole_loop_clipped:
+            out["whole_loop_note"] = clipped_note(lim.whole_loop_clipped, limits)
         if limits and lim.limit_from == "unstable at the smallest stiffness":
             out.update({"limit": 0.0, "limit_from": lim.limit_from, "sampled_stable": False})
         elif limits:
@@ -250,6 +253,16 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
                         "limit": lim.limit, "limit_from": lim.limit_from,
                         "sampled_stable": bool(k_max < lim.limit)})
     return out
+
+
+def clipped_note(joints, along_path: bool) -> str:
+    """What a frozen-point minimum set where ``joints`` (1-based) sit on the drive's torque clip
+    (``ScenarioLimit.whole_loop_clipped``) means."""
+    which = f"joint {joints[0]}'s torque sits" if len(joints) == 1 else \
+        f"the torques of joints {', '.join(map(str, joints))} sit"
+    return (f"at the path point that sets the frozen-point minimum, {which} on the drive's clip (robot.saturate) at "
+            "the equilibrium: the frozen arm holds no f_d there, so that minimum is the clip's, not the loop's"
+            + ("; the limits along the path and from first contact follow the moving loop" if along_path else ""))
 
 
 def _set_by_rows(d: dict) -> list[str]:
@@ -351,6 +364,8 @@ def format_analysis(d: dict) -> str:
             rows.append(f"whole loop           {lo:.6g} N/m (" + (f"stable there, unstable {hi / lo - 1:.0e} "
                                                                    "above; " if hi is not None and hi > lo else "")
                         + f"smallest over {len(pts)} path points; largest {max(p['limit'] for p in pts):.6g} N/m)")
+            if "whole_loop_note" in d:
+                rows.append(f"note                 {d['whole_loop_note']}")
         if "periodic_note" in d:
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (the frozen-point minimum; "
                      "no periodic analysis)", f"note                 {d['periodic_note']}"]

@@ -105,7 +105,12 @@ class ScenarioLimit:
     ``periodic_growth`` just below it; ``first_contact`` the large-signal limit
     from the start. ``periodic`` and ``first_contact`` are None when only the
     frozen loop was asked for (``along_path=False``) or the loop is unstable at
-    the smallest stiffness."""
+    the smallest stiffness. ``whole_loop_clipped``: the joints (1-based) whose
+    torque sits on the drive's clip (``robot.saturate``) at the equilibrium
+    of the frozen point that sets ``whole_loop``, at its stable end: there
+    the frozen arm holds no f_d, so that minimum is the clip's, not the
+    loop's (the limits along the path and from first contact are the moving
+    loop's)."""
     limit: float
     limit_from: str
     small_signal: float | None
@@ -118,6 +123,7 @@ class ScenarioLimit:
     periodic_set_by: str | None = None
     periodic_radius: float | None = None
     periodic_growth: float | None = None
+    whole_loop_clipped: tuple[int, ...] = ()
 
     @property
     def small_signal_is_safe(self) -> bool:
@@ -245,7 +251,21 @@ def _from_json(data: dict) -> ScenarioLimit:
     if set(data) != fields:
         raise KeyError("fields")
     return ScenarioLimit(**{**data, "whole_loop_bracket": tuple(data["whole_loop_bracket"]),
-                            "whole_loop_points": tuple(tuple(p) for p in data["whole_loop_points"])})
+                            "whole_loop_points": tuple(tuple(p) for p in data["whole_loop_points"]),
+                            "whole_loop_clipped": tuple(data["whole_loop_clipped"])})
+
+
+def _clipped_at_the_minimum(model, whole, per_point) -> tuple[int, ...]:
+    """The joints on the drive's clip at the equilibrium of the path point whose frozen limit is
+    the minimum ``whole``, at that stiffness (stable there, so it has one); () where the minimum is
+    0 or unbounded."""
+    if not 0 < whole < np.inf or not np.any(np.isfinite(model.torque_clip)):
+        return ()
+    path_time = min(per_point, key=lambda p: p[1])[0]
+    try:
+        return model.clipped_at(whole, path_time)
+    except AnalysisError:          # none from a fresh start where the bisection had warm ones: nothing to name
+        return ()
 
 
 def _computed_limit(scenario, points, along_path, runner):
@@ -276,13 +296,18 @@ def _computed_limit(scenario, points, along_path, runner):
         # bisection's would change them), sharing the tangent step
         frozen_model = WholeLoopModel(scenario)
         frozen_model.tangent = model.rollout
+    if frozen_model is None:
+        from .wholeloop import WholeLoopModel
+
+        frozen_model = WholeLoopModel(scenario)
     # the band that contains the scenario's smallest stiffness (contact damping: unstable on soft surfaces)
     whole, per_point = whole_loop_limit(scenario, points=points, rtol=WHOLE_LOOP_RTOL, guess=guess,
                                         within=p["k_e_min"], model=frozen_model)
     # the bisection ends with a stable and an unstable stiffness at most WHOLE_LOOP_RTOL apart
     bracket = (whole, whole * (1 + WHOLE_LOOP_RTOL)) if 0 < whole < np.inf else (whole, whole)
     frozen = dict(small_signal=small, whole_loop=float(whole), whole_loop_bracket=tuple(map(float, bracket)),
-                  whole_loop_points=tuple((float(t), float(l)) for t, l in per_point))
+                  whole_loop_points=tuple((float(t), float(l)) for t, l in per_point),
+                  whole_loop_clipped=_clipped_at_the_minimum(frozen_model, whole, per_point))
     if not ((small is None or small > 0) and whole > 0):
         # unstable at the scenario's smallest stiffness: no limit above it to search along the path
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)

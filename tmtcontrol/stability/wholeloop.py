@@ -112,8 +112,11 @@ class WholeLoop:
     point of the step (the closed-loop state), ``f_eq`` the contact force
     there (N), ``A`` the Jacobian over the dynamic states ``states``,
     ``spectral_radius`` its largest eigenvalue magnitude (< 1: locally
-    stable), ``residual`` max |step(s_eq) - s_eq| and ``m_p`` the robot's
-    effective normal mass at the point (kg)."""
+    stable), ``residual`` max |step(s_eq) - s_eq|, ``m_p`` the robot's
+    effective normal mass at the point (kg) and ``clipped`` the joints
+    (1-based) whose torque sits on the drive's clip at ``s_eq``
+    (``robot.saturate``): the loop has no input on them there, and the
+    force ``f_eq`` is what the clipped torque holds, not f_d."""
     k_e: float
     Ts: float
     path_time: float
@@ -124,6 +127,7 @@ class WholeLoop:
     spectral_radius: float
     residual: float
     m_p: float
+    clipped: tuple[int, ...] = ()
 
     @property
     def stable(self) -> bool:
@@ -181,6 +185,11 @@ class WholeLoopModel:
         self.U, self.P, self.s0, self.t = self.loop.inputs(sc, self.path)
         self._warm: dict = {}
         self._found: dict = {}         # per path point: the fallback guess that found its last equilibrium
+        from ..simulation.limits import limits_of
+
+        self.torque_clip = limits_of(self.sim.plant, sc).torque_clip
+        """The drive's clip per joint (N m; inf: none, ``robot.saturate`` off)."""
+        self._clips: dict = {}         # (path index, k_e) -> the joints on the clip at the equilibrium found
         self.tangent = None
         """A compiled tangent-linear step of this loop on :func:`dynamic_states`
         (``simulation.closedloop.build_tangent``, a ``Rollout``; the periodic
@@ -310,7 +319,30 @@ class WholeLoopModel:
         if self.law.states:
             names = names[:-len(self.law.states)] + tuple(self.law.states)
         f_eq = float(self._f(s_eq, u)[1])
-        return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p)
+        clipped = self._clipped(s_eq, u)
+        if len(self._clips) > 100_000:
+            self._clips.clear()
+        self._clips[i, float(k_e)] = clipped
+        return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p, clipped)
+
+    def clipped_at(self, k_e: float, path_time: float = 0.0) -> tuple[int, ...]:
+        """:attr:`WholeLoop.clipped` of the equilibrium :meth:`at` found for
+        this stiffness and path point, as it found it (a bisection's, from its
+        warm starts: asked afresh, Newton may find none from the starts it has
+        then); :meth:`at` again where it found none before."""
+        i = int(round((path_time % self.scenario.trajectory.period) / self.scenario.controller.Ts)) % self.t.size
+        found = self._clips.get((i, float(k_e)))
+        return found if found is not None else self.at(k_e, path_time).clipped
+
+    def _clipped(self, s, u) -> tuple[int, ...]:
+        """The joints (1-based) whose torque applied from ``s`` sits on the
+        drive's clip (:attr:`torque_clip`; none without ``robot.saturate``)."""
+        if not np.any(np.isfinite(self.torque_clip)):
+            return ()
+        step = self.sim.step
+        nu = step.size1_in(1)
+        tau = np.ravel(np.array(step(s, u[:nu], u[nu:])[1]))[self.sim.log["tau"]]
+        return tuple(int(j) + 1 for j in np.flatnonzero(np.abs(tau) >= self.torque_clip * (1 - 1e-12)))
 
     def _held(self, s, u):
         """``s`` with the mid-period hold's state (if the loop has one) at its
