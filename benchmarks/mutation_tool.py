@@ -270,6 +270,12 @@ def markdown_table(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+EVERY_MARK = ("-m", "")
+"""The module stage and every single-test rerun select the heavy tests too (pyproject's addopts deselect
+them): CI runs them, so a heavy test that fails on a mutant kills it; the whole-suite stage is the
+README's command."""
+
+
 def _pytest(root, args, env, timeout) -> tuple[str, float, str]:
     """Run pytest in the clone: ('pass'|'fail'|'timeout', seconds, tail of the output)."""
     t0 = time.perf_counter()
@@ -315,7 +321,7 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
         if only_annotations(old, new):
             rec.update(outcome="equivalent", reason=ANNOTATION_REASON)
             return rec
-        status, dt, tail = _pytest(root, ["-n", "0", *tests], env, timeout)
+        status, dt, tail = _pytest(root, ["-n", "0", *EVERY_MARK, *tests], env, timeout)
         rec.update(module_tests=status, module_seconds=round(dt, 1))
         if status == "pass" and full:
             status, dt, tail = _pytest(root, ["-n", "2"], env, 3 * timeout)
@@ -324,7 +330,7 @@ def _judge(root, m: Mutant, equivalents, tests, env, timeout, full) -> dict:
                 # the whole suite runs two workers on a loaded machine: its kill counts only if the test that
                 # failed fails again alone with the mutant (a signal test that flaked under load is no kill)
                 test = _failed_test(tail)
-                again = _pytest(root, ["-n", "0", test], env, timeout)[0] if test else "fail"
+                again = _pytest(root, ["-n", "0", *EVERY_MARK, test], env, timeout)[0] if test else "fail"
                 rec["confirmed"] = again != "pass"
                 if again == "pass":
                     rec["unconfirmed_kill"] = " / ".join(tail.splitlines())
@@ -486,7 +492,7 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
 def _fails_alone(root, m: Mutant, test: str, env, timeout) -> bool:
     """Whether ``test`` fails (or errors, or times out) run alone with mutant ``m`` applied."""
     with _mutated(root, m) as (_, new):
-        return new is not None and _pytest(root, ["-n", "0", test], env, timeout)[0] != "pass"
+        return new is not None and _pytest(root, ["-n", "0", *EVERY_MARK, test], env, timeout)[0] != "pass"
 
 
 def merge_results(docs: list[dict]) -> dict:
@@ -512,7 +518,7 @@ def _failing(root, tests, env, timeout) -> list[str] | None:
     reported), or None if the files do not run at all (collection error, timeout)."""
     try:
         r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "0", "-rf", "-p", "no:cacheprovider",
-                            *tests], cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
+                            *EVERY_MARK, *tests], cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return None
     if r.returncode not in (0, 1):

@@ -305,7 +305,7 @@ def test_design_on_the_bowl_takes_the_paths_largest_normal_mass(capsys, monkeypa
     assert (d["k_e_min"], d["k_e_max"]) == (min(values), max(values))
 
 
-@pytest.mark.heavy      # a whole report (9 s of the README suite's 3 minutes); the report on the plane runs there
+@pytest.mark.heavy      # a whole report (9 s); the report on the plane runs in the heavy step too
 def test_report_on_a_dome_html(tmp_path, capsys):
     """``tmtcontrol report`` on a short curved scenario (the PUMA on a dome,
     r = 0.3 m, 2 s; about 25 s) as HTML only: exit 0 with every verdict

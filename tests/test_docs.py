@@ -173,3 +173,35 @@ def test_design_example_on_the_page_is_what_design_prints(capsys):
     quoted = [line[4:] for line in block.splitlines()]
     assert main(cmd.split()[1:]) == 0
     assert capsys.readouterr().out.splitlines() == quoted
+
+
+def _is_heavy(node) -> bool:
+    """Whether a decorator list or a module's ``pytestmark`` names ``pytest.mark.heavy``."""
+    import ast
+
+    return any("mark.heavy" in ast.unparse(d) and "pytest.param" not in ast.unparse(d) for d in node)
+
+
+def test_every_command_keeps_a_test_in_the_readmes_command():
+    """docs/testing.md's table: every CLI command has a test in the README's
+    `pytest` (not behind the heavy marker, which only .ci/run's second step
+    runs), and each test it names exists in the file it names."""
+    import ast
+
+    from tmtcontrol.cli import build_parser
+
+    text = (ROOT / "docs" / "testing.md").read_text()
+    table = text.split("| command | test in the README's command |")[1].split("\n\n")[0]
+    rows = re.findall(r"^\| `([^`]+)` \| `([^`]+)` \|$", table, flags=re.M)
+    assert len(rows) == table.count("\n| `")
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert set(sub.choices) <= {command.split()[0] for command, _ in rows}
+    for command, node_id in rows:
+        path, name = node_id.split("::")
+        tree = ast.parse((ROOT / path).read_text())
+        marks = [n.value for n in tree.body if isinstance(n, ast.Assign)
+                 and any(isinstance(t, ast.Name) and t.id == "pytestmark" for t in n.targets)]
+        assert not _is_heavy(marks), path
+        fn = next((n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == name), None)
+        assert fn is not None, node_id
+        assert not _is_heavy(fn.decorator_list), f"{node_id} is behind the heavy marker ({command})"

@@ -192,6 +192,7 @@ def test_one_process_or_three_draw_every_figure_once(figure_module):
     assert sorted(p.name for p in out.iterdir()) == sorted(f"f{n}_{i}.png" for n in (1, 3) for i in range(5))
 
 
+@pytest.mark.heavy
 def test_simulate_interrupted_with_figure_workers_leaves_no_process_and_no_file(tmp_path):
     """SIGTERM while the run computes and the workers wait with matplotlib
     loaded: exit 143, nothing written, and no process of the command left

@@ -162,7 +162,7 @@ def _assert_same_signals(sil, ref, names=SIGNALS):
 
 @pytest.mark.heavy
 def test_short_6d_software_in_the_loop_run_equals_the_built_in_one(exported_ur5):
-    """The default suite's one compiled 6-D check (the heavy tests run the whole 16 s on both arms):
+    """The short compiled 6-D check (2.5 s; the other heavy tests run the whole 16 s on both arms):
     160 periods of the UR5 with the exported C controller in place of the built-in one equal the
     built-in run; the exported state starts from the simulation's initial controller state and the
     log row holds every signal (kills mutation_tool's seed-3 sil.py survivors, whose faults only a

@@ -126,6 +126,7 @@ def test_x_e_error_polynomial_is_checked_on_the_running_code():
     assert {r.name: r for r in law_checks(tmt)}[name].passed
 
 
+@pytest.mark.heavy
 def test_generic_sampled_loop_matches_the_closed_form_tmt_model():
     # two independent implementations of the same sampled loop: the hand-written
     # 1-D model (stability.sampled) and the law's own CasADi update (stability.lawloop);

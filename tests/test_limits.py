@@ -431,6 +431,7 @@ def test_first_contact_limit_at_minus_10_mm_within_2_percent_of_full_runs(paper_
         assert bool(np.ptp(last) > 0.2 * sc.controller.f_d) is cycling, factor
 
 
+@pytest.mark.heavy
 def test_the_smaller_limit_decides_the_scenario_verdict(monkeypatch):
     """analyze_scenario(limits=True): k_e max = 2e4 N/m; a first-contact limit below it
     fails the verdict even when the periodic limit is above, and the text says which."""

@@ -139,6 +139,36 @@ def test_the_test_that_killed_a_mutant_is_read_from_pytests_summary(tool):
     assert tool._failed_test("1 failed in 2.0s") is None
 
 
+def test_the_module_stage_and_the_reruns_select_the_heavy_tests(tool, monkeypatch):
+    """The unmutated baseline, the module stage and a whole-suite kill's rerun alone select every
+    mark (CI runs the heavy tests: one that fails on a mutant kills it); pyproject's addopts
+    deselect the heavy tests unless a later -m selects them, which pytest lets override."""
+    import types
+
+    calls = []
+
+    def fake_run(cmd, **kw):
+        calls.append(cmd)
+        fails = len(calls) >= 3                                 # the whole suite and the rerun alone fail
+        return types.SimpleNamespace(returncode=int(fails), stdout="",
+                                     stderr="FAILED tests/test_x.py::test_y - boom\n1 failed" if fails else "")
+
+    monkeypatch.setattr(tool.subprocess, "run", fake_run)
+    node = "tests/test_design.py::test_optimum_is_constrained_and_beats_baseline"
+    assert tool._failing(ROOT, [node], {}, 60) == []
+    m = tool.Mutant("m", "tmtcontrol/fmt.py", "core/NumberReplacer", 0, 1)
+    monkeypatch.setattr(tool, "_mutated", lambda root, mutant: __import__("contextlib").nullcontext(("a", "b")))
+    monkeypatch.setattr(tool, "only_annotations", lambda old, new: False)
+    monkeypatch.setattr(tool, "_unified", lambda mutant, old, new: "")
+    rec = tool._judge(ROOT, m, {}, [node], {}, 60, full=True)
+    assert rec["outcome"] == "killed" and rec["confirmed"] and len(calls) == 4
+    assert calls[3][-1] == "tests/test_x.py::test_y"
+    for cmd in (calls[0], calls[1], calls[3]):                    # baseline, module stage, the rerun alone
+        i = len(cmd) - 1 - cmd[::-1].index("-m")
+        assert cmd[i + 1] == "", cmd
+    assert "-m" not in calls[2][calls[2].index("pytest"):]          # the whole-suite stage: the README's command
+
+
 def test_the_interval_is_shown_rounded_outward(tool):
     # 21 of 21 bound the score at 84.5 %: shown as 84 (the goal is a lower bound of 85 %), not 85
     assert tool._ci(tool.wilson(21, 21)) == "84-100 %"

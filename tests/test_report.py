@@ -271,7 +271,7 @@ def test_pdf_is_the_same_document_paginated(paper_report):
         assert f"Figure {i}." in text
 
 
-@pytest.mark.heavy   # a second whole report (28 s); the default suite checks the paper report, which passes
+@pytest.mark.heavy   # a second whole report (28 s), as the paper report's tests: CI's heavy step
 def test_unstable_configuration_fails_with_growth_not_overshoot(unstable_report):
     out, r = unstable_report
     html = (out / "report.html").read_text()

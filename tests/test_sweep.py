@@ -231,6 +231,7 @@ def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, 
     assert not (tmp_path / "o.partial").exists()
 
 
+@pytest.mark.heavy
 def test_interrupted_sweep_resumes_with_only_the_missing_cases(small, tmp_path):
     out = tmp_path / "o"
     fresh = save_sweep(small, tmp_path / "ref", plots=False)
@@ -463,6 +464,7 @@ def test_a_file_rewritten_in_place_is_a_new_family_structure_and_arm(tmp_path):
 
 # -- review 10 (an independent attack on the sweep): each test failed on the code it found -------------------------
 
+@pytest.mark.heavy
 def test_a_grid_over_profiles_of_different_lengths_writes_one_text_column(tmp_path):
     """Regression: a one-element profile was stored as its number and a longer
     one as JSON text, so the column mixed types and the table failed to write
