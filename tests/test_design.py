@@ -53,7 +53,8 @@ def test_optimum_is_constrained_and_beats_baseline(optimum):
     assert r.sampled_limit > 2 * SPEC.k_e_max
 
 
-@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite checks the optimum design prints (tests/test_docs.py)
+@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite
+# checks the optimum design prints (tests/test_docs.py)
 @pytest.mark.parametrize("b0", [10.0, 1000.0])       # below and far above the optimum (~196 N s/m)
 def test_same_optimum_from_several_starts(optimum, b0):
     r = design_impedance(SPEC, b0=b0)
@@ -72,7 +73,8 @@ def test_unconstrained_optimum_is_stationary():
     assert J(r.b - h) >= J(r.b) and J(r.b + h) >= J(r.b)
 
 
-@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite checks the optimum design prints (tests/test_docs.py)
+@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite
+# checks the optimum design prints (tests/test_docs.py)
 def test_optimize_k_not_worse(optimum):
     r = design_impedance(DesignSpec(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=5.0,
                                     m_p=3.3, optimize_k=True))
@@ -108,7 +110,8 @@ def test_coarse_rate_design_holds_in_the_full_simulation():
     assert segment_metrics(Simulator(sc).run())[0].overshoot_pct <= 10.0 + 0.3
 
 
-@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite checks the optimum design prints (tests/test_docs.py)
+@pytest.mark.heavy   # 5-20 s each (the NLP bounds the intersample force at 16 points); the README suite
+# checks the optimum design prints (tests/test_docs.py)
 def test_delay_needs_more_damping_and_is_verified():
     base = dict(m=1.0, k=100.0, k_e_min=2e3, k_e_max=2e4, Ts=1e-3, max_overshoot=10.0, m_p=3.72)
     plain, delayed = design_impedance(DesignSpec(**base)), design_impedance(DesignSpec(**base, delay=1))
