@@ -21,7 +21,7 @@ the targets of issue 42 and writes the rows as JSON (``--json``, default
 ``benchmarks/report_results.json``) with the machine's CPU, core count and
 host speed (``bench_all.host_speed``: 0.29 s on the quiet reference
 machine); docs/speed.md quotes the recorded table
-(``tests/test_docs_numbers.py`` fails when the two differ). No row asserts
+(``tests/test_docs.py`` fails when the two differ). No row asserts
 anything: the targets are for a person to read. A cold report of the Panda
 takes minutes: run the arms you need.
 """

@@ -87,7 +87,10 @@ def test_the_pages_table_is_what_the_script_prints(summary):
             (kg, rg, gg, eg, ng_), (kw, rw, gw, ew, nw_) = _numbers(cg[1] + " " + " ".join(cg[3:])), _numbers(
                 cw[1] + " " + " ".join(cw[3:]))
             if cw[2] == "edge":
-                assert kg == pytest.approx(kw, rel=0.05) and rg == pytest.approx(rw, rel=0.2), (g, w)
+                # the radius too within a factor of 10: 0.0323 at the 734,200 N/m edge, 0.145 at 761,500 (the
+                # fast mode grows near the edge; 2026-12-07, when the tests around it moved, CI's run found the
+                # first where the page quotes the second: rel=0.2 had held only while runs found one edge)
+                assert kg == pytest.approx(kw, rel=0.05) and 0.1 < rg / rw < 10, (g, w)
                 assert 0.1 < gg / gw < 10 and min(eg, ew) > tol_mN, (g, w)
             elif gw < 1e4:
                 assert [kg, rg, gg, eg, ng_] == pytest.approx([kw, rw, gw, ew, nw_], rel=2e-2), (g, w)
