@@ -378,13 +378,10 @@ def test_a_frozen_equilibrium_on_the_torque_clip_names_the_joint_and_holds_no_f_
     unclipped = WholeLoopModel(paper_scenario())
     free = unclipped.at(2000.0, 1.0)
     assert free.clipped == () and abs(free.f_eq - 10.0) < 1e-6
-    step, i = unclipped.sim.step, int(round(1.0 / 1e-3))
-    up = np.r_[unclipped._u(i, 2000.0), unclipped.P]
-    tau = np.ravel(np.array(step(free.s_eq, up[:step.size1_in(1)], up[step.size1_in(1):])[1]))[unclipped.sim.log["tau"]]
-    assert abs(tau[1]) > 15.0 and np.all(np.abs(tau[[0, 2]]) < 15.0)
+    assert abs(free.tau[1]) > 15.0 and np.all(np.abs(free.tau[[0, 2]]) < 15.0)
     model = WholeLoopModel(apply_overrides(paper_scenario(), SATURATED))
     held = model.at(2000.0, 1.0)
-    assert held.clipped == (2,) and abs(held.f_eq - 10.0) > 1.0
+    assert held.clipped == (2,) and abs(held.f_eq - 10.0) > 1.0 and held.tau[1] == pytest.approx(15.0, rel=1e-12)
     assert model.clipped_at(2000.0, 1.0) == (2,)           # as the bisection found it, not found again
     assert WholeLoopModel(apply_overrides(paper_scenario(), SATURATED)).at(2000.0, 0.0).clipped == ()
 
@@ -401,7 +398,45 @@ def test_analyze_says_when_the_torque_clip_sets_the_frozen_minimum():
     assert out["whole_loop_clipped"] == [2] and out["whole_loop_limit"] < 10_000
     doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "simulation.md").read_text()
     assert f"15 N m clip: {out['whole_loop_limit']:,.0f} N/m, set where joint 2" in " ".join(doc.split())
-    assert "joint 2's torque sits on the drive's clip" in out["whole_loop_note"]
+    assert "the torque of joint 2 (joint2) reaches the drive's clip" in out["whole_loop_note"]
     assert "note                 at the path point that sets the frozen-point minimum" in format_analysis(out)
     plain = analyze_scenario(paper_scenario(), limits=False)
     assert plain["whole_loop_clipped"] == [] and "whole_loop_note" not in plain
+
+
+@pytest.mark.heavy      # the UR5's frozen limits over 8 path points (10-17 s each), the paper's with limits (~8 s)
+@pytest.mark.parametrize("name, sets, limits, joint, minimum", [
+    # joint 3's clip 0.2 % below the torque the UR5 holds at 1 s: free at the bisection's stable end, on the clip
+    # just above it, where the loop turns unstable (the limit there falls from 137,097 to 2,682 N/m)
+    ("ur5", ["robot.tau_max=[100,100,10.92,100,100,100]"], False, "3 (elbow_joint)", (2_000, 3_000)),
+    # joint 2's clip below the torque the UR5 holds at 0 s: no equilibrium with the clip at the smallest stiffness
+    # there (minimum 0); the loop without the clip is stable there with joint 2 above 18.2 N m
+    ("ur5", ["robot.tau_max=[100,18.2,100,100,100,100]"], False, "2 (shoulder_lift_joint)", (0, 0)),
+    # a path period of no whole number of control periods: no periodic analysis, the clip's minimum decides
+    ("paper", [*SATURATED, "trajectory.period=4.0005"], True, "2 (joint2)", (4_000, 5_000)),
+])
+def test_the_clip_is_named_where_it_ends_the_band_or_leaves_no_equilibrium(name, sets, limits, joint, minimum):
+    """Review 50: the note named the joints on the clip at the stable end of the bisection only, so a clip
+    engaging just above it (the loop unstable there) or leaving no equilibrium said nothing; and where the
+    frozen minimum decides (no periodic analysis) it said the moving loop's limits stood beside it."""
+    from tmtcontrol.stability.analysis import analyze_scenario
+
+    sc = apply_overrides(load_scenario(name), ["robot.saturate=true", *sets])
+    out = analyze_scenario(sc, limits=limits)
+    assert minimum[0] <= out["whole_loop_limit"] <= minimum[1]
+    assert out["whole_loop_clipped"] == [int(joint[0])]
+    assert f"the torque of joint {joint} reaches the drive's clip" in out["whole_loop_note"]
+    assert ("follow the moving loop" in out["whole_loop_note"]) is False
+    if limits:
+        assert out["limit_from"] == "frozen-point minimum"
+
+
+def test_the_clip_note_says_the_moving_loops_limits_stand_beside_it_only_where_they_were_computed():
+    from tmtcontrol.stability.analysis import clipped_note
+
+    one = clipped_note([(2, "joint2")], True)
+    assert one.startswith("at the path point that sets the frozen-point minimum, "
+                          "the torque of joint 2 (joint2) reaches")
+    assert one.endswith("; the limits along the path and from first contact follow the moving loop")
+    two = clipped_note([(1, "a"), (3, "c")], False)
+    assert "the torques of joints 1 (a), 3 (c) reach the drive's clip" in two and "moving loop" not in two

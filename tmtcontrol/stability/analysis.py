@@ -240,7 +240,11 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
                     "whole_loop_clipped": list(lim.whole_loop_clipped),
                     "sampled_stable": bool((out["sampled_stable"] or not one_d) and k_max < lim.whole_loop)})
         if lim.whole_loop_clipped:
-            out["whole_loop_note"] = clipped_note(lim.whole_loop_clipped, limits)
+            from ..simulation.simulator import robot_of
+
+            names = robot_of(scenario).joint_names
+            out["whole_loop_note"] = clipped_note([(j, names[j - 1]) for j in lim.whole_loop_clipped],
+                                                  limits and lim.periodic_note is None)
         if limits and lim.limit_from == "unstable at the smallest stiffness":
             out.update({"limit": 0.0, "limit_from": lim.limit_from, "sampled_stable": False})
         elif limits:
@@ -255,14 +259,15 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     return out
 
 
-def clipped_note(joints, along_path: bool) -> str:
-    """What a frozen-point minimum set where ``joints`` (1-based) sit on the drive's torque clip
-    (``ScenarioLimit.whole_loop_clipped``) means."""
-    which = f"joint {joints[0]}'s torque sits" if len(joints) == 1 else \
-        f"the torques of joints {', '.join(map(str, joints))} sit"
-    return (f"at the path point that sets the frozen-point minimum, {which} on the drive's clip (robot.saturate) at "
-            "the equilibrium: the frozen arm holds no f_d there, so that minimum is the clip's, not the loop's"
-            + ("; the limits along the path and from first contact follow the moving loop" if along_path else ""))
+def clipped_note(joints, moving: bool) -> str:
+    """What a frozen-point minimum set where ``joints`` ((1-based number, name) pairs) reach the
+    drive's torque clip (``ScenarioLimit.whole_loop_clipped``) means; ``moving``: the limits along
+    the path and from first contact were computed (else the frozen minimum stands alone)."""
+    named = ", ".join(f"{j} ({name})" for j, name in joints)
+    which = f"the torque of joint {named} reaches" if len(joints) == 1 else f"the torques of joints {named} reach"
+    return (f"at the path point that sets the frozen-point minimum, {which} the drive's clip (robot.saturate): the "
+            "frozen arm holds no f_d there, so that minimum is the clip's, not the loop's"
+            + ("; the limits along the path and from first contact follow the moving loop" if moving else ""))
 
 
 def _set_by_rows(d: dict) -> list[str]:

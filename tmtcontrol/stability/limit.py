@@ -106,11 +106,9 @@ class ScenarioLimit:
     from the start. ``periodic`` and ``first_contact`` are None when only the
     frozen loop was asked for (``along_path=False``) or the loop is unstable at
     the smallest stiffness. ``whole_loop_clipped``: the joints (1-based) whose
-    torque sits on the drive's clip (``robot.saturate``) at the equilibrium
-    of the frozen point that sets ``whole_loop``, at its stable end: there
-    the frozen arm holds no f_d, so that minimum is the clip's, not the
-    loop's (the limits along the path and from first contact are the moving
-    loop's)."""
+    torque reaches the drive's clip (``robot.saturate``) at the frozen point
+    that sets ``whole_loop`` (:func:`_clipped_at_the_minimum`): there the
+    clip, not the loop, sets that minimum."""
     limit: float
     limit_from: str
     small_signal: float | None
@@ -255,17 +253,38 @@ def _from_json(data: dict) -> ScenarioLimit:
                             "whole_loop_clipped": tuple(data["whole_loop_clipped"])})
 
 
-def _clipped_at_the_minimum(model, whole, per_point) -> tuple[int, ...]:
-    """The joints on the drive's clip at the equilibrium of the path point whose frozen limit is
-    the minimum ``whole``, at that stiffness (stable there, so it has one); () where the minimum is
-    0 or unbounded."""
-    if not 0 < whole < np.inf or not np.any(np.isfinite(model.torque_clip)):
+def _clipped_at_the_minimum(scenario, model, whole, per_point, k_e_min) -> tuple[int, ...]:
+    """The joints whose torque reaches the drive's clip at the path point whose frozen limit is the
+    minimum ``whole``: on the clip at the equilibrium at either end of the bisection's bracket (its
+    stable end as the bisection found it; the end above, or the smallest stiffness where the
+    minimum is 0), or, where the end above has no equilibrium with the clip, beyond the clip in the
+    loop without it, if that loop is stable there (review 50: the clip engaging just above the
+    stable end ended the band, or left no equilibrium, with the stable end's torque free). () where
+    the clip has no part in it, or the minimum is unbounded."""
+    if not whole < np.inf or not np.any(np.isfinite(model.torque_clip)):
         return ()
+    from .wholeloop import WholeLoopModel
+
     path_time = min(per_point, key=lambda p: p[1])[0]
+    above = whole * (1 + WHOLE_LOOP_RTOL) if whole > 0 else k_e_min
+    joints = set()
+    if whole > 0:
+        try:
+            joints.update(model.clipped_at(whole, path_time))
+        except AnalysisError:      # none from a fresh start where the bisection had warm ones
+            pass
     try:
-        return model.clipped_at(whole, path_time)
-    except AnalysisError:          # none from a fresh start where the bisection had warm ones: nothing to name
-        return ()
+        joints.update(model.at(above, path_time).clipped)
+    except AnalysisError:
+        if not joints:
+            free = WholeLoopModel(scenario.replace(robot={**scenario.robot.model_dump(), "saturate": False}))
+            try:
+                loop = free.at(above, path_time)
+            except AnalysisError:
+                return ()
+            if loop.stable:
+                joints.update(int(j) + 1 for j in np.flatnonzero(np.abs(loop.tau) > model.torque_clip))
+    return tuple(sorted(joints))
 
 
 def _computed_limit(scenario, points, along_path, runner):
@@ -307,7 +326,8 @@ def _computed_limit(scenario, points, along_path, runner):
     bracket = (whole, whole * (1 + WHOLE_LOOP_RTOL)) if 0 < whole < np.inf else (whole, whole)
     frozen = dict(small_signal=small, whole_loop=float(whole), whole_loop_bracket=tuple(map(float, bracket)),
                   whole_loop_points=tuple((float(t), float(l)) for t, l in per_point),
-                  whole_loop_clipped=_clipped_at_the_minimum(frozen_model, whole, per_point))
+                  whole_loop_clipped=_clipped_at_the_minimum(scenario, frozen_model, whole, per_point,
+                                                             p["k_e_min"]))
     if not ((small is None or small > 0) and whole > 0):
         # unstable at the scenario's smallest stiffness: no limit above it to search along the path
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)

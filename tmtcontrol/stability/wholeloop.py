@@ -113,10 +113,11 @@ class WholeLoop:
     there (N), ``A`` the Jacobian over the dynamic states ``states``,
     ``spectral_radius`` its largest eigenvalue magnitude (< 1: locally
     stable), ``residual`` max |step(s_eq) - s_eq|, ``m_p`` the robot's
-    effective normal mass at the point (kg) and ``clipped`` the joints
-    (1-based) whose torque sits on the drive's clip at ``s_eq``
-    (``robot.saturate``): the loop has no input on them there, and the
-    force ``f_eq`` is what the clipped torque holds, not f_d."""
+    effective normal mass at the point (kg), ``tau`` the torque applied
+    from ``s_eq`` (N m) and ``clipped`` the joints (1-based) whose torque
+    sits on the drive's clip there (``robot.saturate``): the loop has no
+    input on them, and the force ``f_eq`` is what the clipped torque holds,
+    not f_d."""
     k_e: float
     Ts: float
     path_time: float
@@ -128,6 +129,7 @@ class WholeLoop:
     residual: float
     m_p: float
     clipped: tuple[int, ...] = ()
+    tau: np.ndarray | None = None
 
     @property
     def stable(self) -> bool:
@@ -319,11 +321,15 @@ class WholeLoopModel:
         if self.law.states:
             names = names[:-len(self.law.states)] + tuple(self.law.states)
         f_eq = float(self._f(s_eq, u)[1])
-        clipped = self._clipped(s_eq, u)
+        step = self.sim.step
+        nu = step.size1_in(1)
+        tau = np.ravel(np.array(step(s_eq, u[:nu], u[nu:])[1]))[self.sim.log["tau"]]
+        clipped = tuple(int(j) + 1 for j in np.flatnonzero(np.abs(tau) >= self.torque_clip * (1 - 1e-12)))
         if len(self._clips) > 100_000:
             self._clips.clear()
         self._clips[i, float(k_e)] = clipped
-        return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p, clipped)
+        return WholeLoop(float(k_e), ctl.Ts, float(self.t[i]), s_eq, f_eq, A, names, rho, residual, m_p, clipped,
+                         tau)
 
     def clipped_at(self, k_e: float, path_time: float = 0.0) -> tuple[int, ...]:
         """:attr:`WholeLoop.clipped` of the equilibrium :meth:`at` found for
@@ -333,16 +339,6 @@ class WholeLoopModel:
         i = int(round((path_time % self.scenario.trajectory.period) / self.scenario.controller.Ts)) % self.t.size
         found = self._clips.get((i, float(k_e)))
         return found if found is not None else self.at(k_e, path_time).clipped
-
-    def _clipped(self, s, u) -> tuple[int, ...]:
-        """The joints (1-based) whose torque applied from ``s`` sits on the
-        drive's clip (:attr:`torque_clip`; none without ``robot.saturate``)."""
-        if not np.any(np.isfinite(self.torque_clip)):
-            return ()
-        step = self.sim.step
-        nu = step.size1_in(1)
-        tau = np.ravel(np.array(step(s, u[:nu], u[nu:])[1]))[self.sim.log["tau"]]
-        return tuple(int(j) + 1 for j in np.flatnonzero(np.abs(tau) >= self.torque_clip * (1 - 1e-12)))
 
     def _held(self, s, u):
         """``s`` with the mid-period hold's state (if the loop has one) at its
