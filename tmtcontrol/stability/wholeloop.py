@@ -48,7 +48,7 @@ _BUILT: dict = {}
 
 
 def _build(sc):
-    """The step of ``sc``'s structure as ``(s, [u; p]) -> (s_next, f_e)`` and its
+    """The step of ``sc``'s structure as ``(s, [u; p]) -> (s_next, f_e, tau)`` and its
     Jacobian in s, with the loop that owns it (``simulation.Simulator``) and the
     dynamic states."""
     from ..simulation.simulator import Simulator
@@ -60,7 +60,8 @@ def _build(sc):
     p = ca.SX.sym("p", step.size1_in(2))
     s_next, log = step(s, u, p)
     up = ca.vertcat(u, p)
-    f = ca.Function("whole_step", [s, up], [s_next, log[loop.f_e]], ["s", "up"], ["s_next", "f_e"])
+    f = ca.Function("whole_step", [s, up], [s_next, log[loop.f_e], log[loop.log["tau"]]], ["s", "up"],
+                    ["s_next", "f_e", "tau"])
     # The Jacobian by algorithmic differentiation through f (MX), not expanded into one SX
     # graph: that graph had 205,000 operations (20x the step), took as long to build as
     # everything else here and evaluated 2-3x slower than the forward sweeps it replaces.
@@ -201,6 +202,11 @@ class WholeLoopModel:
         the contact does not switch within the period (the tangent step has no
         contact refinement), at a fixed point in contact always."""
 
+    def _index(self, path_time: float) -> int:
+        """The control sample of the path's period nearest ``path_time`` (s)."""
+        sc = self.scenario
+        return int(round((path_time % sc.trajectory.period) / sc.controller.Ts)) % self.t.size
+
     def _u(self, i: int, k_e: float) -> np.ndarray:
         from ..simulation.closedloop import INPUT
 
@@ -218,7 +224,7 @@ class WholeLoopModel:
         if not (np.isfinite(k_e) and k_e > 0):
             raise AnalysisError(f"k_e: must be > 0, got {k_e!r}")
         period = sc.trajectory.period
-        i = int(round((path_time % period) / sc.controller.Ts)) % self.t.size
+        i = self._index(path_time)
         u = np.r_[self._u(i, k_e), self.P]
         ctl = sc.controller
         from ..simulation.geometry import surface_of
@@ -320,10 +326,8 @@ class WholeLoopModel:
                       for j in range(sl.stop - sl.start))
         if self.law.states:
             names = names[:-len(self.law.states)] + tuple(self.law.states)
-        f_eq = float(self._f(s_eq, u)[1])
-        step = self.sim.step
-        nu = step.size1_in(1)
-        tau = np.ravel(np.array(step(s_eq, u[:nu], u[nu:])[1]))[self.sim.log["tau"]]
+        _, f_eq, tau = self._f(s_eq, u)
+        f_eq, tau = float(f_eq), np.ravel(np.array(tau))
         clipped = tuple(int(j) + 1 for j in np.flatnonzero(np.abs(tau) >= self.torque_clip * (1 - 1e-12)))
         if len(self._clips) > 100_000:
             self._clips.clear()
@@ -336,8 +340,7 @@ class WholeLoopModel:
         this stiffness and path point, as it found it (a bisection's, from its
         warm starts: asked afresh, Newton may find none from the starts it has
         then); :meth:`at` again where it found none before."""
-        i = int(round((path_time % self.scenario.trajectory.period) / self.scenario.controller.Ts)) % self.t.size
-        found = self._clips.get((i, float(k_e)))
+        found = self._clips.get((self._index(path_time), float(k_e)))
         return found if found is not None else self.at(k_e, path_time).clipped
 
     def _held(self, s, u):
