@@ -271,14 +271,26 @@ def _load_named(name):
 
 
 def _noted(sc):
-    """``sc``, after :func:`_print_notes` of its values that read like a unit mistake."""
-    _print_notes(sc.environment.unit_notes())
+    """``sc``, its values that read like a unit mistake held by :func:`_hold_notes`."""
+    _hold_notes(sc.environment.unit_notes())
     return sc
 
 
-def _print_notes(notes) -> None:
-    for note in notes:
-        print(f"note: {note}", file=sys.stderr)
+_NOTES: list[str] = []
+"""Notes held until the command's input checks have passed: a refused input
+prints its one line only (a note beside it would be a second line)."""
+
+
+def _hold_notes(notes) -> None:
+    """Hold ``notes`` (one line each) for :func:`_print_notes`."""
+    _NOTES.extend(notes)
+
+
+def _print_notes() -> None:
+    """Print the held notes on stderr, once: where a command's checks end (its
+    output folder accepted, its arm loaded), or as :func:`main` returns."""
+    while _NOTES:
+        print(f"note: {_NOTES.pop(0)}", file=sys.stderr, flush=True)
 
 
 def _simulate(args) -> int:
@@ -307,8 +319,8 @@ def _simulate_with(args, workers) -> int:
     check_run_size(sc, args.max_steps)
     controller = None
     if args.plant != "mujoco" and (unused := sc.simulation.mujoco_only()):
-        print(f"note: {', '.join(unused)}: for --plant mujoco only; the built-in plant ignores "
-              f"{'it' if len(unused) == 1 else 'them'}", file=sys.stderr)
+        _hold_notes([f"{', '.join(unused)}: for --plant mujoco only; the built-in plant ignores "
+                     f"{'it' if len(unused) == 1 else 'them'}"])
     if args.plant == "mujoco":
         if getattr(args, "integrator", None):
             raise UsageError("--integrator: the MuJoCo plant integrates with MuJoCo's RK4 (10 steps per control "
@@ -325,6 +337,7 @@ def _simulate_with(args, workers) -> int:
             raise UsageError(f"--out: {args.out} holds the --controller folder {args.controller}; the run would "
                              "replace the exported controller: choose another folder (nothing was written)")
     with OutputFolder(args.out, "--out") as out:
+        _print_notes()
         if controller is not None:              # the exported C, against the built-in plant or MuJoCo's
             from .export.sil import simulate_with_controller
 
@@ -377,6 +390,7 @@ def _export(args) -> int:
     check_prefix(args.prefix)
     sc = _load(args)
     with OutputFolder(args.out, "--out") as out:
+        _print_notes()
         info = export_controller(sc, out.path, inner_loop=args.inner_loop, prefix=args.prefix)
         out.commit()
     print(f"scenario {sc.name!r}: law {info['law']}, delay {info['delay']} samples, inner loop "
@@ -402,6 +416,7 @@ def _compare(args) -> int:
             raise UsageError(f"--laws: {exc}") from None
     check_run_size(sc, args.max_steps)
     with OutputFolder(args.out, "--out") as out:
+        _print_notes()
         from .stability.analysis import with_stiffness_limit
 
         cmp = compare_laws(sc, names, max_steps=args.max_steps, prepare=with_stiffness_limit)
@@ -449,6 +464,7 @@ def _crosscheck(args) -> int:
 
     memo: dict = {}
     with OutputFolder(args.out, "--out") as out:
+        _print_notes()
         # the same verdicts as simulate: a segment beyond the loop's limit is beyond_limit on both plants
         c = crosscheck(sc, max_steps=args.max_steps, prepare=lambda r: with_stiffness_limit(r, memo=memo))
         save_crosscheck(c, out.path, plots=not args.no_plots)
@@ -524,6 +540,7 @@ def _analyze(args) -> int:
         run = lambda: _flags_named(analyze, **kw)
     out = OutputFolder(args.plot, "--plot") if args.plot is not None else None
     with out if out is not None else contextlib.nullcontext():
+        _print_notes()
         result = run()
         if out is not None:
             from .stability.figures import save_analysis_figures
@@ -617,6 +634,7 @@ def _design(args) -> int:
     from .files import check_interrupt
 
     with out if out is not None else contextlib.nullcontext():
+        _print_notes()
         result = design_impedance(spec)
         if args.scenario is not None:
             from .stability.design import with_scenario_loop
@@ -652,6 +670,7 @@ def _check(args) -> int:
 
         sc = _load_named(args.scenario)
         robot_of(sc)                        # an arm that cannot be loaded: one line, exit 2, before any check
+        _print_notes()
     results = all_checks(scenario=sc)
     if args.json:
         print(json.dumps(jsonable([r.as_dict() for r in results]), indent=2))
@@ -681,13 +700,13 @@ def _sweep(args) -> int:
     from .sweep.spec import check_sweep_size
 
     sweep = load_sweep(args.sweep, max_cases=args.max_cases)
-    _print_notes(sweep.unit_notes())
+    _hold_notes(sweep.unit_notes())
     check_sweep_size(sweep, args.max_steps)
     try:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
                              plots=not args.no_plots, max_steps=args.max_steps,
                              limits={"auto": None, "on": True, "off": False}[args.limits],
-                             command_line="tmtcontrol " + " ".join(sys.argv[1:]))
+                             command_line="tmtcontrol " + " ".join(sys.argv[1:]), checked=_print_notes)
     except KeyboardInterrupt as exc:      # finished cases stay in OUT.partial/: say so, and how to go on
         from .sweep.run import kept_note
 
@@ -741,6 +760,7 @@ def _report(args) -> int:
         print(f"[{i}/{n}] {name}: {seconds:.1f} s", file=sys.stderr, flush=True)
 
     with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
+        _print_notes()
         rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
                            progress=lambda i, _n, name, s: stage(i, name, s),
                            prepare=lambda: prepare_writing(formats), plant=args.plant)
@@ -904,14 +924,18 @@ def main(argv: list[str] | None = None) -> int:
         defer_in_finalizers()          # never raised inside a weakref callback or __del__
     parser = build_parser()
     committed_outputs(reset=True)
+    _NOTES.clear()
     try:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help()
             return 0
         with staging_removed_on_exit():
-            return args.func(args)
+            code = args.func(args)
+        _print_notes()
+        return code
     except ValueError as exc:   # UsageError, ScenarioError, AnalysisError, DesignError, OutputError
+        _NOTES.clear()          # a refusal is its one line (a note printed before its checks passed stays)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except Interrupted as exc:

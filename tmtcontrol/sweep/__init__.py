@@ -211,13 +211,16 @@ def boundary_lines(sweep: Sweep, summary: dict) -> list[str]:
 
 def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: str | None = None,
                resume: bool = False, plots: bool = True, max_steps: int | None = None,
-               command_line: str = "", limits: bool | None = None) -> dict:
+               command_line: str = "", limits: bool | None = None, checked=None) -> dict:
     """Run the sweep into ``out``: finished chunks go to ``OUT.partial/`` as
     they complete; at the end ``results.parquet``, ``summary.json`` and the
     figures are committed to ``out`` (replaced atomically) and the partial
     folder is removed. Returns the summary. A case whose arm or per-joint
     settings do not fit it is refused before anything is written
-    (:func:`.spec.check_sweep_robots`)."""
+    (:func:`.spec.check_sweep_robots`). ``checked()``, if given, is called
+    once every input check has passed, before the plan is printed (the
+    command line prints its notes there: a refused sweep prints its one
+    line only)."""
     import pyarrow.parquet as pq
 
     check_dask(dask)                               # a scheduler address that answers nothing: refused first
@@ -230,6 +233,8 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         partial = PartialFolder(pathlib.Path(out).resolve(), sweep, resume,
                                 {"limits": bool(limits), "max_steps": max_steps})
         done = partial.done()
+        if checked is not None:
+            checked()
         todo = sweep.cases.without(done)           # a view: the cases are generated as they run
         if resume and partial.fresh:               # review 31: said, not a silent fresh run
             print(f"sweep: --resume: no interrupted sweep in {partial.path}; running every case", file=sys.stderr,
