@@ -242,31 +242,35 @@ def test_a_sweep_notes_a_radius_that_reads_as_millimetres_once(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
-def test_a_refused_input_is_one_line_even_where_a_value_reads_as_millimetres(tmp_path):
+def test_a_refused_input_is_one_line_even_where_a_value_reads_as_millimetres(tmp_path, capsys):
     """The twelfth to fourteenth sessions' "noticed": a radius above 10 m
     printed its note as the scenario loaded, so an input refused by a later
     check (an --out folder that is not tmtcontrol's, a run over --max-steps)
     gave two lines against the one-line rule. The note is held until the
     command's checks pass: refused, one line, exit 2, the folder untouched;
     accepted, the note (the run goes on: a large part is valid)."""
+    from tmtcontrol.cli import main
+
     path = tmp_path / "s.toml"
     path.write_text('[environment]\nshape = "sphere"\nradius = 300.0\n[trajectory]\ncycles = 0.01\n')
     theirs = tmp_path / "theirs"
     theirs.mkdir()
     (theirs / "notes.txt").write_text("a user's file")
-    cli = [sys.executable, "-m", "tmtcontrol.cli"]
     for args in (["simulate", str(path), "--no-plots", "--out", str(theirs)],
                  ["simulate", str(path), "--no-plots", "--max-steps", "5", "--out", str(tmp_path / "o")],
                  ["export", str(path), "--out", str(theirs)],
                  ["simulate", str(path), "--no-plots", "--set", "simulation.mujoco_friction=0.3", "--out",
                   str(theirs)]):
-        r = subprocess.run([*cli, *args], capture_output=True, text=True)
-        assert r.returncode == 2 and r.stdout == "", (args, r.stderr)
-        lines = r.stderr.splitlines()
-        assert len(lines) == 1 and lines[0].startswith("error: ") and "note" not in lines[0], (args, r.stderr)
+        assert main(args) == 2, args
+        r = capsys.readouterr()
+        lines = r.err.splitlines()
+        assert r.out == "" and len(lines) == 1 and lines[0].startswith("error: ") and "note" not in lines[0], \
+            (args, r.err)
     assert sorted(p.name for p in theirs.iterdir()) == ["notes.txt"] and not (tmp_path / "o").exists()
-    r = subprocess.run([*cli, "export", str(path), "--out", str(tmp_path / "e")], capture_output=True, text=True)
-    assert r.returncode == 0 and r.stderr.startswith("note: environment.radius = 300 m:"), r.stderr
+    assert main(["export", str(path), "--out", str(tmp_path / "e")]) == 0
+    assert capsys.readouterr().err.startswith("note: environment.radius = 300 m:")
+    assert main(["export", str(path), "--out", str(tmp_path / "f")]) == 0      # once per command, not carried over
+    assert capsys.readouterr().err.count("note:") == 1
 
 
 def _refused(tmp_path, content, needle, sets=()):
