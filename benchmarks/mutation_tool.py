@@ -157,6 +157,13 @@ TESTS: dict[str, tuple[str, ...]] = {
                                          "tests/test_simulate.py"),
     "tmtcontrol/cache.py": ("tests/test_compile_signals.py", "tests/test_codegen.py", "tests/test_files_safety.py",
                             "tests/test_result_cache.py"),
+    # the fifteenth session: the gain design, the arm interface and the simulator, never measured
+    "tmtcontrol/stability/design.py": ("tests/test_design.py", "tests/test_design_wave3.py",
+                                       "tests/test_design_scenario.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/model/robot.py": ("tests/test_robot.py", "tests/test_one_loop.py", "tests/test_urdf.py",
+                                  "tests/test_mutation_kills.py", "tests/test_joint_limits.py"),
+    "tmtcontrol/simulation/simulator.py": ("tests/test_simulate.py", "tests/test_one_loop.py", "tests/test_hold.py",
+                                           "tests/test_joint_limits.py", "tests/test_mutation_kills.py"),
 }
 
 
