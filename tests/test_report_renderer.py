@@ -38,6 +38,19 @@ def test_pdf_only_without_its_engine_is_refused_before_computing(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+def test_html_and_pdf_without_the_pdf_engine_into_a_refused_folder_is_one_line(tmp_path):
+    """The "writing report.html only" warning was printed before --out was
+    checked: a folder that is not tmtcontrol's gave the warning and the
+    refusal, two lines against the one-line rule."""
+    theirs = tmp_path / "r"
+    theirs.mkdir()
+    (theirs / "notes.txt").write_text("a user's file")
+    r = _report(tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: --out"), r.stderr
+    assert [p.name for p in theirs.iterdir()] == ["notes.txt"] and r.stdout == ""
+
+
 @pytest.mark.heavy
 def test_html_and_pdf_without_the_pdf_engine_write_the_html_and_fail_the_pdf(tmp_path):
     r = _report(tmp_path)                                     # the default --format html,pdf

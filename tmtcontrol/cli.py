@@ -751,7 +751,7 @@ def _report(args) -> int:
                 raise                                        # nothing else was asked for: bad input, exit 2
             no_pdf = str(exc)
             formats = tuple(f for f in formats if f != "pdf")
-            print(f"warning: {no_pdf}; writing report.html only", file=sys.stderr, flush=True)
+            # the warning is printed once --out is accepted (a refused --out is its one line)
     t0 = time.perf_counter()
     computing = len(STAGES) + (args.plant == "mujoco")
     n = computing + writing_stages(formats)
@@ -761,6 +761,8 @@ def _report(args) -> int:
 
     with OutputFolder(args.out, "--out") as out:    # checked before anything is computed
         _print_notes()
+        if no_pdf is not None:
+            print(f"warning: {no_pdf}; writing report.html only", file=sys.stderr, flush=True)
         rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
                            progress=lambda i, _n, name, s: stage(i, name, s),
                            prepare=lambda: prepare_writing(formats), plant=args.plant)
