@@ -331,6 +331,26 @@ def test_a_full_standard_output_is_one_line_and_exit_3(args):
                                              "what it shows is incomplete"]
 
 
+@pytest.mark.parametrize("args", [["scenario", "paper"], ["analyze", "--m", "1", "--b", "60", "--k", "100", "--ke",
+                                                         "2000"]])
+def test_a_standard_output_whose_reader_has_gone_is_one_line_and_exit_3(args):
+    """Review 51: ``tmtcontrol simulate ... | head -1`` (and analyze, design, compare, sweep, robot,
+    report) ended in a BrokenPipeError traceback, exit 1, the code of a failed verdict. A pipe whose
+    read end is closed before the command writes: one line on stderr, exit 3, as for a full disk."""
+    import os
+
+    r_end, w_end = os.pipe()
+    os.close(r_end)
+    try:
+        r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", *args], stdout=w_end, stderr=subprocess.PIPE,
+                           text=True)
+    finally:
+        os.close(w_end)
+    assert r.returncode == 3, r.stderr
+    assert r.stderr.strip().splitlines() == ["error: writing the standard output: Broken pipe; what it shows is "
+                                             "incomplete"]
+
+
 def test_a_cvodes_run_that_fails_is_one_line_and_exit_1(tmp_path, capfd):
     """Regression (review 13): a run whose CVODES integrator stopped (here a reference f_d/k = 1e7 m
     deep on a 1e8 N/m surface: the state runs away and CVODES gives up) ended in a RuntimeError

@@ -877,10 +877,11 @@ def _interrupted_by(exc: BaseException) -> int | None:
     return None
 
 
-_STREAM_ERRORS = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC), errno.EIO, errno.EFBIG)
+_STREAM_ERRORS = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC), errno.EIO, errno.EFBIG, errno.EPIPE)
 """Errors of a write to the standard output or error (a full disk behind
-``> file``, ``/dev/full``): every file tmtcontrol writes itself is staged
-and reports its own (:class:`.files.OutputNotSaved`)."""
+``> file``, ``/dev/full``; a pipe whose reader has gone, ``| head -1``,
+review 51: a traceback and exit 1): every file tmtcontrol writes itself is
+staged and reports its own (:class:`.files.OutputNotSaved`)."""
 
 
 def _stream_failed(exc: OSError) -> int:
