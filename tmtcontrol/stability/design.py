@@ -65,6 +65,16 @@ OVERSHOOT_SLACK = 1e-5
 solver's tolerance: a 0 % bound met by IPOPT to 1e-10 read 1e-6 % and
 failed its own verification, review 9); 1e-7 of f_d, no physical overshoot."""
 
+VERIFY_WINDOWS = 8
+"""Windows of 10/omega_n (each at least 20 samples) over which the
+verification (:func:`sampled_overshoot`) follows a first-contact response
+at most: it goes on a window at a time until the force over a whole window
+is within :data:`OVERSHOOT_SLACK` of f_d. The design's constraint looks at
+the first window only (a fixed window keeps it smooth in b; two windows
+made IPOPT take 30 times as long); review 52: a near-critically damped
+design for a 0 % bound peaked at 11/omega_n, after that window, 1.1e-3 %
+where the design said 1e-6 %."""
+
 VERIFY_INTERSAMPLE = 16
 """Points per control period of the verification (:func:`sampled_overshoot`,
 ``worst_overshoot``): a peak underestimated by at most 1 - cos(pi/32) =
@@ -316,8 +326,13 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
     bm, km = ca.MX.sym("b"), ca.MX.sym("k")
     Z, f = acc(z0, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
     X = ca.horzcat(ca.DM(z0[:2]), Z[:2, :])                        # (x, v) at samples 0..n
-    if spec.intersample < 0:       # the verification's form: the sample states, intersample in NumPy
-        return ca.Function("contact_states", [bm, km], [f, X], ["b", "k"], ["f_e", "xv"])
+    if spec.intersample < 0:
+        # the verification's form: from any state z0 (a window at a time), the sample states (intersample in
+        # NumPy) and the state at its end
+        zm = ca.MX.sym("z0", F.size1_in(0))
+        Z, f = acc(zm, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
+        return ca.Function("contact_states", [zm, bm, km], [f, ca.horzcat(zm[:2], Z[:2, :]), Z[:, -1]],
+                           ["z0", "b", "k"], ["f_e", "xv", "z_end"])
     if not spec.intersample:
         return ca.Function("contact_response", [bm, km], [f], ["b", "k"], ["f_e"])
     A, B = _intersample(spec, k_e, spec.intersample)
@@ -335,22 +350,32 @@ def _states_spec(spec: DesignSpec) -> DesignSpec:
 
 def sampled_overshoot(spec: DesignSpec, b: float, k: float, k_e: float) -> float:
     """First-contact overshoot (percent of f_d) of the sampled TMT loop at
-    ``k_e``: the loop iterated numerically from contact at rest over
-    10/omega_n (at least 20 samples), its continuous force evaluated at the
+    ``k_e``: the loop iterated numerically from contact at rest, a window of
+    10/omega_n (at least 20 samples) at a time, until the force over a whole
+    window stays within :data:`OVERSHOOT_SLACK` of f_d (at most
+    :data:`VERIFY_WINDOWS` windows), its continuous force evaluated at the
     samples and between them (``spec.intersample`` points per period, the
     exact ZOH solution); ``inf`` if it does not stay finite."""
     duration = max(_overshoot_horizon(spec.m, k, k_e), 20 * spec.Ts)
-    with np.errstate(all="ignore"):
-        if spec.intersample:
-            n_sub = max(spec.intersample, VERIFY_INTERSAMPLE)
-            f, X = (np.array(v) for v in _contact_response(_states_spec(spec), k_e, duration)(b, k))
-            A, B = _intersample(spec, k_e, n_sub)
-            f = np.r_[np.ravel(f), np.ravel(k_e * (A @ X[:, :-1] + B @ X[:, 1:]))]
-        else:
-            f = np.ravel(np.array(_contact_response(spec, k_e, duration)(b, k)))
-    if not np.all(np.isfinite(f)):
-        return math.inf
-    return max(0.0, float(f.max()) / spec.f_d - 1.0) * 100.0
+    chunk = _contact_response(_states_spec(spec), k_e, duration)
+    n_sub = max(spec.intersample, VERIFY_INTERSAMPLE) if spec.intersample else 0
+    A, B = _intersample(spec, k_e, n_sub) if n_sub else (None, None)
+    z = np.zeros(chunk.size1_in(0))
+    settled = OVERSHOOT_SLACK / 100.0 * spec.f_d
+    peak = -math.inf
+    for _ in range(VERIFY_WINDOWS):
+        with np.errstate(all="ignore"):
+            f, X, z = (np.array(v) for v in chunk(z, b, k))
+            f = np.ravel(f)
+            if n_sub:
+                f = np.r_[f, np.ravel(k_e * (A @ X[:, :-1] + B @ X[:, 1:]))]
+        if not np.all(np.isfinite(f)):
+            return math.inf
+        peak = max(peak, float(f.max()))
+        if float(np.abs(f - spec.f_d).max()) <= settled:
+            break
+        z = np.ravel(z)
+    return max(0.0, peak / spec.f_d - 1.0) * 100.0
 
 
 def _ise_function() -> ca.Function:
@@ -642,7 +667,17 @@ def _designed(spec: DesignSpec, b0: float | None = None, k0: float | None = None
     dense = np.geomspace(spec.k_e_min, spec.k_e_max, verify_points) if spec.k_e_max > spec.k_e_min else grid
     dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
                     for ke, w in zip(dense, spec.event_weights(dense)))
-    worst_os = max(sampled_overshoot(spec, b_opt, k_opt, ke) for ke in dense)
+    over = [sampled_overshoot(spec, b_opt, k_opt, ke) for ke in dense]
+    info = {}
+    if max(over) > spec.max_overshoot + OVERSHOOT_SLACK and np.all(np.isfinite(over)):
+        # the peak comes after the constraint's window (VERIFY_WINDOWS): the smallest larger b that meets the bound
+        raised = _raised_for_overshoot(spec, b_opt, k_opt, dense, over)
+        if raised is not None:
+            info["b_from_the_solver"], b_opt = b_opt, raised[0]
+            over = raised[1]
+            dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
+                            for ke, w in zip(dense, spec.event_weights(dense)))
+    worst_os = max(over)
     continuous_os = max(overshoot_closed_form(spec.m, b_opt, k_opt, ke) for ke in dense)
 
     return DesignResult(
@@ -650,9 +685,41 @@ def _designed(spec: DesignSpec, b0: float | None = None, k0: float | None = None
         baseline_b=b_base, baseline_objective=_objective(spec, b_base, spec.k),
         worst_overshoot=worst_os, status=status, dense_objective=dense_obj,
         sampled_limit=_limit(spec, b_opt, k_opt),
-        info={"continuous_overshoot": continuous_os,
+        info={**info, "continuous_overshoot": continuous_os,
               "damping_ratio_at_k_e_max": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_max))),
               "damping_ratio_at_k_e_min": b_opt / (2 * math.sqrt(spec.m * (k_opt + spec.k_e_min)))})
+
+
+def _raised_for_overshoot(spec: DesignSpec, b: float, k: float, dense, over) -> tuple[float, list] | None:
+    """``(b', overshoots)``: the smallest ``b' > b`` (to :data:`BRACKET_RTOL`)
+    whose verified overshoot (:func:`sampled_overshoot`) meets the bound at
+    every stiffness of ``dense`` with the sampled loop still stable at the
+    margin, and its overshoots there; None if no b up to ``b_bounds[1]``
+    does. For a solution whose first-contact peak comes after the window
+    its constraint looks at (:data:`VERIFY_WINDOWS`): near critical damping
+    the overshoot falls as b grows, so the bound's edge is the optimum the
+    solver would have found with the whole response (the cost grows with b
+    there)."""
+    def worst(bb, kes):
+        return max(sampled_overshoot(spec, bb, k, ke) for ke in kes)
+
+    for _ in range(3):                  # a raised b may peak late at another stiffness of the dense grid
+        failing = [ke for ke, o in zip(dense, over) if o > spec.max_overshoot + OVERSHOOT_SLACK]
+
+        def ok(bb):
+            return _radius(spec, bb, k) < 1 and worst(bb, failing) <= spec.max_overshoot + OVERSHOOT_SLACK
+
+        step, hi = 1e-4 * b, b * (1 + 1e-4)
+        while not ok(hi):
+            step *= 2
+            hi = b + step
+            if hi > spec.b_bounds[1]:
+                return None
+        b = _bisect(ok, b, hi)
+        over = [sampled_overshoot(spec, b, k, ke) for ke in dense]
+        if max(over) <= spec.max_overshoot + OVERSHOOT_SLACK:
+            return b, over
+    return None
 
 
 @dataclass(frozen=True)
@@ -798,6 +865,9 @@ def format_design(r: DesignResult) -> str:
         f"stiffness range      {num(s.k_e_min, 4)} .. {num(s.k_e_max, 4)} N/m, Ts = {s.Ts:g} s, m = {s.m:g} kg, "
         f"m_p = {s.m_p:.4g} kg, delay {s.delay} sample(s)",
         f"optimal design       b = {num(r.b, 4)} N s/m, k = {num(r.k, 4)} N/m  ({r.status})",
+    ] + ([f"raised for overshoot b from the solver's {num(r.info['b_from_the_solver'], 6)} N s/m: its first-contact "
+          "peak comes after the 10/omega_n the solver's constraint looks at; b is the smallest larger one the "
+          "verification passes"] if "b_from_the_solver" in r.info else []) + [
         f"worst-case cost      {r.objective:.6g} N^2 s on the grid, {r.dense_objective:.6g} between grid points",
         f"eq. (25) baseline    b = {num(r.baseline_b, 4)} N s/m, cost {r.baseline_objective:.6g} N^2 s",
         f"worst overshoot      {against(r.worst_overshoot, s.max_overshoot)} % in the sampled loop "
