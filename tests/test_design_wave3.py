@@ -184,3 +184,6 @@ def test_a_zero_overshoot_design_raises_b_until_its_whole_response_meets_the_bou
     assert sampled_overshoot(spec, r.b * (1 - 1e-3), r.k, 2e4) > OVERSHOOT_SLACK      # the smallest such b
     assert sampled_overshoot(spec, solver_b, r.k, 2e4) > 1e-3
     assert "raised for overshoot b from the solver's 262.234 N s/m" in format_design(r)
+    # docs/design.md quotes both b's
+    text = " ".join((ROOT / "docs" / "design.md").read_text().split())
+    assert f"the solver's b = {solver_b:.6g} N s/m" in text and f"({r.b:.4g} N s/m there)" in text
