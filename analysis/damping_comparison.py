@@ -1,6 +1,6 @@
 """Compare normal-axis damping strategies on the paper's stiffness profile.
 
-Usage: python analysis/damping_comparison.py [--out DIR] [--cycles N]
+Usage: python analysis/damping_comparison.py [--out DIR] [--cycles N] [--write-docs]
 
 Four controllers, all with TMT, M = 1, K = 100 on the paper scenario
 (stiffness 5e3 -> 2e4 -> 2e3 -> 1e4 N/m, one value per 4 s cycle):
@@ -11,10 +11,15 @@ Four controllers, all with TMT, M = 1, K = 100 on the paper scenario
 * scheduled: b follows eq. (25) online from the TMT estimate (zeta = 1).
 
 Writes comparison.csv / comparison.md (overshoot and 2 % settling time per
-segment) and a force plot, and prints the table.
+segment) and a force plot, and prints the table. ``--write-docs`` also
+rewrites the table in docs/design.md between ``<!-- damping_comparison -->``
+and ``<!-- end damping_comparison -->`` (tests/test_design.py checks that the
+page holds what this script prints).
 """
 import argparse
 import csv
+import pathlib
+import re
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -25,6 +30,8 @@ from tmtcontrol.files import OutputFolder
 from tmtcontrol.plotstyle import styled
 from tmtcontrol.stability import scenario_parameters
 
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
 
 def strategies(cycles):
     base = apply_overrides(paper_scenario(), [f"trajectory.cycles={cycles}"])
@@ -34,19 +41,51 @@ def strategies(cycles):
     return damping_alternatives(base, opt)      # the paper's B = 60 is the scenario's own b
 
 
+def runs_for(cycles) -> dict:
+    """``{controller: (SimulationResult, segment metrics)}`` of :func:`strategies`."""
+    runs = {}
+    sim = None
+    for name, sc in strategies(cycles).items():
+        sim = sim or Simulator(sc)          # one compiled loop: b and the schedule are inputs
+        res = sim.run(sc)
+        runs[name] = (res, segment_metrics(res))
+    return runs
+
+
+def docs_table(runs) -> str:
+    """docs/design.md's table: per controller (its normal-axis b where fixed) and segment, the overshoot
+    (segment_metrics' overshoot_pct: the peak after the switch's own jump, docs/simulation.md), the 2 %
+    settling time and the smallest force (contact lost at 0)."""
+    md = ["| controller | segment (k_e, N/m) | overshoot % | 2 % settling (s) | min force (N) |",
+          "|---|---|---|---|---|"]
+    for name, (_, segs) in runs.items():
+        for i, s in enumerate(segs, 1):
+            label = name if i == 1 else ""
+            where = f"{i} ({s.stiffness:.0e}".replace("e+0", "e") + (", first contact)" if i == 1 else ")")
+            settle = f"{s.settling_time:.3f}" if np.isfinite(s.settling_time) else "never"
+            low = f"{s.min_force:.3g}" + (" (contact lost)" if s.min_force <= 0 and i > 1 else "")
+            md.append(f"| {label} | {where} | {s.overshoot_pct:.3g} | {settle} | {low} |")
+    return "\n".join(md)
+
+
+def write_docs(text: str) -> None:
+    page = ROOT / "docs" / "design.md"
+    new, n = re.subn(r"(<!-- damping_comparison -->\n)(?:.*?\n)?(<!-- end damping_comparison -->)",
+                     lambda m: m.group(1) + text + "\n" + m.group(2), page.read_text(), flags=re.S)
+    if n != 1:
+        raise SystemExit("docs/design.md: no <!-- damping_comparison --> block")
+    page.write_text(new)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/damping-comparison",
                     help="output folder (default analysis-output/damping-comparison, ignored by git)")
     ap.add_argument("--cycles", type=float, default=4.0)
+    ap.add_argument("--write-docs", action="store_true", help="also rewrite the table in docs/design.md")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")     # checked before the runs
-    runs = {}
-    sim = None
-    for name, sc in strategies(args.cycles).items():
-        sim = sim or Simulator(sc)          # one compiled loop: b and the schedule are inputs
-        res = sim.run(sc)
-        runs[name] = (res, segment_metrics(res))
+    runs = runs_for(args.cycles)
     rows = []
     for name, (_, segs) in runs.items():
         for i, s in enumerate(segs, 1):
@@ -58,6 +97,8 @@ def main(argv=None):
           "|---|---|---|---|---|---|"]
     md += [f"| {r['controller']} | {r['segment']} | {r['k_e']:.4g} | {r['overshoot_pct']} | "
            f"{r['settling_time_s']} | {r['min_force_N']} |" for r in rows]
+    if args.write_docs:
+        write_docs(docs_table(runs))
     with styled():                                      # the package's one figure style
         fig = Figure(figsize=(8, 4.5), layout="constrained")
         ax = fig.add_subplot()

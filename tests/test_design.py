@@ -348,3 +348,29 @@ def test_a_violation_message_shows_the_limit_below_the_requirement(optimum):
         assert line == f"sampled loop stable only up to k_e = {shown} N/m < margin x k_e_max = 200,000 N/m", line
     assert not any(v.startswith("sampled loop") for v in dataclasses.replace(optimum, spec=spec,
                                                                                sampled_limit=2e5).violations)
+
+
+@pytest.mark.heavy          # a design and four paper-length runs, ~15 s
+def test_the_damping_comparison_on_the_design_page_is_what_its_script_prints():
+    """Reviews 51 and 52: docs/design.md's table (b = 195.7, overshoots of 300 and 400 % from an
+    older overshoot definition) no longer matched analysis/damping_comparison.py, and no test said
+    so. The page's block is now the script's table (``--write-docs``), cell for cell, and
+    docs/index.md's "2.4-4x faster" is the scheduled damping's settling against the scenario's b
+    after the two upward switches, its "as fast after the downward one" within 5 %."""
+    import importlib.util
+    import pathlib
+
+    root = pathlib.Path(__file__).parents[1]
+    spec = importlib.util.spec_from_file_location("damping_comparison", root / "analysis" / "damping_comparison.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    runs = script.runs_for(4.0)
+    page = (root / "docs" / "design.md").read_text()
+    block = page.split("<!-- damping_comparison -->\n", 1)[1].split("<!-- end damping_comparison -->")[0]
+    assert block.strip() == script.docs_table(runs)
+    paper, sched = (segs for _, segs in (runs[name] for name in runs if name.startswith(("scenario", "scheduled"))))
+    up = [paper[i].settling_time / sched[i].settling_time for i in (1, 3)]
+    assert f"{min(up):.2g}–{max(up):.2g}× faster" in " ".join((root / "docs" / "index.md").read_text().split())
+    assert paper[2].settling_time == pytest.approx(sched[2].settling_time, rel=0.05)
+    optimal = next(name for name in runs if name.startswith("optimal"))
+    assert f"The optimal b here ({optimal.split('= ')[1]} N s/m)" in " ".join(page.split())
