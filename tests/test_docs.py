@@ -170,6 +170,21 @@ def test_the_reference_states_each_elements_bounds_that_the_schema_enforces():
     assert checked >= 11          # m and k two bounds each, b two, kd, kp and the three rotational ones
 
 
+def test_the_reference_states_optional_bounds_and_the_laws_units():
+    """Review 51: ``requirements.first_contact_overshoot`` showed range "–" though 0 <= x <= 1000 is
+    enforced (an optional bounded number's bounds sit inside its union), and the laws' parameters
+    showed unit "–" beside "N" or "N/m" in their own meaning. Each bound the schema enforces on an
+    optional number is in its row; a row whose meaning ends in a unit names it in the unit column."""
+    from tmtcontrol.simulation.scenario import scenario_reference
+
+    rows = [r.split(" | ") for r in scenario_reference().splitlines() if r.startswith("| `")]
+    overshoot = next(r for r in rows if r[0] == "| `first_contact_overshoot`")
+    assert overshoot[3] == "≥ 0, ≤ 1000"
+    unit = re.compile(r", (N/m|N|m/\(N s\))(?: \|)?$")
+    with_unit = [(r[1], m.group(1)) for r in rows if (m := unit.search(r[-1].split(";")[0]))]
+    assert len(with_unit) >= 9 and all(shown == said for shown, said in with_unit), with_unit
+
+
 def test_the_force_filters_quoted_response_is_its_own():
     """docs/scenario.md quotes the discrete filter's -3 dB points and its gain at the Nyquist
     frequency (review 22): recomputed here from the package's pole, |H| = (1 - a)/|1 - a e^(-jw)|,

@@ -40,7 +40,8 @@ class IntegralParameters(LawParameters):
     kind: Literal["integral"] = "integral"
     k_i: Annotated[float, Field(
         gt=0, allow_inf_nan=False, strict=True,
-        description="integral gain from force error to reference, m/(N s)")] = 0.03
+        description="integral gain from force error to reference, m/(N s)",
+        json_schema_extra={"unit": "m/(N s)"})] = 0.03
 
 
 def _update(y, p, s):

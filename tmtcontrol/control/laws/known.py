@@ -23,7 +23,8 @@ __all__ = ["KnownParameters", "KNOWN"]
 class KnownParameters(LawParameters):
     kind: Literal["known"] = "known"
     assumed_stiffness: Annotated[float, Field(gt=0, allow_inf_nan=False, strict=True,
-                                              description="assumed environment stiffness k_e, N/m")] = 5e3
+                                              description="assumed environment stiffness k_e, N/m",
+                                              json_schema_extra={"unit": "N/m"})] = 5e3
 
 
 def _update(y, p, s):

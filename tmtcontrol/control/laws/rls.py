@@ -66,24 +66,25 @@ D_REF = 1e-3
 estimate)."""
 
 
-def _num(description, **bounds):
-    return Annotated[float, Field(allow_inf_nan=False, strict=True, description=description, **bounds)]
+def _num(description, unit=None, **bounds):
+    extra = {"json_schema_extra": {"unit": unit}} if unit else {}
+    return Annotated[float, Field(allow_inf_nan=False, strict=True, description=description, **extra, **bounds)]
 
 
 class RlsParameters(LawParameters):
     kind: Literal["rls"] = "rls"
-    initial_stiffness: _num(gt=0, description="k_e estimate before the first update, N/m") = 1e4
+    initial_stiffness: _num(gt=0, description="k_e estimate before the first update, N/m", unit="N/m") = 1e4
     forgetting: _num(gt=0, le=1, description="forgetting factor lambda per sample "
                      "(memory ~ Ts/(1 - lambda))") = 0.995
     initial_covariance: _num(gt=0, description="initial covariance P0 = p0 I (dimensionless, "
                              "regressor scaled by 1 mm)") = 100.0
     covariance_bound: _num(gt=0, description="bound on the trace of P (dimensionless)") = 1e4
     reset_error: _num(gt=0, description="a prediction error above it resets the covariance to P0 "
-                      "(the surface changed), N") = 2.0
-    force_threshold: _num(gt=0, description="the estimate updates only while f_m > 2x this, N") = 0.5
-    min_stiffness: _num(gt=0, description="lower clip of the stiffness estimate, N/m") = 100.0
+                      "(the surface changed), N", unit="N") = 2.0
+    force_threshold: _num(gt=0, description="the estimate updates only while f_m > 2x this, N", unit="N") = 0.5
+    min_stiffness: _num(gt=0, description="lower clip of the stiffness estimate, N/m", unit="N/m") = 100.0
     max_stiffness: _num(gt=0, description="upper clip of the stiffness estimate, N/m; above the surface's "
-                        "k_e, or the estimate is pinned below it and the loop need not settle") = 1e8
+                        "k_e, or the estimate is pinned below it and the loop need not settle", unit="N/m") = 1e8
 
     @model_validator(mode="after")
     def _clip_order(self):

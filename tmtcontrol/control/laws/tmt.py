@@ -82,10 +82,12 @@ class TmtParameters(LawParameters):
     kind: Literal["tmt"] = "tmt"
     force_threshold: Annotated[float, Field(
         gt=0, allow_inf_nan=False, strict=True,
-        description="below it the f_e = 0 branch of eq. (18) is used, blended up to twice it, N")] = 0.5
+        description="below it the f_e = 0 branch of eq. (18) is used, blended up to twice it, N",
+        json_schema_extra={"unit": "N"})] = 0.5
     min_stiffness: Annotated[float, Field(
         gt=0, allow_inf_nan=False, strict=True,
-        description="lower bound of the stiffness estimate (upper bound of its compliance), N/m")] = 100.0
+        description="lower bound of the stiffness estimate (upper bound of its compliance), N/m",
+        json_schema_extra={"unit": "N/m"})] = 100.0
 
 
 def _update(y, p, s):

@@ -142,6 +142,17 @@ def scenario_reference() -> str:
         # each element's bounds, of a tuple of any length or of a fixed length (impedance.m: 3 masses), also
         # when optional (impedance.kd); review 23: the fixed-length tuples' bounds were left out
         ann = info.annotation
+        import types
+        from typing import Annotated, Union
+
+        optional = get_args(ann) if get_origin(ann) in (Union, types.UnionType) else ()
+        for a in optional:          # an optional bounded number (requirements.first_contact_overshoot, review 51)
+            if get_origin(a) is Annotated and get_args(a)[0] in (int, float):
+                for m in a.__metadata__:
+                    for item in (getattr(m, "metadata", None) or [m]):
+                        for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                            if getattr(item, attr, None) is not None:
+                                parts.append(f"{op} {getattr(item, attr):g}")
         tuples = [a for a in (ann, *get_args(ann)) if get_origin(a) is tuple]
         elements = [e for e in get_args(tuples[0]) if e is not Ellipsis] if tuples else []
         if elements and all(e == elements[0] for e in elements):
