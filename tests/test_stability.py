@@ -572,3 +572,17 @@ def test_the_steady_force_line_does_not_contradict_itself_over_rounding(capsys, 
     assert main(["analyze", "--scenario", str(known)]) in (0, 1)
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("steady-state force"))
     assert "does not hold here" in line, line
+
+
+@pytest.mark.parametrize("b, shown", [
+    (0.0, "0-45.83j, 0+45.83j"),                              # undamped: +-j sqrt((k + k_e)/m), no "-0"
+    (2 * math.sqrt(2100.0), "-45.83, -45.83"),                # critical: the double pole -sqrt(2100), real
+    (60.0, "-30-34.64j, -30+34.64j")])                        # -b/2m +- j sqrt(2100 - 900)
+def test_the_poles_line_shows_no_rounding_residue(b, shown):
+    """Review 52: the critically damped loop's poles printed "-45.83-5.865e-07j" and the undamped
+    one's "-0-45.83j". Closed forms for m = 1 kg, k = 100 N/m, k_e = 2000 N/m."""
+    from tmtcontrol.stability import analyze, format_analysis
+
+    line = next(r for r in format_analysis(analyze(m=1.0, b=b, k=100.0, k_e=2000.0)).splitlines()
+                if r.startswith("poles (eq. 22)"))
+    assert line.split(None, 3)[3] == shown

@@ -48,7 +48,8 @@ def check_analysed_system(rng) -> CheckResult:
     from ..stability import continuous
 
     name, eq = "analysed eq. (22) system", "(22)"
-    claim = "the state space and transfer function analysed have the roots of m s^2 + b s + k + k_e; BIBO iff b > 0"
+    claim = ("the state space and transfer function analysed have the roots of m s^2 + b s + k + k_e; BIBO iff b > 0 "
+             "(the analysis counts a damping ratio within 1e-9 of 0 as 0, stability.continuous.MARGINAL)")
     res, ok = 0.0, True
     try:
         for i in range(12):

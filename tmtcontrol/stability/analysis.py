@@ -291,6 +291,15 @@ def _set_by_rows(d: dict) -> list[str]:
             f"{growth:.3g} just below: the radius is no margin)", noise]
 
 
+def _pole(re: float, im: float) -> str:
+    """A pole to 4 significant digits, without the parts the digits cannot show: a real or imaginary
+    part below 1e-6 of its modulus is rounding (review 52: a critically damped loop's double pole
+    printed "-45.83-5.865e-07j", an undamped one's "-0-45.83j")."""
+    size = math.hypot(re, im)
+    re, im = (0.0 if abs(v) <= 1e-6 * size else v for v in (re, im))
+    return f"{re + 0.0:.4g}" if im == 0.0 else f"{re + 0.0:.4g}{im:+.4g}j"
+
+
 def format_analysis(d: dict) -> str:
     """The analysis as a readable table."""
     yes = lambda v: "yes" if v else "NO"
@@ -302,7 +311,7 @@ def format_analysis(d: dict) -> str:
         rows.append(f"stiffness            {d['k_e']:.6g} N/m")
     rows += [
         f"impedance            m = {d['m']:g} kg, b = {d['b']:g} N s/m, k = {d['k']:g} N/m, f_d = {d['f_d']:g} N",
-        "poles (eq. 22)       " + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in d["poles"]),
+        "poles (eq. 22)       " + ", ".join(_pole(re, im) for re, im in d["poles"]),
         f"natural frequency    {d['natural_frequency']:.4g} rad/s",
         f"damping ratio        {d['damping_ratio']:.4g}",
         f"BIBO stable          {yes(d['bibo_stable'])}",
@@ -322,7 +331,7 @@ def format_analysis(d: dict) -> str:
                     + ("the law declares no continuous-time model: its verdict is the sampled loop's below"
                        if d["law_poles"] is None else
                        f"its own loop ({at}, with the inner loop of eq. (6)): poles "
-                       + ", ".join(f"{re:.4g}{im:+.4g}j" for re, im in d["law_poles"])
+                       + ", ".join(_pole(re, im) for re, im in d["law_poles"])
                        + f", least damping ratio {d['law_damping_ratio']:.4g}, "
                        + ("stable" if d["law_stable"] else "UNSTABLE")))
     if "worst_damping_ratio" in d:
