@@ -744,3 +744,65 @@ def test_an_input_file_is_read_in_mebibyte_chunks(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "read", lambda fd, n: asked.append(n) or real(fd, n))
     assert len(text) == 5 * 2**19 and scenario.read_text_file(path) == text
     assert asked == [2**20] * 4          # 1 + 1 + 0.5 MiB, then the end of the file
+
+
+# -- the fifteenth session's mutation run (seed 8) on model/robot.py: its survivors -------------------
+
+def _ur5_text(**dynamics):
+    import importlib.resources
+    import re
+
+    text = importlib.resources.files("tmtcontrol.model").joinpath("data", "ur5.urdf").read_text()
+    return re.sub(r'damping="0.0" friction="0.0"', 'damping="{damping}" friction="{friction}"'.format(**dynamics),
+                  text)
+
+
+def test_a_urdf_arms_smooth_coulomb_friction_is_tanh_of_dq_over_its_velocity_scale(tmp_path):
+    """Mutant robot.py ReplaceBinaryOperator_Div_Sub:0 (``tanh(dq - v)`` for ``tanh(dq / v)``):
+    the URDF path's smooth friction against its closed form b dq + f_c tanh(dq / v), with the
+    URDF's <dynamics damping="0.5" friction="2.0"> on every joint, v = 0.05 rad/s."""
+    from tmtcontrol.model.robot import load_robot
+
+    path = tmp_path / "arm.urdf"
+    path.write_text(_ur5_text(damping=0.5, friction=2.0))
+    arm = load_robot(str(path), tip="tool0", friction="smooth", coulomb_velocity=0.05, cache=False)
+    dq = np.array([0.05, -0.1, 0.01, 0.2, -0.02, 0.0])
+    np.testing.assert_allclose(arm.friction(dq), 0.5 * dq + 2.0 * np.tanh(dq / 0.05), rtol=1e-14, atol=1e-15)
+
+
+def test_a_negative_armature_is_refused_and_zero_is_not():
+    """Mutant robot.py ReplaceComparisonOperator_Lt_Eq:2 (``arm == 0`` for ``arm < 0``): a rotor
+    inertia below zero is refused in one line naming armature; zeros are valid (no rotor)."""
+    from tmtcontrol.model.robot import load_robot
+    from tmtcontrol.model.urdf import URDFError
+
+    with pytest.raises(URDFError, match=r"^armature: expected 6 finite values >= 0"):
+        load_robot("ur5", armature=[0.1, -0.01, 0.1, 0.1, 0.1, 0.1], cache=False)
+    assert load_robot("ur5", armature=[0.0] * 6, cache=False).n == 6
+
+
+def test_a_cache_folder_name_keeps_letters_digits_dash_and_underscore():
+    """Mutant robot.py AddNot:32 (``not c.isalnum()``): the name of an arm's compiled-code folder
+    keeps its letters, digits, '-' and '_' and replaces the rest, at most 40 characters."""
+    from tmtcontrol.model.robot import _safe
+
+    assert _safe("UR5e arm/v2.1") == "UR5e_arm_v2_1"
+    assert _safe("panda-hand_tcp") == "panda-hand_tcp" and _safe("") == "robot" and len(_safe("x" * 99)) == 40
+
+
+def test_a_compiled_library_is_used_only_with_its_own_checksum(tmp_path):
+    """Mutant robot.py ReplaceComparisonOperator_Eq_GtE:6 (``>=`` for ``==``): a stored library is
+    read back only when its recorded SHA-256 is its own; a checksum that differs, above or below
+    it in string order, makes it unverifiable (rebuilt)."""
+    import hashlib
+
+    from tmtcontrol.model.robot import _sidecar, _store, _verified
+
+    lib = tmp_path / "lib.so"
+    _store(lib, b"compiled code")
+    assert _verified(lib) == b"compiled code"
+    own = hashlib.sha256(b"compiled code").hexdigest()
+    for other in ("0" * 64, "f" * 64):
+        assert other != own
+        _sidecar(lib).write_text(other)
+        assert _verified(lib) is None
