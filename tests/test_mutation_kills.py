@@ -806,3 +806,21 @@ def test_a_compiled_library_is_used_only_with_its_own_checksum(tmp_path):
         assert other != own
         _sidecar(lib).write_text(other)
         assert _verified(lib) is None
+
+
+def test_the_scenario_a_design_runs_keeps_its_tangential_impedance():
+    """Mutant design.py NumberReplacer:328 of the seed-8 run (an index of the tangential b or k
+    moved, e.g. ``imp.b[1]`` for ``imp.b[2]``): every bundled scenario has equal tangential gains,
+    so nothing told them apart. The designed scenario runs the design's b and k on the normal axis
+    and the scenario's own, unequal here, on the tangential axes, at the design's rate and delay;
+    a --filter-hz pole comes back as the cut-off whose pole it is."""
+    from tmtcontrol import apply_overrides
+    from tmtcontrol.stability.design import designed_scenario
+
+    sc = apply_overrides(paper_scenario(), ["impedance.b=[60.0, 25.0, 35.0]", "impedance.k=[100.0, 150.0, 250.0]"])
+    alpha = 0.5
+    r = SimpleNamespace(b=193.7, k=120.0, spec=SimpleNamespace(Ts=0.002, delay=1, alpha=alpha))
+    out = designed_scenario(sc, r)
+    assert list(out.impedance.b) == [193.7, 25.0, 35.0] and list(out.impedance.k) == [120.0, 150.0, 250.0]
+    assert out.controller.Ts == pytest.approx(0.002, rel=1e-15) and out.controller.delay_samples == 1
+    assert out.sensor.pole(0.002) == pytest.approx(alpha, rel=1e-12)

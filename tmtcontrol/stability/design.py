@@ -54,7 +54,7 @@ from .sampled import spectral_radius
 __all__ = ["DesignError", "DesignInfeasible", "DesignSpec", "DesignResult", "design_impedance", "ise_closed_form",
            "ImpedanceCheck", "check_impedance",
            "overshoot_closed_form", "sampled_overshoot", "damping_alternatives", "format_design",
-           "scenario_design_spec", "with_scenario_loop", "DESIGN_OVERSHOOT", "overshoot_bound"]
+           "scenario_design_spec", "with_scenario_loop", "designed_scenario", "DESIGN_OVERSHOOT", "overshoot_bound"]
 
 
 SAMPLING_MARGIN = 1e-3
@@ -830,6 +830,20 @@ def scenario_design_spec(scenario, params: dict | None = None, **overrides) -> D
     return DesignSpec(**{**base, **kw})
 
 
+def designed_scenario(scenario, r: DesignResult):
+    """``scenario`` running ``r``'s design: its normal axis's b and k (the
+    tangential axes keep the scenario's own), the design's rate, delay and,
+    from ``--filter-hz``, the force filter's cut-off."""
+    from ..simulation.scenario import apply_overrides
+
+    s, imp = r.spec, scenario.impedance
+    sets = [f"impedance.b=[{r.b!r}, {imp.b[1]!r}, {imp.b[2]!r}]", f"impedance.k=[{r.k!r}, {imp.k[1]!r}, {imp.k[2]!r}]",
+            f"controller.rate={1.0 / s.Ts!r}", f"controller.delay_samples={s.delay}"]
+    if s.alpha != scenario.sensor.pole(s.Ts):      # --filter-hz: the pole exp(-2 pi f_c Ts) back to its cut-off
+        sets.append(f"sensor.filter_cutoff={(-math.log(s.alpha) / (2 * math.pi * s.Ts) if s.alpha > 0 else 0.0)!r}")
+    return apply_overrides(scenario, sets)
+
+
 def with_scenario_loop(scenario, r: DesignResult) -> DesignResult:
     """``r`` with, where the scenario's loop has what the design's 1-D
     sampled model leaves out (``controller.hold`` other than the zero-order
@@ -843,16 +857,9 @@ def with_scenario_loop(scenario, r: DesignResult) -> DesignResult:
     there, not 2)."""
     if scenario.controller.hold == "zero_order":
         return r
-    from ..simulation.scenario import apply_overrides
     from .wholeloop import whole_loop_limit
 
-    s, imp = r.spec, scenario.impedance
-    sets = [f"impedance.b=[{r.b!r}, {imp.b[1]!r}, {imp.b[2]!r}]", f"impedance.k=[{r.k!r}, {imp.k[1]!r}, {imp.k[2]!r}]",
-            f"controller.rate={1.0 / s.Ts!r}", f"controller.delay_samples={s.delay}"]
-    if s.alpha != scenario.sensor.pole(s.Ts):      # --filter-hz: the pole exp(-2 pi f_c Ts) back to its cut-off
-        sets.append(f"sensor.filter_cutoff={(-math.log(s.alpha) / (2 * math.pi * s.Ts) if s.alpha > 0 else 0.0)!r}")
-    sc = apply_overrides(scenario, sets)
-    limit, _ = whole_loop_limit(sc, points=8, rtol=1e-3, within=s.k_e_min)
+    limit, _ = whole_loop_limit(designed_scenario(scenario, r), points=8, rtol=1e-3, within=r.spec.k_e_min)
     return dataclasses.replace(r, info={**r.info, "scenario_loop_limit": float(limit),
                                         "scenario_hold": scenario.controller.hold.replace("_", "-")})
 
