@@ -824,3 +824,32 @@ def test_the_scenario_a_design_runs_keeps_its_tangential_impedance():
     assert list(out.impedance.b) == [193.7, 25.0, 35.0] and list(out.impedance.k) == [120.0, 150.0, 250.0]
     assert out.controller.Ts == pytest.approx(0.002, rel=1e-15) and out.controller.delay_samples == 1
     assert out.sensor.pole(0.002) == pytest.approx(alpha, rel=1e-12)
+
+
+# -- the seed-8 run's survivors in simulation/simulator.py ------------------------------------------------
+
+def test_the_run_size_refusal_estimates_60_doubles_twice_and_a_csv_row_per_step():
+    """Mutant simulator.py ReplaceBinaryOperator_Mul_LShift:0 (``8 << 2 * 60 + 300``): the refusal's
+    memory estimate is 8 B x 2 x 60 + 300 B = 1,260 B per control step (its docstring); the paper
+    at 1,000 cycles of its 4 s period is 4,000,000 steps at 1 kHz, 4e6 x 1,260 / 2^30 = 4.7 GiB."""
+    from tmtcontrol import apply_overrides
+    from tmtcontrol.simulation.scenario import ScenarioError
+    from tmtcontrol.simulation.simulator import check_run_size
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=1000"])
+    assert 4e6 * 1260 / 2 ** 30 == pytest.approx(4.69, abs=0.01)
+    with pytest.raises(ScenarioError, match=r"4,000,000 control steps \(4000 s at 1000 Hz, about 4\.7 GiB\)"):
+        check_run_size(sc)
+
+
+def test_the_path_check_samples_one_period_evenly():
+    """Mutant simulator.py ReplaceBinaryOperator_Mul_FloorDiv:3 (``arange(N) // period``): the path's
+    pose check (IK, conditioning) samples one period of the path at N even times, t_i = i T / N,
+    so it sees the whole circle, not its first quarter."""
+    from tmtcontrol.simulation.posture import PATH_SAMPLES
+    from tmtcontrol.simulation.simulator import path_of, robot_of
+
+    sc = paper_scenario()
+    path = path_of(robot_of(sc), sc)
+    T = sc.trajectory.period
+    np.testing.assert_allclose(path.t, np.arange(PATH_SAMPLES) * T / PATH_SAMPLES, rtol=0, atol=1e-15 * T)
