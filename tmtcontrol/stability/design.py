@@ -30,7 +30,9 @@ decided before IPOPT by a scan of b whose boundaries are bisected
 (:func:`_diagnose`): a window narrower than the scan's grid is found, and
 an infeasible spec quotes the real boundaries. The result is
 verified by iterating the same sampled loop numerically at 60 stiffnesses
-between the grid points (a simulation of the normal axis), scored beside
+between the grid points (a simulation of the normal axis, followed until
+it settles: a solver's b whose first-contact peak comes after the window
+its constraint looks at is raised to the smallest b that passes), scored beside
 the eq. (25) worst-case rule ``b = 2 sqrt(m (k + k_e_max))``; the continuous
 eq. (22) overshoot is reported alongside.
 """
@@ -322,10 +324,7 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
                           alpha=spec.alpha, d_e=0.0, delay=spec.delay, inputs=(b, k))
     n = max(2, int(math.ceil(duration / spec.Ts)))
     acc = F.mapaccum("response", n)
-    z0 = np.zeros(F.size1_in(0))
     bm, km = ca.MX.sym("b"), ca.MX.sym("k")
-    Z, f = acc(z0, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
-    X = ca.horzcat(ca.DM(z0[:2]), Z[:2, :])                        # (x, v) at samples 0..n
     if spec.intersample < 0:
         # the verification's form: from any state z0 (a window at a time), the sample states (intersample in
         # NumPy) and the state at its end
@@ -333,6 +332,9 @@ def _contact_response(spec: DesignSpec, k_e: float, duration: float) -> ca.Funct
         Z, f = acc(zm, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
         return ca.Function("contact_states", [zm, bm, km], [f, ca.horzcat(zm[:2], Z[:2, :]), Z[:, -1]],
                            ["z0", "b", "k"], ["f_e", "xv", "z_end"])
+    z0 = np.zeros(F.size1_in(0))
+    Z, f = acc(z0, ca.repmat(bm, 1, n), ca.repmat(km, 1, n))
+    X = ca.horzcat(ca.DM(z0[:2]), Z[:2, :])                        # (x, v) at samples 0..n
     if not spec.intersample:
         return ca.Function("contact_response", [bm, km], [f], ["b", "k"], ["f_e"])
     A, B = _intersample(spec, k_e, spec.intersample)
