@@ -129,38 +129,33 @@ def scenario_reference() -> str:
     """The scenario reference tables of ``docs/scenario.md``, generated from
     the schema: one row per key with unit, default, valid range and meaning;
     one table per kind of each tagged union."""
-    def rng(info) -> str:
-        parts = []
-        for m in info.metadata:
-            for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
-                if getattr(m, attr, None) is not None:
-                    parts.append(f"{op} {getattr(m, attr):g}")
-            if getattr(m, "min_length", None):
-                parts.append("non-empty")
-        from typing import get_args, get_origin
+    def bounds(constraints, prefix="") -> list[str]:
+        """The bounds among ``constraints`` (annotated-types objects, or FieldInfos holding them)."""
+        out = []
+        for m in constraints:
+            for item in (getattr(m, "metadata", None) or [m]):
+                for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
+                    if getattr(item, attr, None) is not None:
+                        out.append(f"{prefix}{op} {getattr(item, attr):g}")
+        return out
 
+    def rng(info) -> str:
+        import types
+        from typing import Annotated, Union, get_args, get_origin
+
+        parts = bounds(info.metadata) + (["non-empty"] if any(getattr(m, "min_length", None)
+                                                              for m in info.metadata) else [])
+        ann = info.annotation
+        # an optional bounded number (requirements.first_contact_overshoot, review 51: its bounds sit in the union)
+        for a in (get_args(ann) if get_origin(ann) in (Union, types.UnionType) else ()):
+            if get_origin(a) is Annotated and get_args(a)[0] in (int, float):
+                parts += bounds(a.__metadata__)
         # each element's bounds, of a tuple of any length or of a fixed length (impedance.m: 3 masses), also
         # when optional (impedance.kd); review 23: the fixed-length tuples' bounds were left out
-        ann = info.annotation
-        import types
-        from typing import Annotated, Union
-
-        optional = get_args(ann) if get_origin(ann) in (Union, types.UnionType) else ()
-        for a in optional:          # an optional bounded number (requirements.first_contact_overshoot, review 51)
-            if get_origin(a) is Annotated and get_args(a)[0] in (int, float):
-                for m in a.__metadata__:
-                    for item in (getattr(m, "metadata", None) or [m]):
-                        for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
-                            if getattr(item, attr, None) is not None:
-                                parts.append(f"{op} {getattr(item, attr):g}")
         tuples = [a for a in (ann, *get_args(ann)) if get_origin(a) is tuple]
         elements = [e for e in get_args(tuples[0]) if e is not Ellipsis] if tuples else []
         if elements and all(e == elements[0] for e in elements):
-            for m in get_args(elements[0])[1:]:
-                for item in (getattr(m, "metadata", None) or [m]):
-                    for attr, op in (("gt", ">"), ("ge", "≥"), ("lt", "<"), ("le", "≤")):
-                        if getattr(item, attr, None) is not None:
-                            parts.append(f"each {op} {getattr(item, attr):g}")
+            parts += bounds(get_args(elements[0])[1:], "each ")
         return ", ".join(parts) or "–"
 
     def fmt(v) -> str:
