@@ -23,7 +23,7 @@ def test_every_script_is_listed():
     assert {p.name for p in (ROOT / "analysis").glob("*.py")} == set(SCRIPTS)
 
 
-HEAVY = {"damping_comparison.py", "sweep_example.py", "transient_growth.py"}
+HEAVY = {"damping_comparison.py", "sweep_example.py", "transient_growth.py", "law_comparison.py"}
 """Scripts run by the heavy step, which .ci/run also runs (the damping comparison: ~7 s; the sweep example:
 ~7 s; the transient growth's two periodic searches: ~12 s)."""
 

@@ -57,6 +57,7 @@ def test_the_cli_refuses_it_in_one_line_and_writes_nothing(tmp_path):
 
 # -- verdicts under sensor noise: a bias is judged with the mean's own uncertainty --------------
 
+@pytest.mark.heavy          # 2.6-11 s on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_the_bias_allowance_has_its_stated_false_alarm_rate_on_white_noise():
     """On i.i.d. Gaussian noise the batch-means statistic mean/SE is Student-t with
     B - 1 = 19 degrees of freedom exactly, so an unbiased segment exceeds the

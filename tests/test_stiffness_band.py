@@ -257,6 +257,7 @@ def test_simulate_no_longer_quotes_a_zero_limit(paper_sim, tmp_path, capsys):
     assert loop == pytest.approx(7.27e5, rel=1e-2)
 
 
+@pytest.mark.heavy          # 2.6-11 s on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_the_limit_with_contact_damping_matches_a_simulator_bisection():
     """d_e = 200 N s/m: the simulated loop's constant-k_e limit (the review measured
     7.27e5 N/m) by bisection in the compiled simulator (first_contact.simulated_limit,
