@@ -487,6 +487,7 @@ def _faulty_export(folder, tmp_path, fault, every_call: str = ""):
     return copy
 
 
+@pytest.mark.heavy          # 2-3 s each on the 2026-12-07 machine (the README's command stays under 3 min)
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_a_crash_exit_or_hang_in_the_users_c_is_one_line_exit_2(exported_inner, tmp_path, fault):
 

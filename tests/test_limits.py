@@ -346,6 +346,7 @@ def test_the_periodic_searchs_own_bracket_is_the_frozen_limits_widened_two_perce
         periodic_search(None, model=model)
 
 
+@pytest.mark.heavy          # 2-3 s each on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_monodromy_along_the_moving_circle_is_the_product_of_independent_jacobians(cheap_model):
     """The tangent-linear rollouts (forward-mode AD in the compiled-step form,
     stability.periodic) against the product A_(N-1) ... A_0 of the whole-loop

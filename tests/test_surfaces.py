@@ -789,6 +789,7 @@ def test_a_sphere_believed_displaced_gives_the_local_normal_error_along_the_path
     assert np.mean(f) - (10.0 + k_eff * s) < -0.015                          # not the plane's answer
 
 
+@pytest.mark.heavy          # 2-3 s each on the 2026-12-07 machine (the README's command stays under 3 min)
 @pytest.mark.parametrize("name", ["ur5-pipe", "panda-bowl"])
 def test_guarded_first_contact_on_a_curved_part(name):
     """The guarded approach on a curved part: from 5 mm above the pipe or

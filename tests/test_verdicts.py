@@ -186,6 +186,7 @@ def test_analyze_with_an_x_e_error_that_keeps_the_tool_off_the_surface_says_so_a
     assert "contact              NONE" not in capsys.readouterr().out
 
 
+@pytest.mark.heavy          # 2-3 s each on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_a_harmless_x_e_error_does_not_flip_the_verdict_just_below_the_limit():
     """Review 34: at k_e = 163,410 N/m, 6 N/m below the paper loop's limit (163,416.86 N/m, the
     reviewer's own bisection of the discrete loop; the closed form here gives 163,417), a +1 mm x_e

@@ -136,6 +136,7 @@ def test_surface_location_error_biases_the_force_off_target(paper_sim, x_e_error
     assert seg.verdict == "off_target" and "bias" in seg.reason
 
 
+@pytest.mark.heavy          # 2-3 s each on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_integral_law_with_a_small_gain_is_off_target():
     # k_i = 3e-4 m/(N s): the closed loop's slow root (integral law's characteristic polynomial,
     # control/laws/integral.py) at the softest stiffness 2e3 N/m is -0.028 1/s, a 36 s time constant
