@@ -672,8 +672,6 @@ def _designed(spec: DesignSpec, b0: float | None = None, k0: float | None = None
 
     b_base = 2 * math.sqrt(spec.m * (spec.k + spec.k_e_max))
     dense = np.geomspace(spec.k_e_min, spec.k_e_max, verify_points) if spec.k_e_max > spec.k_e_min else grid
-    dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
-                    for ke, w in zip(dense, spec.event_weights(dense)))
     over = [sampled_overshoot(spec, b_opt, k_opt, ke) for ke in dense]
     info = {}
     if max(over) > spec.max_overshoot + OVERSHOOT_SLACK and np.all(np.isfinite(over)):
@@ -682,8 +680,8 @@ def _designed(spec: DesignSpec, b0: float | None = None, k0: float | None = None
         if raised is not None:
             info["b_from_the_solver"], b_opt = b_opt, raised[0]
             over = raised[1]
-            dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
-                            for ke, w in zip(dense, spec.event_weights(dense)))
+    dense_obj = max(float(w) * ise_closed_form(spec.m, b_opt, k_opt, ke)
+                    for ke, w in zip(dense, spec.event_weights(dense)))
     worst_os = max(over)
     continuous_os = max(overshoot_closed_form(spec.m, b_opt, k_opt, ke) for ke in dense)
 
