@@ -164,6 +164,13 @@ TESTS: dict[str, tuple[str, ...]] = {
                                   "tests/test_mutation_kills.py", "tests/test_joint_limits.py"),
     "tmtcontrol/simulation/simulator.py": ("tests/test_simulate.py", "tests/test_one_loop.py", "tests/test_hold.py",
                                            "tests/test_joint_limits.py", "tests/test_mutation_kills.py"),
+    # the sixteenth session: the URDF dynamics, the reference path and the surface's placement, never measured
+    "tmtcontrol/model/featherstone.py": ("tests/test_urdf.py", "tests/test_pinocchio_loop.py",
+                                         "tests/test_model_checks.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/simulation/trajectory.py": ("tests/test_simulate.py", "tests/test_surfaces.py",
+                                            "tests/test_curved_refusals.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/simulation/geometry.py": ("tests/test_one_loop.py", "tests/test_surfaces.py",
+                                          "tests/test_taskframe.py", "tests/test_mutation_kills.py"),
 }
 
 
