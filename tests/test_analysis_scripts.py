@@ -23,9 +23,9 @@ def test_every_script_is_listed():
     assert {p.name for p in (ROOT / "analysis").glob("*.py")} == set(SCRIPTS)
 
 
-HEAVY = {"damping_comparison.py", "sweep_example.py", "transient_growth.py", "law_comparison.py"}
+HEAVY = {"damping_comparison.py", "sweep_example.py", "transient_growth.py", "law_comparison.py", "noise.py"}
 """Scripts run by the heavy step, which .ci/run also runs (the damping comparison: ~7 s; the sweep example:
-~7 s; the transient growth's two periodic searches: ~12 s)."""
+~7 s; the transient growth's two periodic searches: ~12 s; the noise study: 2.4 s)."""
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.heavy) if n in HEAVY else n for n in sorted(SCRIPTS)])

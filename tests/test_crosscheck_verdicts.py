@@ -41,6 +41,8 @@ def _stub_limits(monkeypatch, limit_value: float, one_d: float):
     return calls
 
 
+# heavy (docs/testing.md's 2 s rule): the module's UR5 runs on both plants take 3 s
+@pytest.mark.heavy
 @pytest.mark.parametrize("below", [True, False])
 def test_crosscheck_calls_a_segment_beyond_the_loops_limit_beyond_limit_on_both_plants(
         monkeypatch, tmp_path, capsys, ur5_short_mujoco, below):
@@ -65,6 +67,8 @@ def test_crosscheck_calls_a_segment_beyond_the_loops_limit_beyond_limit_on_both_
     assert want in capsys.readouterr().out
 
 
+# heavy (docs/testing.md's 2 s rule): the module's UR5 runs on both plants take 3 s
+@pytest.mark.heavy
 def test_crosscheck_rows_carry_each_plants_peak_and_settling(monkeypatch, ur5_short_mujoco):
     """The peak force and the 2 % settling time of each plant's segment, as
     each run's own segment metrics compute them (a swapped pair of columns,
@@ -86,6 +90,8 @@ def test_crosscheck_rows_carry_each_plants_peak_and_settling(monkeypatch, ur5_sh
     assert "peak built-in" in text and "settling MuJoCo" in text
 
 
+# heavy (docs/testing.md's 2 s rule): the module's UR5 runs on both plants take 3 s
+@pytest.mark.heavy
 def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypatch, ur5_short_mujoco):
     """The spring model's agreement rule is issue 41's acceptance (steady
     state within 1e-3 N at f_d = 10 N): a MuJoCo run 2 mN off (within the

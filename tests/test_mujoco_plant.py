@@ -40,6 +40,8 @@ def ur5_short():
     return simulate_on_mujoco(sc), Simulator(sc).run()
 
 
+# heavy (docs/testing.md's 2 s rule): the module's ur5_short runs on both plants take 2.5 s
+@pytest.mark.heavy
 def test_a_short_ur5_run_on_mujoco_tracks_as_the_builtin_plant(ur5_short):
     mj, builtin = ur5_short
     assert mj.info["plant"] == "mujoco (spring contact)"
@@ -51,6 +53,8 @@ def test_a_short_ur5_run_on_mujoco_tracks_as_the_builtin_plant(ur5_short):
     assert np.max(np.abs(mj.q - builtin.q)) < 1e-4                               # rad
 
 
+# heavy (docs/testing.md's 2 s rule): the module's ur5_short runs on both plants take 2.5 s
+@pytest.mark.heavy
 def test_the_logged_force_is_k_e_times_the_penetration_pinocchio_gives(ur5_short):
     from tmtcontrol.model.verify import pinocchio_model
     from tmtcontrol.simulation.simulator import robot_of
@@ -109,6 +113,8 @@ def test_crosscheck_prints_both_plants_and_agrees_on_the_ur5(tmp_path, capsys):
     assert (out / "crosscheck.png").is_file()
 
 
+# heavy (docs/testing.md's 2 s rule): the module's ur5_short runs on both plants take 2.5 s
+@pytest.mark.heavy
 def test_crosscheck_disagrees_when_a_plant_misses_the_force(monkeypatch, ur5_short):
     """A MuJoCo run whose steady force is off by twice the tolerance (a planted plant error): not agreed."""
     import dataclasses
@@ -418,6 +424,8 @@ def test_noise_on_mujoco_is_judged_against_mujocos_noise_free_run(monkeypatch):
     assert noisy.verdict == "off_target" and noisy.tolerance < 0.011      # 10 mN + 6 sigma of 0.1 mN noise's effect
 
 
+# heavy (docs/testing.md's 2 s rule): the module's ur5_short runs on both plants take 2.5 s
+@pytest.mark.heavy
 def test_crosscheck_compares_the_forces_not_the_sizes_of_their_errors(monkeypatch, ur5_short):
     """Regression: 'agree' compared the two steady-state errors (max |f_e - f_d|),
     so two forces on opposite sides of f_d agreed whatever their distance. A

@@ -26,6 +26,8 @@ def test_flipped_damping_in_the_analysed_state_space_fails(monkeypatch):
     assert "analysed eq. (22) system" in _failed(run_loop_checks())
 
 
+# heavy (docs/testing.md's 2 s rule): 2.4 s on 2026-12-07's machine
+@pytest.mark.heavy
 def test_miswired_law_selection_in_the_simulated_loop_fails(monkeypatch):
     import tmtcontrol.simulation.simulator as simulator_module
     from tmtcontrol.control.laws import get_law

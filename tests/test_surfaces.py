@@ -606,6 +606,8 @@ def test_numpy_chart_equals_the_symbolic_one():
         assert np.abs(s.to_base(X) - symbolic).max() < 1e-15, s
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0 s on 2026-12-07's machine
+@pytest.mark.heavy
 def test_a_sweep_over_the_parts_radius_and_path(tmp_path):
     """Surface and path keys are sweep axes (the base scenario names the shape):
     every case runs on its own part; a tighter radius, the same verdict here."""

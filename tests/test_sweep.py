@@ -328,6 +328,8 @@ def test_case_limits_search_first_contact_once_per_case_family(monkeypatch):
     assert calls == [-0.01, -0.005]             # (mutation tool, seed 7: the memo cleared at every new family)
 
 
+# heavy (docs/testing.md's 2 s rule): the paper case's limits, cold, 9 s on 2026-12-07's machine
+@pytest.mark.heavy
 def test_a_diverged_case_row_has_no_limit_object_and_writes(monkeypatch, tmp_path):
     """Review finding: a case whose simulation raises kept the ScenarioLimit object in its
     row (the early return came before it was removed), and the Parquet write of the chunk

@@ -125,7 +125,8 @@ def test_one_compiled_period_is_the_rollouts_first_period_and_the_virtual_machin
 
 
 @pytest.mark.parametrize("name,overrides", [
-    ("paper", ["controller.delay_samples=1"]),
+    # heavy (docs/testing.md's 2 s rule): 2.5 s on 2026-12-07's machine
+    pytest.param("paper", ["controller.delay_samples=1"], marks=pytest.mark.heavy),
     # heavy: compiles the pipe's tangent step with the hold (4 s) and runs the virtual machine's Jacobians
     pytest.param("ur5-pipe", ["controller.hold=\"mid_period\""], marks=pytest.mark.heavy),
 ])

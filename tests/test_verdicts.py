@@ -135,6 +135,8 @@ def test_guarded_approach_keeps_the_first_contact_peak_below_1_5_f_d(approach_ru
     assert seg.verdict == "converged" and seg.steady_state_error < 0.01
 
 
+# heavy (docs/testing.md's 2 s rule): 2.2 s on 2026-12-07's machine
+@pytest.mark.heavy
 def test_first_contact_in_summary_json(tmp_path):
     out = tmp_path / "o"
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", "--out", str(out), "--no-plots",
