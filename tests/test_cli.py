@@ -136,3 +136,37 @@ def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_pat
           "--out", str(tmp_path / "c")])
     assert ("note: simulation.mujoco_contact = 'contact', simulation.mujoco_friction = 0.3: for --plant mujoco "
             "only; the built-in plant ignores them") in capsys.readouterr().err.splitlines()
+
+
+@pytest.mark.parametrize("command", [["analyze"], ["design"], ["check"]])
+def test_set_overrides_the_scenario_of_analyze_design_and_check(command, monkeypatch, capsys):
+    """analyze, design and check take --scenario, and (as simulate, report, compare and crosscheck)
+    --set KEY=VALUE on it: the analysed scenario is the one the same override gives
+    (apply_overrides, an independent route), not the file's; a bad key is one line, exit 2, before
+    anything runs; --set without --scenario (the flag forms have no scenario) is refused."""
+    from tmtcontrol import checks, stability
+    from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+    from tmtcontrol.stability import design
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def grab(*a, scenario=None, **k):
+        seen.append(scenario if scenario is not None else a[0])
+        raise Stop
+
+    monkeypatch.setattr(stability, "analyze_scenario", grab)
+    monkeypatch.setattr(design, "scenario_design_spec", grab)
+    monkeypatch.setattr(checks, "all_checks", grab)
+    sets = ["controller.x_e_error=0.005", "controller.f_d=5"]
+    with pytest.raises(Stop):
+        main([*command, "--scenario", "paper", *[a for s in sets for a in ("--set", s)]])
+    assert seen[0] == apply_overrides(load_scenario("paper"), sets) != load_scenario("paper")
+    assert main([*command, "--scenario", "paper", "--set", "controller.no_such_key=1"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: controller.no_such_key: unknown key (known: ") and line.endswith("(in --set)")
+    assert main([*command, "--set", "controller.f_d=5"]) == 2
+    assert capsys.readouterr().err.strip() == "error: --set: overrides a scenario's value; give --scenario too"
+    assert len(seen) == 1

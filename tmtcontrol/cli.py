@@ -51,6 +51,13 @@ def _add_scenario_args(p, out_default: str):
                    help="refuse runs of more than N control steps (default 1,000,000)")
 
 
+def _add_scenario_set(p) -> None:
+    """``--set`` for a command whose scenario is optional (``--scenario``)."""
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="with --scenario: override a scenario value, e.g. controller.x_e_error=0.005 (repeatable; "
+                        "TOML syntax)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="tmtcontrol",
@@ -127,6 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the true surface (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--plot", metavar="DIR", help="write root locus, damping, step and stability-region figures to DIR")
+    _add_scenario_set(p)
     p.set_defaults(func=_analyze)
 
     p = sub.add_parser(
@@ -159,12 +167,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="first-order force-filter cut-off, Hz (default 0: no filter, or the scenario's)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--plot", metavar="DIR", help="write the cost curve and responses to DIR")
+    _add_scenario_set(p)
     p.set_defaults(func=_design)
 
     p = sub.add_parser("check", help="symbolic checks of the paper's derivation on the implemented code")
     p.add_argument("--scenario", metavar="NAME|FILE", help="also check the task-frame loop of this scenario's arm "
                    "with the ideal inner loop (paper, ur5, panda or a TOML file)")
     p.add_argument("--json", action="store_true", help="print a JSON list instead of the table")
+    _add_scenario_set(p)
     p.set_defaults(func=_check)
 
     p = sub.add_parser("sweep", help="many simulations over grids and random draws of scenario keys",
@@ -263,11 +273,18 @@ def _load(args):
     return _noted(apply_overrides(sc, sets) if sets else sc)
 
 
-def _load_named(name):
-    """The scenario ``name`` (a file or a built-in), its :func:`_noted` lines printed."""
-    from .simulation.scenario import load_scenario
+def _load_named(args):
+    """The scenario ``args.scenario`` (a file or a built-in) with ``args.set``'s
+    overrides, its :func:`_noted` lines held; ``--set`` without ``--scenario``
+    (a flags-only form, which has no scenario to override) is refused."""
+    from .simulation.scenario import apply_overrides, load_scenario
 
-    return _noted(load_scenario(name))
+    if args.scenario is None:
+        if args.set:
+            raise UsageError("--set: overrides a scenario's value; give --scenario too")
+        return None
+    sc = load_scenario(args.scenario)
+    return _noted(apply_overrides(sc, args.set) if args.set else sc)
 
 
 def _noted(sc):
@@ -515,11 +532,12 @@ def _analyze(args) -> int:
     from .stability import analyze, analyze_scenario, format_analysis
 
     flags = ("m", "b", "k", "fd", "ke", "ke_min", "ke_max", "ts", "mp", "delay", "x_e_error")
-    if args.scenario:
+    sc = _load_named(args)
+    if sc is not None:
         for flag in flags:
             if getattr(args, flag) is not None:
-                raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario (set it in the scenario)")
-        sc = _load_named(args.scenario)
+                raise UsageError(f"--{flag.replace('_', '-')}: not allowed with --scenario (set it in the scenario, "
+                                 "or with --set)")
         run = lambda: analyze_scenario(sc, limits=True)
     else:
         for flag in ("m", "b", "k"):
@@ -609,10 +627,10 @@ def _design(args) -> int:
     from .stability.design import DesignSpec, design_impedance, format_design
 
     _check_numbers(args)
-    if args.scenario is not None:
+    sc = _load_named(args)
+    if sc is not None:
         from .stability.design import scenario_design_spec
 
-        sc = _load_named(args.scenario)
         Ts = args.ts if args.ts is not None else sc.controller.Ts
         if args.filter_hz is not None:
             _check_numbers(argparse.Namespace(ts=Ts, filter_hz=args.filter_hz))
@@ -636,7 +654,7 @@ def _design(args) -> int:
     with out if out is not None else contextlib.nullcontext():
         _print_notes()
         result = design_impedance(spec)
-        if args.scenario is not None:
+        if sc is not None:
             from .stability.design import with_scenario_loop
 
             result = with_scenario_loop(sc, result)
@@ -664,11 +682,10 @@ def _check(args) -> int:
     from .checks.derivations import format_checks
     from .files import jsonable
 
-    sc = None
-    if args.scenario is not None:
+    sc = _load_named(args)
+    if sc is not None:
         from .simulation.simulator import robot_of
 
-        sc = _load_named(args.scenario)
         robot_of(sc)                        # an arm that cannot be loaded: one line, exit 2, before any check
         _print_notes()
     results = all_checks(scenario=sc)
