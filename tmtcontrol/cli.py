@@ -508,15 +508,17 @@ def _verdict_exit(sc, segs, memo: dict | None = None) -> int:
         return 1
     from .fmt import num
     from .stability.analysis import deciding_limit
-
     from .stability.continuous import AnalysisError
+    from .stability.onedim import unstable_free_axis
 
+    free = unstable_free_axis(sc)          # said in each reason; the whole loop's search would only agree
     try:
-        lim = deciding_limit(sc, memo=memo)
+        lim = None if free is not None else deciding_limit(sc, memo=memo)
     except AnalysisError as exc:
         lim = f"the loop's limit could not be computed ({str(exc).splitlines()[0]})"
     else:
-        lim = (lim.describe() if lim is not None and lim.limit > 0 else
+        lim = ("limit 0 N/m (an axis without contact is unstable; see the reason)" if free is not None else
+               lim.describe() if lim is not None and lim.limit > 0 else
                "the loop is unstable at the scenario's smallest stiffness (tmtcontrol analyze --scenario)"
                if lim is not None else "no linear prediction (a law without a linear verdict)")
     for i, s in bad:

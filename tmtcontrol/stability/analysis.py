@@ -9,7 +9,8 @@ import numpy as np
 
 from .continuous import AnalysisError, _check, _pos, analyze_continuous, analyze_range
 from .limit import WHOLE_LOOP_RTOL, ScenarioLimit, deciding_limit, periodic_note, with_stiffness_limit
-from .onedim import closed_form_applies, normal_masses, scenario_parameters, scenario_stiffness_limit, scheduled_damping
+from .onedim import (closed_form_applies, free_axes, normal_masses, scenario_parameters, scenario_stiffness_limit,
+                     scheduled_damping, unstable_free_axis)
 from .sampled import sampled_closed_loop, spectral_radius, stable_band, stiffness_band
 
 __all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "deciding_limit", "ScenarioLimit",
@@ -230,6 +231,10 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
         out["x_e_error_from"] = ("the guarded approach's estimate, set where the measured force reaches the "
                                  "detection threshold f_c (f_c/k_e inside the surface, deeper behind a force "
                                  "filter), plus controller.x_e_error")
+    free = free_axes(scenario)
+    out["free_axes"] = [{"axis": name, "kd": kd, "kp": kp, "spectral_radius": rho} for name, kd, kp, rho in free]
+    out["free_axes_stable"] = all(rho < 1.0 for *_, rho in free)
+    out["free_axes_note"] = unstable_free_axis(scenario)
     lim = deciding_limit(scenario, points=points, along_path=limits)
     if lim is not None:
         k_max = out.get("k_e_max", out.get("k_e"))
@@ -256,6 +261,8 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
             out.update({"periodic_limit": lim.periodic, "first_contact_limit": lim.first_contact,
                         "limit": lim.limit, "limit_from": lim.limit_from,
                         "sampled_stable": bool(k_max < lim.limit)})
+    if not out["free_axes_stable"]:         # review 54: whatever the normal axis does
+        out["sampled_stable"] = False
     return out
 
 
@@ -399,5 +406,19 @@ def format_analysis(d: dict) -> str:
                       "settles below it, else a contact limit cycle)"),
                      f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
                      "decides the verdict)"]
+        if "free_axes" in d:
+            rows.append(_free_axes_row(d))
         rows.append(f"sampled stable       {yes(d['sampled_stable'])}")
     return "\n".join(rows)
+
+
+def _free_axes_row(d: dict) -> str:
+    """The row of the axes without contact force (``onedim.free_axes``): stable with the largest
+    spectral radius among them, or the first unstable one."""
+    if not d["free_axes_stable"]:
+        return f"free axes            NO: {d['free_axes_note']}"
+    worst = max(d["free_axes"], key=lambda a: a["spectral_radius"])
+    return (f"free axes            stable ({len(d['free_axes'])} without contact force: the tangential"
+            + (", rotational" if any(a["axis"].startswith("rotational") for a in d["free_axes"]) else "")
+            + (" and null-space posture" if any(a["axis"] == "null-space posture" for a in d["free_axes"]) else "")
+            + f" axes; largest spectral radius {worst['spectral_radius']:.6f}, the {worst['axis']})")

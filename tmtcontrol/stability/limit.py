@@ -394,8 +394,12 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
     if isinstance(limit, ScenarioLimit):
         return _attached(result, float(limit.limit), limit.limit_from)
     from ..control.laws import get_law
+    from .onedim import unstable_free_axis
 
     sc = result.scenario
+    free = unstable_free_axis(sc)      # review 54: a free axis unstable on its own (b_rot = 0) was "converged"
+    if free is not None:
+        return _attached(result, 0.0, free)
     if not get_law(sc.controller.law.kind).linear_analysis:
         return result
     guess, error = _one_d(sc), _has_surface_error(sc)

@@ -5,17 +5,19 @@ f_d, the stiffness range, Ts, the inner-loop gains, the force filter, and the
 robot's effective normal mass along the path); :func:`scenario_stiffness_limit`
 is the largest stable constant k_e of the sampled 1-D loop of its law, the
 limit every verdict and every other analysis starts from
-(:mod:`.analysis`, :mod:`.periodic`). Units are SI.
+(:mod:`.analysis`, :mod:`.periodic`); :func:`free_axes` are the task's
+other axes, which meet no contact force, each a sampled PD loop of its own
+(:func:`.sampled.free_axis_radius`). Units are SI.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .sampled import largest_stable, max_stable_stiffness, spectral_radius
+from .sampled import free_axis_radius, largest_stable, max_stable_stiffness, spectral_radius
 
 __all__ = ["scenario_parameters", "stiffness_seen", "normal_masses", "scenario_stiffness_limit",
-           "closed_form_applies", "scheduled_damping"]
+           "closed_form_applies", "scheduled_damping", "free_axes", "unstable_free_axis"]
 
 
 def scenario_parameters(scenario) -> dict:
@@ -147,3 +149,43 @@ def closed_form_applies(law: str, delay: int, x_e_error: float, k_e_min: float |
         floor = getattr(params if params is not None else get_law("tmt").parameters(), "min_stiffness", 0.0)
         return k_e_min >= floor
     return True
+
+
+def free_axes(scenario) -> list[tuple[str, float, float, float]]:
+    """The loop's axes that meet no contact force, ``(name, K_D 1/s, K_P
+    1/s^2, spectral radius)`` each: the two tangential task axes (eq. 6's
+    gains, ``impedance.kd``/``kp`` or B/M, K/M), on a 6-D task the three
+    rotational ones (``impedance.b_rot/m_rot``, ``k_rot/m_rot``), on a
+    redundant arm the null-space posture (``robot.posture_kd``,
+    ``posture_kp``); each radius of the sampled axis at the scenario's rate,
+    computation delay and hold (:func:`.sampled.free_axis_radius`). None of
+    them depends on k_e, so one above 1 makes the loop unstable at every
+    stiffness, whatever the normal axis does."""
+    from ..simulation.closedloop import MID_PERIOD
+    from ..simulation.simulator import robot_of
+
+    ctl, imp = scenario.controller, scenario.impedance
+    task = robot_of(scenario).task
+    kd, kp = imp.gains
+    gains = [(f"tangential axis {i}", kd[i], kp[i]) for i in (1, 2)]
+    if task.rotational:
+        gains += [(f"rotational axis {i + 1}", b / m, k / m)
+                  for i, (m, b, k) in enumerate(zip(imp.m_rot, imp.b_rot, imp.k_rot))]
+    if task.posture:
+        gains.append(("null-space posture", scenario.robot.posture_kd, scenario.robot.posture_kp))
+    lead = MID_PERIOD if ctl.hold == "mid_period" else 0.0
+    return [(name, float(d), float(p), free_axis_radius(d, p, ctl.Ts, ctl.delay_samples, lead))
+            for name, d, p in gains]
+
+
+def unstable_free_axis(scenario) -> str | None:
+    """Why the loop is unstable at every stiffness, naming the first of
+    :func:`free_axes` whose sampled loop is unstable (its spectral radius,
+    gains and period), or None if every one is stable."""
+    for name, kd, kp, rho in free_axes(scenario):
+        if not rho < 1.0:
+            shown = f"{rho:.6g}" if abs(rho - 1.0) >= 1e-5 else f"1 {'+' if rho >= 1.0 else '-'} {abs(rho - 1.0):.2g}"
+            return (f"unstable at every stiffness: the {name} alone has spectral radius {shown} at Ts = "
+                    f"{scenario.controller.Ts:g} s (K_D = {kd:g} 1/s, K_P = {kp:g} 1/s^2; without delay it "
+                    f"needs Ts K_P/2 < K_D < 2/Ts)")
+    return None

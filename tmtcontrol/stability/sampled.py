@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of
     import control as ct
 
 __all__ = ["largest_stable", "stable_band", "StiffnessBand", "stiffness_band", "effective_mass", "SampledModel", "sampled_closed_loop", "spectral_radius",
-           "spectral_radii", "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
+           "spectral_radii", "free_axis_radius", "max_stable_stiffness", "stability_region", "stiffness_margin", "switch_response"]
 
 
 
@@ -162,6 +162,39 @@ def spectral_radii(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0
 def spectral_radius(m, b, k, k_e, Ts, m_p, **kw) -> float:
     """Largest eigenvalue magnitude of the sampled closed loop (< 1: stable)."""
     return sampled_closed_loop(m, b, k, k_e, Ts, m_p, **kw).spectral_radius
+
+
+def free_axis_radius(kd: float, kp: float, Ts: float, delay: int = 0, lead: float = 0.0) -> float:
+    """Spectral radius (< 1: stable) of a sampled axis that meets no contact
+    force: a tangential or rotational task axis, or the null-space posture,
+    under the ideal inner loop. Its deviation from the reference is a double
+    integrator ``x'' = a`` whose acceleration is held over each period: the
+    PD command of eq. (6) ``c_k = -kp x_k - kd x'_k`` (1/s^2, 1/s; the
+    reference's deviation is 0), with the mid-period hold's ``lead``
+    (``c_k + lead (c_k - c_{k-1})``, ``closedloop.MID_PERIOD``), applied from
+    t_{k+delay}. Without delay and lead its characteristic polynomial is
+    ``z^2 + (Ts^2 kp/2 + Ts kd - 2) z + 1 - Ts kd + Ts^2 kp/2``, stable
+    (Jury) iff ``kp > 0`` and ``Ts kp/2 < kd < 2/Ts``: the hold costs the
+    axis the damping ``Ts kp/2``, so ``kd = 0`` (``impedance.b_rot = 0``)
+    is unstable at every rate."""
+    _pos("Ts", Ts)
+    if not isinstance(delay, (int, np.integer)) or delay < 0:
+        raise AnalysisError(f"delay: expected an integer >= 0 samples, got {delay!r}")
+    h = int(lead != 0.0)
+    n = 2 + h + delay
+    c = np.zeros(n)
+    c[0], c[1] = -kp, -kd                              # the command computed at t_k
+    held = (1.0 + lead) * c - (lead * np.eye(n)[2] if h else 0.0)
+    applied = np.eye(n)[2 + h] if delay else held      # the oldest queued command, or this one
+    A = np.zeros((n, n))
+    A[0] = np.eye(n)[0] + Ts * np.eye(n)[1] + Ts * Ts / 2 * applied
+    A[1] = np.eye(n)[1] + Ts * applied
+    if h:
+        A[2] = c
+    if delay:
+        A[2 + h:n - 1] = np.eye(n)[3 + h:]             # the queue moves up, this period's command last
+        A[n - 1] = held
+    return float(np.max(np.abs(np.linalg.eigvals(A))))
 
 
 @dataclass(frozen=True)

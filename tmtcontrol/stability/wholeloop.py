@@ -392,13 +392,16 @@ class WholeLoopModel:
                 return s, math.inf
             s = s.copy()
             if damped:
-                norm, base = float(np.linalg.norm(r)), s[d].copy()
-                for _ in range(12):
-                    s[d] = base + step
-                    r_new = self._residual(s, u)
-                    if np.all(np.isfinite(r_new)) and float(np.linalg.norm(r_new)) < norm:
-                        break
-                    step = step / 2
+                # a finite residual whose square overflows has the norm inf: no better (review 54: the
+                # overflow's RuntimeWarning was printed as a stray "warning:" line by analyze)
+                with np.errstate(over="ignore"):
+                    norm, base = float(np.linalg.norm(r)), s[d].copy()
+                    for _ in range(12):
+                        s[d] = base + step
+                        r_new = self._residual(s, u)
+                        if np.all(np.isfinite(r_new)) and float(np.linalg.norm(r_new)) < norm:
+                            break
+                        step = step / 2
             else:
                 s[d] += step
         r = self._residual(s, u)
