@@ -853,3 +853,57 @@ def test_the_path_check_samples_one_period_evenly():
     path = path_of(robot_of(sc), sc)
     T = sc.trajectory.period
     np.testing.assert_allclose(path.t, np.arange(PATH_SAMPLES) * T / PATH_SAMPLES, rtol=0, atol=1e-15 * T)
+
+
+# -- the sixteenth session's mutation run (seed 9) on simulation/geometry.py, and review 54 -----------------
+
+@pytest.mark.parametrize("angle", [1e-13, 1e-10, 1e-6, 0.3, 2.0, np.pi - 1e-3, np.pi - 5e-10, np.pi - 1e-13])
+def test_the_rotation_vector_is_scipys_at_tiny_angles_and_near_a_half_turn(angle):
+    """Seed 9: the small-angle branch's theta/sin(theta) ~ 1 + s^2/6 survived as 2 + s^2/6 (an angle
+    below 1e-9 rad read twice its size). Review 54: within 1e-9 rad of pi the sine is below the
+    same 1e-9, so that branch ran there too and read pi - 5e-10 as 5e-10 (no correcting torque at a
+    half turn). Against SciPy's as_rotvec, 1e-9 relative plus 4e-16 rad absolute (a matrix's
+    rounding: tiny angles are read from entries of size 1)."""
+    from scipy.spatial.transform import Rotation
+
+    from tmtcontrol.simulation.geometry import rotation_vector
+
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        axis = rng.normal(size=3)
+        v = angle * axis / np.linalg.norm(axis)
+        got = rotation_vector(Rotation.from_rotvec(v).as_matrix())
+        assert np.abs(got - v).max() <= 1e-9 * angle + 4e-16, (angle, got, v)
+
+
+def test_the_rotation_vectors_jacobian_at_the_identity_is_the_identity():
+    """d log(exp(e^))/de = I at e = 0, where the loop's linearisations sit on a path held exactly;
+    the small-angle branch's constant decides it (2 + s^2/6 gave 2 I)."""
+    import casadi as ca
+
+    from tmtcontrol.simulation.geometry import rotation_vector
+
+    e = ca.SX.sym("e", 3)
+    J = ca.Function("J", [e], [ca.jacobian(rotation_vector(ca.SX.eye(3) + ca.skew(e)), e)])
+    assert np.abs(np.array(J(np.zeros(3))) - np.eye(3)).max() == 0.0
+
+
+def test_the_model_check_of_the_rotation_vector_covers_a_half_turn(monkeypatch):
+    """check's "rotation vector = SciPy's" row drew 30 angles in (1e-6, 3) rad, none near pi
+    (review 54): the old small-angle choice fails it now."""
+    import casadi as ca
+
+    from tmtcontrol.checks import model
+    from tmtcontrol.simulation import geometry
+
+    assert model.rotation_vector_check().passed
+
+    def old(R_e):                                   # the code before review 54's fix
+        R_e = ca.DM(R_e)
+        v = 0.5 * ca.vertcat(R_e[2, 1] - R_e[1, 2], R_e[0, 2] - R_e[2, 0], R_e[1, 0] - R_e[0, 1])
+        s = ca.norm_2(v)
+        theta = ca.atan2(s, 0.5 * (R_e[0, 0] + R_e[1, 1] + R_e[2, 2] - 1))
+        return np.array(ca.if_else(s > 1e-9, theta / ca.fmax(s, 1e-9), 1 + s * s / 6) * v).ravel()
+
+    monkeypatch.setattr(geometry, "rotation_vector", old)
+    assert not model.rotation_vector_check().passed

@@ -76,14 +76,33 @@ def tool_orientation(R: np.ndarray, spin_deg: float = 0.0) -> np.ndarray:
     return np.column_stack([x, np.cross(e_n, x), e_n])
 
 
+NEAR_PI = 1e-2
+"""Below this sine of the angle, and beyond a right angle, :func:`rotation_vector`
+takes the axis from the symmetric part of R (the skew part's ``sin(theta) u``
+has lost it: review 54, an angle within 1e-9 of pi read as about 0)."""
+
+
 def rotation_vector(R_e):
     """``log(R_e)^vee`` (3, rad) of a rotation matrix (CasADi symbol or NumPy
-    array), valid for angles below pi."""
+    array): the angle theta in [0, pi] times the unit axis u. From the skew
+    part ``sin(theta) u`` (with theta/sin(theta) -> 1 at small angles); within
+    :data:`NEAR_PI` of a half turn from the symmetric part,
+    ``(R + R^T)/2 = cos(theta) I + (1 - cos(theta)) u u^T``, its largest
+    diagonal's column, signed as the skew part (at pi itself either sign is
+    the logarithm). Every branch is finite everywhere, so CasADi's derivatives
+    through the unused one are too."""
     if isinstance(R_e, np.ndarray):
         R_e = ca.DM(R_e)
         return np.array(rotation_vector(R_e)).ravel()
     v = 0.5 * ca.vertcat(R_e[2, 1] - R_e[1, 2], R_e[0, 2] - R_e[2, 0], R_e[1, 0] - R_e[0, 1])
     s = ca.norm_2(v)
-    theta = ca.atan2(s, 0.5 * (R_e[0, 0] + R_e[1, 1] + R_e[2, 2] - 1))
+    c = 0.5 * (R_e[0, 0] + R_e[1, 1] + R_e[2, 2] - 1)
+    theta = ca.atan2(s, c)
     scale = ca.if_else(s > 1e-9, theta / ca.fmax(s, 1e-9), 1 + s * s / 6)
-    return scale * v
+    # near a half turn: u u^T from the symmetric part, its largest diagonal's column (u_j^2 >= 1/3 there)
+    B = (0.5 * (R_e + R_e.T) - c * ca.DM.eye(3)) / ca.fmax(1 - c, 1.0)
+    j0 = ca.logic_and(B[0, 0] >= B[1, 1], B[0, 0] >= B[2, 2])
+    col = ca.if_else(j0, B[:, 0], ca.if_else(B[1, 1] >= B[2, 2], B[:, 1], B[:, 2]))
+    u = col / ca.sqrt(ca.fmax(ca.mmax(ca.vertcat(B[0, 0], B[1, 1], B[2, 2])), 1e-12))
+    u = ca.if_else(ca.dot(u, v) < 0, -u, u)
+    return ca.if_else(ca.logic_and(c < 0, s < NEAR_PI), theta * u, scale * v)
