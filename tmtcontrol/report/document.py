@@ -425,11 +425,28 @@ def _segment_rows(segs) -> list[list[str]]:
     over = [o if ok else f"– ({s.verdict.replace('_', ' ')})" for o, s, ok in zip(over, segs, settled)]
     lost = _cells([s.contact_lost_time if s.contact_lost_time > 0 else None for s in segs], "s")
     lost = [c if s.contact_lost_time > 0 else "no" for c, s in zip(lost, segs)]
-    cols = [_cells([s.stiffness for s in segs], "", 4), _cells([s.switch_jump for s in segs], "N"), over, lost,
+    # a first segment's jump is the force at its first sample: residue when the tool starts on the surface, shown 0
+    # beside the forces the run holds, as simulate's table does (review 53: "3.47 x 10^-4 nN" on the Panda's bowl)
+    peak = max((s.peak_force for s in segs if math.isfinite(s.peak_force)), default=0.0)
+    jumps = fmt.column([s.switch_jump for s in segs], "N", 3, attach=True, reference=peak)[1]
+    cols = [_cells([s.stiffness for s in segs], "", 4), jumps, over, lost,
             _cells([s.settling_time for s in segs], "s"), _cells([s.steady_state_error for s in segs], "N"),
             _cells([s.tangential_rms for s in segs], "m")]
     return [[str(i), f"{fmt.num(s.start)}–{fmt.num(s.end)}", *(c[i - 1] for c in cols), s.verdict]
             for i, s in enumerate(segs, 1)]
+
+
+def _orientation_cause(seg, res, sc: Scenario) -> str:
+    """What failed a 6-D segment's tracking when the force did not: its orientation error or its tool
+    axis against the part's normal beyond ``controller.orientation_tolerance`` (review 53: the line said
+    the force tracking failed, beside a force 650x within its tolerance); "" otherwise."""
+    tol = sc.controller.orientation_tolerance
+    if getattr(res, "orientation_error", None) is None or not (
+            seg.orientation_error > tol or seg.normal_tilt + seg.chart_normal_error > tol):
+        return ""
+    return (f" (the tool's orientation, not the force: error {fmt.qty(seg.orientation_error, 'rad')}, axis "
+            f"{fmt.qty(seg.normal_tilt, 'rad')} off the part's normal, against controller.orientation_tolerance "
+            f"{fmt.qty(tol, 'rad')})")
 
 
 def _simulation(rep: Report, sc: Scenario, p: dict):
@@ -460,8 +477,9 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     rep.verdicts.append(Verdict(
         "Force tracking within tolerance (simulation)", ok,
         f"worst steady-state |f_e − f_d| {fmt.qty(worst, 'N')} (tolerance {fmt.qty(tol, 'N')})",
-        f"{len(segs)} segments simulated, "
-        + ("; ".join(f"segment {i} {segs[i - 1].tracking_verdict or segs[i - 1].verdict}" for i in bad)
+        f"{len(segs)} segment{'s' if len(segs) > 1 else ''} simulated, "
+        + ("; ".join(f"segment {i} {segs[i - 1].tracking_verdict or segs[i - 1].verdict}"
+                     + _orientation_cause(segs[i - 1], res, sc) for i in bad)
            + " (not converged)" if bad else "every segment's force converged")
         + (f"; over the arm's limits (judged below): segment{'s' if len(over) > 1 else ''} "
            f"{', '.join(map(str, over))}" if over else "")))
@@ -473,13 +491,17 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
         "the overshoot is the controller's own, after the jump (after a jump above f_d, how far the force then "
         "falls below f_d: 100 % is a contact lost, for the time in the next column). A segment 'converged' "
         "when its last quarter settles within the ripple band. The steady-state error, the tangential RMS "
-        "and a 6-D arm's orientation error are taken over each segment's last quarter."))
+        "and a 6-D arm's orientation error (against its command) and tool axis off the part's normal (at the "
+        "tool point) are taken over each segment's last quarter; the last two are judged against "
+        "controller.orientation_tolerance. Segment 1 starts the run: its jump is the force at its first "
+        "sample."))
     head, rows = ["segment", "time (s)", "k_e (N/m)", "switch jump", "overshoot", "contact lost", "settling 2 %",
                   "steady-state |f_e − f_d|", "tangential RMS (last quarter)", "verdict"], _segment_rows(segs)
     if getattr(res, "orientation_error", None) is not None:     # a 6-D task: the orientation is judged too
-        head.insert(-1, "orientation error")
-        for r, c in zip(rows, _cells([s.orientation_error for s in segs], "rad")):
-            r.insert(-1, c)
+        head[-1:-1] = ["orientation error", "tool axis off the part's normal"]
+        for r, c, t in zip(rows, _cells([s.orientation_error for s in segs], "rad"),
+                           _cells([s.normal_tilt for s in segs], "rad")):
+            r[-1:-1] = [c, t]
     blocks.append(Table("Per-segment metrics", head, rows, verdict_column=len(head) - 1))
     blocks += _limit_blocks(rep, res)
     k_touch = float(res.stiffness[0] if fc.time is None else np.interp(fc.time, res.time, res.stiffness))

@@ -18,7 +18,10 @@ forcing (the path and a sinusoidal stiffness), never over fractions of one:
   tolerance at its end: a bias (wrong x_e, wrong assumed k_e), a slow drift, a
   forced response to a varying stiffness, or a transient still decaying; on
   a 6-D task also a tool orientation error above
-  ``controller.orientation_tolerance`` over the last quarter; on a surface
+  ``controller.orientation_tolerance`` over the last quarter, or the tool's
+  axis that far off the true part's normal at the tool point
+  (``normal_tilt``: a part displaced by ``controller.part_offset``, or the
+  tool point off the commanded one on a curved part); on a surface
   whose chart is approximate (a measured height map:
   ``Surface.chart_error``), also an error that is within the tolerance only
   in the chart, not once the chart's own error (k_e times its depth error;
@@ -199,6 +202,12 @@ class SegmentMetrics:
     from the simulated one (0 on an exact chart: ``Surface.chart_error``)."""
     chart_normal_error: float = 0.0
     """The chart's normal error (rad), its largest over the last quarter."""
+    normal_tilt: float = 0.0
+    """The largest angle (rad) over the last quarter between the tool's axis
+    and the true part's inward normal at the tool point (0 on a position
+    task): what the orientation error, measured against the command on the
+    controller's part, leaves out (a displaced part, the tool point off the
+    commanded one on a curved part; review 54)."""
 
     def as_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
@@ -532,9 +541,13 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
     limits, e_rot = getattr(result, "limits", None), getattr(result, "orientation_error", None)
     from .geometry import surface_of
 
-    surface = surface_of(sc)
+    part = surface = surface_of(sc)
     if surface.exact_chart:                                 # nothing to add
         surface = None
+    if e_rot is not None:
+        from .simulator import robot_of
+
+        fk = robot_of(sc).functions.fk
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -577,7 +590,11 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         chart = (0.0, 0.0) if surface is None else _chart_error(surface, result, i0 + ss.start, i1)
         verdict, reason = _chart_rule(verdict, reason, ss_err, chart, tol, None if e_rot is None else e_o,
                                       sc.controller.orientation_tolerance)
-        tracking = _limits_and_orientation(verdict, reason, None, e_o, sc.controller.orientation_tolerance)[0]
+        verdict, reason = _limits_and_orientation(verdict, reason, None, e_o, sc.controller.orientation_tolerance)
+        tilt = 0.0 if e_rot is None else _normal_tilt(part, fk, result, i0 + ss.start, i1)
+        verdict, reason = _tilt_rule(verdict, reason, tilt, chart[1], sc.controller.orientation_tolerance,
+                                     bool(np.any(np.asarray(sc.controller.part_offset) != 0.0)))
+        tracking = verdict
         verdict, reason = _limits_and_orientation(verdict, reason, use, e_o, sc.controller.orientation_tolerance)
         out.append(SegmentMetrics(
             start=float(t[0]), end=float(t[-1] + result.Ts),
@@ -596,7 +613,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             rate_margin=float(np.min(use.rate_margin)) if use else math.inf,
             position_margin=float(np.min(use.position_margin)) if use else math.inf,
             orientation_error=e_o, tracking_verdict=tracking,
-            chart_force_error=chart[0], chart_normal_error=chart[1],
+            chart_force_error=chart[0], chart_normal_error=chart[1], normal_tilt=tilt,
         ))
     return out
 
@@ -631,12 +648,64 @@ def _chart_rule(verdict: str, reason: str, worst: float, chart: tuple[float, flo
         return "off_target", (f"|f_e - f_d| <= {_N(worst)} in the surface's chart, whose depth is first order: "
                               f"against the distance to the part's closest point the force is up to {_N(f_c)} "
                               f"further off (docs/surfaces.md), beyond the tolerance {_N(tolerance)}")
-    if e_o is not None and e_o + n_c > orientation_tolerance:
-        return "off_target", (f"tool orientation error {e_o * 1e3:.3g} mrad against the chart's normal, which is up "
-                              f"to {n_c * 1e3:.3g} mrad off the normal at the part's closest point "
-                              f"(docs/surfaces.md): beyond controller.orientation_tolerance = "
-                              f"{orientation_tolerance * 1e3:.3g} mrad")
+    if e_o is not None and n_c > 0.0 and e_o + n_c > orientation_tolerance:
+        (e_t, n_t), tol_t = _angles((e_o, n_c), orientation_tolerance, e_o + n_c)
+        return "off_target", (f"tool orientation error {e_t} against the chart's normal, which is up to {n_t} off "
+                              f"the normal at the part's closest point (docs/surfaces.md): beyond "
+                              f"controller.orientation_tolerance = {tol_t}")
     return verdict, reason
+
+
+def _angles(values, bound: float, total: float | None = None) -> tuple[list[str], str]:
+    """Angles (rad) for a verdict's reason in the unit of ``bound`` (rad, mrad,
+    µrad or nrad: review 53, "3.09e-05 mrad" for 30.9 nrad), each with the
+    digits that tell ``total`` (default the first value) from the bound
+    (``fmt.against``: review 54, "0.000262 mrad ... = 0.000262 mrad")."""
+    from .. import fmt
+
+    scale, unit = next(((s, u) for s, u in ((1.0, "rad"), (1e-3, "mrad"), (1e-6, "µrad"))
+                        if abs(bound) >= s * 0.9995), (1e-9, "nrad"))
+    total = values[0] if total is None else total
+    digits = next((d for d in range(3, 7) if fmt.num(total / scale, d) != fmt.num(bound / scale, d)), 6)
+    show = lambda v: fmt.num(v / scale, digits).replace(fmt.NBSP, " ") + f" {unit}"
+    return [show(v) for v in values], fmt.num(bound / scale, digits).replace(fmt.NBSP, " ") + f" {unit}"
+
+
+def _normal_tilt(part, fk, result: SimulationResult, i0: int, i1: int) -> float:
+    """The largest angle (rad) between the tool's axis (its frame's z, which
+    eq. (6)'s rotational task holds on the inward normal:
+    ``geometry.tool_orientation``; ``fk`` the arm's pose Function) and the
+    inward normal of the true part (``part``, the plant's) at the tool point,
+    at the samples ``i0:i1``, at most :data:`CHART_SAMPLES` of them evenly
+    spread."""
+    pick = np.unique(np.linspace(i0, i1 - 1, min(i1 - i0, CHART_SAMPLES)).round().astype(int))
+    axes = np.asarray(fk.map(pick.size)(result.q[:, pick]))[:3, 2::4]     # 4 x 4k: the poses side by side
+    worst = 0.0
+    for z, k in zip(axes.T, pick):
+        n = part.normal(result.position[:, k])
+        worst = max(worst, math.atan2(float(np.linalg.norm(np.cross(z, n))), float(z @ n)))
+    return worst
+
+
+def _tilt_rule(verdict: str, reason: str, tilt: float, n_c: float, tolerance: float,
+               displaced: bool) -> tuple[str, str]:
+    """A ``converged`` segment whose tool axis is more than ``tolerance``
+    (controller.orientation_tolerance, rad) off the true part's normal at the
+    tool point (``tilt``, plus the chart's normal error ``n_c`` on a measured
+    part) is ``off_target``: the orientation error is measured against the
+    command on the controller's part, which a part displaced by
+    ``controller.part_offset`` (``displaced``), or a tool point off the
+    commanded one on a curved part, moves off the true normal (review 54: a
+    0.3 mm offset on the pipe tilted the tool 2.8 mrad, the error read
+    0.017 mrad)."""
+    if verdict != "converged" or tilt + n_c <= tolerance:
+        return verdict, reason
+    (t, n), tol = _angles((tilt, n_c), tolerance, tilt + n_c)
+    why = ("the controller's part is displaced by controller.part_offset" if displaced else
+           "the tool point is off the commanded one on a curved part")
+    chart = f", and the chart's normal up to {n} further (docs/surfaces.md)" if n_c > 0.0 else ""
+    return "off_target", (f"the tool's axis is up to {t} off the part's normal at the tool point ({why}){chart}: "
+                          f"beyond controller.orientation_tolerance = {tol}")
 
 
 def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float):
@@ -670,6 +739,10 @@ def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, toleranc
     error ``e_o`` (rad) exceeds ``tolerance`` is ``off_target``. A failing
     segment's reason says how long the torque sat on its clip
     (``robot.saturate``)."""
+    if verdict == "converged" and e_o > tolerance:
+        (e_t,), tol = _angles((e_o,), tolerance)
+        verdict, reason = "off_target", (f"tool orientation error {e_t} against its command over the last quarter, "
+                                         f"above controller.orientation_tolerance = {tol}")
     if use is not None and verdict != "converged" and np.any(use.saturated > 0):
         # the drive's clip (robot.saturate) shapes the force: say so beside what the verdict blames
         reason = f"{reason}; the torque sat on its clip (robot.saturate): {use.on_clip()}"
@@ -677,11 +750,10 @@ def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, toleranc
         shown = "; ".join(e.text for e in use.excursions[:3])
         more = f" (and {len(use.excursions) - 3} more)" if len(use.excursions) > 3 else ""
         if _RANK[verdict] < _RANK["over_limit"]:
-            return "over_limit", f"{shown}{more}; the force tracking alone: {verdict}"
+            # review 54: an orientation beyond its tolerance read "the force tracking alone: off_target"
+            return "over_limit", (f"{shown}{more}; the force tracking alone: converged" if verdict == "converged"
+                                  else f"{shown}{more}; the tracking alone: {verdict}: {reason}")
         return verdict, f"{reason}; also beyond the arm's limits: {shown}{more}"     # the worse verdict stays
-    if verdict == "converged" and e_o > tolerance:
-        return "off_target", (f"tool orientation error {e_o * 1e3:.3g} mrad over the last quarter, above "
-                              f"controller.orientation_tolerance = {tolerance * 1e3:.3g} mrad")
     return verdict, reason
 
 
