@@ -440,3 +440,12 @@ def test_the_clip_note_says_the_moving_loops_limits_stand_beside_it_only_where_t
     assert one.endswith("; the limits along the path and from first contact follow the moving loop")
     two = clipped_note([(1, "a"), (3, "c")], False)
     assert "the torques of joints 1 (a), 3 (c) reach the drive's clip" in two and "moving loop" not in two
+
+
+def test_an_excursion_just_past_its_bound_shows_the_digits_that_tell_them_apart():
+    """Review 53 (low): "torque -19.03 N m beyond its limit -19.03 N m by 3.64e-05 N m" (the UR5's
+    elbow 36 uN m past a 19.0258 N m limit); value and limit now carry the digits that differ."""
+    L = JointLimits(("a",), (False,), np.array([19.0258]), np.array([INF]), np.array([-INF]), np.array([INF]))
+    (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -19.0258364]]),
+                     1e-3).excursions
+    assert e.text.startswith("joint 1 (a) torque -19.02584 N m beyond its limit -19.0258 N m by 3.64e-05 N m"), e.text

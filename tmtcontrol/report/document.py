@@ -571,13 +571,15 @@ def _limit_blocks(rep: Report, res) -> list:
                           f"none), so none is judged; peak |tau| per joint {peaks}. Set robot.tau_max and "
                           "robot.dq_max to judge the run against the drives.")]
 
-    def pct(x):
-        return "none" if not np.isfinite(x) else f"{100 * x:.1f} %"
+    def pct(x):          # review 53: a margin of -1.9e-6 read "-0.0 %"; 3 significant digits tell its sign
+        return "none" if not np.isfinite(x) else fmt.pct(100 * x)
 
     rows = [[f"{j + 1} ({L.names[j]})", fmt.qty(use.peak_torque[j], L.unit("torque", j)),
-             fmt.qty(L.tau_max[j], L.unit("torque", j)) if np.isfinite(L.tau_max[j]) else "none",
+             # a stated limit to 4 digits (review 53: the Panda's 2.175 rad/s read 2.17)
+             fmt.qty(L.tau_max[j], L.unit("torque", j), 4) if np.isfinite(L.tau_max[j]) else "none",
              pct(use.torque_margin[j]), fmt.qty(use.peak_rate[j], L.unit("rate", j)),
-             fmt.qty(L.dq_max[j], L.unit("rate", j)) if np.isfinite(L.dq_max[j]) else "none", pct(use.rate_margin[j]),
+             fmt.qty(L.dq_max[j], L.unit("rate", j), 4) if np.isfinite(L.dq_max[j]) else "none",
+             pct(use.rate_margin[j]),
              fmt.qty(use.position_margin[j], L.unit("position", j)) if np.isfinite(use.position_margin[j]) else "none"]
             for j in range(len(L.names))]
     head = ["joint", "peak |tau|", "tau_max", "torque margin", "peak |dq|", "dq_max", "rate margin",

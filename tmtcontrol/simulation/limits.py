@@ -129,9 +129,12 @@ class Excursion:
     def text(self) -> str:
         # the value is the worst sample's, the time the first crossing's (review 17: "0.5036 rad/s ... at
         # 2.768 s" read as the value at that time; its peak came at 2.822 s)
-        return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.4g} {self.unit} beyond its limit "
-                f"{self.limit:.4g} {self.unit} by {self.excess:.3g} {self.unit} at worst, from {self.time:.3f} s "
-                f"({self.duration * 1e3:.0f} ms over)")
+        # the value with the digits that tell it from the limit (review 53: "torque -19.03 N m beyond its limit
+        # -19.03 N m by 3.64e-05 N m")
+        digits = next((d for d in range(4, 10) if f"{self.value:.{d}g}" != f"{self.limit:.{d}g}"), 10)
+        return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.{digits}g} {self.unit} beyond its "
+                f"limit {self.limit:.{digits}g} {self.unit} by {self.excess:.3g} {self.unit} at worst, from "
+                f"{self.time:.3f} s ({self.duration * 1e3:.0f} ms over)")
 
     def as_dict(self) -> dict:
         return {"kind": self.kind, "joint": self.name, "value": self.value, "limit": self.limit,
