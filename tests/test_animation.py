@@ -265,3 +265,30 @@ def test_the_renderer_probe_keeps_mujocos_warnings_out_of_the_users_folder(tmp_p
         assert r.returncode == 0, r.stderr
     assert list(quiet.iterdir()) == []
     assert [p.name for p in loud.iterdir()] == ["MUJOCO_LOG.TXT"]
+
+
+def test_the_matplotlib_animation_draws_equal_ranges_equal_and_the_stills_renderer_label_inside(monkeypatch):
+    """Review 53 (low): the fallback's 3-D axes had equal data ranges but matplotlib's default box
+    aspect (4 : 4 : 3), so the pipe's round section was an ellipse and the force arrow's drawn length
+    depended on its direction; and the report's still named its renderer in a title below the
+    picture, outside the saved SVG's view box: the label now lies within the figure."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from tmtcontrol.simulation import animation
+    from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+    from tmtcontrol.simulation.simulator import Simulator, robot_of
+
+    res = Simulator(apply_overrides(load_scenario("paper"), ["trajectory.cycles=0.05"]), compile=False).run()
+    fig, draw, _ = animation._matplotlib_frames(res, robot_of(res.scenario), np.array([0, res.time.size - 1]))
+    ax = fig.axes[0]
+    spans = [np.ptp(lim) for lim in (ax.get_xlim(), ax.get_ylim(), ax.get_zlim())]
+    assert np.allclose(spans, spans[0]) and np.allclose(ax.get_box_aspect() / ax.get_box_aspect()[0], 1.0)
+
+    monkeypatch.setattr(animation, "still", lambda result, robot=None, renderer="auto":
+                        (np.zeros((60, 80, 3), dtype=np.uint8), "matplotlib"))
+    still = animation.still_figure(res)
+    canvas = FigureCanvasAgg(still)
+    canvas.draw()
+    (label,) = [t for t in still.axes[0].texts if t.get_text() == "drawn by matplotlib"]
+    box = label.get_window_extent(canvas.get_renderer())
+    assert 0 <= box.x0 and box.x1 <= still.bbox.width and 0 <= box.y0 and box.y1 <= still.bbox.height, box

@@ -159,7 +159,9 @@ def still_figure(result):
     ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
     ax.imshow(rgb)
     ax.set_axis_off()
-    ax.set_title(f"drawn by {'MuJoCo' if how == 'mujoco' else 'matplotlib'}", fontsize=7, y=0.0, pad=-10)
+    # inside the picture (review 53: a title below the axes fell outside the saved SVG's view box)
+    ax.text(0.01, 0.01, f"drawn by {'MuJoCo' if how == 'mujoco' else 'matplotlib'}", transform=ax.transAxes,
+            fontsize=7, ha="left", va="bottom", color="0.2", bbox={"facecolor": "white", "alpha": 0.7, "lw": 0})
     return fig
 
 
@@ -227,6 +229,7 @@ def _matplotlib_frames(result, robot, idx):
     mid = (lo + hi) / 2
     ax.set(xlim=(mid[0] - half, mid[0] + half), ylim=(mid[1] - half, mid[1] + half),
            zlim=(mid[2] - half, mid[2] + half), xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
+    ax.set_box_aspect((1.0, 1.0, 1.0))        # equal ranges drawn equal (review 53: z 25 % short, a pipe an ellipse)
     ax.set_title(f"{robot.name} on the {tr.surface_name}", fontsize=9)
     arm, = ax.plot([], [], [], "-o", color="tab:blue", lw=3, ms=4)
     trace, = ax.plot([], [], [], color="tab:red", lw=1)
@@ -237,7 +240,7 @@ def _matplotlib_frames(result, robot, idx):
             xlabel="time (s)", ylabel="contact force (N)")
     axf.legend(loc="upper right", fontsize=8)
     label = axf.text(0.02, 0.97, "", transform=axf.transAxes, va="top", fontsize=8)
-    fig.subplots_adjust(left=0.02, right=0.98, wspace=0.25)
+    fig.subplots_adjust(left=0.02, right=0.98, wspace=0.35)
     surface = surface_of(result.scenario)
     arrow = []                                           # the force arrow drawn now (a Line3DCollection), if any
 
