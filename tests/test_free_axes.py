@@ -11,6 +11,7 @@ import pytest
 from tmtcontrol.cli import main
 from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
 from tmtcontrol.stability.onedim import free_axes, unstable_free_axis
+from tmtcontrol.simulation.simulator import Simulator
 from tmtcontrol.stability.sampled import free_axis_radius
 
 
@@ -78,8 +79,8 @@ def test_the_free_axes_are_the_tasks_own():
 def test_simulate_calls_a_run_with_an_unstable_tangential_axis_beyond_limit(b_t, flagged, tmp_path, capsys):
     """The paper with tangential damping b[1] below Ts K_P/2 = 0.05 N s/m (m = 1 kg, k = 100 N/m):
     every segment beyond_limit, exit 1, the line naming the axis; just above it the run keeps its
-    own verdict (converged, exit 0). The run is too short for the growth (0.05/s at b = 0) to show
-    in the force: before the fix each was converged."""
+    own verdict (converged, exit 0). The run is too short for the growth (0.025/s at b = 0: about
+    (Ts K_P/2 - K_D)/2) to show in the force: before the fix each was converged."""
     rc = main(["simulate", "paper", "--no-plots", "--out", str(tmp_path / "o"), "--set", f"impedance.b=[60,{b_t},20]",
                "--set", "trajectory.cycles=0.25"])
     err = capsys.readouterr().err
@@ -87,12 +88,60 @@ def test_simulate_calls_a_run_with_an_unstable_tangential_axis_beyond_limit(b_t,
     assert ("beyond_limit" in err and "the tangential axis 1 alone has spectral radius" in err) == flagged, err
 
 
+@pytest.mark.heavy          # docs/testing.md's 2 s rule: the paper's analysis, 2-4 s
 def test_analyze_names_the_unstable_free_axis_and_exits_1(capsys):
-    """analyze --scenario: the row names the axis, sampled stable NO, exit 1."""
-    assert main(["analyze", "--scenario", "paper", "--set", "impedance.b=[60,0,20]"]) == 1
-    out = capsys.readouterr().out
+    """analyze --scenario: the row names the axis, sampled stable NO, exit 1; the deciding limit every
+    command quotes is 0 and names the axis too (review 55: analyze printed a periodic limit beside
+    "free axes NO", a sweep's row named neither)."""
+    import json
+
+    from tmtcontrol.stability import format_analysis
+
+    assert main(["analyze", "--scenario", "paper", "--set", "impedance.b=[60,0,20]", "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    assert d["limit"] == 0.0 and d["limit_from"] == d["free_axes_note"]
+    assert d["limit_from"].startswith("unstable at every stiffness: the tangential axis 1 alone")
+    out = format_analysis(d)                 # the text analyze prints from the same dict
     assert "free axes            NO: unstable at every stiffness: the tangential axis 1 alone" in out
+    assert "whole loop           not searched: unstable at every stiffness" in out
     assert "sampled stable       NO" in out
+
+
+def test_a_posture_held_in_velocity_only_is_not_unstable():
+    """Review 55 (high): robot.posture_kp = 0 (valid, ge=0) was called unstable at every stiffness: the
+    position's pole at exactly 1 is a drift that stops (the simulator's null-space speed fell 0.83 ->
+    0.13 rad/s over 120 s, the drift levelled at 1.48 rad), not a growth. The velocity loop alone
+    decides: v+ = (1 - Ts K_D) v, radius |1 - Ts K_D| in closed form; K_D = 0 as well leaves the
+    posture uncontrolled (radius 1: not stable)."""
+    for kd in (10.0, 0.5, 1999.0):
+        assert free_axis_radius(kd, 0.0, 1e-3) == pytest.approx(abs(1 - 1e-3 * kd), rel=1e-12)
+    assert free_axis_radius(0.0, 0.0, 1e-3) == 1.0
+    panda = load_scenario("panda")
+    assert unstable_free_axis(apply_overrides(panda, ["robot.posture_kp=0"])) is None
+    assert "null-space posture" in unstable_free_axis(apply_overrides(panda, ["robot.posture_kp=0",
+                                                                              "robot.posture_kd=0"]))
+
+
+@pytest.mark.parametrize("kd_t,scale,diverges", [(1900.0, 1.2, True), (2100.0, 0.85, False)])
+def test_the_controllers_mass_scale_moves_the_upper_edge_as_in_the_simulator(kd_t, scale, diverges):
+    """Review 55 (medium): a controller model of mass scale s gives the arm s times the command, so K_D's
+    upper edge 2/Ts moves to 2/(s Ts): K_D = 1900 1/s with s = 1.2 (edge 1667) was called stable and the
+    simulated PUMA diverged in 61 ms; 2100 with s = 0.85 (edge 2353) was called unstable and stays
+    bounded. Both now as the simulator (an independent implementation: the whole arm, its model)."""
+    from tmtcontrol.simulation.simulator import SimulationError
+
+    sc = apply_overrides(load_scenario("paper"), [f"impedance.kd=[60,{kd_t},20]", f"robot.model_mass_scale={scale}",
+                                                  "trajectory.cycles=0.25"])
+    note = unstable_free_axis(sc)
+    assert (note is not None) == diverges
+    if diverges:
+        assert "times robot.model_mass_scale = 1.2 at the arm" in note
+        with pytest.raises(SimulationError):
+            Simulator(sc, compile=False).run()
+    else:
+        res = Simulator(sc, compile=False).run()
+        tang = np.abs(res.position_task[1:] - res.reference_task[1:]).max(axis=0)
+        assert np.all(np.isfinite(tang)) and tang[-250:].max() < 2 * tang[:250].max() + 1e-3
 
 
 @pytest.mark.heavy
@@ -107,7 +156,7 @@ def test_the_simulated_loop_grows_at_the_free_axis_models_rate(name, sets, axis)
     (after the first) of the orientation error, the tangential error, or the null-space joint
     velocity, within 5 % (measured 0.099-0.103/s, 0.500/s and 0.099/s against 0.1000, 0.4999 and
     0.1000 /s: the path's forced motion is the leftover)."""
-    from tmtcontrol.simulation.simulator import Simulator, robot_of
+    from tmtcontrol.simulation.simulator import robot_of
 
     sc = apply_overrides(load_scenario(name), [*sets, "environment.stiffness.values=[5000]"])
     rho = max(r for *_, r in free_axes(sc))
@@ -123,3 +172,15 @@ def test_the_simulated_loop_grows_at_the_free_axis_models_rate(name, sets, axis)
     env = np.array([x[i:i + w].max() for i in range(0, x.size - w + 1, w)])
     growth = np.log(env[2:] / env[1:-1]) / 4.0
     assert np.all(np.abs(growth / (np.log(rho) / sc.controller.Ts) - 1) < 0.05), (growth, rho)
+
+
+@pytest.mark.heavy          # the design's IPOPT solve on the paper, about 4 s
+def test_design_on_a_scenario_with_an_unstable_free_axis_fails_its_verification(capsys):
+    """Review 55: `design --scenario paper --set impedance.b=[60,0,20]` printed "stable up to k_e =
+    523,500 N/m", exit 0, where analyze found the loop unstable at every stiffness (the design sets
+    the normal axis only); now a violation naming the axis, exit 1."""
+    assert main(["design", "--scenario", "paper", "--set", "impedance.b=[60,0,20]"]) == 1
+    cap = capsys.readouterr()
+    assert "free axes            NO: unstable at every stiffness: the tangential axis 1 alone" in cap.out
+    assert ("design failed its verification: the scenario's loop is unstable at every stiffness: the tangential "
+            "axis 1 alone") in cap.err

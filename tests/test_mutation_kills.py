@@ -907,3 +907,23 @@ def test_the_model_check_of_the_rotation_vector_covers_a_half_turn(monkeypatch):
 
     monkeypatch.setattr(geometry, "rotation_vector", old)
     assert not model.rotation_vector_check().passed
+
+
+@pytest.mark.parametrize("at", ["identity", "half turn"])
+def test_the_rotation_vectors_mx_jacobian_is_finite_at_a_skew_part_of_exactly_zero(at):
+    """Review 55: the loop builds MX, where norm_2's derivative v/|v| was NaN at a skew part of exactly 0
+    (R_d equal to R_tool bit for bit: R R^T is exactly symmetric), at the identity and at exactly pi;
+    the SX test above did not see it. At the identity the Jacobian is I; at a half turn about z it is
+    finite (pi/2 off the diagonal: the log map's derivative there)."""
+    import casadi as ca
+    from scipy.spatial.transform import Rotation
+
+    from tmtcontrol.simulation.geometry import rotation_vector
+
+    e, R0 = ca.MX.sym("e", 3), ca.MX.sym("R0", 3, 3)
+    J = ca.Function("J", [e, R0], [ca.jacobian(rotation_vector(ca.mtimes(ca.MX.eye(3) + ca.skew(e), R0)), e)])
+    R = np.eye(3) if at == "identity" else Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix()
+    got = np.array(J(np.zeros(3), R))
+    assert np.all(np.isfinite(got)), got
+    if at == "identity":
+        assert np.abs(got - np.eye(3)).max() == 0.0

@@ -276,7 +276,9 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     margin = verdict_limit / p["k_e_max"]
     Ts = p["Ts"]
     noise = ""
-    if "limit" in a:
+    if a.get("free_axes_note"):             # unstable at every stiffness: no search ran (review 55)
+        how = a["free_axes_note"]
+    elif "limit" in a:
         path = "frozen-point minimum; the path period is not whole control periods" if "periodic_note" in a \
             else "monodromy over one period"
         how = (f"the smaller of the limit along the path ({path}) and the limit from first contact (the "

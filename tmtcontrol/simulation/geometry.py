@@ -89,13 +89,16 @@ def rotation_vector(R_e):
     :data:`NEAR_PI` of a half turn from the symmetric part,
     ``(R + R^T)/2 = cos(theta) I + (1 - cos(theta)) u u^T``, its largest
     diagonal's column, signed as the skew part (at pi itself either sign is
-    the logarithm). Every branch is finite everywhere, so CasADi's derivatives
-    through the unused one are too."""
+    the logarithm). Every branch is finite everywhere, and so are its
+    derivatives in SX and MX alike: the sine is ``sqrt(fmax(v.v, 1e-300))``,
+    equal to ``norm_2(v)`` bit for bit where it is above 1e-150, whose
+    derivative ``v/|v|`` was NaN in MX at a skew part of exactly 0 (review
+    55: at R_e = I, which ``R R^T`` gives exactly)."""
     if isinstance(R_e, np.ndarray):
         R_e = ca.DM(R_e)
         return np.array(rotation_vector(R_e)).ravel()
     v = 0.5 * ca.vertcat(R_e[2, 1] - R_e[1, 2], R_e[0, 2] - R_e[2, 0], R_e[1, 0] - R_e[0, 1])
-    s = ca.norm_2(v)
+    s = ca.sqrt(ca.fmax(ca.dot(v, v), 1e-300))
     c = 0.5 * (R_e[0, 0] + R_e[1, 1] + R_e[2, 2] - 1)
     theta = ca.atan2(s, c)
     scale = ca.if_else(s > 1e-9, theta / ca.fmax(s, 1e-9), 1 + s * s / 6)

@@ -250,7 +250,7 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
             names = robot_of(scenario).joint_names
             out["whole_loop_note"] = clipped_note([(j, names[j - 1]) for j in lim.whole_loop_clipped],
                                                   limits and lim.periodic_note is None)
-        if limits and lim.limit_from == "unstable at the smallest stiffness":
+        if limits and lim.limit == 0.0:         # unstable at the smallest stiffness, or a free axis at every one
             out.update({"limit": 0.0, "limit_from": lim.limit_from, "sampled_stable": False})
         elif limits:
             if lim.periodic_note is not None:
@@ -382,8 +382,9 @@ def format_analysis(d: dict) -> str:
         if "whole_loop_limit" in d:
             pts = d["whole_loop_points"]
             lo, hi = d.get("whole_loop_bracket", (d["whole_loop_limit"], None))
-            rows.append(f"whole loop           {lo:.6g} N/m (" + (f"stable there, unstable {hi / lo - 1:.0e} "
-                                                                   "above; " if hi is not None and hi > lo else "")
+            rows.append("whole loop           not searched: unstable at every stiffness (free axes below)" if not pts
+                        else f"whole loop           {lo:.6g} N/m (" + (f"stable there, unstable {hi / lo - 1:.0e} "
+                                                                        "above; " if hi is not None and hi > lo else "")
                         + f"smallest over {len(pts)} path points; largest {max(p['limit'] for p in pts):.6g} N/m)")
             if "whole_loop_note" in d:
                 rows.append(f"note                 {d['whole_loop_note']}")

@@ -241,6 +241,9 @@ class DesignResult:
                        "leaves out) " + ("unstable from k_e_min" if loop == 0 else
                                          f"stable only up to k_e = {_below(loop)} N/m < margin x k_e_max "
                                          f"= {_above(need)} N/m"))
+        free = getattr(self, "info", {}).get("free_axis")
+        if free is not None:
+            out.append(f"the scenario's loop is {free}")
         return out
 
     @property
@@ -859,7 +862,16 @@ def with_scenario_loop(scenario, r: DesignResult) -> DesignResult:
     then judges. Review 20: on ur5-pipe (mid-period hold) at 200 Hz a b
     "verified" on the 1-D loop diverged at every stiffness of the range (the
     hold's extrapolation doubles the alternating mode's gain: K_D Ts ~ 1.1
-    there, not 2)."""
+    there, not 2). A scenario whose axes without contact force include an
+    unstable one (``stability.onedim.unstable_free_axis``; the design sets the
+    normal axis only) has it in ``info["free_axis"]``, a violation too
+    (review 55: design said "stable up to 523,500 N/m" where analyze found
+    the loop unstable at every stiffness)."""
+    from .onedim import unstable_free_axis
+
+    free = unstable_free_axis(scenario)
+    if free is not None:
+        r = dataclasses.replace(r, info={**r.info, "free_axis": free})
     if scenario.controller.hold == "zero_order":
         return r
     from .wholeloop import whole_loop_limit
@@ -894,4 +906,5 @@ def format_design(r: DesignResult) -> str:
                                         if r.info["scenario_loop_limit"] > 0 else "unstable from k_e_min")
           + f" with its {r.info['scenario_hold']} hold (whole loop, 8 path points; the 1-D model above leaves "
           "the hold out, so its overshoot is the zero-order hold's: the scenario's may differ slightly)"]
-         if "scenario_loop_limit" in r.info else []))
+         if "scenario_loop_limit" in r.info else [])
+        + ([f"free axes            NO: {r.info['free_axis']}"] if "free_axis" in r.info else []))

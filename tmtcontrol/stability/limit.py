@@ -93,7 +93,9 @@ class ScenarioLimit:
 
     ``limit`` decides the verdict (``limit_from`` says which: ``"periodic
     orbit"``, ``"first contact"``, ``"frozen-point minimum"`` where the loop is
-    not periodic, or ``"unstable at the smallest stiffness"`` with limit 0);
+    not periodic, or ``"unstable at the smallest stiffness"`` with limit 0, or
+    with limit 0 the reason an axis without contact force is unstable at
+    every stiffness, ``stability.onedim.unstable_free_axis``);
     ``small_signal`` is the 1-D sampled loop's (None with the mid-period hold,
     which the 1-D model lacks); ``whole_loop`` the frozen-point minimum with
     ``whole_loop_bracket`` (stable, unstable) and ``whole_loop_points``
@@ -296,6 +298,15 @@ def _computed_limit(scenario, points, along_path, runner):
         return None
     guess = _one_d(scenario)
     small = None if scenario.controller.hold == "mid_period" else guess
+    from .onedim import unstable_free_axis
+
+    free = unstable_free_axis(scenario)
+    if free is not None:
+        # an axis without contact force unstable on its own: unstable at every stiffness, nothing to search; every
+        # command quotes limit 0 and names it (review 55: analyze printed a periodic limit beside "free axes NO",
+        # a sweep's row named neither, and the searches took minutes on a loop unstable everywhere)
+        return ScenarioLimit(0.0, free, small_signal=small, whole_loop=0.0, whole_loop_bracket=(0.0, 0.0),
+                             whole_loop_points=())
     p = scenario_parameters(scenario)
     note = periodic_note(scenario) if along_path else None
     frozen_model = model = None

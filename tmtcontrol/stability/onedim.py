@@ -158,9 +158,15 @@ def free_axes(scenario) -> list[tuple[str, float, float, float]]:
     rotational ones (``impedance.b_rot/m_rot``, ``k_rot/m_rot``), on a
     redundant arm the null-space posture (``robot.posture_kd``,
     ``posture_kp``); each radius of the sampled axis at the scenario's rate,
-    computation delay and hold (:func:`.sampled.free_axis_radius`). None of
-    them depends on k_e, so one above 1 makes the loop unstable at every
-    stiffness, whatever the normal axis does."""
+    computation delay and hold (:func:`.sampled.free_axis_radius`), with
+    the gains the arm meets: the controller's model of mass scale
+    ``robot.model_mass_scale`` = s turns the command into s times the
+    acceleration (review 55: the upper edge 2/Ts of K_D moves to 2/(s Ts)).
+    The inner loop is otherwise ideal: joint friction the controller does not
+    compensate damps an axis further and is left out (an axis only friction
+    holds is not proven stable). None of them depends on k_e, so one above 1
+    makes the loop unstable at every stiffness, whatever the normal axis
+    does. The gains returned are the settings' (before the scale)."""
     from ..simulation.closedloop import MID_PERIOD
     from ..simulation.simulator import robot_of
 
@@ -173,8 +179,8 @@ def free_axes(scenario) -> list[tuple[str, float, float, float]]:
                   for i, (m, b, k) in enumerate(zip(imp.m_rot, imp.b_rot, imp.k_rot))]
     if task.posture:
         gains.append(("null-space posture", scenario.robot.posture_kd, scenario.robot.posture_kp))
-    lead = MID_PERIOD if ctl.hold == "mid_period" else 0.0
-    return [(name, float(d), float(p), free_axis_radius(d, p, ctl.Ts, ctl.delay_samples, lead))
+    lead, s = (MID_PERIOD if ctl.hold == "mid_period" else 0.0), scenario.robot.model_mass_scale
+    return [(name, float(d), float(p), free_axis_radius(s * d, s * p, ctl.Ts, ctl.delay_samples, lead))
             for name, d, p in gains]
 
 
@@ -185,7 +191,9 @@ def unstable_free_axis(scenario) -> str | None:
     for name, kd, kp, rho in free_axes(scenario):
         if not rho < 1.0:
             shown = f"{rho:.6g}" if abs(rho - 1.0) >= 1e-5 else f"1 {'+' if rho >= 1.0 else '-'} {abs(rho - 1.0):.2g}"
+            s = scenario.robot.model_mass_scale
+            scale = "" if s == 1.0 else f", times robot.model_mass_scale = {s:g} at the arm"
             return (f"unstable at every stiffness: the {name} alone has spectral radius {shown} at Ts = "
-                    f"{scenario.controller.Ts:g} s (K_D = {kd:g} 1/s, K_P = {kp:g} 1/s^2; without delay it "
-                    f"needs Ts K_P/2 < K_D < 2/Ts)")
+                    f"{scenario.controller.Ts:g} s (K_D = {kd:g} 1/s, K_P = {kp:g} 1/s^2{scale}; without delay it "
+                    f"needs K_P >= 0 and Ts K_P/2 < K_D < 2/Ts)")
     return None

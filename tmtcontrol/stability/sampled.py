@@ -176,7 +176,10 @@ def free_axis_radius(kd: float, kp: float, Ts: float, delay: int = 0, lead: floa
     ``z^2 + (Ts^2 kp/2 + Ts kd - 2) z + 1 - Ts kd + Ts^2 kp/2``, stable
     (Jury) iff ``kp > 0`` and ``Ts kp/2 < kd < 2/Ts``: the hold costs the
     axis the damping ``Ts kp/2``, so ``kd = 0`` (``impedance.b_rot = 0``)
-    is unstable at every rate."""
+    is unstable at every rate, growing about ``(Ts kp/2 - kd)/2`` per
+    second. With ``kp = 0`` (a posture held in velocity only: review 55)
+    the position does not feed back: its pole at exactly 1 is a drift that
+    stops, not a growth, and the radius is the velocity loop's alone."""
     _pos("Ts", Ts)
     if not isinstance(delay, (int, np.integer)) or delay < 0:
         raise AnalysisError(f"delay: expected an integer >= 0 samples, got {delay!r}")
@@ -194,6 +197,8 @@ def free_axis_radius(kd: float, kp: float, Ts: float, delay: int = 0, lead: floa
     if delay:
         A[2 + h:n - 1] = np.eye(n)[3 + h:]             # the queue moves up, this period's command last
         A[n - 1] = held
+    if kp == 0.0:                                       # nothing reads x: its row is the pole at 1 alone
+        A = A[1:, 1:]
     return float(np.max(np.abs(np.linalg.eigvals(A))))
 
 
