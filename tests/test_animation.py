@@ -292,3 +292,7 @@ def test_the_matplotlib_animation_draws_equal_ranges_equal_and_the_stills_render
     (label,) = [t for t in still.axes[0].texts if t.get_text() == "drawn by matplotlib"]
     box = label.get_window_extent(canvas.get_renderer())
     assert 0 <= box.x0 and box.x1 <= still.bbox.width and 0 <= box.y0 and box.y1 <= still.bbox.height, box
+    from tmtcontrol.report.document import describe
+
+    # its alt text names the picture by that label (the final CI's heavy report test: the title gone, it read "Chart.")
+    assert describe(still) == "Chart. drawn by matplotlib: an image."

@@ -138,10 +138,13 @@ def describe(fig) -> str:
                                      if o.get_xlabel()), "")
         y = ax.get_ylabel() or next((o.get_ylabel() for o in ax.get_shared_y_axes().get_siblings(ax)
                                      if o.get_ylabel()), "")
-        if not (x or y or ax.get_title()):
-            continue
         if not (x or y) and (ax.images or not ax.axison):     # a picture (the arm drawn), not a chart
-            parts.append(f"{ax.get_title()}: an image")
+            # named by its title, else by the words drawn on it (the still's "drawn by MuJoCo", a text inside
+            # the picture since review 53)
+            name = ax.get_title() or "; ".join(t.get_text() for t in ax.texts if t.get_text())
+            parts.append(f"{name}: an image" if name else "an image")
+            continue
+        if not (x or y or ax.get_title()):
             continue
         scale = lambda a: " (log scale)" if a.get_scale() == "log" else ""
         what = f"{y or 'value'}{scale(ax.yaxis)} against {x or 'index'}{scale(ax.xaxis)}"
