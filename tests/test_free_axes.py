@@ -184,3 +184,20 @@ def test_design_on_a_scenario_with_an_unstable_free_axis_fails_its_verification(
     assert "free axes            NO: unstable at every stiffness: the tangential axis 1 alone" in cap.out
     assert ("design failed its verification: the scenario's loop is unstable at every stiffness: the tangential "
             "axis 1 alone") in cap.err
+
+
+def test_the_stable_free_axes_row_names_their_kinds_in_a_list():
+    """analyze's row on the three kinds of task: "the tangential axes", "the tangential and rotational
+    axes", "the tangential, rotational and null-space posture axes" (it read "the tangential,
+    rotational axes" on the UR5), with the largest radius and the axis that has it."""
+    from tmtcontrol.stability.analysis import _free_axes_row
+
+    def row(name):
+        axes = free_axes(load_scenario(name))
+        return _free_axes_row({"free_axes_stable": True,
+                               "free_axes": [{"axis": a, "spectral_radius": r} for a, _, _, r in axes]})
+
+    assert row("paper").startswith("free axes            stable (2 without contact force: the tangential axes; "
+                                   "largest spectral radius 0.990683, the tangential axis 1)")
+    assert "(5 without contact force: the tangential and rotational axes; " in row("ur5")
+    assert "(6 without contact force: the tangential, rotational and null-space posture axes; " in row("panda")

@@ -419,7 +419,8 @@ def _free_axes_row(d: dict) -> str:
     if not d["free_axes_stable"]:
         return f"free axes            NO: {d['free_axes_note']}"
     worst = max(d["free_axes"], key=lambda a: a["spectral_radius"])
-    return (f"free axes            stable ({len(d['free_axes'])} without contact force: the tangential"
-            + (", rotational" if any(a["axis"].startswith("rotational") for a in d["free_axes"]) else "")
-            + (" and null-space posture" if any(a["axis"] == "null-space posture" for a in d["free_axes"]) else "")
-            + f" axes; largest spectral radius {worst['spectral_radius']:.6f}, the {worst['axis']})")
+    kinds = list(dict.fromkeys(a["axis"].removesuffix(" axis 1").removesuffix(" axis 2").removesuffix(" axis 3")
+                               for a in d["free_axes"]))         # tangential, rotational, null-space posture
+    named = kinds[0] if len(kinds) == 1 else f"{', '.join(kinds[:-1])} and {kinds[-1]}"
+    return (f"free axes            stable ({len(d['free_axes'])} without contact force: the {named} axes; largest "
+            f"spectral radius {worst['spectral_radius']:.6f}, the {worst['axis']})")
