@@ -109,6 +109,9 @@ def test_the_reports_tracking_line_names_the_orientation_when_it_failed(displace
     assert text.startswith(" (the tool's orientation, not the force: error ") and "off the part's normal" in text
     assert "controller.orientation_tolerance 0.001\u00a0rad" in text and "0.00284\u00a0rad" in text
     assert _orientation_cause(dataclasses.replace(seg, normal_tilt=0.0), displaced_pipe, sc) == ""
+    # a measured part's rule, error plus the chart's normal error (0.6 + 0.5 mrad > 1 mrad), is one of them too
+    chart = dataclasses.replace(seg, orientation_error=0.6e-3, normal_tilt=0.1e-3, chart_normal_error=0.5e-3)
+    assert _orientation_cause(chart, displaced_pipe, sc).startswith(" (the tool's orientation, not the force")
     assert _orientation_cause(seg, dataclasses.replace(displaced_pipe, orientation_error=None), sc) == ""
 
 

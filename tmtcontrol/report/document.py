@@ -446,8 +446,10 @@ def _orientation_cause(seg, res, sc: Scenario) -> str:
     axis against the part's normal beyond ``controller.orientation_tolerance`` (review 53: the line said
     the force tracking failed, beside a force 650x within its tolerance); "" otherwise."""
     tol = sc.controller.orientation_tolerance
+    # the union of segment_metrics' three orientation rules (e_o alone; e_o or the tilt plus the chart's normal
+    # error): one of them failed the segment exactly when this holds
     if getattr(res, "orientation_error", None) is None or not (
-            seg.orientation_error > tol or seg.normal_tilt + seg.chart_normal_error > tol):
+            max(seg.orientation_error, seg.normal_tilt) + seg.chart_normal_error > tol):
         return ""
     return (f" (the tool's orientation, not the force: error {fmt.qty(seg.orientation_error, 'rad')}, axis "
             f"{fmt.qty(seg.normal_tilt, 'rad')} off the part's normal, against controller.orientation_tolerance "
