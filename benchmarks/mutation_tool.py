@@ -171,6 +171,13 @@ TESTS: dict[str, tuple[str, ...]] = {
                                             "tests/test_curved_refusals.py", "tests/test_mutation_kills.py"),
     "tmtcontrol/simulation/geometry.py": ("tests/test_one_loop.py", "tests/test_surfaces.py",
                                           "tests/test_taskframe.py", "tests/test_mutation_kills.py"),
+    # the seventeenth session: the paper's arm, the law comparison and the figure workers, never measured
+    "tmtcontrol/model/puma560.py": ("tests/test_model_checks.py", "tests/test_robot.py", "tests/test_pinocchio_loop.py",
+                                    "tests/test_simulate.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/simulation/compare.py": ("tests/test_laws.py", "tests/test_files_safety.py",
+                                         "tests/test_presentation.py", "tests/test_mutation_kills.py"),
+    "tmtcontrol/drawing.py": ("tests/test_drawing.py", "tests/test_outputs.py", "tests/test_files_safety.py",
+                              "tests/test_animation.py"),
 }
 
 
