@@ -296,3 +296,28 @@ def test_the_matplotlib_animation_draws_equal_ranges_equal_and_the_stills_render
 
     # its alt text names the picture by that label (the final CI's heavy report test: the title gone, it read "Chart.")
     assert describe(still) == "Chart. drawn by matplotlib: an image."
+
+
+def test_the_matplotlib_animations_frame_label_is_clear_of_the_force_panels_legend_and_inside_the_figure():
+    """Sixteenth session's note: the force panel's "t = ... f_e = ... k_e = ..." line, drawn at the
+    panel's top left, ran under its legend at the top right at the paper's 1,000,000 N/m. Both boxes
+    measured by Agg's renderer on the last frame (the longest k_e of the run)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from tmtcontrol.simulation import animation
+    from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+    from tmtcontrol.simulation.simulator import Simulator, robot_of
+
+    res = Simulator(apply_overrides(load_scenario("paper"), ["trajectory.cycles=0.05"]), compile=False).run()
+    res.stiffness[-1] = 1.0e6                  # the widest k_e the paper's segments print (seven digits, two commas)
+    fig, draw, idx = animation._matplotlib_frames(res, robot_of(res.scenario), np.array([0, res.time.size - 1]))
+    draw(1)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    axf = fig.axes[1]
+    (label,) = [t for t in axf.texts if t.get_text().startswith("t = ")]
+    assert "1,000,000 N/m" in label.get_text()
+    lab, leg = label.get_window_extent(renderer), axf.get_legend().get_window_extent(renderer)
+    assert not lab.overlaps(leg), (lab, leg)
+    assert 0 <= lab.x0 and lab.x1 <= fig.bbox.width and 0 <= lab.y0 and lab.y1 <= fig.bbox.height, lab

@@ -239,7 +239,8 @@ def _matplotlib_frames(result, robot, idx):
     axf.set(xlim=(0.0, float(t[-1])), ylim=(0.0, 1.1 * max(top, float(result.desired_force.max()))),
             xlabel="time (s)", ylabel="contact force (N)")
     axf.legend(loc="upper right", fontsize=8)
-    label = axf.text(0.02, 0.97, "", transform=axf.transAxes, va="top", fontsize=8)
+    # the frame's time, force and stiffness above the panel: inside, a long line ran under the legend
+    label = axf.text(0.0, 1.02, "", transform=axf.transAxes, va="bottom", fontsize=8)
     fig.subplots_adjust(left=0.02, right=0.98, wspace=0.35)
     surface = surface_of(result.scenario)
     arrow = []                                           # the force arrow drawn now (a Line3DCollection), if any
