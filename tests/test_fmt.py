@@ -43,3 +43,23 @@ def test_a_text_table_right_aligns_numbers_and_left_aligns_the_last_column_by_de
                               "-" * 22,
                               " 5,000    1.2  converged",
                               "20,000   0.45  off"]
+
+
+def test_digits_apart_is_the_fewest_digits_that_print_the_value_unlike_its_bound():
+    """The helper behind fmt.against and the orientation verdict's angles: from sig up while the two
+    print alike; sig when nothing can tell them apart (equal, missing, not finite); at most `most`."""
+    assert fmt.digits_apart(2.0, 3.0) == 3                       # apart at once
+    assert fmt.digits_apart(4.995, 5.0) == 4                     # 5.00 and 5.00 at 3 digits, 4.995 and 5.000 at 4
+    assert fmt.digits_apart(5.0, 5.0) == 3 and fmt.digits_apart(5.0, 5.0, sig=2) == 2
+    assert fmt.digits_apart(None, 5.0) == 3 and fmt.digits_apart(float("nan"), 5.0) == 3
+    assert fmt.digits_apart(float("inf"), 5.0) == 3 and fmt.digits_apart(5.0, None) == 3
+    assert fmt.digits_apart(1.0000001, 1.0) == 6 and fmt.digits_apart(1.0000001, 1.0, most=4) == 4
+    assert fmt.digits_apart(1.00001, 1.0) == 6                   # 1.00001 against 1.00000 at 6
+    assert fmt.against(4.995, 5.0) == "4.995"
+
+
+def test_the_orientation_verdicts_angles_take_the_digits_that_tell_the_error_from_its_tolerance():
+    from tmtcontrol.simulation.metrics import _angles
+
+    assert _angles([2.62e-4], 2.62e-4) == (["262 µrad"], "262 µrad")
+    assert _angles([2.6201e-4], 2.62e-4) == (["262.01 µrad"], "262 µrad")     # 5 digits; num drops the zeros

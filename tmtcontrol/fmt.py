@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["num", "qty", "pct", "ratio", "down", "value", "column", "against", "text_table", "RESIDUE"]
+__all__ = ["num", "qty", "pct", "ratio", "down", "value", "column", "against", "digits_apart", "text_table", "RESIDUE"]
 
 _SUP = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 _PREFIXED = {"s", "N", "m", "Hz"}          # units that read better with a prefix (ms, mN, mm, kHz)
@@ -142,17 +142,21 @@ def column(values, unit: str = "", sig: int = 3, attach: bool = False,
     return prefix + unit, cells
 
 
+def digits_apart(v, bound, sig: int = 3, most: int = 6) -> int:
+    """The fewest significant digits, from ``sig`` up to ``most``, at which
+    ``v`` and ``bound`` print differently with :func:`num`: ``sig`` when they
+    are equal or either is missing or not finite (no digit tells them apart),
+    ``most`` when none up to it does."""
+    if v is None or bound is None or not math.isfinite(float(v)) or float(v) == float(bound):
+        return sig
+    return next((d for d in range(sig, most + 1) if num(v, d) != num(bound, d)), most)
+
+
 def against(v, bound, sig: int = 3) -> str:
     """``v`` to at least ``sig`` significant digits, more (up to 6) while it
     would print as ``bound`` without being equal to it: 4.995 beside a bound
     of 5 prints 4.995, not 5."""
-    if v is None or bound is None or not math.isfinite(float(v)) or float(v) == float(bound):
-        return num(v, sig)
-    for digits in range(sig, 7):
-        text = num(v, digits)
-        if text != num(bound, digits):
-            return text
-    return text
+    return num(v, digits_apart(v, bound, sig))
 
 
 def text_table(columns: list[tuple[str, list[str]]], left: tuple[int, ...] = (-1,)) -> str:

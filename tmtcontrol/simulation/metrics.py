@@ -666,7 +666,7 @@ def _angles(values, bound: float, total: float | None = None) -> tuple[list[str]
     scale, unit = next(((s, u) for s, u in ((1.0, "rad"), (1e-3, "mrad"), (1e-6, "µrad"))
                         if abs(bound) >= s * 0.9995), (1e-9, "nrad"))
     total = values[0] if total is None else total
-    digits = next((d for d in range(3, 7) if fmt.num(total / scale, d) != fmt.num(bound / scale, d)), 6)
+    digits = fmt.digits_apart(total / scale, bound / scale)
     show = lambda v: fmt.num(v / scale, digits).replace(fmt.NBSP, " ") + f" {unit}"
     return [show(v) for v in values], fmt.num(bound / scale, digits).replace(fmt.NBSP, " ") + f" {unit}"
 
