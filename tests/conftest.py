@@ -45,10 +45,15 @@ def _private_cache(tmp_path_factory):
     step is compiled once per run rather than once per worker. The analysis
     results kept in it are shared the same way: by the shared fixtures (none
     of them stubs an analysis) and by the tests :func:`_shared_results`
-    allows."""
+    allows. ``TMTCONTROL_TEST_CACHE`` names a folder to use instead, so that
+    two runs share it: ``.ci/run`` gives the README's command and the heavy
+    step one, and the heavy step does not compile or compute again what the
+    first compiled and computed (each key covers every input; the tests of
+    compiling and of the cache itself use caches of their own)."""
     old = {k: os.environ.get(k) for k in ("TMTCONTROL_CACHE", "TMTCONTROL_RESULT_CACHE")}
-    cache = _shared_base(tmp_path_factory) / "tmtcontrol-cache"
-    cache.mkdir(exist_ok=True)
+    shared = os.environ.get("TMTCONTROL_TEST_CACHE")
+    cache = pathlib.Path(shared) if shared else _shared_base(tmp_path_factory) / "tmtcontrol-cache"
+    cache.mkdir(parents=True, exist_ok=True)
     os.environ["TMTCONTROL_CACHE"] = str(cache)
     os.environ["TMTCONTROL_RESULT_CACHE"] = "1"
     yield
