@@ -201,3 +201,28 @@ def test_the_stable_free_axes_row_names_their_kinds_in_a_list():
                                    "largest spectral radius 0.990683, the tangential axis 1)")
     assert "(5 without contact force: the tangential and rotational axes; " in row("ur5")
     assert "(6 without contact force: the tangential, rotational and null-space posture axes; " in row("panda")
+
+
+@pytest.mark.parametrize("sets, failed", [([], None), (["impedance.b_rot=[0,0,0]"], "rotational axis 1")])
+def test_the_reports_free_axes_table_has_each_axis_its_gains_and_radius(sets, failed):
+    """The report's sampled section shows the axes without contact force (sixteenth session's note: its
+    stability verdict named an unstable one, but no row showed them): one row per axis of free_axes, the
+    radius to 6 digits, FAIL where it is 1 or more, and the reason analyze gives."""
+    from tmtcontrol.report.document import Paragraph, Table, _free_axes_blocks
+
+    sc = apply_overrides(load_scenario("ur5"), sets)
+    free = free_axes(sc)
+    a = {"free_axes": [{"axis": n, "kd": d, "kp": p, "spectral_radius": r} for n, d, p, r in free],
+         "free_axes_note": unstable_free_axis(sc)}
+    text, table = _free_axes_blocks(a, sc)
+    assert isinstance(text, Paragraph) and isinstance(table, Table)
+    assert [row[0] for row in table.rows] == [n for n, *_ in free] and len(free) == 5
+    for row, (name, d, p, r) in zip(table.rows, free):
+        assert float(row[1]) == pytest.approx(d, rel=5e-3) and float(row[2]) == pytest.approx(p, rel=5e-3)
+        assert float(row[3]) == pytest.approx(r, rel=1e-5)                  # 6 significant digits
+    assert [row[4] for row in table.rows].count("FAIL") == (0 if failed is None else 3)     # the three rotational
+    if failed is None:
+        assert "every one is below 1" in text.text
+    else:
+        assert a["free_axes_note"] in text.text and failed in a["free_axes_note"] and "below 1" not in text.text
+    assert _free_axes_blocks({}, sc) == []

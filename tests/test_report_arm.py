@@ -152,6 +152,11 @@ def test_report_ur5_html(tmp_path):
     # 3 significant digits rounded down (a shown limit never above the computed one: review 47)
     computed = a.get("limit", a["max_stable_stiffness"])
     assert limit <= computed < limit + 10 ** (math.floor(math.log10(computed)) - 2)
+    # the axes without contact force, each as analyze computes it (two tangential, three rotational)
+    _, _, free = table(sampled, "the axes without contact force")
+    assert [row[0] for row in free] == [ax["axis"] for ax in a["free_axes"]] and len(free) == 5
+    assert all(abs(float(row[3]) - ax["spectral_radius"]) < 1e-5 and "PASS" in row[4]
+               for row, ax in zip(free, a["free_axes"]))
     # the design of design --scenario ur5
     from tmtcontrol.stability.design import design_impedance, scenario_design_spec
 

@@ -361,6 +361,7 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
         Table("Sampled-data stability: the models", ["model", "largest stable k_e (N/m)", "margin over k_e max"],
               model_rows),
     ]
+    blocks += _free_axes_blocks(a, sc)
     for note in ("periodic_note", "whole_loop_note"):          # what the analysis could not do on this scenario
         if note in a:
             blocks.append(Paragraph("Note: " + a[note] + "."))
@@ -380,6 +381,28 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
     # the second process: the numbers only (analyze_scenario(sc)["systems"] rebuilds the systems)
     rep.data["sampled"] = {key: v for key, v in a.items() if key != "systems"}
     return Section("sampled", "Sampled-data analysis", blocks)
+
+
+def _free_axes_blocks(a: dict, sc: Scenario) -> list:
+    """The axes without contact force (``analyze``'s ``free_axes``,
+    ``stability.onedim.free_axes``): each one's gains and the spectral radius
+    of its sampled loop, which no stiffness changes, so one above 1 makes the
+    loop unstable whatever the contact's limits say."""
+    free = a.get("free_axes") or []
+    if not free:
+        return []
+    s = sc.robot.model_mass_scale
+    rows = [[ax["axis"], fmt.num(ax["kd"]), fmt.num(ax["kp"]), fmt.num(ax["spectral_radius"], 6),
+             _mark(ax["spectral_radius"] < 1.0)] for ax in free]
+    scale = "" if s == 1.0 else f", times the controller model's mass scale {fmt.num(s)} at the arm"
+    return [Paragraph(
+        "The axes that meet no contact force (the tangential ones, on a 6-D task the rotational ones, on a "
+        "redundant arm the null-space posture) each close a held PD loop on a double integrator, with the "
+        f"control period, the computation delay and the hold{scale}. No stiffness changes them, so an axis whose "
+        "spectral radius is 1 or more makes the loop unstable at every stiffness, whatever the limits above "
+        + ("say: " + a["free_axes_note"] + "." if a.get("free_axes_note") else "say; here every one is below 1.")),
+        Table("Sampled-data stability: the axes without contact force",
+              ["axis", "K_D (1/s)", "K_P (1/s²)", "spectral radius", "stable"], rows, verdict_column=4)]
 
 
 def _normal_mass_blocks(rep: Report, sc: Scenario, p: dict) -> list:
