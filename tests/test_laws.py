@@ -493,3 +493,24 @@ def test_tmt_under_an_x_e_error_is_its_running_loops_damping_not_the_ideal_polyn
     got = np.sort_complex(np.array([complex(re, im) for re, im in d["law_poles"]]))
     assert np.allclose(got, want, rtol=1e-9)
     assert d["law_damping_ratio"] == pytest.approx(30.0 / np.sqrt(22100.0), rel=1e-9)
+
+
+@pytest.mark.parametrize("base", ["integral", "known", "rls", "tmt", "adaptive_damping"])
+def test_a_comparison_runs_each_law_its_own_and_the_scenarios_law_with_its_parameters(base):
+    """compare's per-law scenario (simulation.compare.with_law): the scenario's own law keeps the
+    scenario's parameters (here one moved off its default), every other law runs with its documented
+    defaults, and no law runs another's (the eleventh mutation run: `kind == name` as `kind < name`
+    survived, the paper's law 'tmt' sorting after every other name and running with its defaults)."""
+    from tmtcontrol.control.laws import get_law, laws
+    from tmtcontrol.simulation.compare import with_law
+    from tmtcontrol.simulation.scenario import apply_overrides, load_scenario
+
+    own = {"integral": "k_i=0.05", "known": "assumed_stiffness=7000", "rls": "forgetting=0.99",
+           "tmt": "force_threshold=0.7", "adaptive_damping": "sigma=0.03"}[base]
+    sets = [f"controller.law.kind={base}", f"controller.law.{own}"]
+    sc = apply_overrides(load_scenario("paper"), sets)
+    for name in laws():
+        law = with_law(sc, name).controller.law
+        assert law.kind == name
+        assert law == (sc.controller.law if name == base else get_law(name).parameters()), name
+    assert sc.controller.law != get_law(base).parameters()          # the parameter moved: the test can tell
