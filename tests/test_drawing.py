@@ -273,3 +273,19 @@ def test_simulate_with_figure_workers_fails_in_one_line_and_writes_nothing(tmp_p
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, r.stderr
     assert r.stdout == "" and list(tmp_path.iterdir()) == []
+
+
+def test_a_drawing_takes_up_to_256_figures_one_byte_each_and_refuses_more(tmp_path):
+    """The shared queue holds one byte per figure, its index: 256 fit (0-255); the check read "at
+    most 255" (the eleventh mutation run: `> 255` as `> 256` survived). 256 figures get past it
+    (here to the workers' missing module, which fails fast), 257 are refused by name before any
+    worker is given a figure."""
+    many = [(f"f{i}", "good") for i in range(256)]
+    with FigureWorkers("no_such_module_for_figures") as workers:
+        assert workers.forked                   # Linux: the one-byte queue is the forked workers'
+        with pytest.raises(FigureProcessError, match="No module named 'no_such_module_for_figures'"):
+            workers.draw(many, [1], tmp_path).result()
+    with FigureWorkers("no_such_module_for_figures") as workers:
+        with pytest.raises(ValueError, match=r"^figures: at most 256 per drawing, got 257$"):
+            workers.draw([*many, ("one_more", "good")], [1], tmp_path)
+    assert list(tmp_path.iterdir()) == []

@@ -137,8 +137,8 @@ class FigureWorkers:
         if self.forked:
             if self._tokens is None:
                 raise RuntimeError("FigureWorkers.draw: the workers have been given their figures already")
-            if len(figures) > 255:
-                raise ValueError(f"figures: at most 255 per drawing, got {len(figures)}")
+            if len(figures) > 256:                  # a figure's index is one byte of the shared queue
+                raise ValueError(f"figures: at most 256 per drawing, got {len(figures)}")
             write_all(self._tokens, bytes(range(len(figures))))      # the shared queue
             os.close(self._tokens)
             self._tokens = None
