@@ -111,3 +111,17 @@ def test_a_guess_that_brackets_the_limit_is_used(model, monkeypatch):
     guided, _ = wl.whole_loop_limit(sc, points=1, rtol=rtol, model=model, guess=free)
     assert len(calls) <= 2 + math.ceil(math.log2(math.log(1.25 ** 2) / math.log(1 + rtol)))
     assert abs(guided / free - 1) < 2 * rtol
+
+
+def test_a_run_shorter_than_its_path_period_freezes_each_point_at_its_own_path_time(model):
+    """Review 56: with trajectory.cycles = 0.5 the frozen points in the path's second half took the
+    inputs of its first (their index wrapped modulo the run's samples, not the period's), so `analyze`
+    printed 171,044 N/m at 3.0 s for 163,674 and a frozen minimum 1.2 % high. The model of a half
+    run is the whole run's at every path time: its equilibrium and spectral radius equal to Newton's
+    tolerance (1e-9; the shared fixture's Newton starts from the points it solved before)."""
+    half = wl.WholeLoopModel(apply_overrides(paper_scenario(), [*CHEAP, "trajectory.cycles=0.5"]))
+    for path_time in (0.0, 0.25, 0.6, 0.875):
+        a, b = half.at(K_E, path_time), model.at(K_E, path_time)
+        assert a.path_time == b.path_time == pytest.approx(path_time, abs=2.5e-3)     # the nearest 4 ms sample
+        assert a.spectral_radius == pytest.approx(b.spectral_radius, rel=1e-9, abs=0)
+        assert np.allclose(a.s_eq, b.s_eq, rtol=1e-9, atol=1e-12)

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..surface import contact_force
 from ..surface import tilt_frame as task_frame
-from .geometry import surface_of
+from .geometry import surface_of, under_the_commanded_path
 from .scenario import read_stiffness_table
 
 __all__ = ["task_frame", "contact_force", "stiffness_samples", "CONTACT_NOISE_SIGMAS", "contact_detection_threshold",
@@ -67,7 +67,8 @@ def approach_normal(scenario) -> np.ndarray:
 
     surface = surface_of(scenario)
     pos0 = path_reference(np.zeros(1), scenario.trajectory).pos[:, 0]
-    return np.asarray(surface.normal(surface.to_base(np.r_[-scenario.trajectory.approach_gap, pos0])), float)
+    start = under_the_commanded_path(scenario, np.r_[-scenario.trajectory.approach_gap, pos0])
+    return np.asarray(surface.normal(surface.to_base(start)), float)
 
 
 def approach_depth(scenario) -> float:

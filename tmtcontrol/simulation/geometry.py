@@ -30,7 +30,7 @@ import numpy as np
 
 from ..surface import Surface, make_surface, normal_frame, tilt_frame
 
-__all__ = ["surface_of", "surface_frame", "tool_orientation", "rotation_vector"]
+__all__ = ["surface_of", "surface_frame", "tool_orientation", "rotation_vector", "under_the_commanded_path"]
 
 
 def surface_of(scenario) -> Surface:
@@ -57,6 +57,29 @@ def surface_of(scenario) -> Surface:
 
 
 _SURFACES: dict = {}
+
+
+def under_the_commanded_path(scenario, X) -> np.ndarray:
+    """Task coordinates (3 x k; 3 for 3) on the true part of the points
+    under the path the controller commands: ``X`` are the path's tangential
+    coordinates on the true part (``X[0]`` a depth), which the controller
+    takes on its own part, the true one moved by ``controller.part_offset``
+    d; the tool meets the true part under the point ``to_base(0, X[1:]) +
+    d``, whose true chart coordinates these are at the depth ``X[0]`` (the
+    same point on a plane moved by d's tangential part). ``X`` itself when d
+    is 0. The path's checks and normal masses, the start and the frozen
+    points are taken there (review 56: a 0.6 m sideways offset checked the
+    path where it was not, and the run diverged instead of refusing)."""
+    X = np.asarray(X, dtype=float)
+    d = np.asarray(scenario.controller.part_offset, dtype=float)
+    if not d.any():
+        return X
+    surface = surface_of(scenario)
+    flat = X.reshape(3, -1)
+    on = surface.to_base(np.vstack([np.zeros(flat.shape[1]), flat[1:]])) + d[:, None]
+    out = np.array(surface.from_base(on), dtype=float).reshape(3, -1)
+    out[0] = flat[0]
+    return out.reshape(X.shape)
 
 
 def surface_frame(environment) -> np.ndarray:

@@ -35,7 +35,7 @@ from ..model import URDFError, load_robot
 from ..model.robot import source_stamp
 from ..model.urdf import TipError
 from .closedloop import INPUT, build_step, build_tangent, log_layout, param_layout, state_layout, step_name
-from .geometry import surface_of, tool_orientation
+from .geometry import surface_of, tool_orientation, under_the_commanded_path
 from .limits import JointLimits, LimitUse, limit_use, limits_of
 from .posture import PATH_SAMPLES, PosePath, check_pose_path, pose_solver, solve_pose, task_jacobian
 from .rollout import Rollout
@@ -266,16 +266,24 @@ def path_of(robot, sc: Scenario) -> PosePath:
     finite = np.isfinite(robot.q_min) & np.isfinite(robot.q_max)
     seed = np.asarray(r.q0, float) if r.q0 is not None else np.where(
         finite, (np.where(finite, robot.q_min, 0.0) + np.where(finite, robot.q_max, 0.0)) / 2, 0.0)
+    offset = tuple(float(v) for v in sc.controller.part_offset)
     key = (robot.key, repr(surface), tr.path, tr.radius, tr.period, tr.lanes, tr.direction_deg, R_d.tobytes(),
-           seed.tobytes())
+           seed.tobytes(), offset)
     if key not in _PATHS:
         robot_task(robot)
         t = np.arange(PATH_SAMPLES) * tr.period / PATH_SAMPLES
         ref = path_reference(t, tr)
-        pts = surface.to_base(np.vstack([np.zeros(t.size), ref.pos]))
+        # on the true part, under the path the controller commands on its part (moved by controller.part_offset)
+        pts = surface.to_base(under_the_commanded_path(sc, np.vstack([np.zeros(t.size), ref.pos])))
         if len(_PATHS) > 16:
             _PATHS.clear()
-        path = check_pose_path(robot, pts, orientation_at(sc, surface, pts, R_d), t, seed)
+        try:
+            path = check_pose_path(robot, pts, orientation_at(sc, surface, pts, R_d), t, seed)
+        except ScenarioError as exc:
+            if not any(offset):
+                raise
+            raise ScenarioError(f"{exc}; the path under the controller's part, moved by controller.part_offset = "
+                                f"{list(offset)} m") from None
         for a in (path.t, path.q, path.sigma_min, path.condition_number):
             a.setflags(write=False)
         _PATHS[key] = path
@@ -593,7 +601,7 @@ class Simulator:
         # start on the surface (x = x_e, zero force) or approach_gap above it, moving with the path
         gap = sc.trajectory.approach_gap
         q0 = path.q[:, 0]
-        start = surface.to_base(np.r_[-gap, ref.pos[:, 0]])
+        start = surface.to_base(under_the_commanded_path(sc, np.r_[-gap, ref.pos[:, 0]]))   # below path.q[:, 0]
         if gap > 0:
             q0, ok = solve_pose(self.plant, None if self.plant.position_ik is not None and not task.rotational
                                 else pose_solver(self.plant), start, orientation_at(sc, surface, start, R_d), q0)

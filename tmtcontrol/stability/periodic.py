@@ -151,7 +151,7 @@ class PeriodicModel:
                                                                          key + "|tangent-pieces" + loop.cache_tag))
             self.rollout = _BUILT[memo]
         U, self.P = self.frozen.U, self.frozen.P
-        self.U = np.array(U[:, :N], dtype=float) if U.shape[1] >= N else self._one_period()
+        self.U = np.array(U[:, :N], dtype=float)           # the frozen model's inputs span a period at least
         self._warm: tuple[float, np.ndarray] | None = None
 
     def _names(self) -> tuple[str, ...]:
@@ -166,15 +166,6 @@ class PeriodicModel:
             else:
                 names += [f"{name}[{j}]" if n > 1 else name for j in range(n)]
         return tuple(names)
-
-    def _one_period(self) -> np.ndarray:
-        """Inputs over one period when the scenario is shorter than one."""
-        from ..simulation.trajectory import path_reference
-
-        sc, N = self.scenario, self.samples
-        t = np.arange(N) * sc.controller.Ts
-        ref = path_reference(t, sc.trajectory)
-        return np.vstack([ref.pos, ref.vel, ref.acc, np.zeros((2, N))])
 
     def _inputs(self, k_e: float) -> np.ndarray:
         from ..simulation.closedloop import INPUT

@@ -185,7 +185,11 @@ class WholeLoopModel:
         self.loop, self.dynamic, self._f, self._jac = _BUILT[key]
         self.sim, self.layout, self.law = self.loop, self.loop.layout, self.loop.law
         self.path = self.loop.path(sc)
-        self.U, self.P, self.s0, self.t = self.loop.inputs(sc, self.path)
+        # inputs over one period at least: a shorter run's would wrap a frozen point's path time back to the
+        # run's start (review 56: at cycles = 0.5 the point at 3 s took 1 s's inputs, its limit 4.5 % high)
+        whole = sc if sc.trajectory.cycles >= 1.0 else sc.replace(trajectory={**sc.trajectory.model_dump(),
+                                                                              "cycles": 1.0})
+        self.U, self.P, self.s0, self.t = self.loop.inputs(whole, self.path)
         self._warm: dict = {}
         self._found: dict = {}         # per path point: the fallback guess that found its last equilibrium
         from ..simulation.limits import limits_of
@@ -227,7 +231,7 @@ class WholeLoopModel:
         i = self._index(path_time)
         u = np.r_[self._u(i, k_e), self.P]
         ctl = sc.controller
-        from ..simulation.geometry import surface_of
+        from ..simulation.geometry import surface_of, under_the_commanded_path
 
         surface = surface_of(sc)
         # the tangential point and its joint angles on the surface (near the checked path's pose there)
@@ -235,7 +239,7 @@ class WholeLoopModel:
 
         ref = path_reference(np.array([self.t[i]]), sc.trajectory)
         near = self.path.q[:, int(round((self.t[i] % period) / period * self.path.q.shape[1])) % self.path.q.shape[1]]
-        on_surface = surface.to_base(np.r_[0.0, ref.pos[:, 0]])
+        on_surface = surface.to_base(under_the_commanded_path(sc, np.r_[0.0, ref.pos[:, 0]]))
         n = surface.normal(on_surface)                            # the inward normal there
         q_surface = loop.joints_at(on_surface, near, sc)
         m_p = loop.normal_mass(q_surface, n)
