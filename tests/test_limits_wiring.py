@@ -104,3 +104,26 @@ def test_limits_on_by_default_unless_a_random_axis_makes_each_case_a_new_analysi
     assert on is False and "controller.x_e_error" in why and "--limits on" in why
     df = run_sweep(drawn)
     assert "predicted_limit" not in df and len(df) == 2
+
+
+def test_on_a_plane_a_part_offset_needs_the_full_limit_exactly_as_its_normal_parts_x_e_error():
+    """Review 56: a run's quoted limit came from the full analysis for any nonzero part offset and from
+    the 1-D figure for the same physics written as an x_e error (a plane believed 2 mm along its
+    normal is exactly x_e_error = 2 mm, tests/test_surfaces.py), or with no offset at all (a 1e-12 m
+    sideways one, which only moves the path). On a plane the offset counts as the x_e error of its
+    normal part; on a curved part, where its normal error varies along the path, any offset counts."""
+    from tmtcontrol.simulation.geometry import surface_of
+    from tmtcontrol.stability.limit import _has_surface_error
+
+    base = paper_scenario()
+    R = surface_of(base).frame()
+    n, t1 = R[:, 0], R[:, 1]
+    at = lambda *sets: _has_surface_error(apply_overrides(base, list(sets)))
+    offset = lambda v: "controller.part_offset=" + repr([float(x) for x in v])
+    for s in (0.002, -0.002, 0.0):
+        assert at(offset(s * n)) == at(f"controller.x_e_error={s!r}") == (s < 0), s
+    assert not at(offset(1e-12 * t1)) and not at(offset(0.05 * t1))
+    assert at(offset(0.003 * n - 0.001 * t1), "controller.x_e_error=-0.004")      # -0.001 in all: nearer
+    assert not at(offset(0.003 * n), "controller.x_e_error=-0.002")                # +0.001 in all: deeper
+    dome = ['environment.shape="sphere"', "environment.radius=0.3"]
+    assert at(*dome, offset(0.002 * n)) and at(*dome, offset(1e-6 * t1)) and not at(*dome)
