@@ -426,3 +426,22 @@ def test_simulate_exits_1_and_says_why_a_segment_is_not_converged(tmp_path, caps
     assert code == 1 and len(err) == 1
     assert err[0].startswith("off_target: segment 1 (0-1 s), k_e = 5,000 N/m, the loop's limit ")
     assert "(tolerance 10 mN): a bias of +2" in err[0] and " mN" in err[0].split("a bias of")[1]
+
+
+@pytest.mark.parametrize("sigma, verdict, kept", [(0.03, "limit_cycle", "98.5 %"), (0.0, "limit_cycle", "100 %"),
+                                                  (0.2, "off_target", None)])
+def test_a_sustained_oscillations_reason_says_how_much_of_its_amplitude_it_keeps(sigma, verdict, kept):
+    """Review 56 (low): "does not decay over 0.5 s" of an oscillation that lost 1.5 % per 0.5 s read as
+    no decay at all. A 40 Hz sine decaying as exp(-sigma t) keeps exp(-sigma W) of its peak-to-peak
+    from one 0.5 s window to the next (20 whole cycles each: the extrema at the same phases), which the
+    reason now prints to 3 digits: exp(-0.015) = 98.5 %; at sigma = 0.2, exp(-0.1) = 90.5 % < 95 %:
+    not sustained, judged on its size (off_target)."""
+    from tmtcontrol.simulation.metrics import judge_segment
+
+    t = np.arange(4000) * 1e-3
+    f = 10.0 + 2.0 * np.exp(-sigma * t) * np.sin(2 * np.pi * 40.0 * t)
+    got, why = judge_segment(f, 10.0, 0.1, 0.01, periods=(4000,), Ts=1e-3)
+    assert got == verdict, why
+    if kept:
+        assert why.endswith(f"does not decay over 0.5 s (it keeps {kept} of its amplitude; 95 % or more is "
+                            "sustained)"), why

@@ -415,7 +415,10 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     if a_B > band and a_B >= SUSTAINED * a_A and not forced:
         a_0 = _amplitude(e[n - 3 * W:n - 2 * W]) if n >= 3 * W else 0.0
         if not (a_0 > a_A > a_B and a_B < SUSTAINED * a_0):     # shrinking over three windows: still decaying
-            return "limit_cycle", f"oscillation of {_N(a_B)} peak-to-peak does not decay over {over}"
+            # the ratio said (review 56: "does not decay" of an amplitude that fell 1.5 % read as no decay at all)
+            return "limit_cycle", (f"oscillation of {_N(a_B)} peak-to-peak does not decay over {over} (it keeps "
+                                   f"{100 * a_B / max(a_A, 1e-300):.3g} % of its amplitude; {100 * SUSTAINED:g} % "
+                                   "or more is sustained)")
     worst = float(np.max(np.abs(e[n - last.size:])))
     bias = float(np.mean(e[n - last.size:]))
     if bias_tolerance is None:
