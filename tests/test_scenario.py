@@ -237,3 +237,25 @@ def test_repeated_knot_times_are_refused(tmp_path):
                     "values = [1e3, 2e3, 3e3]\n")
     with pytest.raises(ScenarioError, match=r"environment\.stiffness\.times: must be strictly increasing"):
         load_scenario(path)
+
+
+def test_a_file_named_in_a_scenario_is_beside_it_and_one_named_in_set_is_in_the_current_folder(tmp_path,
+                                                                                                  monkeypatch):
+    """Review 56 (low): the same relative name read two files, undocumented; docs/scenario.md now
+    says which: a height map named in sub/hm.toml is sub's, one named by --set is the current
+    folder's (the two grids told apart by their heights)."""
+    from tmtcontrol.simulation.scenario import apply_overrides, dump_scenario, load_scenario, paper_scenario
+    from tmtcontrol.simulation.scenario.environment import read_height_grid
+
+    (tmp_path / "sub").mkdir()
+    grid = "\n".join(",".join(["{h}"] * 9) for _ in range(9)) + "\n"
+    (tmp_path / "z.csv").write_text(grid.format(h=0.001))
+    (tmp_path / "sub" / "z.csv").write_text(grid.format(h=0.002))
+    monkeypatch.chdir(tmp_path)
+    sc = apply_overrides(paper_scenario(), ['environment.shape="heightmap"', 'environment.heightmap="z.csv"',
+                                            "environment.grid_spacing=0.1"])
+    (tmp_path / "sub" / "hm.toml").write_text(dump_scenario(sc))
+    in_file = load_scenario("sub/hm.toml")
+    by_set = apply_overrides(in_file, ['environment.heightmap="z.csv"'])
+    assert float(read_height_grid(in_file.environment.heightmap).max()) == 0.002
+    assert float(read_height_grid(by_set.environment.heightmap).max()) == 0.001
