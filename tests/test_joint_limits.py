@@ -402,6 +402,12 @@ def test_analyze_says_when_the_torque_clip_sets_the_frozen_minimum():
     assert "note                 at the path point that sets the frozen-point minimum" in format_analysis(out)
     plain = analyze_scenario(paper_scenario(), limits=False)
     assert plain["whole_loop_clipped"] == [] and "whole_loop_note" not in plain
+    # the periodic row beside it: the clip's minimum is no "conservative bound" (it said so beside the note)
+    moving = lambda d: format_analysis(dict(d, periodic_limit=1.02 * d["whole_loop_limit"], first_contact_limit=1.0,
+                                            limit=1.0, limit_from="first contact"))
+    assert "the frozen-point minimum above is the clip's, not a bound)" in moving(out)
+    assert "conservative bound" not in moving(out)
+    assert "the frozen-point minimum above is the conservative bound)" in moving(plain)
 
 
 @pytest.mark.heavy      # the UR5's frozen limits over 8 path points (10-17 s each), the paper's with limits (~8 s)

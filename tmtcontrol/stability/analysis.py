@@ -393,9 +393,12 @@ def format_analysis(d: dict) -> str:
                      "no periodic analysis)", f"note                 {d['periodic_note']}"]
         elif "periodic_limit" in d:
             below = d["periodic_limit"] < d["whole_loop_limit"]
+            # a minimum set on the torque clip is the clip's (the note above), no bound of the loop's
+            frozen = ("the frozen-point minimum above is the clip's, not a bound" if d.get("whole_loop_clipped")
+                      else "the frozen-point minimum above is the conservative bound")
             rows += [f"along the path       {d['periodic_limit']:.6g} N/m (periodic orbit: monodromy "
                      "over one period; " + ("below the frozen-point minimum: the moving path lowers it)" if below
-                                            else "the frozen-point minimum above is the conservative bound)")]
+                                            else frozen + ")")]
             rows += _set_by_rows(d)
         if "periodic_limit" in d:
             # the search stops at the periodic limit: a start that settles all the way up to it has a first-contact
