@@ -52,14 +52,18 @@ FIRST_CONTACT_DELTAS = (-0.002, -0.005, -0.01)
 LAWS = ("tmt", "known", "integral", "adaptive_damping")
 
 
-def _timed(fn):
+def _timed(fn, timed: bool = True):
+    """``(fn(), seconds)``: the second of two calls timed (the first warms the compiled libraries and
+    built steps); without ``timed`` one call and no time (NaN), as the drift test needs the values only."""
+    if not timed:
+        return fn(), math.nan
     fn()                                   # warm: compiled libraries, built steps
     t0 = time.perf_counter()
     value = fn()
     return value, time.perf_counter() - t0
 
 
-def periodic_rows() -> list[dict]:
+def periodic_rows(timed: bool = True) -> list[dict]:
     from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
     from tmtcontrol.stability.analysis import scenario_stiffness_limit
     from tmtcontrol.stability.first_contact import LoopRunner, simulated_limit
@@ -72,10 +76,10 @@ def periodic_rows() -> list[dict]:
         one_d = scenario_stiffness_limit(sc)
         mdl = PeriodicModel(sc, compile=True)
         (frozen, points), t_frozen = _timed(lambda: whole_loop_limit(sc, points=8, rtol=1e-4, model=mdl.frozen,
-                                                                      guess=one_d))
+                                                                      guess=one_d), timed)
         bracket = (frozen / 1.02, max(l for _, l in points) * 1.02)
-        periodic, t_periodic = _timed(lambda: periodic_limit(sc, model=mdl, bracket=bracket))
-        _, t_mono = _timed(lambda: mdl.at(0.999 * periodic))
+        periodic, t_periodic = _timed(lambda: periodic_limit(sc, model=mdl, bracket=bracket), timed)
+        t_mono = _timed(lambda: mdl.at(0.999 * periodic))[1] if timed else math.nan
         simulated = simulated_limit(sc, periodic / 1.05, periodic * 1.05, rtol=1e-3,
                                     runner=LoopRunner(sc, compile=True))
         rows.append({"case": name, "one_d": one_d, "frozen": frozen, "periodic": periodic, "simulated": simulated,
@@ -93,7 +97,7 @@ def _settles_long(runner, k_e: float) -> bool:
     return not (last >= LIMIT_CYCLE_AMPLITUDE * sc.controller.f_d and last >= LIMIT_CYCLE_DECAY * before)
 
 
-def first_contact_rows() -> list[dict]:
+def first_contact_rows(timed: bool = True) -> list[dict]:
     from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
     from tmtcontrol.stability.analysis import scenario_stiffness_limit
     from tmtcontrol.stability.first_contact import LoopRunner, first_contact_limit
@@ -105,7 +109,7 @@ def first_contact_rows() -> list[dict]:
         one_d = scenario_stiffness_limit(sc)
         periodic = periodic_limit(sc)
         runner = LoopRunner(sc, compile=True)
-        first, t_first = _timed(lambda: first_contact_limit(sc, periodic, runner=runner))
+        first, t_first = _timed(lambda: first_contact_limit(sc, periodic, runner=runner), timed)
         lo, hi = first / 1.1, min(first * 1.1, periodic)
         while not _settles_long(runner, lo):
             lo /= 1.1
