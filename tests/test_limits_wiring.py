@@ -127,3 +127,34 @@ def test_on_a_plane_a_part_offset_needs_the_full_limit_exactly_as_its_normal_par
     assert not at(offset(0.003 * n), "controller.x_e_error=-0.002")                # +0.001 in all: deeper
     dome = ['environment.shape="sphere"', "environment.radius=0.3"]
     assert at(*dome, offset(0.002 * n)) and at(*dome, offset(1e-6 * t1)) and not at(*dome)
+
+
+@pytest.mark.parametrize("f_d, settles", [(10.0, True), (2000.0, False)])
+def test_the_scenarios_own_start_at_its_smallest_stiffness_is_run(f_d, settles):
+    """Review 57 (high): the paper at f_d = 2,000 N (0.4 m into its 5,000 N/m part, beyond the arm:
+    200,000 random poses reach about 0.40 m below the plane there) diverged in 31 ms while analyze
+    said "sampled stable yes", exit 0: the searches run the start only near their limits, where the
+    tool goes a fraction of a millimetre deep. The start at the scenario's smallest stiffness is run
+    now; at f_d = 10 N it settles (nothing said), at 2,000 N the tool leaves the part."""
+    from tmtcontrol.stability.first_contact import LoopRunner
+    from tmtcontrol.stability.limit import _own_start_unsettled
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=1", f"controller.f_d={f_d}"])
+    why = _own_start_unsettled(sc, LoopRunner(sc), 5000.0, 1.6e5)
+    assert (why is None) == settles, why
+    if not settles:
+        assert why == ("the scenario's own start does not settle at its smallest stiffness 5,000 N/m: no contact "
+                       "force in the last second of 3 s: the tool left the part (the steady depth f_d/k_e is 0.4 m "
+                       "there)")
+    assert _own_start_unsettled(sc, None, 5000.0, 5000.0) is None          # not below the limit: not run
+
+
+@pytest.mark.heavy          # the paper's limits at f_d = 2,000 N, about 9 s
+def test_analyze_calls_a_scenario_whose_start_leaves_the_part_unstable_and_exits_1(capsys):
+    from tmtcontrol.cli import main
+
+    assert main(["analyze", "--scenario", "paper", "--set", "trajectory.cycles=1", "--set",
+                 "controller.f_d=2000"]) == 1
+    out = capsys.readouterr().out
+    assert ("limit                0 N/m (the scenario's own start does not settle at its smallest stiffness "
+            "5,000 N/m: no contact force") in out and "sampled stable       NO" in out

@@ -410,6 +410,9 @@ def format_analysis(d: dict) -> str:
                       "settles below it, else a contact limit cycle)"),
                      f"limit                {d['limit']:.6g} N/m (the smaller: {d['limit_from']}; "
                      "decides the verdict)"]
+        elif "limit" in d and d.get("limit_from") != d.get("free_axes_note"):
+            # limit 0 without the searches' rows (a free axis says why in its own row)
+            rows.append(f"limit                {d['limit']:.6g} N/m ({d['limit_from']})")
         if "free_axes" in d:
             rows.append(_free_axes_row(d))
         rows.append(f"sampled stable       {yes(d['sampled_stable'])}")

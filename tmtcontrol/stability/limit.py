@@ -344,7 +344,7 @@ def _computed_limit(scenario, points, along_path, runner):
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)
     if not along_path:
         return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
-    from .first_contact import first_contact_limit
+    from .first_contact import LoopRunner, first_contact_limit
     from .periodic import periodic_search
 
     search = {}
@@ -356,10 +356,40 @@ def _computed_limit(scenario, points, along_path, runner):
                       periodic_growth=found.transient_growth)
     else:       # no periodic loop to analyse: the frozen-point minimum (conservative) stands in
         periodic = float(whole)
+    runner = runner or LoopRunner(scenario)
     first = first_contact_limit(scenario, periodic, runner=runner)
+    own = _own_start_unsettled(scenario, runner, p["k_e_min"], min(periodic, first))
+    if own is not None:
+        return ScenarioLimit(0.0, own, periodic=float(periodic), periodic_note=note, first_contact=0.0, **search,
+                             **frozen)
     return ScenarioLimit(min(periodic, first), "first contact" if first < periodic else (
         "periodic orbit" if note is None else "frozen-point minimum"), periodic=float(periodic),
         periodic_note=note, first_contact=float(first), **search, **frozen)
+
+
+def _own_start_unsettled(scenario, runner, k_min: float, limit: float) -> str | None:
+    """Why the scenario's own start does not settle at its smallest
+    stiffness ``k_min`` (N/m) below the ``limit`` the searches found, or
+    None. The searches run the start at stiffnesses near their limits only
+    (the first-contact one from the limit down), where the tool goes a
+    fraction of a millimetre deep; at the softest surface the arm has to
+    press f_d/k_e deep, which a large f_d takes out of its reach (review 57:
+    the paper at f_d = 2,000 N, 0.4 m into 5,000 N/m, diverged in 31 ms
+    while analyze said stable, exit 0). One run of the start
+    (``first_contact.settles``, milliseconds compiled) tells."""
+    from .first_contact import settles
+
+    if not 0 < k_min < limit:
+        return None
+    run = settles(runner, k_min)
+    if run.settled and run.min_force > 0.0:
+        return None
+    how = ("its force does not stay finite" if not np.isfinite(run.amplitude) else
+           f"no contact force in the last second of {run.duration:g} s: the tool left the part"
+           if run.min_force <= 0.0 else
+           f"its force swings {run.amplitude:.3g} N in the last second of {run.duration:g} s")
+    return (f"the scenario's own start does not settle at its smallest stiffness {k_min:,.0f} N/m: {how} (the "
+            f"steady depth f_d/k_e is {scenario.controller.f_d / k_min:.3g} m there)")
 
 
 def _has_surface_error(scenario) -> bool:
