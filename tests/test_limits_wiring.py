@@ -158,3 +158,17 @@ def test_analyze_calls_a_scenario_whose_start_leaves_the_part_unstable_and_exits
     out = capsys.readouterr().out
     assert ("limit                0 N/m (the scenario's own start does not settle at its smallest stiffness "
             "5,000 N/m: no contact force") in out and "sampled stable       NO" in out
+
+
+def test_a_start_too_long_to_analyse_names_the_approach_not_the_run_length():
+    """Review 57 (medium): a 5 cm guarded approach at 1 um/s (a 50,000 s start) was refused as
+    "trajectory.cycles: must be <= 1000, got 12500.8", a key the user never set."""
+    from tmtcontrol.simulation.scenario import ScenarioError
+    from tmtcontrol.stability.first_contact import LoopRunner, _start_duration
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=1", "trajectory.approach_gap=0.05",
+                                            "controller.approach_speed=1e-6"])
+    assert _start_duration(sc) == pytest.approx(0.05 / 1e-6 + sc.controller.force_ramp + 3.0)
+    with pytest.raises(ScenarioError, match=r"^controller\.approach_speed: the stability analysis runs the "
+                                            r"scenario's start for 50003\.3 s \(trajectory\.approach_gap"):
+        LoopRunner(sc).run(5000.0, _start_duration(sc))

@@ -113,13 +113,24 @@ class LoopRunner:
         """The contact force (N) from the scenario's start at constant ``k_e``
         (or the per-sample ``stiffness``), no sensor noise."""
         from ..simulation.closedloop import INPUT
+        from ..simulation.scenario import ScenarioError
 
         sc = self.scenario
         period = sc.trajectory.period
-        sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "cycles": duration / period},
-                        sensor={**sc.sensor.model_dump(), "noise_std": 0.0},
-                        environment={**sc.environment.model_dump(),
-                                     "stiffness": {"kind": "piecewise_constant", "values": (float(k_e),)}})
+        try:
+            sc = sc.replace(trajectory={**sc.trajectory.model_dump(), "cycles": duration / period},
+                            sensor={**sc.sensor.model_dump(), "noise_std": 0.0},
+                            environment={**sc.environment.model_dump(),
+                                         "stiffness": {"kind": "piecewise_constant", "values": (float(k_e),)}})
+        except ScenarioError as exc:
+            if not str(exc).startswith("trajectory.cycles"):
+                raise
+            # review 57: a guarded approach of 50,000 s was refused as "trajectory.cycles: must be <= 1000, got
+            # 12500.8", a key the user never set (the run length is this analysis's)
+            raise ScenarioError(
+                f"controller.approach_speed: the stability analysis runs the scenario's start for {duration:.6g} s "
+                f"(trajectory.approach_gap / controller.approach_speed, the force ramp and {SETTLE_TIME:g} s), "
+                f"longer than a run may last ({exc})") from None
         U, P, s0, _ = self.loop.inputs(sc, self.path)
         if stiffness is not None:
             U[INPUT["k_e"]] = stiffness[:U.shape[1]]
