@@ -455,3 +455,24 @@ def test_an_excursion_just_past_its_bound_shows_the_digits_that_tell_them_apart(
     (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -19.0258364]]),
                      1e-3).excursions
     assert e.text.startswith("joint 1 (a) torque -19.02584 N m beyond its limit -19.0258 N m by 3.64e-05 N m"), e.text
+
+
+def test_an_over_limit_reason_names_the_excursions_furthest_past_their_bounds_first():
+    """Review 57 (medium): the UR5 at f_d = 2,000 N read "joint 1 ... (15 ms over); joint 2 ... (17 ms
+    over); joint 3 ... (1 ms over) (and 22 more)", the first three in time, while wrist 1 held 8x its
+    limit for 3.99 s. Four joints of limit 10 N m: three 10 % over for a sample early, one 8x over for
+    most of the run: the reason leads with that one, then the others by time (equal excess)."""
+    from tmtcontrol.simulation.metrics import _limits_and_orientation
+
+    n = 1000
+    L = JointLimits(tuple("abcd"), (False,) * 4, np.full(4, 10.0), np.full(4, INF), np.full(4, -INF), np.full(4, INF))
+    tau = np.zeros((4, n))
+    tau[0, 10], tau[1, 20], tau[2, 30] = 11.0, 11.0, 11.0
+    tau[3, 100:] = 80.0
+    use = limit_use(L, np.arange(n) * 1e-3, np.zeros((4, n)), np.zeros((4, n)), tau, 1e-3)
+    assert [e.name for e in use.excursions] != ["d", "a", "b", "c"]           # not already in that order
+    assert [e.name for e in use.ranked()] == ["d", "a", "b", "c"] and use.worst.name == "d"
+    verdict, reason = _limits_and_orientation("converged", "", use, 0.0, 1.0)
+    assert verdict == "over_limit"
+    assert reason.startswith("joint 4 (d) torque 80 N m beyond its limit 10 N m by 70 N m") and "(and 1 more)" in reason
+    assert reason.index("joint 1 (a)") < reason.index("joint 2 (b)") and "joint 3 (c)" not in reason

@@ -172,6 +172,14 @@ class LimitUse:
         position relative to the joint's range): a torque 77.5 N m past 87 N m
         before one 40.3 N m past it, whichever came first (review 28: the
         report quoted the earliest as "at worst")."""
+        ranked = self.ranked()
+        return ranked[0] if ranked else None
+
+    def ranked(self) -> list[Excursion]:
+        """The excursions, the furthest past its bound relative to the bound
+        first (:attr:`worst`'s measure), the earlier first among equals
+        (review 57: a reason listing the first three in time showed 1-17 ms
+        transients and left out torques held 8x over their limit for 4 s)."""
         def scale(e):       # a torque or rate against its bound; a position against the joint's range (a bound at
             # 0 rad divides nothing: review 29)
             if e.kind == "position" and self.limits is not None:
@@ -179,7 +187,7 @@ class LimitUse:
                 return span if np.isfinite(span) and span > 0 else 1.0
             return abs(e.limit) if e.limit != 0 else 1.0
 
-        return max(self.excursions, key=lambda e: e.excess / scale(e), default=None)
+        return sorted(self.excursions, key=lambda e: (-(e.excess / scale(e)), e.time))
 
     def summary(self) -> str:
         """The worst excursion's words, and which joints went over how (``""`` when none)."""

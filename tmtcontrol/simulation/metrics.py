@@ -750,7 +750,7 @@ def _limits_and_orientation(verdict: str, reason: str, use, e_o: float, toleranc
         # the drive's clip (robot.saturate) shapes the force: say so beside what the verdict blames
         reason = f"{reason}; the torque sat on its clip (robot.saturate): {use.on_clip()}"
     if use is not None and use.excursions:
-        shown = "; ".join(e.text for e in use.excursions[:3])
+        shown = "; ".join(e.text for e in use.ranked()[:3])          # the three furthest past their bounds
         more = f" (and {len(use.excursions) - 3} more)" if len(use.excursions) > 3 else ""
         if _RANK[verdict] < _RANK["over_limit"]:
             # review 54: an orientation beyond its tolerance read "the force tracking alone: off_target"
