@@ -172,3 +172,21 @@ def test_a_start_too_long_to_analyse_names_the_approach_not_the_run_length():
     with pytest.raises(ScenarioError, match=r"^controller\.approach_speed: the stability analysis runs the "
                                             r"scenario's start for 50003\.3 s \(trajectory\.approach_gap"):
         LoopRunner(sc).run(5000.0, _start_duration(sc))
+
+
+def test_a_loop_that_never_touches_the_part_is_refused_naming_the_belief_not_an_inf_bracket():
+    """Review 57 (medium): the surface believed 0.2 m nearer than it is, with the command f_d/K = 0.1 m
+    beyond the believed surface, never touches: the analysis said "no stability boundary found between
+    inf and inf N/m", exit 2, naming no key. The frozen loop's equilibrium (force 0, closed form: the
+    command ends 0.1 m short of the part) says why, naming controller.x_e_error; at -0.05 m the command
+    reaches 0.05 m into the part and nothing is raised."""
+    from tmtcontrol.stability.continuous import AnalysisError
+    from tmtcontrol.stability.limit import _no_contact
+    from tmtcontrol.stability.wholeloop import WholeLoopModel
+
+    short = apply_overrides(paper_scenario(), ["controller.x_e_error=-0.2"])
+    with pytest.raises(AnalysisError, match=r"^controller\.x_e_error: the loop holds no contact at any stiffness "
+                                            r"\(at 2,000 N/m its equilibrium is off the part, force 0 N\)"):
+        _no_contact(short, WholeLoopModel(short), 2000.0)
+    reaches = apply_overrides(paper_scenario(), ["controller.x_e_error=-0.05"])
+    assert _no_contact(reaches, WholeLoopModel(reaches), 2000.0) is None

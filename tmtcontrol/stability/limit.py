@@ -342,6 +342,8 @@ def _computed_limit(scenario, points, along_path, runner):
     if not ((small is None or small > 0) and whole > 0):
         # unstable at the scenario's smallest stiffness: no limit above it to search along the path
         return ScenarioLimit(0.0, "unstable at the smallest stiffness", **frozen)
+    if whole == np.inf:
+        _no_contact(scenario, frozen_model, p["k_e_min"])
     if not along_path:
         return ScenarioLimit(float(whole), "frozen-point minimum", **frozen)
     from .first_contact import LoopRunner, first_contact_limit
@@ -365,6 +367,29 @@ def _computed_limit(scenario, points, along_path, runner):
     return ScenarioLimit(min(periodic, first), "first contact" if first < periodic else (
         "periodic orbit" if note is None else "frozen-point minimum"), periodic=float(periodic),
         periodic_note=note, first_contact=float(first), **search, **frozen)
+
+
+def _no_contact(scenario, model, k_min: float) -> None:
+    """Raise :class:`AnalysisError`, naming the controller's belief, when the
+    frozen loop holds no contact at the scenario's smallest stiffness
+    ``k_min`` (its equilibrium off the part: no stiffness changes that, so
+    there is no limit to search; review 57: x_e_error = -0.2 m with the
+    command f_d/K = 0.1 m deep read "no stability boundary found between inf
+    and inf N/m", naming no key). The force there decides: none, the
+    command stops short of the part."""
+    try:
+        f_eq = model.at(k_min, 0.0).f_eq
+    except AnalysisError:
+        return
+    if f_eq > 0.0:
+        return
+    ctl, imp = scenario.controller, scenario.impedance
+    key = "controller.x_e_error" if ctl.x_e_error < 0 or not any(ctl.part_offset) else "controller.part_offset"
+    raise AnalysisError(
+        f"{key}: the loop holds no contact at any stiffness (at {k_min:,.0f} N/m its equilibrium is off the part, "
+        f"force {f_eq:.3g} N): the position command, f_d/K = {ctl.f_d / imp.k[0]:.3g} m beyond the surface the "
+        f"controller believes ({ctl.x_e_error:+.3g} m from the true one), stops short of the part; there is no "
+        "stiffness limit to find")
 
 
 def _own_start_unsettled(scenario, runner, k_min: float, limit: float) -> str | None:
