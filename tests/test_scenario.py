@@ -259,3 +259,21 @@ def test_a_file_named_in_a_scenario_is_beside_it_and_one_named_in_set_is_in_the_
     by_set = apply_overrides(in_file, ['environment.heightmap="z.csv"'])
     assert float(read_height_grid(in_file.environment.heightmap).max()) == 0.002
     assert float(read_height_grid(by_set.environment.heightmap).max()) == 0.001
+
+
+def test_a_force_tolerance_not_below_f_d_is_noted(capsys):
+    """Review 57 (medium): f_d = 1 mN under the default 10 mN tolerance read "converged" with a 20 %
+    steady error and no word of why. A tolerance at or above f_d is noted (one line, stderr); below
+    it nothing is said."""
+    from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
+
+    notes = lambda *sets: apply_overrides(paper_scenario(), list(sets)).controller.unit_notes()
+    assert notes() == [] and notes("controller.f_d=0.0101") == []
+    assert notes("controller.f_d=0.01") != [] and notes("controller.f_d=0.001", "controller.force_tolerance=0.001") != []
+    (line,) = notes("controller.f_d=0.001")
+    assert line.startswith("controller.force_tolerance = 0.01 N is not below controller.f_d = 0.001 N")
+    from tmtcontrol import cli
+
+    cli._noted(apply_overrides(paper_scenario(), ["controller.f_d=0.001"]))     # as every command loads one
+    cli._print_notes()
+    assert capsys.readouterr().err == f"note: {line}\n"

@@ -289,7 +289,7 @@ def _load_named(args):
 
 def _noted(sc):
     """``sc``, its values that read like a unit mistake held by :func:`_hold_notes`."""
-    _hold_notes(sc.environment.unit_notes())
+    _hold_notes(sc.environment.unit_notes() + sc.controller.unit_notes())
     return sc
 
 

@@ -128,6 +128,16 @@ class ControllerSettings(Section):
     damping_schedule: DampingSchedule = Field(default_factory=FixedDamping,
                                               description="normal damping: fixed ('off') or scheduled ('zeta')")
 
+    def unit_notes(self) -> list[str]:
+        """Valid values whose verdicts say little, one line each for the
+        command line to print: a force tolerance not below f_d (review 57:
+        f_d = 1 mN under the default 10 mN read "converged" with a 20 %
+        steady error; a tool that never pressed would pass too)."""
+        if self.force_tolerance < self.f_d:
+            return []
+        return [f"controller.force_tolerance = {self.force_tolerance:g} N is not below controller.f_d = "
+                f"{self.f_d:g} N: a segment within it of f_d may hardly press (set a tolerance below f_d)"]
+
     @model_validator(mode="after")
     def _schedule_needs_filter(self):
         law = laws()[self.law.kind]
