@@ -85,7 +85,8 @@ def test_optimize_k_not_worse(optimum):
 
 
 @pytest.mark.parametrize("kw,needle", [
-    (dict(Ts=5e-3, k_e_max=1e5), "Ts: no b"),
+    (dict(Ts=5e-3, k_e_max=1e5), r"^Ts: no b .* with Ts = 0\.005 s \(m = 1 kg, k = 100 N/m, the arm's m_p = 3\.3 kg\)$"),
+    (dict(delay=20), r"^Ts, delay: no b .* with Ts = 0\.001 s and a delay of 20 samples \(m = 1 kg"),
     (dict(max_overshoot=1.0, b_bounds=(1.0, 100.0)), "max_overshoot"),
     # at 5 ms sampled stability needs b <~ 400 (K_D Ts < 2), 0 % overshoot at 5e4 N/m needs b >= 448
     (dict(Ts=5e-3, k_e_max=5e4, max_overshoot=0.0), "max_overshoot and Ts conflict"),

@@ -529,8 +529,13 @@ def _diagnose(spec: DesignSpec) -> tuple[str | None, float | None]:
         st_ok = np.array([[stable(k)(b) for b in bs] for k in ks])
     brange = f"b in [{spec.b_bounds[0]:g}, {spec.b_bounds[1]:g}] N s/m"
     if not st_ok.any():
-        return (f"Ts: no {brange} keeps the sampled loop stable at {spec.stiffness_margin:g} x k_e_max "
-                f"= {spec.stiffness_margin * spec.k_e_max:g} N/m with Ts = {spec.Ts:g} s"), None
+        # every input of the sampled loop said (review 57: a 20-sample delay, m = 1 g or k = 1e8 N/m read as
+        # the period's fault alone)
+        delay = f" and a delay of {spec.delay} samples" if spec.delay else ""
+        return (f"Ts{', delay' if spec.delay else ''}: no {brange} keeps the sampled loop stable at "
+                f"{spec.stiffness_margin:g} x k_e_max = {spec.stiffness_margin * spec.k_e_max:g} N/m with Ts = "
+                f"{spec.Ts:g} s{delay} (m = {spec.m:g} kg, k = {spec.k:g} N/m, the arm's m_p = {spec.m_p:g} kg)"), \
+            None
     if not os_ok.any():
         # eq. (22)'s own boundary, in closed form: zeta = -ln(p) / sqrt(pi^2 + ln(p)^2) for an overshoot
         # fraction p (1 for p = 0), b = 2 zeta sqrt(m (k + k_e_max)), at the smallest k scanned
