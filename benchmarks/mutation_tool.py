@@ -178,6 +178,11 @@ TESTS: dict[str, tuple[str, ...]] = {
                                          "tests/test_presentation.py", "tests/test_mutation_kills.py"),
     "tmtcontrol/drawing.py": ("tests/test_drawing.py", "tests/test_outputs.py", "tests/test_files_safety.py",
                               "tests/test_animation.py"),
+    # the eighteenth session: the command line and the report's document, never measured
+    "tmtcontrol/cli.py": ("tests/test_cli.py", "tests/test_review_inputs.py", "tests/test_inputs_wave3.py",
+                          "tests/test_edges_wave4.py", "tests/test_files_safety.py"),
+    "tmtcontrol/report/document.py": ("tests/test_report_renderer.py", "tests/test_report.py",
+                                      "tests/test_report_arm.py"),
 }
 
 
