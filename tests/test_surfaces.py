@@ -222,7 +222,7 @@ def test_a_sweep_notes_a_radius_that_reads_as_millimetres_once(tmp_path):
     """Review 48: the note above was printed by every command but sweep, whose
     base scenario or radius axis can hold the same mistake. Each large value
     is noted once, from the base, the grid and a random range's ends; a
-    0.3 m part none."""
+    0.3 m part none. The eighteenth session: the force tolerance's note too."""
     from tmtcontrol.sweep import load_sweep
 
     (tmp_path / "s.toml").write_text('[environment]\nshape = "sphere"\nradius = 0.3\n')
@@ -235,6 +235,19 @@ def test_a_sweep_notes_a_radius_that_reads_as_millimetres_once(tmp_path):
     assert [n.split(":")[0] for n in load_sweep(tmp_path / "r.toml").unit_notes()] == ["environment.radius = 50 m"]
     (tmp_path / "p.toml").write_text('scenario = "s.toml"\n[grid]\n"controller.f_d" = [5.0, 10.0]\n')
     assert load_sweep(tmp_path / "p.toml").unit_notes() == []
+    # the force tolerance's note too (review 57's, which sweep did not print): the axes' extremes, combined
+    (tmp_path / "t.toml").write_text('[grid]\n"controller.f_d" = [10.0, 0.005, 0.004]\n'
+                                     '[random]\nsamples = 2\n"controller.force_tolerance" = { uniform = [1e-3, 2e-3] }\n')
+    notes = load_sweep(tmp_path / "t.toml").unit_notes()
+    assert notes == [], notes             # every tolerance (at most 2 mN) below the smallest f_d (4 mN)
+    (tmp_path / "t.toml").write_text('[grid]\n"controller.f_d" = [10.0, 0.005, 0.004]\n'
+                                     '[random]\nsamples = 2\n"controller.force_tolerance" = { uniform = [1e-3, 5e-3] }\n')
+    notes = load_sweep(tmp_path / "t.toml").unit_notes()
+    assert [n.split(":")[0] for n in notes] == [
+        "controller.force_tolerance = 0.005 N is not below controller.f_d = 0.004 N"], notes
+    (tmp_path / "c.toml").write_text('[grid]\ncontroller = [{ f_d = 10.0 }, { f_d = 1.0, force_tolerance = 1.0 }]\n')
+    assert [n.split(":")[0] for n in load_sweep(tmp_path / "c.toml").unit_notes()] == [
+        "controller.force_tolerance = 1 N is not below controller.f_d = 1 N"]
     # a sweep refused for its size prints the refusal alone (one line; the note is held until the checks pass)
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", str(tmp_path / "w.toml"), "--out",
                         str(tmp_path / "o"), "--max-steps", "10"], capture_output=True, text=True)

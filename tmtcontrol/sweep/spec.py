@@ -312,19 +312,31 @@ class Sweep:
         return n * (self.samples if any(changes_analysis(a, *flags) for a in self.random) else 1)
 
     def unit_notes(self) -> list[str]:
-        """The notes of values that read like a unit mistake (a part's radius
-        above ``LARGE_RADIUS``) in the base scenario and on the axes, each
-        once (review 48: a sweep printed none)."""
-        from ..simulation.scenario.environment import large_radius_note
-
-        radii = [self.base["environment"].get("radius")]
+        """The notes of values whose verdicts say little or that read like a
+        unit mistake (``EnvironmentSettings.unit_notes``: a part's radius
+        above ``LARGE_RADIUS``; ``ControllerSettings.unit_notes``: a force
+        tolerance not below f_d) in the base scenario and on the axes, each
+        once (review 48: a sweep printed none). The axes that can set those
+        keys are taken at their extremes (a scalar grid axis's smallest and
+        largest value, a random axis's range ends, every value of an axis over
+        a whole table) and combined: the notes are monotone in each key."""
+        keys = ("environment.radius", "controller.f_d", "controller.force_tolerance")
+        axes: dict[str, list] = {}
         for axis, values in self.grid.items():
-            if axis == "environment.radius":
-                radii += values
-            elif axis == "environment":
-                radii += [v.get("radius") for v in values if isinstance(v, dict)]
-        radii += [end for axis, spec in self.random.items() if axis == "environment.radius" for end in _range(spec)]
-        return list(dict.fromkeys(note for r in radii if (note := large_radius_note(r))))
+            if any(_covers(axis, k) for k in keys):
+                numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+                axes[axis] = sorted({min(values), max(values)}) if axis in keys and numbers else list(values)
+        for axis, spec in self.random.items():
+            if any(_covers(axis, k) for k in keys):
+                axes[axis] = sorted(set(_range(spec)))
+        notes: list[str] = []
+        for combo in itertools.product(*axes.values()):
+            try:
+                sc = case_scenario(self.base, dict(zip(axes, combo)))
+            except ScenarioError:     # a combination no case has (the sweep's own checks refuse real ones)
+                continue
+            notes += sc.environment.unit_notes() + sc.controller.unit_notes()
+        return list(dict.fromkeys(notes))
 
     def may_saturate(self) -> bool:
         """Whether some case may clip its torque (``robot.saturate`` on in the
