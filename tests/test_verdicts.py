@@ -144,9 +144,12 @@ def test_first_contact_in_summary_json(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     fc = json.loads((out / "summary.json").read_text())["first_contact"]
-    assert set(fc) == {"time", "peak_force", "peak_ratio", "bounces"}
+    assert set(fc) == {"time", "peak_force", "peak_ratio", "bounces", "window"}
     assert fc["time"] == pytest.approx(0.3, abs=0.02)       # 3 mm at 10 mm/s
-    assert "first contact at" in r.stdout
+    # the 1 s run ends 0.69 s after the touch: the line says how much of the window it covers (the eighteenth
+    # session: a 10 ms run printed "0 bounce(s) in the next second"); 1 s minus the touch, to rounding
+    assert fc["window"] == pytest.approx(1.0 - fc["time"], abs=1e-9)
+    assert f"bounce(s) in the {round(fc['window'] * 1e3)}\u00a0ms left of its segment" in r.stdout, r.stdout
 
 
 @pytest.mark.heavy

@@ -279,6 +279,11 @@ def test_first_contact_window_ends_with_the_first_segment(paper_result):
     f[4200:4210] = 0.0
     fc = first_contact(_synthetic(paper_result, f))
     assert fc.time == pytest.approx(3.5) and fc.peak_force == 10.0 and fc.bounces == 0
+    # the window it covers says so: 0.5 s of its segment, not the full second (the eighteenth session: a
+    # 10 ms run printed "0 bounce(s) in the next second"); the samples 3.5-3.999 s cover 0.5 s to 1e-12
+    assert fc.window == pytest.approx(0.5, abs=1e-12)
+    f[:] = 10.0
+    assert first_contact(_synthetic(paper_result, f)).window == 1.0     # a whole second inside the segment
 
 
 def test_a_response_always_inside_the_band_settles_at_once(paper_result):

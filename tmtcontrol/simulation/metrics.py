@@ -771,11 +771,15 @@ class FirstContact:
     ``time``: first sample with f_e above :data:`CONTACT_FLOOR` f_d (None if the run never touches);
     ``peak_force``: the largest f_e within :data:`FIRST_CONTACT_WINDOW` after
     it (and within the first segment), ``peak_ratio`` = peak / f_d;
-    ``bounces``: how often the contact is lost again in that window."""
+    ``bounces``: how often the contact is lost again in that window;
+    ``window``: the seconds after the contact that the peak and bounces cover,
+    :data:`FIRST_CONTACT_WINDOW` or less where the contact's segment or the run
+    ends sooner (0 when the run never touches)."""
     time: float | None
     peak_force: float
     peak_ratio: float
     bounces: int
+    window: float = 0.0
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -804,8 +808,11 @@ def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW
     end = min(seg_end, i0 + int(round(window / result.Ts)) + 1)
     w = touching[i0:max(end, i0 + 1)]
     peak = float(f[i0:max(end, i0 + 1)].max())
+    last = max(end, i0 + 1) - 1
+    # the samples cover the window up to the step that starts at the last one (a 10 ms run: 10 ms, not 1 s)
+    span = min(window, float(result.time[last] - result.time[i0]) + result.Ts)
     return FirstContact(float(result.time[i0]), peak, peak / result.scenario.controller.f_d,
-                        int(np.count_nonzero(w[:-1] & ~w[1:])))
+                        int(np.count_nonzero(w[:-1] & ~w[1:])), span)
 
 
 def format_table(metrics: list[SegmentMetrics]) -> str:
