@@ -12,6 +12,8 @@ import pytest
 
 import pypdf  # in the "test" extra
 
+from tmtcontrol.report.document import Table
+
 SECTIONS = ["summary", "scenario", "derivations", "continuous", "sampled", "simulation", "comparison", "sweep",
             "design", "reproducibility"]
 
@@ -447,8 +449,22 @@ def test_force_verdict_passes_on_the_paper_law():
     from tmtcontrol.report.document import _simulation
 
     rep, sc, p = _stage_report("trajectory.cycles=1", "environment.stiffness.values=[5e3]")
-    _simulation(rep, sc, p)
+    section, _, _ = _simulation(rep, sc, p)
     assert rep.verdicts[0].passed
+    (fc,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("First contact")]
+    assert fc.head[-1] == "bounces within 1\u00a0s"        # a 4 s segment: the whole second
+
+
+def test_the_first_contact_table_says_how_much_of_the_second_a_short_run_covers():
+    """The eighteenth session: a run shorter than the first contact's 1 s
+    window counted its bounces over what was left (39 ms of a 40 ms run) under
+    the header "bounces within 1 s"."""
+    from tmtcontrol.report.document import _simulation
+
+    rep, sc, p = _stage_report("trajectory.cycles=0.01", "environment.stiffness.values=[5e3]")
+    section, _, _ = _simulation(rep, sc, p)
+    (fc,) = [b for b in section.blocks if isinstance(b, Table) and b.caption.startswith("First contact")]
+    assert fc.head[-1] == "bounces within 39\u00a0ms (its segment's end)"   # touch at 1 ms, last step 39-40 ms
 
 
 def test_a_diverging_simulation_fails_its_verdict_and_says_where():

@@ -481,7 +481,7 @@ def _orientation_cause(seg, res, sc: Scenario) -> str:
 
 def _simulation(rep: Report, sc: Scenario, p: dict):
     from ..simulation import figures as simf
-    from ..simulation.metrics import first_contact, segment_metrics
+    from ..simulation.metrics import FIRST_CONTACT_WINDOW, first_contact, segment_metrics
     from ..simulation.simulator import simulator_for
     from ..simulation.simulator import SimulationError
 
@@ -537,7 +537,10 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     k_touch = float(res.stiffness[0] if fc.time is None else np.interp(fc.time, res.time, res.stiffness))
     blocks.append(Table(f"First contact in the simulation (the full loop, at k_e = {fmt.num(k_touch, 4)} N/m; the "
                         "design section's first-contact overshoot is the 1-D sampled loop's, over the whole range)",
-                        ["touch at", "peak force", "peak / f_d", "bounces within 1 s"],
+                        ["touch at", "peak force", "peak / f_d",
+                         f"bounces within {fmt.qty(FIRST_CONTACT_WINDOW, 's')}"
+                         if fc.time is None or fc.window >= FIRST_CONTACT_WINDOW - 1e-9 else
+                         f"bounces within {fmt.qty(fc.window, 's')} (its segment's end)"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))
     blocks += [
