@@ -648,8 +648,13 @@ class Simulator:
                 & (np.abs(S[n:2 * n]).max(axis=0) < 1e3))
         if bad.any():
             k = int(np.argmax(bad))
-            raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s (non-finite or runaway "
-                                  "joint velocity); check the stiffness, gains and control rate")
+            dq = S[n:2 * n, k]
+            what = (f"joint {int(np.nanargmax(np.abs(dq))) + 1} at {np.nanmax(np.abs(dq)):.3g} rad/s"
+                    if np.isfinite(dq).any() and np.nanmax(np.abs(dq)) >= 1e3 else "a state not finite")
+            # review 57: a depth f_d/k_e beyond the arm's reach diverged with this line naming neither
+            raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s ({what}); check the stiffness, "
+                                  "gains and control rate, and that the depth f_d/k_e is within the arm's reach "
+                                  "and torque")
 
     def _result(self, sc, t, L, U, path, info) -> SimulationResult:
         lg = self.log.split(np.ascontiguousarray(L))       # rows contiguous (the compiled rollout's already are)
