@@ -253,3 +253,26 @@ def test_a_late_first_contact_bouncing_to_the_end_is_still_a_limit_cycle():
     assert res.time[first] > 3.0 and np.count_nonzero(f[first:] <= 0.0) > 0.5 * (f.size - first)   # the premise
     (seg,) = segment_metrics(res)
     assert seg.verdict == "limit_cycle" and "contact is lost" in seg.reason, seg.reason
+
+
+@pytest.mark.parametrize("sets, hint, defaults", [
+    # TMT's compliance estimate clipped at 1/(10,000 N/m) on a 5,000 N/m part: a bias of -98 mN (measured)
+    (["controller.law.min_stiffness=1e4"], "k_e = 5,000 N/m is below controller.law.min_stiffness = 10,000 N/m", []),
+    # a guarded approach whose 20 s force ramp outlasts the 4 s segment: "a bias of -8.3 N" (measured)
+    (["trajectory.approach_gap=0.003", "controller.force_ramp=20"],
+     "f_d was still ramping up where the last quarter is judged, from 3 s (controller.force_ramp = 20 s",
+     ["trajectory.approach_gap=0.003"]),
+])
+def test_a_miss_names_the_setting_that_explains_it(sets, hint, defaults):
+    """Review 57's lows: simulate's reason said "a bias of ..." and named
+    neither a part softer than the law's stiffness clip nor a force ramp still
+    rising; the same runs with the defaults (min_stiffness 100 N/m, a 0.25 s
+    ramp) converge and name nothing."""
+    from tmtcontrol import Simulator, apply_overrides, paper_scenario
+    from tmtcontrol.simulation.metrics import segment_metrics
+
+    base = ["trajectory.cycles=1", "environment.stiffness.values=[5e3]"]
+    (seg,) = segment_metrics(Simulator(apply_overrides(paper_scenario(), base + sets)).run())
+    assert seg.verdict == "off_target" and hint in seg.reason and "a bias of" in seg.reason, seg.reason
+    (seg,) = segment_metrics(Simulator(apply_overrides(paper_scenario(), base + defaults)).run())
+    assert seg.verdict == "converged" and "controller." not in seg.reason, seg.reason

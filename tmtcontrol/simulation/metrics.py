@@ -551,6 +551,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         from .simulator import robot_of
 
         fk = robot_of(sc).functions.fk
+    touch = first_contact(result).time
     for i0, i1 in segments(result):
         t = result.time[i0:i1]
         f = result.contact_force[i0:i1]
@@ -597,6 +598,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         tilt = 0.0 if e_rot is None else _normal_tilt(part, fk, result, i0 + ss.start, i1)
         verdict, reason = _tilt_rule(verdict, reason, tilt, chart[1], sc.controller.orientation_tolerance,
                                      bool(np.any(np.asarray(sc.controller.part_offset) != 0.0)))
+        reason = _setting_hints(verdict, reason, sc, float(np.min(result.stiffness[i0:i1])), float(t[ss.start]),
+                                touch)
         tracking = verdict
         verdict, reason = _limits_and_orientation(verdict, reason, use, e_o, sc.controller.orientation_tolerance)
         out.append(SegmentMetrics(
@@ -709,6 +712,32 @@ def _tilt_rule(verdict: str, reason: str, tilt: float, n_c: float, tolerance: fl
     chart = f", and the chart's normal up to {n} further (docs/surfaces.md)" if n_c > 0.0 else ""
     return "off_target", (f"the tool's axis is up to {t} off the part's normal at the tool point ({why}){chart}: "
                           f"beyond controller.orientation_tolerance = {tol}")
+
+
+def _setting_hints(verdict: str, reason: str, sc, k_min: float, judged_from: float, touch: float | None) -> str:
+    """``reason`` with the settings that explain a segment's miss named
+    (review 57's lows: "a bias of -8.3 N" said nothing of a force ramp still
+    rising, nor a bias of -98 mN of a part softer than the law's clip):
+    a stiffness below the law's ``min_stiffness`` (the clip of its stiffness
+    or compliance estimate), and, after a guarded approach, f_d still ramping
+    up (``controller.force_ramp`` from about the first contact ``touch``) when
+    the segment's judged last quarter starts at ``judged_from`` s."""
+    from .. import fmt
+    from .environment import has_approach
+
+    if verdict == "converged":
+        return reason
+    hints = []
+    floor = getattr(sc.controller.law, "min_stiffness", None)
+    if floor is not None and k_min < floor:
+        hints.append(f"k_e = {fmt.num(k_min, 4)} N/m is below controller.law.min_stiffness = {fmt.num(floor, 4)} "
+                     "N/m, the clip of "
+                     "the law's stiffness estimate")
+    ramp = sc.controller.force_ramp
+    if touch is not None and has_approach(sc) and touch + ramp > judged_from:
+        hints.append(f"f_d was still ramping up where the last quarter is judged, from {judged_from:.3g} s "
+                     f"(controller.force_ramp = {ramp:g} s from the contact at about {touch:.3g} s)")
+    return reason + "".join(f"; {h}" for h in hints)
 
 
 def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float):
