@@ -165,7 +165,7 @@ def test_no_branch_on_the_joint_count_or_a_name_above_model_and_surface():
 
 LAYERS = ("model", "surface", "control", "simulation", "stability", "checks", "export", "sweep", "report", "cli")
 """The data path (docs/architecture.md): a package imports only earlier layers
-(and the utilities: cache, processes, files, fmt, plotstyle, drawing, the
+(and the utilities: cache, processes, files, fmt, settings, plotstyle, drawing, the
 package root)."""
 
 

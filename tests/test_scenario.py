@@ -277,3 +277,34 @@ def test_a_force_tolerance_not_below_f_d_is_noted(capsys):
     cli._noted(apply_overrides(paper_scenario(), ["controller.f_d=0.001"]))     # as every command loads one
     cli._print_notes()
     assert capsys.readouterr().err == f"note: {line}\n"
+
+
+def test_a_copy_with_an_update_is_validated_like_a_new_scenario():
+    """Review 58: pydantic's ``model_copy(update=...)`` skips validation, and a
+    scenario copied with f_d = -5 N ran four segments against -5 N; a two-value
+    impedance.m failed deep inside NumPy. Every settings model (the scenario,
+    its sections, a law's parameters) now validates its copies: one line
+    naming the field, the same refusal as building it anew."""
+    from tmtcontrol.control.laws import get_law
+
+    sc = paper_scenario()
+    with pytest.raises(ScenarioError, match=r"^f_d: Input should be greater than 0, got -5\.0$"):
+        sc.controller.model_copy(update={"f_d": -5.0})
+    with pytest.raises(ScenarioError, match=r"^m: wrong number of values, got \(1\.0, 1\.0\)$"):
+        sc.impedance.model_copy(update={"m": (1.0, 1.0)})
+    with pytest.raises(ScenarioError, match=r"^nosuch: Extra inputs are not permitted"):
+        sc.controller.model_copy(update={"nosuch": 1.0})
+    with pytest.raises(ValueError, match=r"^min_stiffness: Input should be greater than 0"):
+        sc.controller.law.model_copy(update={"min_stiffness": -1.0})
+    # the scenario's own copy is its validated replace: the section's key in the scenario's words
+    with pytest.raises(ScenarioError, match=r"^controller\.f_d: must be > 0, got -1"):
+        sc.model_copy(update={"controller": {"f_d": -1}})
+    # a check across fields runs too: the plane's shorthand against its normal
+    tilted = sc.environment.model_copy(update={"normal": [0.0, 0.0, -1.0]})
+    with pytest.raises(ScenarioError, match=r"^tilt_deg: 30 deg is not the plane of normal"):
+        tilted.model_copy(update={"tilt_deg": 30.0})
+    # valid copies equal the scenario built with the same values, and a plain copy is the scenario
+    ctl = sc.controller.model_copy(update={"f_d": 5.0})
+    assert sc.model_copy(update={"controller": ctl}) == apply_overrides(sc, ["controller.f_d=5"])
+    assert sc.model_copy() == sc and sc.model_copy(deep=True) == sc
+    assert get_law("tmt").parameters().model_copy(update={"min_stiffness": 50.0}).min_stiffness == 50.0

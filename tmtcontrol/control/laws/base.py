@@ -26,7 +26,8 @@ from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+
+from ...settings import Settings
 
 __all__ = ["LawParameters", "Law", "MEASUREMENTS", "OUTPUTS", "register_law", "unregister_law", "get_law", "laws",
            "on_register"]
@@ -38,11 +39,11 @@ OUTPUTS = ("x_r", "x_c", "dx_c", "ddx_c")
 """Scalar outputs of every law's update besides ``s_next``."""
 
 
-class LawParameters(BaseModel):
+class LawParameters(Settings):
     """Base of every law's parameter schema: ``kind`` (the law's name) and
-    numeric fields (floats, SI units in each field's description)."""
+    numeric fields (floats, SI units in each field's description); frozen,
+    no unknown keys, its copies validated (:class:`~tmtcontrol.settings.Settings`)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
     kind: str
 
 

@@ -9,9 +9,11 @@ schedule) takes ``"name"`` for ``{kind = "name"}`` (:func:`tagged`).
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import BeforeValidator, Field
+
+from ...settings import Settings
 
 __all__ = ["ScenarioError", "num", "F", "Pos", "NonNeg", "Stiff", "MAX_STIFFNESS", "MIN_PERIODS", "Section",
            "tagged", "tag_default"]
@@ -46,8 +48,11 @@ MIN_STIFFNESS = 1e-3
 Stiff = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MIN_STIFFNESS, le=MAX_STIFFNESS)]
 
 
-class Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class Section(Settings):
+    """A scenario's section: frozen, no unknown keys, its copies validated
+    (:class:`~tmtcontrol.settings.Settings`), a refused copy a :class:`ScenarioError`."""
+
+    copy_error: ClassVar[type[ValueError]] = ScenarioError
 
 
 def tagged(value, default: str | None = None):

@@ -56,6 +56,12 @@ class Scenario(Section):
         """Simulated time, s: ``cycles * period``."""
         return self.trajectory.cycles * self.trajectory.period
 
+    def model_copy(self, *, update: dict | None = None, deep: bool = False) -> "Scenario":
+        """A copy; with ``update`` (top-level sections or the name), the
+        validated :meth:`replace` (review 58: pydantic's own copy skipped every
+        check, and a scenario with f_d = -5 N ran)."""
+        return self.replace(**update) if update else super().model_copy(deep=deep)
+
     def replace(self, **changes) -> "Scenario":
         """A validated copy with top-level sections replaced."""
         d = scenario_to_dict(self)
