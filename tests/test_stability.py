@@ -2,6 +2,7 @@
 sampled-data model cross-validated against the simulator."""
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -586,3 +587,39 @@ def test_the_poles_line_shows_no_rounding_residue(b, shown):
     line = next(r for r in format_analysis(analyze(m=1.0, b=b, k=100.0, k_e=2000.0)).splitlines()
                 if r.startswith("poles (eq. 22)"))
     assert line.split(None, 3)[3] == shown
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda st, L: st.sampled_closed_loop(1, 60, 100, 2e4, Ts=1e-3, m_p=3.3, alpha=2),
+     "alpha: the force filter's pole"),
+    (lambda st, L: st.sampled_closed_loop(1, 60, 100, 2e4, Ts=1e-3, m_p=3.3, alpha=float("nan")),
+     "alpha: must be finite"),
+    (lambda st, L: st.sampled_closed_loop(1, 60, 100, 2e4, Ts=1e-3, m_p=3.3, d_e=-5), "d_e: must be >= 0"),
+    (lambda st, L: st.sampled_closed_loop(1, 60, 100, 2e4, Ts=1e-3, m_p=3.3, kd=-1), "kd: must be >= 0"),
+    (lambda st, L: st.spectral_radii(1, 60, 100, [1e3, 1e300], Ts=1e-3, m_p=3.3), "k_e: at most 1e+10 N/m"),
+    (lambda st, L: st.stiffness_sweep(1, 60, 100, k_e=[]), "k_e: expected one or more finite stiffnesses"),
+    (lambda st, L: st.stiffness_sweep(1, 60, 100, k_e=[-1e3, 1e3]), "k_e: expected one or more finite stiffnesses"),
+    (lambda st, L: st.max_stable_stiffness(1, 60, 100, Ts=1e-3, m_p=3.3, within=-5), "within: must be > 0"),
+    (lambda st, L: st.continuous_limit(L("integral"), m=1, b=60, k=100, k_e=-2e4), "k_e: must be > 0"),
+    (lambda st, L: st.continuous_limit(L("integral"), m=0, b=60, k=100, k_e=2e4), "m: must be > 0"),
+    (lambda st, L: st.continuous_limit(L("integral"), m=1, b=60, k=100, k_e=2e4, delta=float("inf")),
+     "delta: expected a finite number"),
+    (lambda st, L: st.law_loop(L("adaptive_damping"), L("tmt").parameters(), m=1, b=60, k=100, k_e=2e4, Ts=1e-3,
+                               m_p=3.3), "params: expected the parameters of law 'adaptive_damping'"),
+    (lambda st, L: st.law_loop("tmt", m=1, b=60, k=100, k_e=2e4, Ts=1e-3, m_p=3.3), "law: expected a Law"),
+    (lambda st, L: st.law_loop(L("tmt"), m=1, b=60, k=100, k_e=2e4, Ts=1e-3, m_p=3.3, alpha=1.0),
+     "alpha: the force filter's pole"),
+])
+def test_the_analyses_name_an_argument_out_of_range(call, message):
+    """Review 58: from Python these took alpha = 2, d_e < 0, kd < 0, a
+    negative k_e or m = 0 in continuous_limit silently (an A matrix of NaN),
+    or failed in LAPACK (alpha = NaN, k_e = 1e300), inside NumPy (an empty
+    stiffness list) or with an AttributeError (another law's parameters); the
+    house rule is an AnalysisError naming the argument, as m, b, k and Ts
+    already had."""
+    import tmtcontrol.stability as st
+    from tmtcontrol.control.laws import get_law
+    from tmtcontrol.stability import AnalysisError
+
+    with pytest.raises(AnalysisError, match="^" + re.escape(message)):
+        call(st, get_law)

@@ -353,6 +353,8 @@ def stiffness_sweep(m, b, k, k_e: np.ndarray) -> dict:
     import control as ct
     _check(m, b, k)
     k_e = np.asarray(k_e, dtype=float)
+    if not k_e.size or not np.all(np.isfinite(k_e)) or np.any(k_e <= 0):    # review 58: [] failed inside NumPy
+        raise AnalysisError(f"k_e: expected one or more finite stiffnesses > 0 (N/m), got {k_e.tolist()!r}")
     L = ct.tf([1.0], [m, b, k])
     rl = ct.root_locus_map(L, gains=k_e)
     return {"k_e": k_e, "root_locus": rl, "loci": rl.loci,

@@ -33,7 +33,7 @@ import casadi as ca
 import numpy as np
 
 from ..control.laws import MEASUREMENTS, Law, LawParameters
-from .continuous import AnalysisError, _pos
+from .continuous import AnalysisError, _check, _pos
 from .sampled import StiffnessBand, _zoh, stable_band
 
 __all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "law_stiffness_band", "continuous_limit", "implemented_limit",
@@ -70,6 +70,31 @@ class LawLoop:
         """Iterate the (nonlinear) map ``n`` times from ``z0``: states
         (n+1, nz) and forces (n,)."""
         return _iterate(self.step, z0, n)
+
+
+def _law_and_params(law, params) -> LawParameters:
+    """``params``, or the law's defaults, checked to be ``law``'s (review 58:
+    a law's name, or another law's parameters, failed inside with an
+    AttributeError)."""
+    if not isinstance(law, Law):
+        raise AnalysisError(f"law: expected a Law (tmtcontrol.control.laws.get_law(name)), got {law!r}")
+    if params is None:
+        return law.parameters()
+    if not isinstance(params, law.parameters):
+        raise AnalysisError(f"params: expected the parameters of law {law.name!r} ({law.parameters.__name__}), "
+                            f"got {type(params).__name__}")
+    return params
+
+
+def _loop_settings(alpha, d_e, kd, kp, delta=0.0) -> None:
+    """Check the loop's settings beside the impedance (review 58: alpha = 2,
+    d_e < 0 or kd < 0 were taken silently, alpha = NaN failed in LAPACK)."""
+    from .sampled import check_loop_settings
+
+    check_loop_settings(alpha, d_e, kd, kp)
+    if isinstance(delta, bool) or not isinstance(delta, (int, float, np.floating, np.integer)) \
+            or not np.isfinite(delta):
+        raise AnalysisError(f"delta: expected a finite number (m), got {delta!r}")
 
 
 def _iterate(step: ca.Function, z0: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +170,10 @@ def law_loop(law: Law, params: LawParameters | None = None, *, m: float, b: floa
     _pos("b", b, strict=False)          # an undamped impedance is a loop to judge (unstable), not bad input
     if not isinstance(delay, (int, np.integer)) or delay < 0:
         raise AnalysisError(f"delay: expected an integer >= 0 samples, got {delay!r}")
-    params = law.parameters() if params is None else params
+    _loop_settings(alpha, d_e, kd, kp, delta)
+    _pos("settle", settle, strict=False)      # 0: Newton from the contact guess alone
+    _pos("model_scale", model_scale)
+    params = _law_and_params(law, params)
     kd = b / m if kd is None else kd
     kp = k / m if kp is None else kp
     F, names = _step_function(law, params, m=m, b=b, k=k, k_e=k_e, Ts=Ts, m_p=m_p, f_d=f_d, delta=delta,
@@ -180,7 +208,7 @@ def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: f
     (the state carries over at each switch); ``kw`` as :func:`law_loop`.
     Returns, per segment, its :class:`LawLoop` (equilibrium, spectral
     radius) and contact force (N; NaN/inf if it blows up)."""
-    params = law.parameters() if params is None else params
+    params = _law_and_params(law, params)
     z, out = None, []
     for k_e in k_es:
         lp = law_loop(law, params, k_e=k_e, **kw)
@@ -256,7 +284,9 @@ def implemented_limit(law: Law, params: LawParameters | None = None, *, m: float
     mass and damping by (1 - c) under an x_e error, which the running loop
     does not (its damping ratio there several times lower); at delta = 0
     the two agree (eq. 22 times the inner loop's ``s^2 + K_D s + K_P``)."""
-    params = law.parameters() if params is None else params
+    _check(m, b, k, k_e, f_d)
+    _loop_settings(0.0, 0.0, kd, kp, delta)
+    params = _law_and_params(law, params)
     kd = b / m if kd is None else kd
     kp = k / m if kp is None else kp
     s, xv, x_c, dx_c, ddx_c, sdot = _limit_at_ts0(law, params, m, b, k, k_e, f_d, delta)
@@ -277,7 +307,9 @@ def continuous_limit(law: Law, params: LawParameters | None = None, *, m: float,
     ``np.poly(A)`` is the monic characteristic polynomial. Laws with a
     per-sample update that has no continuous limit (Ts does not appear)
     give a zero row for that state."""
-    params = law.parameters() if params is None else params
+    _check(m, b, k, k_e, f_d)
+    _loop_settings(0.0, 0.0, None, None, delta)
+    params = _law_and_params(law, params)
     nl = len(law.states)
     s, xv, x_c, dx_c, _, sdot = _limit_at_ts0(law, params, m, b, k, k_e, f_d, delta)
     Jw, w_eq = _equilibrium_jacobian(ca.vertcat(sdot, x_c - xv[0], dx_c - xv[1]), ca.vertcat(s, xv),

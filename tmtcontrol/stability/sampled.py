@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..simulation.scenario import MAX_STIFFNESS
 from .continuous import AnalysisError, _check, _pos
 
 if TYPE_CHECKING:  # python-control takes 1.4 s to import: built on first use of SampledModel.sys
@@ -109,10 +110,29 @@ def _discrete_loop(m, b, k, k_e: np.ndarray, Ts, m_p, kd, kp, law, alpha, d_e):
     return Ad, Bd, C
 
 
-def _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law):
+def check_loop_settings(alpha, d_e, kd=None, kp=None) -> None:
+    """:class:`AnalysisError` naming the first of the force filter's pole
+    ``alpha`` (0 <= alpha < 1), the contact damping ``d_e`` (N s/m, >= 0) and
+    the inner-loop gains ``kd``, ``kp`` (>= 0 when given) out of range
+    (review 58: alpha = 2, d_e = -5 and kd = -1 were analysed silently,
+    alpha = NaN failed in LAPACK)."""
+    _pos("alpha", alpha, strict=False)
+    if alpha >= 1.0:
+        raise AnalysisError(f"alpha: the force filter's pole must be < 1, got {alpha!r}")
+    _pos("d_e", d_e, strict=False)
+    for name, v in (("kd", kd), ("kp", kp)):
+        if v is not None:
+            _pos(name, v, strict=False)
+
+
+def _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law, alpha=0.0, d_e=0.0, k_e_max=None):
     _check(m, b, k, k_e)
     _pos("Ts", Ts)
     _pos("m_p", m_p)
+    check_loop_settings(alpha, d_e, kd, kp)
+    top = k_e if k_e_max is None else k_e_max
+    if top > MAX_STIFFNESS:     # review 58: 1e300 N/m failed in LAPACK
+        raise AnalysisError(f"k_e: at most {MAX_STIFFNESS:g} N/m (the stiffest surface analysed), got {top!r}")
     if law not in ("tmt", "known"):
         raise AnalysisError(f"law: the 1-D sampled model covers 'tmt' and 'known', got {law!r}")
     return (b / m if kd is None else kd), (k / m if kp is None else kp)
@@ -141,7 +161,7 @@ def sampled_closed_loop(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alph
     d_e : float
         Contact damping, N s/m.
     """
-    kd, kp = _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law)
+    kd, kp = _loop_args(m, b, k, k_e, Ts, m_p, kd, kp, law, alpha, d_e)
     Ad, Bd, C = (x[0] for x in _discrete_loop(m, b, k, np.array([float(k_e)]), Ts, m_p, kd, kp, law, alpha, d_e))
     rho = float(np.max(np.abs(np.linalg.eigvals(Ad))))
     return SampledModel(Ts, k_e, Ad, Bd, C, rho, {"m": m, "b": b, "k": k, "m_p": m_p, "kd": kd, "kp": kp,
@@ -154,7 +174,7 @@ def spectral_radii(m, b, k, k_e, Ts, m_p, kd=None, kp=None, law="tmt", alpha=0.0
     k_e = np.asarray(k_e, dtype=float).ravel()
     if not k_e.size:
         raise AnalysisError("k_e: expected at least one stiffness")
-    kd, kp = _loop_args(m, b, k, float(k_e.min()), Ts, m_p, kd, kp, law)
+    kd, kp = _loop_args(m, b, k, float(k_e.min()), Ts, m_p, kd, kp, law, alpha, d_e, float(k_e.max()))
     Ad = _discrete_loop(m, b, k, k_e, Ts, m_p, kd, kp, law, alpha, d_e)[0]
     return np.abs(np.linalg.eigvals(Ad)).max(axis=1)
 
@@ -295,6 +315,10 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
     :func:`largest_stable`, :func:`max_stable_stiffness`,
     ``stability.lawloop.law_stiffness_limit`` and ``stability.analysis``
     call it."""
+    for name, v in (("k_lo", k_lo), ("k_hi", k_hi)) + ((("within", within),) if within is not None else ()):
+        _pos(name, v)             # review 58: within = -5 read "k_e: must be finite, got nan"
+    if not k_lo < k_hi:
+        raise AnalysisError(f"k_hi: must be above k_lo ({k_lo!r} N/m), got {k_hi!r}")
     start = float(k_lo if within is None else min(k_lo, within))
     grid = np.geomspace(start, k_hi, points)
     known = {} if scan is None else dict(enumerate(np.asarray(scan(grid), dtype=bool).tolist()))
