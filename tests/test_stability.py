@@ -623,3 +623,24 @@ def test_the_analyses_name_an_argument_out_of_range(call, message):
 
     with pytest.raises(AnalysisError, match="^" + re.escape(message)):
         call(st, get_law)
+
+
+def test_results_holding_arrays_compare_by_identity_without_raising():
+    """Review 58: ``a == b`` of two results raised "The truth value of an
+    array ... is ambiguous" (the dataclasses' generated ``__eq__`` compared
+    their arrays); they compare by identity now, and their arrays are what to
+    compare (docs/api.md)."""
+    import tmtcontrol.stability as st
+    from tmtcontrol import load_robot
+    from tmtcontrol.control.laws import get_law
+
+    pairs = [(lambda: st.analyze_continuous(1, 60, 100, 2e4)),
+             (lambda: st.analyze_range(1, 60, 100, 1e3, 2e4)),
+             (lambda: st.sampled_closed_loop(1, 60, 100, 2e4, Ts=1e-3, m_p=3.3)),
+             (lambda: st.law_loop(get_law("tmt"), m=1, b=60, k=100, k_e=2e4, Ts=1e-3, m_p=3.3)),
+             (lambda: load_robot("puma560"))]
+    for make in pairs:
+        a, b = make(), make()
+        assert a == a and not (a == b) and a != b, type(a).__name__
+    a, b = st.analyze_continuous(1, 60, 100, 2e4), st.analyze_continuous(1, 60, 100, 2e4)
+    assert np.array_equal(a.poles, b.poles) and a.as_dict() == b.as_dict()   # the values: equal

@@ -114,7 +114,7 @@ PUMA_JOINTS = ("joint1", "joint2", "joint3")
 PUMA_TIP = "wrist_centre"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RobotFunctions:
     """The robot's named CasADi SX Functions (inputs ``q``, ``dq``, ``ddq``, ``tau``).
 
@@ -152,7 +152,7 @@ class RobotFunctions:
     forward_dynamics: ca.Function
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Robot:
     """A fixed-base serial arm: joints, limits, and eq. (1) as Functions.
 

@@ -71,7 +71,7 @@ class TipError(ChainError):
         super().__init__("tip", message)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ChainJoint:
     """One actuated joint of the chain.
 
@@ -106,7 +106,7 @@ class ChainJoint:
     friction: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Body:
     """Rigid body moved by one actuated joint: every link fixed to it merged.
 
@@ -128,7 +128,7 @@ class Body:
     links: tuple[str, ...]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Chain:
     """The checked serial chain of a URDF, ready for the rigid-body algorithms.
 

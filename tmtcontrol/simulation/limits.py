@@ -43,7 +43,7 @@ SATURATION_RTOL = 1e-12
 """A torque within this relative distance of its limit is on it (clipped)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class JointLimits:
     """Per-joint limits (arrays of n; inf: none) and how they are judged.
 
@@ -141,7 +141,7 @@ class Excursion:
                 "time": self.time, "duration": self.duration, "unit": self.unit}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LimitUse:
     """A run (or a time window of it) against :class:`JointLimits`.
 

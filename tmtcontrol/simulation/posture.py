@@ -142,7 +142,7 @@ def orientation_angle(R_e) -> float:
     return float(Rotation.from_matrix(R_e).magnitude())
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PosePath:
     """Joint-space image of one period of the path and its conditioning."""
     t: np.ndarray                 # (k,) path times, s

@@ -299,7 +299,7 @@ def normal_mass(robot, q, n) -> float:
     return float(1.0 / (n @ Jv @ np.linalg.solve(np.asarray(robot.mass_matrix(q)), Jv.T @ n)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimulationResult:
     """Time series of one simulation, sampled at the control instants t_k.
 

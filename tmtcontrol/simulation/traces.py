@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["SimulationTraces"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimulationTraces:
     """The series of Figs. 3-5 (SI: s, N, N/m, m; positions (3, N) in the
     base frame) and the plane of the 3-D path figure."""

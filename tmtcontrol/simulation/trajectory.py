@@ -37,7 +37,7 @@ PATHS = ("circle", "line", "raster")
 """The path kinds (``trajectory.path``)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PathReference:
     """Tangential reference samples, each of shape (2, N): task axes 1 and 2."""
     t: np.ndarray

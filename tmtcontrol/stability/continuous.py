@@ -83,7 +83,7 @@ def damping_ratio(m, b, k, k_e) -> float:
     return b / critical_damping(m, k, k_e)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ContinuousAnalysis:
     """Eq. (22) at one stiffness: systems, poles and verdicts. The systems
     are built from (m, b, k, k_e) when asked for, so the analysis holds only
@@ -303,7 +303,7 @@ def damping_for_range(m, k, k_e_min, k_e_max, zeta=1.0) -> float:
     return zeta * critical_damping(m, k, k_e_max)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RangeAnalysis:
     """Eq. (22) over an interval of stiffness."""
     k_e_min: float

@@ -40,7 +40,7 @@ __all__ = ["LawLoop", "law_loop", "law_stiffness_limit", "law_stiffness_band", "
            "stiffness_sequence"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LawLoop:
     """The sampled normal-axis loop of one law at one operating point.
 

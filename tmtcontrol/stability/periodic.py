@@ -67,7 +67,7 @@ _BUILT: dict = {}
 """Tangent-linear steps (Rollouts) per closed-loop structure."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PeriodicLoop:
     """The loop linearised along its steady periodic orbit at one stiffness.
 

@@ -41,7 +41,7 @@ def effective_mass(D: np.ndarray, n: np.ndarray) -> float:
     return float(1.0 / (n @ np.linalg.solve(D, n)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SampledModel:
     """Discrete-time closed loop of the normal axis at Ts.
 

@@ -105,7 +105,7 @@ def equilibrium_damping(scenario, k_e: float) -> float:
     return float(min(max(sch.zeta * critical_damping(m, k, k_hat), sch.b_min), sch.b_max))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class WholeLoop:
     """The linearised sampled loop at one path point and stiffness.
 
