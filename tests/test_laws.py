@@ -358,6 +358,18 @@ def test_compare_python_api_returns_the_same_numbers(compared):
         assert s.steady_state_error == pytest.approx(ref["steady_state_error"], rel=1e-9)
 
 
+@pytest.mark.parametrize("names, msg", [("tmt", r"expected a list of law names, got the string 'tmt' \(write \['tmt'\]\)"),
+                                       ([], "no law named"), (["tmt", "nope"], "unknown law 'nope'")])
+def test_compare_laws_refuses_a_string_and_an_empty_list(names, msg):
+    """Review 58: from Python, compare_laws(sc, "tmt") said "unknown law 't',
+    'm', 't'" (the string read letter by letter) and compare_laws(sc, [])
+    returned an empty comparison; both refused before anything runs."""
+    from tmtcontrol import compare_laws
+
+    with pytest.raises(ValueError, match=msg):
+        compare_laws(paper_scenario(), names)
+
+
 @pytest.mark.parametrize("laws_arg, msg", [("tmt,nope", "--laws: unknown law 'nope'"),
                                            ("tmt,tmt", "--laws: a law is listed twice"),
                                            ("tmt,", "--laws: unknown law ''")])

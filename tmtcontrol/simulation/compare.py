@@ -80,8 +80,14 @@ def with_law(scenario: Scenario, name: str) -> Scenario:
 
 def check_law_names(names) -> list[str]:
     """``names`` as a list if every one is a registered law, listed once;
-    else ValueError naming the offending name."""
+    else ValueError naming the offending name (review 58: a string was read
+    letter by letter as "unknown law 't', 'm', 't'", an empty list compared
+    nothing)."""
+    if isinstance(names, str):
+        raise ValueError(f"expected a list of law names, got the string {names!r} (write [{names!r}])")
     names = list(names)
+    if not names:
+        raise ValueError("no law named (give one or more, or None for every registered law)")
     known = laws()
     unknown = [n for n in names if n not in known]
     if unknown:
