@@ -322,7 +322,7 @@ class SimulationResult:
     measured_force: np.ndarray       # (N,) sensor output (noise, filter)
     desired_force: np.ndarray        # (N,) f_d in use (ramped after a guarded approach)
     stiffness: np.ndarray            # (N,) true k_e(t)
-    stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e) of eq. (14); NaN out of contact
+    stiffness_estimate: np.ndarray   # (N,) f_m / (x - x_e) of eq. (14), N/m; NaN where f_m <= 0.5 N or x <= x_e
     damping: np.ndarray              # (N,) normal impedance damping in use, N s/m
     path: PosePath
     info: dict = field(default_factory=dict)
