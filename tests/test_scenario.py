@@ -267,16 +267,33 @@ def test_a_force_tolerance_not_below_f_d_is_noted(capsys):
     it nothing is said."""
     from tmtcontrol.simulation.scenario import apply_overrides, paper_scenario
 
-    notes = lambda *sets: apply_overrides(paper_scenario(), list(sets)).controller.unit_notes()
+    low = "controller.law.force_threshold=0.001"       # f_d above twice it: the threshold's note (below) not given
+    notes = lambda *sets: apply_overrides(paper_scenario(), [low, *sets]).controller.unit_notes()
     assert notes() == [] and notes("controller.f_d=0.0101") == []
-    assert notes("controller.f_d=0.01") != [] and notes("controller.f_d=0.001", "controller.force_tolerance=0.001") != []
-    (line,) = notes("controller.f_d=0.001")
-    assert line.startswith("controller.force_tolerance = 0.01 N is not below controller.f_d = 0.001 N")
+    assert notes("controller.f_d=0.01") != [] and notes("controller.f_d=0.003", "controller.force_tolerance=0.003") != []
+    (line,) = notes("controller.f_d=0.003")
+    assert line.startswith("controller.force_tolerance = 0.01 N is not below controller.f_d = 0.003 N")
     from tmtcontrol import cli
 
-    cli._noted(apply_overrides(paper_scenario(), ["controller.f_d=0.001"]))     # as every command loads one
+    cli._noted(apply_overrides(paper_scenario(), [low, "controller.f_d=0.003"]))     # as every command loads one
     cli._print_notes()
     assert capsys.readouterr().err == f"note: {line}\n"
+
+
+@pytest.mark.parametrize("f_d, threshold, noted", [(10.0, 0.5, False), (1.0, 0.5, False), (0.999, 0.5, True),
+                                                   (0.3, 0.5, True), (0.3, 0.1, False)])
+def test_an_f_d_below_twice_the_laws_force_threshold_is_noted(f_d, threshold, noted):
+    """Review 58: at f_d = 0.3 N under the TMT law's default 0.5 N threshold
+    the law only ever used its f_e = 0 branch x_e + f_d/k (eq. 18 weighs the
+    compliance estimate in from the threshold, fully from twice it:
+    tmt.compliance_estimate), and nothing said so. The note names both keys;
+    at exactly twice the threshold the weight is 1 (no note)."""
+    sc = apply_overrides(paper_scenario(), [f"controller.f_d={f_d}", f"controller.law.force_threshold={threshold}",
+                                            "controller.force_tolerance=0.001"])
+    notes = sc.controller.unit_notes()
+    assert notes == ([f"controller.f_d = {f_d:g} N is below twice controller.law.force_threshold = {threshold:g} N: "
+                      "the law's stiffness estimate is not fully in use at f_d (it is used from twice the threshold; "
+                      "set a lower force_threshold)"] if noted else [])
 
 
 def test_a_copy_with_an_update_is_validated_like_a_new_scenario():

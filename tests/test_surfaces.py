@@ -239,15 +239,22 @@ def test_a_sweep_notes_a_radius_that_reads_as_millimetres_once(tmp_path):
     (tmp_path / "t.toml").write_text('[grid]\n"controller.f_d" = [10.0, 0.005, 0.004]\n'
                                      '[random]\nsamples = 2\n"controller.force_tolerance" = { uniform = [1e-3, 2e-3] }\n')
     notes = load_sweep(tmp_path / "t.toml").unit_notes()
-    assert notes == [], notes             # every tolerance (at most 2 mN) below the smallest f_d (4 mN)
+    # every tolerance (at most 2 mN) below the smallest f_d (4 mN); that f_d below twice the law's 0.5 N threshold
+    assert [n.split(":")[0] for n in notes] == [
+        "controller.f_d = 0.004 N is below twice controller.law.force_threshold = 0.5 N"], notes
     (tmp_path / "t.toml").write_text('[grid]\n"controller.f_d" = [10.0, 0.005, 0.004]\n'
                                      '[random]\nsamples = 2\n"controller.force_tolerance" = { uniform = [1e-3, 5e-3] }\n')
     notes = load_sweep(tmp_path / "t.toml").unit_notes()
-    assert [n.split(":")[0] for n in notes] == [
+    assert [n.split(":")[0] for n in notes if n.startswith("controller.force_tolerance")] == [
         "controller.force_tolerance = 0.005 N is not below controller.f_d = 0.004 N"], notes
     (tmp_path / "c.toml").write_text('[grid]\ncontroller = [{ f_d = 10.0 }, { f_d = 1.0, force_tolerance = 1.0 }]\n')
     assert [n.split(":")[0] for n in load_sweep(tmp_path / "c.toml").unit_notes()] == [
         "controller.force_tolerance = 1 N is not below controller.f_d = 1 N"]
+    # a threshold axis is read too: 0.004 N is above twice 1 mN
+    (tmp_path / "h.toml").write_text('[grid]\n"controller.f_d" = [10.0, 0.004]\n'
+                                     '"controller.law.force_threshold" = [0.001, 0.5]\n')
+    assert [n.split(":")[0] for n in load_sweep(tmp_path / "h.toml").unit_notes() if "force_threshold" in n] == [
+        "controller.f_d = 0.004 N is below twice controller.law.force_threshold = 0.5 N"]
     # a sweep refused for its size prints the refusal alone (one line; the note is held until the checks pass)
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", str(tmp_path / "w.toml"), "--out",
                         str(tmp_path / "o"), "--max-steps", "10"], capture_output=True, text=True)

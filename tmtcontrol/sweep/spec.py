@@ -315,12 +315,13 @@ class Sweep:
         """The notes of values whose verdicts say little or that read like a
         unit mistake (``EnvironmentSettings.unit_notes``: a part's radius
         above ``LARGE_RADIUS``; ``ControllerSettings.unit_notes``: a force
-        tolerance not below f_d) in the base scenario and on the axes, each
+        tolerance not below f_d, an f_d below twice the law's force
+        threshold) in the base scenario and on the axes, each
         once (review 48: a sweep printed none). The axes that can set those
         keys are taken at their extremes (a scalar grid axis's smallest and
         largest value, a random axis's range ends, every value of an axis over
         a whole table) and combined: the notes are monotone in each key."""
-        keys = ("environment.radius", "controller.f_d", "controller.force_tolerance")
+        keys = ("environment.radius", "controller.f_d", "controller.force_tolerance", "controller.law.force_threshold")
         axes: dict[str, list] = {}
         for axis, values in self.grid.items():
             if any(_covers(axis, k) for k in keys):

@@ -132,11 +132,20 @@ class ControllerSettings(Section):
         """Valid values whose verdicts say little, one line each for the
         command line to print: a force tolerance not below f_d (review 57:
         f_d = 1 mN under the default 10 mN read "converged" with a 20 %
-        steady error; a tool that never pressed would pass too)."""
-        if self.force_tolerance < self.f_d:
-            return []
-        return [f"controller.force_tolerance = {self.force_tolerance:g} N is not below controller.f_d = "
-                f"{self.f_d:g} N: a segment within it of f_d may hardly press (set a tolerance below f_d)"]
+        steady error; a tool that never pressed would pass too), and an f_d
+        below twice the law's ``force_threshold``, where its estimate is
+        weighed out (review 58)."""
+        notes = []
+        if self.force_tolerance >= self.f_d:
+            notes.append(f"controller.force_tolerance = {self.force_tolerance:g} N is not below controller.f_d = "
+                         f"{self.f_d:g} N: a segment within it of f_d may hardly press (set a tolerance below f_d)")
+        # review 58: f_d = 0.3 N under the TMT law's 0.5 N threshold never used its estimate (no note)
+        threshold = getattr(self.law, "force_threshold", None)
+        if threshold is not None and self.f_d < 2.0 * threshold:
+            notes.append(f"controller.f_d = {self.f_d:g} N is below twice controller.law.force_threshold = "
+                         f"{threshold:g} N: the law's stiffness estimate is not fully in use at f_d (it is used "
+                         "from twice the threshold; set a lower force_threshold)")
+        return notes
 
     @model_validator(mode="after")
     def _schedule_needs_filter(self):
