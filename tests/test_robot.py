@@ -260,3 +260,49 @@ def test_dynamics_built_on_first_use_and_unknown_attributes_refused():
     np.testing.assert_allclose(M, M.T, atol=1e-12)
     with pytest.raises(AttributeError, match="no attribute 'mass_matrx'"):
         robot.mass_matrx
+
+
+def _serial_urdf(axes, name="serial"):
+    """A serial arm of len(axes) revolute joints, 0.15 m apart along x, each
+    about its axis (a string "x y z"), 1 kg links."""
+    inertia = '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+    parts = [f'<robot name="{name}"><link name="l0"/>']
+    for i, axis in enumerate(axes, 1):
+        parts.append(f'<link name="l{i}">{inertia}</link><joint name="j{i}" type="revolute"><parent link="l{i - 1}"/>'
+                     f'<child link="l{i}"/><origin xyz="0.15 0 0.05"/><axis xyz="{axis}"/>'
+                     '<limit lower="-3" upper="3" effort="100" velocity="3"/></joint>')
+    return "".join(parts) + "</robot>"
+
+
+@pytest.mark.parametrize("axes, dim, rank", [(["0 0 1"] * 6, 6, 3), (["0 0 1"] * 4, 3, 2),
+                                             (["0 0 1", "0 1 0", "0 1 0", "0 0 1"], 3, 3),
+                                             (["0 0 1", "0 1 0", "0 1 0", "1 0 0", "0 1 0", "1 0 0"], 6, 6)])
+def test_an_arm_whose_axes_cannot_span_its_task_is_refused_in_one_line(tmp_path, axes, dim, rank):
+    """Review 59: a 6-joint URDF with every axis along z (a planar arm: x, y
+    and the turn about z, rank 3) was declared a 6-axis task and failed in
+    CasADi's rootfinder with a traceback (exit 1) on simulate, check and
+    export. The task's rank is counted from the Jacobian (closed form here:
+    parallel z axes move the tool in x, y and turn it about z only); below the
+    task's dimension the arm is refused, one line naming robot.model, exit 2,
+    nothing written. Arms whose axes span the task (a 4-joint position arm, a
+    6-joint one with a spherical-like wrist) keep their task."""
+    import subprocess
+    import sys
+
+    from tmtcontrol import load_robot
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(_serial_urdf(axes))
+    robot = load_robot(str(urdf))
+    assert robot.task_rank(dim) == rank
+    if rank == dim:
+        assert robot.task.dim == dim
+        return
+    with pytest.raises(ValueError, match=rf"along at most {rank} of the {dim} axes of its task"):
+        robot.task
+    (tmp_path / "s.toml").write_text(f'[robot]\nmodel = "arm.urdf"\nq0 = {[0.3] * len(axes)}\n')
+    r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "simulate", str(tmp_path / "s.toml"), "--no-plots",
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error: robot.model: serial has ") \
+        and len(r.stderr.splitlines()) == 1, r.stderr
+    assert not (tmp_path / "o").exists()

@@ -32,6 +32,7 @@ arm deserialises them instead of rebuilding the expressions.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import math
 import os
@@ -55,6 +56,11 @@ BUNDLED = {
 """Arms shipped with the package: file in ``model/data/`` and default tip."""
 
 MIN_JOINTS = 3
+
+TASK_RANK_SAMPLES = 8
+"""Random poses at which :meth:`Robot.task_rank` evaluates the Jacobian (the
+largest rank counts: one pose away from a singularity shows the joints span
+the task)."""
 """Fewest actuated joints a closed loop takes: the tool point's three coordinates."""
 
 
@@ -226,10 +232,39 @@ class Robot:
             return (False,) * self.n
         return tuple(j.type == "prismatic" for j in self.chain.joints)
 
-    @property
+    @functools.cached_property
     def task(self) -> Task:
-        """The task its closed loop controls (:func:`task_of`; ``ValueError`` below 3 joints)."""
-        return task_of(self.n)
+        """The task its closed loop controls (:func:`task_of`); ``ValueError``
+        below 3 joints, or when the joints cannot move the tool along every
+        task axis (:meth:`task_rank` below the task's dimension: review 59, a
+        6-joint arm with every axis along z failed inside CasADi's rootfinder
+        with a traceback)."""
+        task = task_of(self.n)
+        rank = self.task_rank(task.dim)
+        if rank < task.dim:
+            what = "position and orientation" if task.rotational else "position"
+            raise ValueError(f"{self.n} actuated joints whose axes move the tool along at most {rank} of the "
+                             f"{task.dim} axes of its task ({what}; the rank of the Jacobian at "
+                             f"{TASK_RANK_SAMPLES} sampled poses): the closed loop needs all {task.dim}")
+        return task
+
+    def task_rank(self, dim: int = 6) -> int:
+        """The largest rank of the Jacobian's first ``dim`` rows (3: the tool
+        point's velocity; 6: with the angular one) at :data:`TASK_RANK_SAMPLES`
+        seeded random poses within the joint limits (a turn either way where a
+        joint has none): below ``dim``, no pose of the arm moves its tool along
+        every axis (the joint axes do not span them). Rank counts the singular
+        values above 1e-9 of the largest."""
+        rng = np.random.default_rng(0)
+        lo = np.where(np.isfinite(self.q_min), self.q_min, -math.pi)
+        hi = np.where(np.isfinite(self.q_max), self.q_max, math.pi)
+        best = 0
+        for _ in range(TASK_RANK_SAMPLES):
+            sv = np.linalg.svd(self.jacobian(rng.uniform(lo, hi))[:dim], compute_uv=False)
+            best = max(best, int(np.count_nonzero(sv > 1e-9 * sv[0])) if sv[0] > 0 else 0)
+            if best == dim:
+                break
+        return best
 
     @property
     def total_mass(self) -> float:
