@@ -163,6 +163,56 @@ def test_check_dask_accepts_a_listening_port_and_names_bad_addresses():
         check_dask("tcp://127.0.0.1:x")
 
 
+@pytest.mark.parametrize("sends", [b"", b"HTTP/1.1 400 Bad Request\r\n\r\n"])
+def test_a_port_that_is_no_dask_scheduler_is_refused_not_waited_on(sends):
+    """Review 59: a port that accepted the connection and never spoke held the
+    Dask client past its 10 s timeout for as long as the port stayed open (90 s
+    and counting); one that speaks another protocol is no scheduler either. The
+    scheduler is asked who it is over Dask's protocol within the timeout (a
+    short one here: the silent port never answers, whatever the machine's
+    speed)."""
+    import socket
+    import threading
+
+    from tmtcontrol.sweep.run import SchedulerUnavailable, identify_scheduler
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        held = []
+
+        def serve():
+            c, _ = s.accept()
+            held.append(c)
+            if sends:
+                c.sendall(sends)
+                c.close()
+
+        threading.Thread(target=serve, daemon=True).start()
+        address = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+        with pytest.raises(SchedulerUnavailable, match=rf"^--dask {address}: no Dask scheduler answered within 0.5 s"
+                                                       rf"|^--dask {address}: not a Dask scheduler"):
+            identify_scheduler(address, seconds=0.5)
+        for c in held:
+            c.close()
+
+
+@pytest.mark.heavy
+def test_a_running_scheduler_is_identified_and_a_workers_address_refused():
+    """The other side of the test above, on a real Dask cluster (TCP): its
+    scheduler answers as one; its worker's address is refused naming what it
+    is. Heavy: a cluster starts (about 3 s)."""
+    from dask.distributed import LocalCluster
+
+    from tmtcontrol.sweep.run import SchedulerUnavailable, identify_scheduler
+
+    with LocalCluster(n_workers=1, processes=False, protocol="tcp", dashboard_address=None) as cluster:
+        identify_scheduler(cluster.scheduler_address)
+        (worker,) = cluster.scheduler_info["workers"]
+        with pytest.raises(SchedulerUnavailable, match=r"not a Dask scheduler \(it answered as Worker; give the "):
+            identify_scheduler(worker)
+
+
 def _ctrl_c_after(args: list[str], cwd, needle: str) -> tuple[int, list[str]]:
     """Start ``tmtcontrol ARGS``, wait for ``needle`` on stderr, send SIGINT to the whole
     process group (what a terminal's Ctrl-C does); the exit code and the stderr lines after."""

@@ -240,6 +240,37 @@ def check_dask(dask: str | None, timeout: float = CONNECT_TIMEOUT) -> None:
                                    f"({exc.strerror or exc.__class__.__name__})") from None
 
 
+def identify_scheduler(dask: str, seconds: float = float(CLIENT_TIMEOUT.rstrip("s"))) -> None:
+    """Ask ``dask`` (an address whose port answered, :func:`check_dask`) who it
+    is, over Dask's own protocol, within ``seconds``; raise
+    :class:`SchedulerUnavailable` unless a Dask scheduler replies (review 59: a
+    port that accepted the connection and never spoke held ``Client(...,
+    timeout=...)`` past its timeout, for as long as the port stayed open)."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def identity():
+        comm = await connect(dask, timeout=seconds)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            await comm.close()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(identity(), seconds))
+    except (OSError, TimeoutError, asyncio.TimeoutError) as exc:
+        raise SchedulerUnavailable(f"--dask {dask}: no Dask scheduler answered within {seconds:g} s"
+                                   + (f" ({str(exc).splitlines()[0]})" if str(exc) else "")) from None
+    except Exception as exc:        # noqa: BLE001 - whatever the port sent, it was not a scheduler's reply
+        raise SchedulerUnavailable(f"--dask {dask}: not a Dask scheduler ({exc.__class__.__name__})") from None
+    kind = reply.get("type") if isinstance(reply, dict) else None
+    if kind != "Scheduler":
+        raise SchedulerUnavailable(f"--dask {dask}: not a Dask scheduler (it answered as {kind or 'something else'}"
+                                   + ("; give the scheduler's address" if kind == "Worker" else "") + ")")
+
+
 class PartialFolder:
     """``OUT.partial/``: the finished chunks of a sweep, marked with the sweep's
     fingerprint. Created by a fresh run, reused by ``--resume``, removed once
@@ -476,6 +507,7 @@ def run_cases(sweep: Sweep, todo: list[Case], write: Callable[[list[dict]], None
         client = Client(cluster)
     else:
         cluster = None
+        identify_scheduler(dask)
         try:
             client = Client(dask, timeout=CLIENT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
