@@ -694,3 +694,16 @@ def test_the_cluster_shutdown_silences_dasks_loggers_and_restores_each_one_after
     finally:
         for lg, d in before:
             lg.disabled = d
+
+
+@pytest.mark.heavy
+def test_never_more_workers_than_cases_in_the_plan_the_summary_and_the_pool(tmp_path, capsys):
+    """Review 59: --workers 6 with 2 cases printed "about 3 s on 6 workers"
+    and "2 cases running on 6 worker processes" and wrote run.workers = 6,
+    while the pool ran 2 (docs/cli.md: never more than the cases). Heavy: two
+    worker processes start."""
+    (tmp_path / "s.toml").write_text('[grid]\n"controller.f_d" = [5.0, 10.0]\n"trajectory.cycles" = [0.25]\n')
+    summary = save_sweep(load_sweep(tmp_path / "s.toml"), tmp_path / "o", workers=6, limits=False, plots=False)
+    err = capsys.readouterr().err
+    assert summary["run"]["workers"] == 2
+    assert "on 2 workers" in err and "2 cases running on 2 worker processes" in err and "6 worker" not in err, err

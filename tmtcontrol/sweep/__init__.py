@@ -236,6 +236,8 @@ def save_sweep(sweep: Sweep, out: str | pathlib.Path, workers: int = 1, dask: st
         if checked is not None:
             checked()
         todo = sweep.cases.without(done)           # a view: the cases are generated as they run
+        if dask in (None, "local"):                # never more processes than cases (review 59: "6 workers" for 2)
+            workers = max(1, min(workers, len(todo)))
         if resume and partial.fresh:               # review 31: said, not a silent fresh run
             print(f"sweep: --resume: no interrupted sweep in {partial.path}; running every case", file=sys.stderr,
                   flush=True)
