@@ -491,7 +491,7 @@ def test_resume_refuses_another_limits_or_max_steps_setting(small, tmp_path):
     PartialFolder(out.resolve(), small, resume=False, options={"limits": True, "max_steps": None})
     with pytest.raises(ValueError, match=r"^--resume: --limits was on, now off \("):
         save_sweep(small, out, resume=True, plots=False, limits=False)
-    with pytest.raises(ValueError, match=r"^--resume: --max-steps was not given, now 1000 \("):
+    with pytest.raises(ValueError, match=r"^--resume: --max-steps was 1000000, now 1000 \("):
         save_sweep(small, out, resume=True, plots=False, limits=True, max_steps=1000)
 
 
@@ -707,3 +707,15 @@ def test_never_more_workers_than_cases_in_the_plan_the_summary_and_the_pool(tmp_
     err = capsys.readouterr().err
     assert summary["run"]["workers"] == 2
     assert "on 2 workers" in err and "2 cases running on 2 worker processes" in err and "6 worker" not in err, err
+
+
+def test_resume_takes_the_default_max_steps_spelled_out(small, tmp_path):
+    """Review 59: a sweep interrupted without --max-steps refused ``--resume
+    --max-steps 1000000`` (the default) as "--max-steps was not given, now
+    1000000"; another value is still refused."""
+    from tmtcontrol.simulation.simulator import MAX_STEPS
+
+    PartialFolder((tmp_path / "o").resolve(), small, resume=False, options={"limits": True, "max_steps": None})
+    PartialFolder((tmp_path / "o").resolve(), small, resume=True, options={"limits": True, "max_steps": MAX_STEPS})
+    with pytest.raises(ValueError, match=r"^--resume: --max-steps was 1000000, now 5000 "):
+        PartialFolder((tmp_path / "o").resolve(), small, resume=True, options={"limits": True, "max_steps": 5000})

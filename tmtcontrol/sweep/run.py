@@ -288,7 +288,7 @@ class PartialFolder:
         self.path = self.path_for(out)
         self.fresh = False                   # True if this run created it
         # what else shapes a row: a resumed sweep must run its cases as the interrupted one did
-        self.options = dict(options or {})
+        self.options = _spelled_out(options or {})
         # an axis whose values include a list that is not one number: every cell of it is JSON text (a column
         # mixing numbers and text cannot be written; review 10)
         self.text_axes = {a: all(isinstance(v, list) for v in vals) for a, vals in sweep.grid.items()
@@ -308,7 +308,7 @@ class PartialFolder:
                                   "(or remove that folder)")
             if fp != sweep.fingerprint:
                 raise OutputError(f"--resume: {self.path} holds a different sweep (other base scenario or cases)")
-            before = stored.get("options", {})
+            before = _spelled_out(stored.get("options", {}))
             # (a mark without options, an older tmtcontrol's, is not checked for them)
             changed = [k for k in sorted(before) if before.get(k) != self.options.get(k)]
             if changed:
@@ -391,6 +391,15 @@ def kept_note(out) -> str | None:
         pass
     return (f"{n} finished case{'s' if n != 1 else ''} kept in {path}/; "
             "run the same command with --resume to continue")
+
+
+def _spelled_out(options: dict) -> dict:
+    """``options`` with a default given as None spelled out: ``--max-steps
+    1000000`` is the run without it (review 59: --resume refused it as "was
+    not given, now 1000000")."""
+    from ..simulation.simulator import MAX_STEPS
+
+    return {k: (MAX_STEPS if k == "max_steps" and v is None else v) for k, v in dict(options).items()}
 
 
 def _said(value) -> str:
