@@ -730,7 +730,8 @@ def test_the_replay_measurements_press_on_the_surface(paper_result):
     assert pressed.max() > 5.0
 
 
-@pytest.mark.parametrize("prefix", ["pthread_attr", "sem", "mtx", "cnd", "thrd", "atomic", "strx", "memo", "wcsy"])
+@pytest.mark.parametrize("prefix", ["pthread_attr", "sem", "mtx", "cnd", "thrd", "atomic", "strx", "memo", "wcsy",
+                                    "isalpha", "tofoo"])
 def test_a_prefix_in_a_system_namespace_is_refused(tmp_path, capsys, prefix):
     """Regression (review 11): ``--prefix pthread_attr`` was accepted and defined pthread_attr_init, so a
     program including <pthread.h> failed to compile (conflicting types); likewise sem_init (POSIX),
@@ -743,6 +744,8 @@ def test_a_prefix_in_a_system_namespace_is_refused(tmp_path, capsys, prefix):
     assert not out.exists()
     check_prefix("semantic")
     check_prefix("pthreads")
+    check_prefix("i2c")                  # "is"/"to" only before a lower-case letter (C11 7.31.2)
+    check_prefix("t0")
 
 
 def test_the_python_api_does_not_export_over_a_users_files(tmp_path):

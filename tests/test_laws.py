@@ -318,6 +318,22 @@ def compared(run_once):
 
 
 @pytest.mark.heavy
+def test_the_settling_times_the_page_quotes_are_what_compare_prints(compared):
+    """docs/choosing-a-law.md quotes each law's range of settling times into
+    0.01 N over the paper's four segments (review 59: "0.4-0.5 s" where compare
+    printed 0.373-0.536 s); the range, to 2 decimals, is the run's."""
+    r, out = compared
+    summary = json.loads((out / "summary.json").read_text())
+    page = (pathlib.Path(__file__).parents[1] / "docs" / "choosing-a-law.md").read_text()
+    page = " ".join(page.split())
+    quoted = {"tmt": "settle fastest ({}–{} s into 0.01 N)", "rls": "settle fastest ({}–{} s into 0.01 N)",
+              "adaptive_damping": "`adaptive_damping` in {}–{} s", "integral": "`integral` in {}–{} s"}
+    for name, pattern in quoted.items():
+        t = [s["settling_time_10mN"] for s in summary["laws"][name]["segments"]]
+        assert pattern.format(f"{min(t):.2f}", f"{max(t):.2f}") in page, (name, t)
+
+
+@pytest.mark.heavy
 def test_compare_paper_all_laws(compared):
     r, out = compared
     summary = json.loads((out / "summary.json").read_text())

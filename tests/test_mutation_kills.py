@@ -840,6 +840,10 @@ def test_the_run_size_refusal_estimates_60_doubles_twice_and_a_csv_row_per_step(
     assert 4e6 * 1260 / 2 ** 30 == pytest.approx(4.69, abs=0.01)
     with pytest.raises(ScenarioError, match=r"4,000,000 control steps \(4000 s at 1000 Hz, about 4\.7 GiB\)"):
         check_run_size(sc)
+    # under a GiB in MiB (review 59: "about 0.0 GiB"): the paper's 16,000 steps x 1,260 B = 19.2 MiB
+    with pytest.raises(ScenarioError, match=r"16,000 control steps \(16 s at 1000 Hz, about 19 MiB\) exceed the "
+                                            r"limit of 10;"):
+        check_run_size(paper_scenario(), 10)
 
 
 def test_the_path_check_samples_one_period_evenly():

@@ -77,11 +77,13 @@ class ExportError(ValueError):
     """A controller that cannot be exported; the message names the setting."""
 
 
-SYSTEM_PREFIX = r"(pthread|sem|mtx|cnd|thrd|tss|atomic|sched|sig|posix|timer|clock|aio|lio|mq)(_|$)|(str|mem|wcs)[a-z]"
+SYSTEM_PREFIX = (r"(pthread|sem|mtx|cnd|thrd|tss|atomic|sched|sig|posix|timer|clock|aio|lio|mq)(_|$)"
+                 r"|(str|mem|wcs|is|to)[a-z]")
 """Prefixes whose names the C library or POSIX uses or reserves (``sem`` +
 ``_init`` is POSIX's ``sem_init``; C11 7.31.13 reserves ``str``, ``mem``
-and ``wcs`` followed by a letter): a program including the system header
-would not compile (review 11: ``--prefix pthread_attr``)."""
+and ``wcs`` followed by a letter, 7.31.2 ``is`` and ``to`` followed by one,
+for ``<ctype.h>``): a program including the system header would not
+compile (review 11: ``--prefix pthread_attr``; review 59: ``isalpha``)."""
 
 
 def check_prefix(prefix: str, flag: str = "--prefix") -> str:

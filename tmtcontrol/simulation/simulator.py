@@ -92,11 +92,13 @@ def check_run_size(scenario: Scenario, max_steps: int | None = None) -> int:
     if steps > limit:
         # digit by digit up to 1e15; beyond, the exponent (review 13: a 1e300 s period printed 300 digits)
         gib = steps * _BYTES_PER_STEP / 2**30
+        # a run under a GiB in MiB (review 59: a small --max-steps refusal said "about 0.0 GiB")
+        size = ((f"{gib:,.1f}" if gib < 1e15 else f"{gib:.3g}") + " GiB" if gib >= 1 else
+                f"{max(gib * 1024, 1):,.0f} MiB")
         raise ScenarioError(
             "trajectory.cycles: " + (f"{steps:,.0f}" if steps < 1e15 else f"{steps:.3g}")
             + f" control steps ({scenario.duration:g} s at {scenario.controller.rate:g} Hz, about "
-            + (f"{gib:,.1f}" if gib < 1e15 else f"{gib:.3g}")
-            + f" GiB) exceed the limit of {limit:,}; shorten the run or raise the limit with --max-steps")
+            + size + f") exceed the limit of {limit:,}; shorten the run or raise the limit with --max-steps")
     return int(round(steps))
 
 
