@@ -191,3 +191,17 @@ def test_a_position_export_records_no_hold_a_torque_export_its_hold(tmp_path):
         assert meta["hold"] == hold
         if torque:
             check_export_matches(meta, folder, sc)
+
+
+@pytest.mark.heavy
+def test_analyze_says_in_its_json_that_the_1d_figure_does_not_apply_with_the_hold():
+    """Review 59: with the mid-period hold ``analyze --json`` gave the 1-D
+    ``max_stable_stiffness`` (the zero-order hold's 163,417 N/m) with no flag,
+    where the text says "for reference only" and a sweep's row has none. The
+    JSON's ``one_d_applies`` says so; the loop's own limit (above it: the hold
+    raises the limit) decides. Heavy: the hold's periodic analysis."""
+    from tmtcontrol.stability.analysis import analyze_scenario, format_analysis
+
+    held = analyze_scenario(apply_overrides(paper_scenario(), ['controller.hold="mid_period"']))
+    assert held["one_d_applies"] is False and held["limit"] > held["max_stable_stiffness"]
+    assert "the 1-D model has no mid-period hold: for reference only" in format_analysis(held)

@@ -226,6 +226,8 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
                   damping=None if bk is None else (lambda ke: bk(ke)["b"]))
     out["hold"] = scenario.controller.hold
+    # the 1-D model has no mid-period hold: its figure is for reference only (review 59: the JSON said nothing)
+    out["one_d_applies"] = scenario.controller.hold != "mid_period"
     if has_approach(scenario):
         # review 22: the x_e error printed is not only the user's (simulation.environment.surface_error)
         out["x_e_error_from"] = ("the guarded approach's estimate, set where the measured force reaches the "
@@ -360,7 +362,7 @@ def format_analysis(d: dict) -> str:
         filt = (f", force filter pole {a:.4g} (cut-off {-math.log(a) / (2 * math.pi * d['Ts']):.4g} Hz)"
                 if a > 0 else "")
         ref = ("; the 1-D model has no mid-period hold: for reference only, the loop's own limit below decides"
-               if d.get("hold") == "mid_period" else "")
+               if d.get("one_d_applies") is False else "")
         rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg, "
                  f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm{filt}",
                  (f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']}{ref})"
