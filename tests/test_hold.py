@@ -202,6 +202,6 @@ def test_analyze_says_in_its_json_that_the_1d_figure_does_not_apply_with_the_hol
     raises the limit) decides. Heavy: the hold's periodic analysis."""
     from tmtcontrol.stability.analysis import analyze_scenario, format_analysis
 
-    held = analyze_scenario(apply_overrides(paper_scenario(), ['controller.hold="mid_period"']))
+    held = analyze_scenario(apply_overrides(paper_scenario(), ['controller.hold="mid_period"']), limits=True)
     assert held["one_d_applies"] is False and held["limit"] > held["max_stable_stiffness"]
     assert "the 1-D model has no mid-period hold: for reference only" in format_analysis(held)
