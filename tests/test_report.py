@@ -794,3 +794,16 @@ def test_a_stated_overshoot_requirement_is_a_verdict_on_the_scenarios_damping(bo
     assert v.passed is passed
     assert v.check == "the scenario's b on the sampled loop" if passed else \
         v.check.startswith("the scenario's b on the sampled loop; violated: "), v.check
+
+
+@pytest.mark.heavy
+def test_the_sweep_section_says_how_long_each_case_runs(paper_report):
+    """The eighteenth session's mutation run: ``cycles * period`` as
+    ``cycles // period`` (0 s) survived. The paper's cases run
+    SWEEP_CYCLES = 0.5 of its 4 s period: 2 s each, 2 rates x the stiffness
+    points."""
+    from tmtcontrol.report.document import SWEEP_CYCLES
+
+    text = htmllib.unescape(re.sub(r"<[^>]+>", "", section((paper_report[0] / "report.html").read_text(), "sweep")))
+    n = int(re.search(r"(\d+) simulations of ", text).group(1))
+    assert SWEEP_CYCLES * 4.0 == 2.0 and f"{n} simulations of 2\xa0s each: constant stiffness" in text, text[:300]

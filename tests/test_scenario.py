@@ -325,3 +325,17 @@ def test_a_copy_with_an_update_is_validated_like_a_new_scenario():
     assert sc.model_copy(update={"controller": ctl}) == apply_overrides(sc, ["controller.f_d=5"])
     assert sc.model_copy() == sc and sc.model_copy(deep=True) == sc
     assert get_law("tmt").parameters().model_copy(update={"min_stiffness": 50.0}).min_stiffness == 50.0
+
+
+def test_the_entry_points_name_an_argument_of_the_wrong_type():
+    """Review 58: load_scenario(5), Simulator("paper") and dump_scenario({})
+    failed inside pathlib or with an AttributeError; each is a TypeError that
+    says what it takes."""
+    from tmtcontrol import Simulator
+
+    with pytest.raises(TypeError, match=r"^load_scenario: expected a file name or a built-in's \('paper', 'ur5'"):
+        load_scenario(5)
+    with pytest.raises(TypeError, match=r"^Simulator: expected a Scenario \(tmtcontrol.load_scenario\('paper'\)"):
+        Simulator("paper")
+    with pytest.raises(TypeError, match=r"^dump_scenario: expected a Scenario, got dict$"):
+        dump_scenario({})

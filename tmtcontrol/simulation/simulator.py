@@ -406,6 +406,9 @@ class Simulator:
     """
 
     def __init__(self, scenario: Scenario | None = None, compile: bool | str = "auto"):
+        if scenario is not None and not isinstance(scenario, Scenario):     # review 58: 'paper' failed inside
+            raise TypeError(f"Simulator: expected a Scenario (tmtcontrol.load_scenario({scenario!r}) reads one), "
+                            f"got {type(scenario).__name__}")
         self.scenario = sc = scenario or paper_scenario()
         t0 = time.perf_counter()
         self.plant = robot_of(sc)

@@ -41,6 +41,8 @@ def toml_value(v) -> str:
 def dump_scenario(scenario: Scenario) -> str:
     """The scenario as a TOML document that :func:`load_scenario` reads back;
     it holds only the fields of the chosen kinds."""
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"dump_scenario: expected a Scenario, got {type(scenario).__name__}")
     return toml_document(scenario_to_dict(scenario))
 
 
@@ -90,6 +92,9 @@ def load_scenario(path: str | pathlib.Path) -> Scenario:
     """Read and validate a scenario TOML file; the string ``"paper"`` gives
     :func:`paper_scenario`. A relative stiffness ``table`` file, height map
     or URDF is resolved against the scenario file's folder. An empty file is refused."""
+    if not isinstance(path, (str, pathlib.Path)):      # review 58: 5 failed inside pathlib
+        raise TypeError(f"load_scenario: expected a file name or a built-in's ('paper', "
+                        f"{', '.join(map(repr, BUILTIN_ARMS))}), got {path!r}")
     if str(path) == "paper":
         return paper_scenario()
     if str(path) in BUILTIN_ARMS:
