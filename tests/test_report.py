@@ -807,3 +807,33 @@ def test_the_sweep_section_says_how_long_each_case_runs(paper_report):
     text = htmllib.unescape(re.sub(r"<[^>]+>", "", section((paper_report[0] / "report.html").read_text(), "sweep")))
     n = int(re.search(r"(\d+) simulations of ", text).group(1))
     assert SWEEP_CYCLES * 4.0 == 2.0 and f"{n} simulations of 2\xa0s each: constant stiffness" in text, text[:300]
+
+
+def test_every_stage_counts_the_independent_plants_among_the_total(monkeypatch):
+    """The eighteenth session's mutation run: ``len(STAGES) + 1`` as
+    ``len(STAGES) ** 1`` in the independent plant's progress call survived
+    (no test ran it); reading it showed the computing stages said n = 7 and
+    the last one 8 of 8. With the stages' work stubbed: 1..8 of 8 with MuJoCo,
+    1..7 of 7 without, and an unknown plant refused before any stage runs."""
+    import contextlib
+
+    from tmtcontrol import paper_scenario
+    from tmtcontrol.report import document
+    from tmtcontrol.report.document import STAGES, Section
+
+    def stages(rep, sc, p, background, out, verdicts, say, prepare):
+        for i, name in enumerate(STAGES, 1):
+            out[name] = Section(name, name, [])
+            say(i, len(STAGES), name, 0.0)
+
+    monkeypatch.setattr(document, "_stages", stages)
+    monkeypatch.setattr(document, "_background", lambda sc=None: contextlib.nullcontext((None, None, [])))
+    monkeypatch.setattr(document, "_on_own", lambda sc, stage, *a: (Section("plant", "plant", []), [], {}))
+    for plant, n in (("mujoco", len(STAGES) + 1), ("builtin", len(STAGES))):
+        seen = []
+        document.build_report(paper_scenario(), "test", progress=lambda *a: seen.append(a[:3]), plant=plant)
+        assert seen == [(i, n, name) for i, name in enumerate([*STAGES, "independent plant"][:n], 1)], seen
+    seen = []
+    with pytest.raises(ValueError, match=r"^plant: expected 'builtin' or 'mujoco', got 'nope'$"):
+        document.build_report(paper_scenario(), "test", progress=lambda *a: seen.append(a), plant="nope")
+    assert seen == []

@@ -1215,9 +1215,14 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     verdict; the MuJoCo extra must be installed)."""
     from ..stability import scenario_parameters
 
+    if plant not in ("builtin", "mujoco"):             # refused before anything is computed
+        raise ValueError(f"plant: expected 'builtin' or 'mujoco', got {plant!r}")
     rep = Report(scenario, command_line or " ".join(sys.argv))
     rep.data["provenance"] = provenance()
-    say = progress or (lambda *a: None)
+    # every stage counts the independent plant's among n (the eighteenth session: with MuJoCo the first
+    # seven said n = 7 and the last 8 of 8)
+    n = len(STAGES) + (plant == "mujoco")
+    say = (lambda i, _n, name, s: progress(i, n, name, s)) if progress else (lambda *a: None)
     p = scenario_parameters(scenario)
     rep.data["parameters"] = p
     out: dict = {}
@@ -1231,9 +1236,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
         rep.data.update(data)
         extra = [section]
         rep.timings["independent plant"] = time.perf_counter() - t0
-        say(len(STAGES) + 1, len(STAGES) + 1, "independent plant", rep.timings["independent plant"])
-    elif plant != "builtin":
-        raise ValueError(f"plant: expected 'builtin' or 'mujoco', got {plant!r}")
+        say(n, n, "independent plant", rep.timings["independent plant"])
     rep.verdicts = [v for stage in sorted(verdicts, key=_VERDICT_ORDER.index) for v in verdicts[stage]]
     summary = Section("summary", "Verdict summary", [Table(
         "Verdicts", ["verdict", "result", "number", "computed by"],
