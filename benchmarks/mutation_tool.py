@@ -271,6 +271,12 @@ def _unified(m: Mutant, old: str, new: str) -> str:
     return "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), m.file, m.file, n=0))
 
 
+def _same_change(diff: str) -> str:
+    """A mutant's diff without its hunk headers: the same change moved by
+    lines added above it (a fix elsewhere in the file) is the same mutant."""
+    return "".join(line for line in diff.splitlines(True) if not line.startswith("@@"))
+
+
 def diff_of(root: pathlib.Path, m: Mutant) -> str:
     random.seed(m.id)
     old, new = mutated_source(root, m)
@@ -491,7 +497,7 @@ def _recheck(root, commit, rows, results, deselected, muts, equivalents, env, ti
         print(f"\n{mod}: rechecking {len(survivors)} survivors or unconfirmed kills on {commit}", flush=True)
         for rec in survivors:
             m = by_id.get(rec["id"])
-            if m is None or diff_of(root, m) != rec.get("diff"):
+            if m is None or _same_change(diff_of(root, m)) != _same_change(rec.get("diff", "")):
                 print(f"  stale      {rec['id']}: no longer the same code, kept as {rec['outcome']}", flush=True)
                 continue
             test = _failed_test(rec.get("killed_by", "").replace(" / ", "\n"))

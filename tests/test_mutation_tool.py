@@ -209,3 +209,13 @@ def test_a_recheck_judges_as_the_run_did_unless_told_otherwise(tool):
     assert tool.recheck_settings(old, 0, None) == (22, 3, False, 600.0)
     assert tool.recheck_settings(old, 30, 900.0) == (30, 3, False, 900.0)
     assert tool.recheck_settings(dict(old, full_suite=False), 10, None) == (22, 3, True, 600.0)
+
+
+def test_a_mutant_moved_by_lines_added_above_it_is_the_same_mutant(tool):
+    """The eighteenth session: a fix that added lines above a survivor made
+    --recheck call every survivor below it stale (its diff's hunk header
+    moved); the change itself decides, and another change is still another."""
+    a = "--- f.py\n+++ f.py\n@@ -447 +447 @@\n-    x = a != b\n+    x = a >= b\n"
+    moved = a.replace("@@ -447 +447 @@", "@@ -451 +451 @@")
+    other = a.replace("a >= b", "a < b")
+    assert tool._same_change(a) == tool._same_change(moved) != tool._same_change(other)
