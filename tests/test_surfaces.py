@@ -1284,3 +1284,15 @@ def test_a_parts_name_says_which_side_the_tool_works():
     assert Plane(R0, C0).noun == "tilted plane"
     for part in (Sphere(R0, C0, 0.2, "inside"), Cylinder(R0, C0, 0.2, "inside")):
         assert part.primitive() is None
+
+
+@pytest.mark.parametrize("normal", [[0, 0, 0], [0, 0, 1, 0], [0, float("nan"), 1]])
+def test_a_plane_from_a_normal_that_is_no_direction_is_refused(normal):
+    """Review 58: Plane.from_normal([0, 0, 0], c) printed a NumPy warning and
+    a frame of NaN; a 4-vector failed in NumPy's matmul. One ValueError
+    naming the normal."""
+    from tmtcontrol.surface import Plane
+
+    with pytest.raises(ValueError, match=r"^normal: expected 3 finite numbers, not all zero"):
+        Plane.from_normal(normal, [0.0, 0.0, 0.0])
+    assert np.allclose(Plane.from_normal([0, 0, 2], [0, 0, 0]).R[:, 0], [0, 0, 1])     # any length: normalised

@@ -37,9 +37,14 @@ def tilt_frame(tilt_deg: float) -> np.ndarray:
 
 def normal_frame(normal) -> np.ndarray:
     """The task frame of the module docstring for the inward ``normal``
-    (normalised here)."""
+    (normalised here); ``ValueError`` unless it is 3 finite numbers, not all
+    zero (review 58: [0, 0, 0] printed a NumPy warning and a frame of NaN, a
+    4-vector failed in matmul)."""
     e_n = np.asarray(normal, dtype=float)
-    e_n = e_n / np.linalg.norm(e_n)
+    norm = np.linalg.norm(e_n) if e_n.shape == (3,) else 0.0
+    if not (e_n.shape == (3,) and np.all(np.isfinite(e_n)) and norm > 0):
+        raise ValueError(f"normal: expected 3 finite numbers, not all zero, got {np.asarray(normal).tolist()!r}")
+    e_n = e_n / norm
     ref = np.array([0.0, 1.0, 0.0]) if abs(e_n[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
     e_1 = ref - (ref @ e_n) * e_n
     e_1 /= np.linalg.norm(e_1)
