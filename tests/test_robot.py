@@ -306,3 +306,17 @@ def test_an_arm_whose_axes_cannot_span_its_task_is_refused_in_one_line(tmp_path,
     assert r.returncode == 2 and r.stderr.startswith("error: robot.model: serial has ") \
         and len(r.stderr.splitlines()) == 1, r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_the_arms_numpy_functions_refuse_a_state_that_is_not_finite():
+    """Review 58: Robot.mass_matrix(np.full(6, nan)) returned a NaN matrix
+    silently; a joint vector of the wrong length was refused already."""
+    from tmtcontrol import load_robot
+
+    arm = load_robot("ur5")
+    with pytest.raises(ValueError, match=r"^q: expected finite values, got \[nan"):
+        arm.mass_matrix(np.full(6, np.nan))
+    with pytest.raises(ValueError, match=r"^dq: expected finite values"):
+        arm.bias(np.zeros(6), np.r_[np.inf, np.zeros(5)])
+    with pytest.raises(ValueError, match=r"^q: expected 6 values, got shape \(5,\)"):
+        arm.mass_matrix(np.zeros(5))

@@ -674,4 +674,6 @@ def _vec(x, n: int, name: str) -> np.ndarray:
     a = np.asarray(x, dtype=float).ravel()
     if a.shape != (n,):
         raise ValueError(f"{name}: expected {n} values, got shape {np.shape(x)}")
+    if not np.all(np.isfinite(a)):      # review 58: a NaN joint angle gave a NaN mass matrix, silently
+        raise ValueError(f"{name}: expected finite values, got {a.tolist()!r}")
     return a
