@@ -362,7 +362,7 @@ def format_analysis(d: dict) -> str:
         filt = (f", force filter pole {a:.4g} (cut-off {-math.log(a) / (2 * math.pi * d['Ts']):.4g} Hz)"
                 if a > 0 else "")
         ref = ("; the 1-D model has no mid-period hold: for reference only, the loop's own limit below decides"
-               if d.get("one_d_applies") is False else "")
+               if d.get("one_d_applies") is False or d.get("hold") == "mid_period" else "")
         rows += [f"sampled at Ts        {d['Ts']:g} s, m_p = {', '.join(f'{v:.4g}' for v in d['m_p'])} kg, "
                  f"delay {d['delay']} sample(s), x_e error {d['x_e_error'] * 1e3:+.4g} mm{filt}",
                  (f"max stable k_e       {d['max_stable_stiffness']:.6g} N/m ({d['sampled_model']}{ref})"
