@@ -13,6 +13,7 @@ import argparse
 import contextlib
 import errno
 import os
+import shlex
 import sys
 
 from . import __version__
@@ -729,7 +730,7 @@ def _sweep(args) -> int:
         summary = save_sweep(sweep, args.out, workers=args.workers, dask=args.dask, resume=args.resume,
                              plots=not args.no_plots, max_steps=args.max_steps,
                              limits={"auto": None, "on": True, "off": False}[args.limits],
-                             command_line="tmtcontrol " + " ".join(sys.argv[1:]), checked=_print_notes)
+                             command_line=shlex.join(["tmtcontrol", *sys.argv[1:]]), checked=_print_notes)
     except KeyboardInterrupt as exc:      # finished cases stay in OUT.partial/: say so, and how to go on
         from .sweep.run import kept_note
 
@@ -786,7 +787,7 @@ def _report(args) -> int:
         _print_notes()
         if no_pdf is not None:
             print(f"warning: {no_pdf}; writing report.html only", file=sys.stderr, flush=True)
-        rep = build_report(sc, command_line="tmtcontrol " + " ".join(sys.argv[1:]),
+        rep = build_report(sc, command_line=shlex.join(["tmtcontrol", *sys.argv[1:]]),
                            progress=lambda i, _n, name, s: stage(i, name, s),
                            prepare=lambda: prepare_writing(formats), plant=args.plant)
         done = iter(range(computing + 1, n + 1))
