@@ -325,6 +325,12 @@ def test_a_copy_with_an_update_is_validated_like_a_new_scenario():
     assert sc.model_copy(update={"controller": ctl}) == apply_overrides(sc, ["controller.f_d=5"])
     assert sc.model_copy() == sc and sc.model_copy(deep=True) == sc
     assert get_law("tmt").parameters().model_copy(update={"min_stiffness": 50.0}).min_stiffness == 50.0
+    # a law built in Python (its kind a default, not set) stays that law in a copy of its section (the first
+    # version dumped only the fields set: an RLS law's copy became the TMT law, a known law's was refused)
+    rls = ControllerSettings(law=get_law("rls").parameters(min_stiffness=7.0))
+    assert rls.model_copy(update={"f_d": 5.0}).law == rls.law
+    known = ControllerSettings(law=get_law("known").parameters(assumed_stiffness=7500.0))
+    assert known.model_copy(update={"rate": 500.0}).law.assumed_stiffness == 7500.0
 
 
 def test_the_entry_points_name_an_argument_of_the_wrong_type():

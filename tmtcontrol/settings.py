@@ -27,7 +27,10 @@ class Settings(BaseModel):
         model validated again (``deep`` as pydantic's for a plain copy)."""
         if not update:
             return super().model_copy(deep=deep)
-        data = {**self.model_dump(exclude_unset=True), **update}
+        # the fields set, each dumped whole (a nested tagged table keeps its kind: exclude_unset would drop a
+        # default kind and turn an RLS law's copy into the TMT law), then the update
+        whole = self.model_dump()
+        data = {**{k: whole[k] for k in self.model_fields_set if k in whole}, **update}
         try:
             return type(self).model_validate(data)
         except ValidationError as exc:
