@@ -328,7 +328,7 @@ def _simulate(args) -> int:
 def _simulate_with(args, workers) -> int:
     from . import fmt
     from .files import OutputFolder
-    from .simulation.metrics import FIRST_CONTACT_WINDOW, first_contact, format_table, segment_metrics
+    from .simulation.metrics import first_contact, format_table, segment_metrics
     from .simulation.output import save_simulation
     from .simulation.simulator import simulator_for
     from .simulation.simulator import check_run_size
@@ -393,8 +393,7 @@ def _simulate_with(args, workers) -> int:
         print("first contact: never (the run does not touch the surface)")
     else:
         # the next second, or what is left of the contact's segment (a 10 ms run read "in the next second")
-        when = ("the next second" if fc.window >= FIRST_CONTACT_WINDOW - 1e-9 else
-                f"the {fmt.qty(fc.window, 's')} left of its segment")
+        when = "the next second" if fc.whole_window else f"the {fmt.qty(fc.window, 's')} left of its segment"
         print(f"first contact at {fc.time:.3f} s: peak {fmt.qty(fc.peak_force, 'N')} = {fmt.num(fc.peak_ratio)} f_d, "
               f"{fc.bounces} bounce(s) in {when}")
     if (use := res.limit_use()) is not None and (clipped := use.on_clip()):

@@ -539,8 +539,7 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
     blocks.append(Table(f"First contact in the simulation (the full loop, at k_e = {fmt.num(k_touch, 4)} N/m; the "
                         "design section's first-contact overshoot is the 1-D sampled loop's, over the whole range)",
                         ["touch at", "peak force", "peak / f_d",
-                         f"bounces within {fmt.qty(FIRST_CONTACT_WINDOW, 's')}"
-                         if fc.time is None or fc.window >= FIRST_CONTACT_WINDOW - 1e-9 else
+                         f"bounces within {fmt.qty(FIRST_CONTACT_WINDOW, 's')}" if fc.whole_window else
                          f"bounces within {fmt.qty(fc.window, 's')} (its segment's end)"],
                         [[fmt.qty(fc.time, "s") if fc.time is not None else "never", fmt.qty(fc.peak_force, "N"),
                           fmt.ratio(fc.peak_ratio), str(fc.bounces)]]))

@@ -731,8 +731,7 @@ def _setting_hints(verdict: str, reason: str, sc, k_min: float, judged_from: flo
     floor = getattr(sc.controller.law, "min_stiffness", None)
     if floor is not None and k_min < floor:
         hints.append(f"k_e = {fmt.num(k_min, 4)} N/m is below controller.law.min_stiffness = {fmt.num(floor, 4)} "
-                     "N/m, the clip of "
-                     "the law's stiffness estimate")
+                     "N/m, the clip of the law's stiffness estimate")
     ramp = sc.controller.force_ramp
     if touch is not None and has_approach(sc) and touch + ramp > judged_from:
         hints.append(f"f_d was still ramping up where the last quarter is judged, from {judged_from:.3g} s "
@@ -809,6 +808,12 @@ class FirstContact:
     peak_ratio: float
     bounces: int
     window: float = 0.0
+
+    @property
+    def whole_window(self) -> bool:
+        """Whether the peak and bounces cover all of :data:`FIRST_CONTACT_WINDOW`
+        (True when the run never touches: nothing was cut short)."""
+        return self.time is None or self.window >= FIRST_CONTACT_WINDOW - 1e-9
 
     def as_dict(self) -> dict:
         return asdict(self)

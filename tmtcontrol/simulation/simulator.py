@@ -52,6 +52,9 @@ STIFFNESS_ESTIMATE_FORCE = 0.5
 """Force (N) above which the logged stiffness estimate f_m/(x - x_e) of
 eq. (14) is reported (NaN below: no contact, or noise)."""
 
+RUNAWAY_RATE = 1e3
+"""A joint rate (rad/s) at or above which a run has diverged (``Simulator._check_finite``)."""
+
 MAX_STEPS = 1_000_000
 """Default limit on control steps per run (1,000 s at 1 kHz); raise it with
 ``max_steps`` (CLI ``--max-steps``)."""
@@ -647,15 +650,15 @@ class Simulator:
         of n joints) runs away."""
         # fast path: a sum is finite only if every term is (a false alarm from
         # overflow falls through to the exact test below)
-        if np.isfinite(S.sum()) and np.isfinite(L.sum()) and np.abs(S[n:2 * n]).max() < 1e3:
+        if np.isfinite(S.sum()) and np.isfinite(L.sum()) and np.abs(S[n:2 * n]).max() < RUNAWAY_RATE:
             return
         bad = ~(np.all(np.isfinite(S), axis=0) & np.all(np.isfinite(L), axis=0)
-                & (np.abs(S[n:2 * n]).max(axis=0) < 1e3))
+                & (np.abs(S[n:2 * n]).max(axis=0) < RUNAWAY_RATE))
         if bad.any():
             k = int(np.argmax(bad))
             dq = S[n:2 * n, k]
             what = (f"joint {int(np.nanargmax(np.abs(dq))) + 1} at {np.nanmax(np.abs(dq)):.3g} rad/s"
-                    if np.isfinite(dq).any() and np.nanmax(np.abs(dq)) >= 1e3 else "a state not finite")
+                    if np.isfinite(dq).any() and np.nanmax(np.abs(dq)) >= RUNAWAY_RATE else "a state not finite")
             # review 57: a depth f_d/k_e beyond the arm's reach diverged with this line naming neither
             raise SimulationError(f"simulation diverged at t = {t[k]:.4f} s ({what}); check the stiffness, "
                                   "gains and control rate, and that the depth f_d/k_e is within the arm's reach "
