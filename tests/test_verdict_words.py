@@ -276,3 +276,20 @@ def test_a_miss_names_the_setting_that_explains_it(sets, hint, defaults):
     assert seg.verdict == "off_target" and hint in seg.reason and "a bias of" in seg.reason, seg.reason
     (seg,) = segment_metrics(Simulator(apply_overrides(paper_scenario(), base + defaults)).run())
     assert seg.verdict == "converged" and "controller." not in seg.reason, seg.reason
+
+
+def test_a_large_growth_ratio_reads_as_the_tables_print_numbers():
+    """Review 60: a ratio of 1,000 or more read "1.02e+03x" in a verdict's reason (Python's ``.3g``), where every
+    table prints 1,020. A 2,000-sample segment without a forcing period is judged on the two 250-sample halves
+    of its last quarter; a sine whose amplitude doubles every 25 samples, ending at 5 N (in contact
+    throughout), grows by 2**10 = 1,024 from one half's largest swing to the next (each at its half's end)."""
+    n, W = 2000, 250
+    t = np.arange(n)
+    amp = 5.0 * 2.0 ** ((t - n + 1) / (W / 10))
+    f = F_D + amp * np.sin(2 * np.pi * (t + 0.25) / 10.0)
+    verdict, reason = judge_segment(f, F_D, band=0.01, tolerance=0.05, Ts=1e-3)
+    assert verdict == "diverged", reason
+    ratio = float(reason.split("grows ")[1].split("x")[0].replace(",", ""))
+    # within 2 %: three digits are printed, and a sampled sine's extrema miss its envelope by up to a few %
+    assert abs(ratio - 1024) / 1024 < 0.02, reason
+    assert "e+" not in reason and "," in reason.split("grows ")[1].split("x")[0]

@@ -606,19 +606,21 @@ class OutputFolder:
                              "the results were not saved")
 
 
-def versions() -> dict:
+def versions(more: tuple[str, ...] = ()) -> dict:
     """Versions of Python and of the packages a result depends on: the loaded
     module's own version if it is imported, else the installed metadata
-    (importing python-control only to ask would take ~1 s)."""
+    (importing python-control only to ask would take ~1 s). ``more``: further
+    distributions by their PyPI name (the report's renderers, the URDF
+    parser, MuJoCo), None where one is not installed."""
     from importlib.metadata import PackageNotFoundError, version
 
     from . import __version__
 
     out = {"tmtcontrol": __version__, "python": sys.version.split()[0]}
-    for name in ("casadi", "control", "numpy", "scipy", "matplotlib", "pydantic"):
+    for name in ("casadi", "control", "numpy", "scipy", "matplotlib", "pydantic", *more):
         try:
             out[name] = getattr(sys.modules.get(name), "__version__", None) or version(name)
-        except PackageNotFoundError:  # pragma: no cover
+        except PackageNotFoundError:
             out[name] = None
     return out
 

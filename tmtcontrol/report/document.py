@@ -289,13 +289,13 @@ def _sampled(rep: Report, sc: Scenario, p: dict):
                f"scenario's own start): {a['limit_from']}")
         if a.get("periodic_set_by") == "transient growth":
             how += (f"; the limit along the path is where a perturbation grows more than {GROWTH_BOUND:.0e}-fold "
-                    f"within a period (spectral radius {a['periodic_radius']:.3g} there: the radius is no margin)")
+                    f"within a period (spectral radius {fmt.num(a['periodic_radius'])} there: the radius is no margin)")
         elif a.get("periodic_set_by") == "orbit lost":
             how += (f"; the limit along the path is where the periodic orbit is lost (spectral radius "
-                    f"{a['periodic_radius']:.3g} just below: the radius is no margin)")
+                    f"{fmt.num(a['periodic_radius'])} just below: the radius is no margin)")
         if a.get("periodic_set_by") in ("transient growth", "orbit lost"):
             noise = (f". The analysis is of the noise-free loop: near this limit the loop amplifies perturbations, "
-                     f"sensor noise among them, up to {a['periodic_growth']:.3g}-fold within a period, so the "
+                     f"sensor noise among them, up to {fmt.num(a['periodic_growth'])}-fold within a period, so the "
                      "margin is one of stability, not of the force's accuracy under noise at a stiffer surface "
                      "(simulate with the sensor's noise over several periods to see that)")
     elif whole is not None:
@@ -952,7 +952,7 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
 def _scenario_section(sc: Scenario) -> Section:
     from ..simulation.simulator import robot_of, robot_task
 
-    rows = [[r.key, fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"]
+    rows = [[r.key, "unset" if r.value is None else fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"]
             for r in applicable_settings(sc, robot_task(robot_of(sc)))]
     return Section("scenario", "Scenario", [
         Paragraph("The keys that apply to this scenario's options (SI units)."),
@@ -966,7 +966,10 @@ def _repro(rep: Report) -> Section:
             ["scenario SHA-256 (its TOML)", hashlib.sha256(dump_scenario(sc).encode()).hexdigest()],
             ["sensor noise seed", str(sc.sensor.seed) if sc.sensor.noise_std > 0 else "no noise"],
             ["derivation check seed", "2024"],
-            *[[k, str(v)] for k, v in versions().items()],     # python's among them
+            # python's among them; the report's renderers and the URDF parser (review 60: WeasyPrint's version
+            # sets the PDF's layout), MuJoCo's where its plant ran
+            *[[k, "not installed" if v is None else str(v)] for k, v in versions(
+                ("jinja2", "weasyprint", "urdfdom-py", *(("mujoco",) if "crosscheck" in rep.data else ()))).items()],
             *[[f"stage: {k}", fmt.qty(v, "s")] for k, v in rep.timings.items()]]
     return Section("reproducibility", "Reproducibility", [
         Paragraph("Run the command with the same package versions to reproduce every number; the scenario's "

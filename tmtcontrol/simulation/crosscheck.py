@@ -139,7 +139,7 @@ def save_crosscheck(c: PlantComparison, folder, plots: bool = True) -> dict:
     from .figures import crosscheck_figure
 
     folder = pathlib.Path(folder)
-    summary = {**c.as_dict(), "versions": versions()}
+    summary = {**c.as_dict(), "versions": versions(("mujoco",))}
     if plots:
         summary["figures"] = [p.name for p in save_figures([("crosscheck", crosscheck_figure)], c, folder)]
     write_json(folder / "crosscheck.json", summary)

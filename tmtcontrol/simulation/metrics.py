@@ -405,7 +405,7 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     a_A, a_B = _amplitude(e_A), _amplitude(e_B)
     over = f"{W * Ts:.3g} s" + (" (whole periods)" if P else "")
     if a_B > band and a_B > GROWTH * a_A:
-        return "diverged", f"oscillation grows {a_B / max(a_A, 1e-300):.3g}x over {over}"
+        return "diverged", f"oscillation grows {_x(a_B / max(a_A, 1e-300))}x over {over}"
     forced = (P is not None and float(np.max(np.abs(e_B - e_A))) <= FORCED * a_B
               and _gain(e_A, e_B) <= 1.0 + REPEAT_GROWTH)
     low = float(np.min(force[n - W:]))
@@ -417,7 +417,7 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         if not (a_0 > a_A > a_B and a_B < SUSTAINED * a_0):     # shrinking over three windows: still decaying
             # the ratio said (review 56: "does not decay" of an amplitude that fell 1.5 % read as no decay at all)
             return "limit_cycle", (f"oscillation of {_N(a_B)} peak-to-peak does not decay over {over} (it keeps "
-                                   f"{100 * a_B / max(a_A, 1e-300):.3g} % of its amplitude; {100 * SUSTAINED:g} % "
+                                   f"{_x(100 * a_B / max(a_A, 1e-300))} % of its amplitude; {100 * SUSTAINED:g} % "
                                    "or more is sustained)")
     worst = float(np.max(np.abs(e[n - last.size:])))
     bias = float(np.mean(e[n - last.size:]))
@@ -432,7 +432,7 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
     if forced:
         why = f"a periodic forced response of {_N(a_B)} peak-to-peak"
     elif a_B > band:
-        why = f"still decaying ({a_B / max(a_A, 1e-300):.3g}x over {over})"
+        why = f"still decaying ({_x(a_B / max(a_A, 1e-300))}x over {over})"
     elif (at := n - last.size + int(np.argmax(np.abs(e[n - last.size:])))) < n - W \
             and 2.0 * float(np.max(np.abs(e_B))) < min(worst, 2.0 * tolerance):
         # review 43: the worst sample before the last window (a step in a measured part met once), which is
@@ -498,6 +498,14 @@ def _N(v: float, sign: bool = False) -> str:
     from .. import fmt
 
     return ("+" if sign and v >= 0 else "") + fmt.qty(float(v), "N").replace(fmt.NBSP, " ")
+
+
+def _x(v: float) -> str:
+    """A ratio or a percentage in a verdict's reason, as the tables print numbers (``fmt.num``: 1,240, not
+    1.24e+03; review 60)."""
+    from .. import fmt
+
+    return fmt.num(float(v)).replace(fmt.NBSP, " ")
 
 
 def _judge(result: SimulationResult, twin: SimulationResult | None, i0: int, i1: int,
