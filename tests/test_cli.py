@@ -138,6 +138,24 @@ def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_pat
             "only; the built-in plant ignores them") in capsys.readouterr().err.splitlines()
 
 
+@pytest.mark.heavy
+def test_built_in_only_settings_on_the_mujoco_plant_are_named_as_ignored(tmp_path, capsys):
+    """Review 61, the mirror of review 33: `simulate ur5 --plant mujoco --set simulation.integrator=cvodes` ran
+    MuJoCo's RK4 and said nothing (summary.json recorded cvodes), where the flag --integrator is refused. A
+    note names every built-in-only key set; the run is the same bytes as without them."""
+    pytest.importorskip("mujoco")           # the test extra installs it: CI runs this
+    from tmtcontrol.cli import main
+
+    args = ["simulate", "ur5", "--plant", "mujoco", "--no-plots", "--set", "trajectory.cycles=0.02"]
+    main([*args, "--set", 'simulation.integrator="cvodes"', "--set", "simulation.substeps=7",
+          "--out", str(tmp_path / "a")])
+    assert ("note: simulation.integrator = 'cvodes', simulation.substeps = 7: for the built-in plant only; the "
+            "MuJoCo plant integrates with MuJoCo's RK4 and ignores them") in capsys.readouterr().err.splitlines()
+    main([*args, "--out", str(tmp_path / "b")])
+    assert "built-in plant only" not in capsys.readouterr().err
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+
+
 @pytest.mark.parametrize("command", [["analyze"], ["design"], ["check"]])
 def test_set_overrides_the_scenario_of_analyze_design_and_check(command, monkeypatch, capsys):
     """analyze, design and check take --scenario, and (as simulate, report, compare and crosscheck)

@@ -96,7 +96,9 @@ def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypat
     """The spring model's agreement rule is issue 41's acceptance (steady
     state within 1e-3 N at f_d = 10 N): a MuJoCo run 2 mN off (within the
     10 mN force tolerance, so the verdicts still match) disagrees; 0.5 mN
-    off agrees. MuJoCo's own contact keeps the force tolerance."""
+    off agrees. MuJoCo's own contact agrees within 5e-4 f_d, not the force
+    tolerance (review 61: a forearm 1.1 % heavier, 9.4 mN apart, agreed):
+    6 mN off disagrees with the verdicts matching, 4 mN agrees."""
     import dataclasses
 
     import tmtcontrol.simulation.mujoco_plant as mp
@@ -104,12 +106,12 @@ def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypat
 
     sc = ur5_short_mujoco.scenario
     assert agreement_tolerance(sc) == pytest.approx(1e-3)
-    assert agreement_tolerance(sc.replace(simulation={"mujoco_contact": "contact"})) == \
-        sc.controller.force_tolerance
-    for shift, agree in ((2e-3, False), (5e-4, True)):
+    contact = sc.replace(simulation={"mujoco_contact": "contact"})
+    assert agreement_tolerance(contact) == pytest.approx(5e-3)
+    for shift, agree, on in ((2e-3, False, sc), (5e-4, True, sc), (6e-3, False, contact), (4e-3, True, contact)):
         off = dataclasses.replace(ur5_short_mujoco, contact_force=ur5_short_mujoco.contact_force + shift)
         monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None, off=off: off)
-        c = crosscheck(sc)
+        c = crosscheck(on)
         assert c.segments[0]["verdict_builtin"] == c.segments[0]["verdict_mujoco"] == "converged"
         assert c.agree is agree
 

@@ -105,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "contact), and compares each segment's verdict and contact force. Exit 1 if the\n"
                                    "plants disagree: a verdict differs, or the two forces differ over a segment's "
                                    "steady-state window (its last\nquarter) by more than 1e-4 f_d with the spring, "
-                                   "controller.force_tolerance with MuJoCo's contact. Needs the\nmujoco extra and an "
+                                   "5e-4 f_d with MuJoCo's contact. Needs the mujoco extra and an\n"
                                    "arm with a URDF.",
                        epilog="example:\n  tmtcontrol crosscheck ur5 --out ur5-crosscheck")
     _add_scenario_args(p, "tmt-crosscheck")
@@ -345,6 +345,9 @@ def _simulate_with(args, workers) -> int:
             raise UsageError("--integrator: the MuJoCo plant integrates with MuJoCo's RK4 (10 steps per control "
                              "period); --integrator chooses the built-in plant's")
         _mujoco_ready(sc, "--plant mujoco")
+        if unused := sc.simulation.builtin_only():
+            _hold_notes([f"{', '.join(unused)}: for the built-in plant only; the MuJoCo plant integrates with "
+                         f"MuJoCo's RK4 and ignores {'it' if len(unused) == 1 else 'them'}"])
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
 

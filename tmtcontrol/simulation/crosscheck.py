@@ -15,9 +15,11 @@ measured; two errors of the same size can be forces far apart, so the
 forces themselves are compared): with the ideal spring
 (``simulation.mujoco_contact = "spring"``) 1e-4 f_d (1 mN at the paper's
 10 N: the same spring on two integrations of the same dynamics), with
-MuJoCo's own soft contact the scenario's ``controller.force_tolerance`` (the
-contact differs from the spring by design, docs/mujoco.md); a verdict
-computed, so ``tmtcontrol crosscheck`` exits 1 when they do not. A run that
+MuJoCo's own soft contact 5e-4 f_d (:data:`CONTACT_AGREEMENT`: the contact
+differs from the spring by design, docs/mujoco.md, in its transients far
+more than in the steady state; review 61: the scenario's
+``controller.force_tolerance``, used before, let a forearm 1.1 % heavier in
+MuJoCo's model, 9.4 mN apart, "agree"); a verdict computed, so ``tmtcontrol crosscheck`` exits 1 when they do not. A run that
 diverges on one plant is a :class:`~.simulator.SimulationError` naming that
 plant.
 """
@@ -32,7 +34,15 @@ import numpy as np
 __all__ = ["PlantComparison", "crosscheck", "agreement_tolerance", "format_crosscheck", "save_crosscheck"]
 
 SPRING_AGREEMENT = 1e-4
-"""With the ideal spring, the steady-state errors agree within this fraction of f_d."""
+"""With the ideal spring, the steady-state forces agree within this fraction of f_d."""
+
+CONTACT_AGREEMENT = 5e-4
+"""With MuJoCo's own soft contact (``simulation.mujoco_contact = "contact"``),
+the steady-state forces agree within this fraction of f_d. Measured on the
+built-in scenarios (ur5 with each of the five laws, panda, ur5-pipe; the
+nineteenth session): at most 1.01e-4 f_d (ur5-pipe at 2,000 N/m, whose
+tangential motion MuJoCo's step resolves less finely, docs/mujoco.md), so 5x
+that; a model 1.1 % off in one link's mass gives 9.4e-4 f_d and fails."""
 
 
 def agreement_tolerance(scenario) -> float:
@@ -40,7 +50,7 @@ def agreement_tolerance(scenario) -> float:
     steady-state window and still agree (module docstring)."""
     if scenario.simulation.mujoco_contact == "spring":
         return SPRING_AGREEMENT * scenario.controller.f_d
-    return scenario.controller.force_tolerance
+    return CONTACT_AGREEMENT * scenario.controller.f_d
 
 
 @dataclass(frozen=True)

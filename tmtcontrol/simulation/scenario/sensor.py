@@ -52,5 +52,16 @@ class SimulationSettings(Section):
         plant reads (``key = value``): the built-in plant ignores them
         (review 33: friction 0.3 on the built-in plant ran frictionless, and
         nothing said so)."""
-        return [f"simulation.{k} = {getattr(self, k)!r}" for k in ("mujoco_contact", "mujoco_friction")
+        return self._set(("mujoco_contact", "mujoco_friction"))
+
+    def builtin_only(self) -> list[str]:
+        """The settings given away from their defaults that only the built-in
+        plant reads (``key = value``): the MuJoCo plant integrates with its
+        own RK4 and ignores them (review 61: ``simulation.integrator =
+        "cvodes"`` on ``--plant mujoco`` ran silently, where the flag
+        ``--integrator`` is refused)."""
+        return self._set(("integrator", "substeps", "contact_refine", "tol"))
+
+    def _set(self, keys) -> list[str]:
+        return [f"simulation.{k} = {getattr(self, k)!r}" for k in keys
                 if getattr(self, k) != type(self).model_fields[k].default]
