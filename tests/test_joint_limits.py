@@ -135,6 +135,41 @@ def test_a_converged_run_on_the_torque_clip_says_so_on_screen(tmp_path, capsys):
         "the run's torques are within tau_max only because the loop clips them, as the drive must"
 
 
+# heavy (docs/testing.md's 2 s rule): compare, then two sweep cases of the paper (3.6 s)
+@pytest.mark.heavy
+def test_compare_and_sweep_say_a_converged_law_sat_on_its_clip(tmp_path, capsys):
+    """Review 62: `compare` called a law converged that sat on its torque clip and said nothing (simulate says
+    so whatever the verdict), its summary.json had no limits, a converged segment's reason hid the clip, and a
+    sweep's row had no column for it. The PUMA on the clip of review 43 (15, 25, 40 N m): compare prints the
+    note with each joint's time on the clip counted from its own timeseries.csv (samples at tau_max, times Ts),
+    summary.json carries the limits, every clipped segment's reason says so, and a sweep case's clip_time is
+    the longest of those times."""
+    import pandas as pd
+
+    from tmtcontrol.simulation.scenario import scenario_to_dict
+    from tmtcontrol.sweep.run import case_row
+    from tmtcontrol.sweep.spec import Case
+
+    out, tau_max = tmp_path / "cmp", [15.0, 25.0, 40.0]
+    sets = ["--set", "robot.saturate=true", "--set", f"robot.tau_max={tau_max}"]
+    assert main(["compare", "paper", "--laws", "tmt", *sets, "--no-plots", "--out", str(out)]) == 0
+    ts = pd.read_csv(out / "tmt" / "timeseries.csv")
+    Ts = paper_scenario().controller.Ts
+    times = {j: np.count_nonzero(np.abs(ts[f"tau{j}"]) >= m) * Ts for j, m in enumerate(tau_max, 1)}
+    want = ", ".join(f"joint {j} (joint{j}) {t:.3g} s" for j, t in times.items() if t > 0)
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: law tmt:")]
+    assert len(times) == 3 and notes == [f"note: law tmt: the torque sat on its clip (robot.saturate): {want}"]
+    law = json.loads((out / "summary.json").read_text())["laws"]["tmt"]
+    assert [j["saturated"] for j in law["limits"]["joints"]] == pytest.approx(list(times.values()), abs=1e-12)
+    assert all(s["verdict"] == "converged" for s in law["segments"])
+    assert any("the torque sat on its clip" in s["reason"] for s in law["segments"])
+    sc = apply_overrides(paper_scenario(), ["robot.saturate=true", f"robot.tau_max={tau_max}"])
+    row = case_row(scenario_to_dict(sc), Case(0, {"controller.f_d": 10.0}), limits=False)
+    assert row["verdict"] == "converged" and row["clip_time"] == pytest.approx(max(times.values()), abs=1e-12)
+    assert case_row(scenario_to_dict(paper_scenario()), Case(0, {"controller.f_d": 10.0}),
+                    limits=False)["clip_time"] == 0.0
+
+
 def test_simulate_exits_1_naming_the_joint_and_summary_json_carries_the_margins(tmp_path, capsys):
     out = tmp_path / "run"
     sets = ["--set", "robot.tau_max=[5.0, 18.0, 10.0]", "--set", "trajectory.cycles=0.5"]
@@ -274,6 +309,16 @@ def test_an_excursion_says_how_far_past_its_bound():
     assert "beyond its limit -10 N m by 0.004 N m at worst, from 0.001 s" in e.text
 
 
+def test_an_excursion_quotes_its_limit_as_it_was_given():
+    """Review 62: tau_max = 170.15 N m read "torque -171.3 N m beyond its limit -170.2 N m by 1.16 N m" (four
+    digits: the limit misquoted, and the two figures do not subtract to the excess). The limit is printed with
+    the digits that give it back, the value with as many."""
+    L = JointLimits(("a",), (False,), np.array([170.15]), np.array([INF]), np.array([-INF]), np.array([INF]))
+    (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -171.264]]),
+                     1e-3).excursions
+    assert "torque -171.26 N m beyond its limit -170.15 N m by 1.11 N m at worst" in e.text, e.text
+
+
 def test_the_margins_are_against_the_judged_bound_so_negative_means_over():
     """Regression: with ``robot.limit_margin`` a run over the judged bound had
     a positive torque/rate margin (1 - peak/limit against the full limit),
@@ -313,7 +358,9 @@ def test_a_failing_segment_says_how_long_the_drive_sat_on_its_clip():
     sat on its clip for 1.5 s of a 2 s run and the force missed f_d, but the
     verdict's reason blamed only the stiffness (review 7, on the CLI). The
     clip's time is the samples on it times Ts; a converged segment's reason
-    is left alone."""
+    says it too (review 62: it was left alone, so a sweep's or summary.json's
+    converged reason hid a clip that changed the first contact), the verdict
+    unchanged."""
     from tmtcontrol.simulation.metrics import _limits_and_orientation
 
     L = JointLimits(("a", "b"), (False, False), np.array([0.8, 5.0]), np.array([INF, INF]),
@@ -325,7 +372,10 @@ def test_a_failing_segment_says_how_long_the_drive_sat_on_its_clip():
     v, reason = _limits_and_orientation("off_target", "bias of -1.06 N", use, 0.0, 1e-3)
     assert (v, reason) == ("off_target", "bias of -1.06 N; the torque sat on its clip (robot.saturate): "
                                          "joint 1 (a) 0.75 s")
-    assert _limits_and_orientation("converged", "settled", use, 0.0, 1e-3) == ("converged", "settled")
+    assert _limits_and_orientation("converged", "settled", use, 0.0, 1e-3) == (
+        "converged", "settled; the torque sat on its clip (robot.saturate): joint 1 (a) 0.75 s")
+    unclipped = limit_use(L, t, q, dq, np.zeros_like(tau), 0.01)
+    assert _limits_and_orientation("converged", "settled", unclipped, 0.0, 1e-3) == ("converged", "settled")
 
 
 def test_the_worst_excursion_is_the_furthest_past_its_bound_not_the_first():

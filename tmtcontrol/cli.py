@@ -448,6 +448,10 @@ def _compare(args) -> int:
         out.commit()
     print(f"scenario {sc.name!r}, {len(names)} laws")
     print(format_comparison(cmp))
+    for n, r in cmp.runs.items():
+        if clipped := r.on_clip():
+            # review 62: simulate says so whatever the verdict; compare said nothing of a converged law's clip
+            print(f"note: law {n}: the torque sat on its clip (robot.saturate): {clipped}")
     print(f"wrote {out.out}/")
     from .fmt import num
 

@@ -48,9 +48,19 @@ class LawRun:
         return max((s.tracking_verdict or s.verdict for s in self.segments), key=VERDICTS.index,
                    default="converged")
 
+    def on_clip(self) -> str:
+        """The joints whose torque sat on its clip (``robot.saturate``) in
+        this law's run and for how long, in words ("" when none did, or the
+        run diverged)."""
+        use = self.result.limit_use() if self.result is not None else None
+        return use.on_clip() if use is not None else ""
+
     def as_dict(self) -> dict:
-        return {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
-                "segments": [s.as_dict() for s in self.segments]}
+        out = {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
+               "segments": [s.as_dict() for s in self.segments]}
+        if self.result is not None and (use := self.result.limit_use()) is not None:
+            out["limits"] = use.as_dict()           # as simulate's summary.json (review 62: compare had none)
+        return out
 
 
 @dataclass(frozen=True)

@@ -86,7 +86,7 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
         row.update({"verdict": "diverged", "max_steady_error": math.inf, "first_contact_time": None,
                     "first_contact_peak": None, "first_contact_ratio": None, "first_contact_bounces": None,
                     "torque_margin": math.nan, "rate_margin": math.nan, "position_margin": math.nan,
-                    "error": str(exc), "run_time_s": time.perf_counter() - t0})
+                    "clip_time": math.nan, "error": str(exc), "run_time_s": time.perf_counter() - t0})
         return row
     if found is not None:
         res = with_stiffness_limit(res, found)         # as simulate attaches it
@@ -100,6 +100,9 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                 # least distance to a joint end (rad); inf without limits, negative over them
                 "torque_margin": min(s.torque_margin for s in segs), "rate_margin": min(s.rate_margin for s in segs),
                 "position_margin": min(s.position_margin for s in segs),
+                # the longest a joint's torque sat on its clip (robot.saturate), s: a converged case that only
+                # converged on the clip shows it (review 62)
+                "clip_time": float(use.saturated.max()) if (use := res.limit_use()) is not None else 0.0,
                 "error": "", "run_time_s": time.perf_counter() - t0})
     for i, s in enumerate(segs, 1):
         for f in SEGMENT_FIELDS:
