@@ -93,7 +93,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "tmtcontrol/simulation/metrics.py": ("tests/test_verdicts_wave3.py", "tests/test_verdicts.py",
                                          "tests/test_mutation_kills.py", "tests/test_review_verdicts.py",
                                          "tests/test_noise_bias.py", "tests/test_edges_wave4.py",
-                                         "tests/test_simulate.py"),
+                                         "tests/test_simulate.py", "tests/test_verdict_words.py"),
     "tmtcontrol/simulation/scenario": ("tests/test_scenario.py", "tests/test_docs.py", "tests/test_scenario_fuzz.py",
                                           "tests/test_inputs_wave3.py", "tests/test_mutation_kills.py",
                                           "tests/test_review_inputs.py", "tests/test_bounds_wave3.py",
@@ -154,7 +154,7 @@ TESTS: dict[str, tuple[str, ...]] = {
                                            "tests/test_derivations.py", "tests/test_laws.py"),
     "tmtcontrol/simulation/rollout.py": ("tests/test_codegen.py", "tests/test_tangent.py",
                                          "tests/test_mutation_kills.py", "tests/test_files_safety.py",
-                                         "tests/test_simulate.py"),
+                                         "tests/test_simulate.py", "tests/test_verdict_words.py"),
     "tmtcontrol/cache.py": ("tests/test_compile_signals.py", "tests/test_codegen.py", "tests/test_files_safety.py",
                             "tests/test_result_cache.py"),
     # the fifteenth session: the gain design, the arm interface and the simulator, never measured
