@@ -31,6 +31,28 @@ def test_every_arm_check_passes_on_the_bundled_arms(arm):
         assert r.tolerance == ARM_RTOL and r.residual <= ARM_RTOL
 
 
+@pytest.mark.parametrize("n", [4, 5])
+def test_a_4_or_5_joint_position_task_checks_its_posture_torque(n):
+    """Review 62: `check --scenario` on the UR5 cut after joint 4 or 5 (a position task with the posture task on
+    the free joints) left the null-space check out (6-D only). It runs there now and passes with the loop's own
+    projector; a projector without M^-1 fails it, and one that removes every torque fails as not moving the
+    joints: each way it can fail."""
+    from tmtcontrol.simulation.closedloop import operational_space_torque
+    from tmtcontrol.simulation.scenario import apply_overrides
+
+    tip = {4: "wrist_1_link", 5: "wrist_2_link"}[n]
+    impl = arm_implementation(apply_overrides(load_scenario("ur5"), [f'robot.tip="{tip}"']))
+    assert impl.plant.n == n and impl.task_dim == 3
+    results = _by_eq(run_arm_checks(impl))
+    assert results["(5), null space"].passed and "does move the joints" in results["(5), null space"].note
+    assert all(r.passed for r in results.values())
+    wrong = _by_eq(run_arm_checks(ArmImplementation(impl.plant, impl.plant, torque=_projector_without_minv)))
+    assert not wrong["(5), null space"].passed
+    no_posture = lambda M, nb, J, Jd, U, F_e, tau_0=None: operational_space_torque(M, nb, J, Jd, U, F_e, None)
+    none = _by_eq(run_arm_checks(ArmImplementation(impl.plant, impl.plant, torque=no_posture)))["(5), null space"]
+    assert not none.passed and "does not move the joints" in none.note
+
+
 def test_the_scenarios_arm_is_the_simulated_one():
     for name, arm, count in (("paper", "puma560", 2), ("ur5", "ur5", 4)):
         impl = arm_implementation(load_scenario(name))
