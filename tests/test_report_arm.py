@@ -48,7 +48,7 @@ def test_the_simulation_stage_runs_the_6d_loop_and_shows_the_orientation_error()
     seg_table = next(b for b in sec.blocks if getattr(b, "caption", "") == "Per-segment metrics")
     assert "orientation error" in seg_table.head
     assert any(c.startswith("Joint torques and rates as fractions of their limits") for c in captions)
-    assert any(c.startswith("The arm (ur5) at the end of the run on the") for c in captions)   # issue 41
+    assert any(c.startswith("The arm (ur5, 6 joints to tool0) at the end of the run on the") for c in captions)
     # the simulated first contact says where and how it was computed (not the design's 1-D overshoot)
     first = next(b for b in sec.blocks if getattr(b, "caption", "").startswith("First contact in the simulation"))
     assert "at k_e = 5,000 N/m" in first.caption and "1-D sampled loop" in first.caption
@@ -177,3 +177,19 @@ def test_the_limits_verdict_is_named_after_the_limits_judged():
     _simulation(rep, sc, scenario_parameters(sc))
     names = [v.name for v in rep.verdicts]
     assert "Within the arm's torque limits (simulation)" in names, names
+
+
+@pytest.mark.parametrize("sets, words", [
+    ([], "ur5, 6 actuated joints from world to tool0 (the tool's position and orientation)"),
+    (['robot.tip="wrist_1_link"'], "ur5, 4 actuated joints from world to wrist_1_link (the tool point's position, "
+                                   "the posture task on the free joints)"),
+])
+def test_the_scenario_section_names_the_arm_as_it_runs(sets, words):
+    """Review 62: a UR5 cut at wrist_1_link (a 4-joint position task) read "ur5" throughout its report; only
+    the robot.tip row of the settings table told. The scenario section says which arm runs, its joints, base,
+    tip and task, read here from the loaded robot's chain."""
+    from tmtcontrol import apply_overrides, load_scenario
+    from tmtcontrol.report.document import _scenario_section
+
+    sec = _scenario_section(apply_overrides(load_scenario("ur5"), sets))
+    assert sec.blocks[0].text.startswith(f"The arm: {words}. ")

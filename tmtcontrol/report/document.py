@@ -220,7 +220,7 @@ def _checks(rep: Report, checks: list):
                   "difference found. The last rows check the scenario's arm: its task-frame loop with the ideal "
                   "inner loop (model = plant) realises the command U and reduces to eq. (22) on the normal axis "
                   "(on an arm with 6 or more joints also: the null-space torque leaves the task alone and the "
-                  "other axes follow their impedance)."),
+                  "other axes follow their impedance; on one of 4 or 5 joints, the null-space torque)."),
         Table("Derivation checks", ["equation", "check", "claim", "residual", "verdict"], rows, verdict_column=4)])
     rep.data["checks"] = checks
     return sec
@@ -579,8 +579,11 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
 
     flat = ("; MuJoCo has no solid for this part and draws it as its tangent plane at the path's centre"
             if surface_of(res.scenario).primitive() is None else "")       # review 28: a flat plate "on the sphere"
-    blocks.append(figure(f"The arm ({res.scenario.robot.model}) at the end of the run on the "
-                         f"{res.traces.surface_name}, the contact force as an arrow: the last frame of simulate "
+    from ..simulation.simulator import robot_of
+
+    arm = robot_of(res.scenario)
+    blocks.append(figure(f"The arm ({arm.name}, {len(arm.joint_names)} joints to {arm.tip}) at the end of the run "
+                         f"on the {res.traces.surface_name}, the contact force as an arrow: the last frame of simulate "
                          f"--animate (drawn by MuJoCo's renderer where it can render, else by matplotlib{flat}).",
                          still_figure, res))
     rep.data["simulation"] = {"result": res, "error": None, "segments": segs, "first_contact": fc}
@@ -949,13 +952,24 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
     return Section("design", "Damping design", blocks)
 
 
+def arm_task_words(task) -> str:
+    """The task an arm runs, in words: position only (3 to 5 joints), position and orientation (6), plus the
+    posture task on the free joints (docs/robots.md)."""
+    words = "the tool point's position" if task.dim == 3 else "the tool's position and orientation"
+    return words + (", the posture task on the free joints" if task.posture else "")
+
+
 def _scenario_section(sc: Scenario) -> Section:
     from ..simulation.simulator import robot_of, robot_task
 
+    robot = robot_of(sc)
+    task = robot_task(robot)
     rows = [[r.key, "unset" if r.value is None else fmt.value(r.value), r.unit or "–", r.meaning or "chosen kind"]
-            for r in applicable_settings(sc, robot_task(robot_of(sc)))]
+            for r in applicable_settings(sc, task)]
     return Section("scenario", "Scenario", [
-        Paragraph("The keys that apply to this scenario's options (SI units)."),
+        # the arm as it runs (review 62: a UR5 cut at wrist_1_link read "ur5" everywhere but one settings row)
+        Paragraph(f"The arm: {robot.name}, {task.n} actuated joints from {robot.base} to {robot.tip} "
+                  f"({arm_task_words(task)}). The keys that apply to this scenario's options (SI units)."),
         Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])
 
 
