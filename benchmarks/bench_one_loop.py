@@ -74,7 +74,8 @@ def _numbers(x, path=""):
         yield path, float(x)
 
 
-ADDED_METRICS = ("torque_margin", "rate_margin", "position_margin", "orientation_error")
+ADDED_METRICS = ("torque_margin", "rate_margin", "position_margin", "orientation_error", "normal_tilt",
+                 "chart_force_error", "chart_normal_error", "window", "clip_time")
 """Per-segment metrics the reference commit does not have."""
 
 
