@@ -108,12 +108,19 @@ def test_the_spring_plants_agree_within_a_tenth_of_a_thousandth_of_f_d(monkeypat
     assert agreement_tolerance(sc) == pytest.approx(1e-3)
     contact = sc.replace(simulation={"mujoco_contact": "contact"})
     assert agreement_tolerance(contact) == pytest.approx(5e-3)
+    # review 63: the plants' remaining differences do not shrink with f_d (the pipe's 1.01 mN at f_d = 2 N as at
+    # 10 N), so neither tolerance goes below its floor: 1 mN with the spring, 5 mN with MuJoCo's contact
+    for f_d, spring, mj in ((2.0, 1e-3, 5e-3), (100.0, 1e-2, 5e-2)):
+        small = sc.replace(controller={**sc.controller.model_dump(), "f_d": f_d})
+        assert agreement_tolerance(small) == pytest.approx(spring)
+        assert agreement_tolerance(small.replace(simulation={"mujoco_contact": "contact"})) == pytest.approx(mj)
     for shift, agree, on in ((2e-3, False, sc), (5e-4, True, sc), (6e-3, False, contact), (4e-3, True, contact)):
         off = dataclasses.replace(ur5_short_mujoco, contact_force=ur5_short_mujoco.contact_force + shift)
         monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None, off=off: off)
         c = crosscheck(on)
         assert c.segments[0]["verdict_builtin"] == c.segments[0]["verdict_mujoco"] == "converged"
         assert c.agree is agree
+        assert c.tolerance == agreement_tolerance(on) and c.as_dict()["tolerance_N"] == c.tolerance
 
 
 def test_crosscheck_table_prints_both_plants_in_one_unit_and_digits():
@@ -129,10 +136,12 @@ def test_crosscheck_table_prints_both_plants_in_one_unit_and_digits():
            "settling_time_builtin": 0.5, "settling_time_mujoco": 1.25,
            "verdict_builtin": "converged", "verdict_mujoco": "converged",
            "steady_force_difference": 0.008, "agree": True}
-    text = format_crosscheck(PlantComparison(None, None, (row,), 0.008, 1.0, True))
+    text = format_crosscheck(PlantComparison(None, None, (row,), 0.008, 1.0, True, 0.01))
     header, line = text.splitlines()[0], text.splitlines()[2]
+    # the tolerance the agreement was judged against is in the header (review 63: neither the table nor
+    # crosscheck.json said it, and it depends on the contact model and on f_d)
     for name in ("ss err built-in (mN)", "ss err MuJoCo (mN)", "peak built-in (N)", "peak MuJoCo (N)",
-                 "settling built-in (s)", "steady |Δf| (mN)"):
+                 "settling built-in (s)", "steady |Δf| (mN)", "agree (|Δf| <= 10 mN)"):
         assert name in header
     cells = line.split()
     for cell in ("4.00", "12.0", "40.0", "12.4", "0.500", "1.25", "8.00"):

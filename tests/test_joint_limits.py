@@ -317,6 +317,13 @@ def test_an_excursion_quotes_its_limit_as_it_was_given():
     (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -171.264]]),
                      1e-3).excursions
     assert "torque -171.26 N m beyond its limit -170.15 N m by 1.11 N m at worst" in e.text, e.text
+    # review 63: a bound computed with robot.limit_margin (170.15 x 0.95 = 161.64249999999998 in binary) is
+    # quoted as 161.6425, not to ten digits, and the value with as many
+    L = JointLimits(("a",), (False,), np.array([170.15]), np.array([INF]), np.array([-INF]), np.array([INF]),
+                    margin=0.05)
+    (e,) = limit_use(L, np.arange(2) * 1e-3, np.zeros((1, 2)), np.zeros((1, 2)), np.array([[0.0, -170.1065885]]),
+                     1e-3).excursions
+    assert "torque -170.1066 N m beyond its limit -161.6425 N m by 8.46 N m" in e.text, e.text
 
 
 def test_the_margins_are_against_the_judged_bound_so_negative_means_over():

@@ -529,7 +529,8 @@ def test_crosscheck_help_states_both_tolerances(capsys):
     with pytest.raises(SystemExit):
         main(["crosscheck", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert "by more than 1e-4 f_d with the spring, 5e-4 f_d with MuJoCo's contact" in text
+    assert ("by more than 1e-4 f_d (at least 1 mN) with the spring, 5e-4 f_d (at least 5 mN) with MuJoCo's "
+            "contact") in text
 
 
 def test_an_integrator_flag_with_the_mujoco_plant_is_refused(tmp_path, capsys):

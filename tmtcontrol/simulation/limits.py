@@ -134,7 +134,10 @@ class Excursion:
         digits = next((d for d in range(4, 10) if f"{self.value:.{d}g}" != f"{self.limit:.{d}g}"), 10)
         # and the limit as it was given (review 62: tau_max 170.15 read "its limit -170.2 N m", and -171.3 less
         # -170.2 is not the 1.16 quoted): the fewest digits, up to 10, that give the limit back
-        digits = max(digits, next((d for d in range(4, 10) if float(f"{self.limit:.{d}g}") == self.limit), 10))
+        # (to 1e-12 relative: a bound computed with robot.limit_margin, 170.15 x 0.95 = 161.64249999999998, reads
+        # 161.6425, not ten digits; review 63)
+        digits = max(digits, next((d for d in range(4, 10)
+                                   if abs(float(f"{self.limit:.{d}g}") - self.limit) <= 1e-12 * abs(self.limit)), 10))
         return (f"joint {self.joint + 1} ({self.name}) {self.kind} {self.value:.{digits}g} {self.unit} beyond its "
                 f"limit {self.limit:.{digits}g} {self.unit} by {self.excess:.3g} {self.unit} at worst, from "
                 f"{self.time:.3f} s ({self.duration * 1e3:.0f} ms over)")

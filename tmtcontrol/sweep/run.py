@@ -100,8 +100,8 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
                 # least distance to a joint end (rad); inf without limits, negative over them
                 "torque_margin": min(s.torque_margin for s in segs), "rate_margin": min(s.rate_margin for s in segs),
                 "position_margin": min(s.position_margin for s in segs),
-                # the longest a joint's torque sat on its clip (robot.saturate), s: a converged case that only
-                # converged on the clip shows it (review 62)
+                # the most time one joint's torque spent on its clip (robot.saturate; its episodes summed), s: a
+                # converged case that only converged on the clip shows it (review 62)
                 "clip_time": float(use.saturated.max()) if (use := res.limit_use()) is not None else 0.0,
                 "error": "", "run_time_s": time.perf_counter() - t0})
     for i, s in enumerate(segs, 1):
