@@ -104,9 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "the same URDF (simulation.mujoco_contact:\nthe ideal spring, or MuJoCo's own "
                                    "contact), and compares each segment's verdict and contact force. Exit 1 if the\n"
                                    "plants disagree: a verdict differs, or the two forces differ over a segment's "
-                                   "steady-state window (its last\nquarter) by more than 1e-4 f_d (at least 1 mN) with the spring, "
-                                   "5e-4 f_d (at least 5 mN) with MuJoCo's\ncontact. Needs the mujoco extra and "
-                                   "an arm with a URDF.",
+                                   "steady-state window (its last\nquarter) by more than 1e-4 f_d (at least 1 mN) with the "
+                                   "spring, 5e-4 f_d (at least 5 mN) with MuJoCo's\ncontact. Needs the mujoco extra "
+                                   "and an arm with a URDF.",
                        epilog="example:\n  tmtcontrol crosscheck ur5 --out ur5-crosscheck")
     _add_scenario_args(p, "tmt-crosscheck")
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
@@ -479,10 +479,11 @@ def _mujoco_ready(sc, flag: str) -> None:
     from .simulation.simulator import robot_task
 
     check_contact(sc, surface_of(sc))          # ScenarioError: one line naming the key
-    if sc.simulation.mujoco_contact == "contact" and not robot_task(robot_of(sc)).rotational:
+    task = robot_task(robot_of(sc))
+    if sc.simulation.mujoco_contact == "contact" and not task.rotational:
         # review 63: on a position task the tool's orientation is free, so MuJoCo's spherical tip touches the part
         # off the tool point (r (1 - cos theta) deeper): the 4-joint UR5 read 5.5 mN apart from the built-in plant
-        _hold_notes([f'simulation.mujoco_contact = "contact" on a position task ({robot_task(robot_of(sc)).n} '
+        _hold_notes([f'simulation.mujoco_contact = "contact" on a position task ({task.n} '
                      f"joints): MuJoCo touches with the tool's spherical tip (robot.tool_radius = "
                      f"{sc.robot.tool_radius:g} m), whose point on the part is the tool point only while the tool "
                      "is normal to it, and this task leaves the orientation free: the two plants differ by the "

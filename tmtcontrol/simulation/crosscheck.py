@@ -20,7 +20,8 @@ dynamics), with MuJoCo's own soft contact 5e-4 f_d and at least 5 mN
 differs from the spring by design, docs/mujoco.md, in its transients far
 more than in the steady state; review 61: the scenario's
 ``controller.force_tolerance``, used before, let a forearm 1.1 % heavier in
-MuJoCo's model, 9.4 mN apart, "agree"); a verdict computed, so ``tmtcontrol crosscheck`` exits 1 when they do not. A run that
+MuJoCo's model, 9.4 mN apart, "agree"); a verdict computed, so
+``tmtcontrol crosscheck`` exits 1 when they do not. A run that
 diverges on one plant is a :class:`~.simulator.SimulationError` naming that
 plant.
 """

@@ -205,8 +205,8 @@ class SegmentMetrics:
     normal_tilt: float | None = None
     """The largest angle (rad) over the last quarter between the tool's axis
     and the true part's inward normal at the tool point (None on a position
-    task, as ``orientation_error``: not judged): what the orientation error, measured against the command on the
-    controller's part, leaves out (a displaced part, the tool point off the
+    task, as ``orientation_error``: not judged): what the orientation error,
+    measured against the command on the controller's part, leaves out (a displaced part, the tool point off the
     commanded one on a curved part; review 54)."""
 
     def as_dict(self) -> dict:
