@@ -56,8 +56,6 @@ def test_frame_times_play_in_real_time_and_are_capped():
     assert long.size == MAX_FRAMES and long[0] == 0 and long[-1] == 1000.0
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_simulate_animate_writes_the_gif(tmp_path):
     from PIL import Image
 

@@ -160,8 +160,6 @@ def test_cli_check_table_and_json(monkeypatch, capsys):
     assert f"{len(data)} passed, 0 failed" in out and "(22)" in out and "integral: characteristic polynomial" in out
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_cli_check_exits_1_on_failure(monkeypatch, capsys, default_impl):
     orig = derivations.run_checks
     bad = Implementation(robot=default_impl.robot, model=default_impl.model, tmt_delta=missing_term_delta)

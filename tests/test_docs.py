@@ -209,8 +209,6 @@ def test_the_force_filters_quoted_response_is_its_own():
     assert f"from {edge:.3f} of the Nyquist frequency up it never falls 3 dB: {gain_db(300.0)[-1]:.2f} dB" in text
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_design_example_on_the_page_is_what_design_prints(capsys):
     """docs/design.md quotes the output of its example command: the block
     below the command line must be what the command prints now (it went stale

@@ -101,8 +101,6 @@ def test_the_built_in_arms_on_mujoco_agree_segment_by_segment(arm):
     assert np.max(np.abs(mj.contact_force - builtin.contact_force)) < 0.1
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_crosscheck_prints_both_plants_and_agrees_on_the_ur5(tmp_path, capsys):
     out = tmp_path / "xc"
     assert main(["crosscheck", "ur5", "--set", "trajectory.cycles=0.5", "--out", str(out)]) == 0

@@ -94,8 +94,6 @@ def test_the_independent_plant_section_compares_mujoco_with_the_builtin_plant(mo
     assert next(b for b in sec.blocks if getattr(b, "caption", "") == "Segments on both plants").rows[0][-1] == "FAIL"
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
     from tmtcontrol.report.document import Report, _simulation
     from tmtcontrol.stability import scenario_parameters

@@ -294,8 +294,6 @@ def test_sweep_and_compare_run_on_the_ur5(tmp_path):
     assert cmp.runs["tmt"].result.q.shape[0] == 6
 
 
-# heavy (docs/testing.md's 2 s rule): 3-7 s in the README command's run of the nineteenth session
-@pytest.mark.heavy
 def test_analyze_scenario_uses_the_arms_effective_normal_mass():
     """analyze --scenario on the UR5: m_p is 1/(n^T J_v M^-1 J_v^T n) along
     the path, checked by its physical meaning: a unit force along n on the
