@@ -127,6 +127,8 @@ def test_damaged_cached_library_is_rebuilt_not_loaded(tmp_path, damage, first_co
     assert third.returncode == 0 and "(cached)" in third.stdout and third.stderr == ""
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
     from tmtcontrol import Simulator
 
@@ -141,6 +143,8 @@ def test_unwritable_cache_compiles_privately_and_says_so(monkeypatch, tmp_path):
     assert sim.rollout.how == "compiled" and not str(sim.rollout.library).startswith(str(blocker))
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_no_compiler_uses_a_valid_cached_library(monkeypatch, tmp_path):
     from tmtcontrol import Simulator
 

@@ -514,6 +514,8 @@ def test_the_isolated_controller_gives_the_in_process_run(exported_inner):
         np.testing.assert_array_equal(getattr(here, name), getattr(there, name), err_msg=name)
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_ctrl_c_stops_a_hanging_controller(exported_inner, tmp_path):
     """While the user's C spins in tmt_step, Ctrl-C to tmtcontrol ends the run
     (exit 130) and the controller's process: synchronised on the controller's

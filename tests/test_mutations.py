@@ -39,6 +39,8 @@ def test_miswired_law_selection_in_the_simulated_loop_fails(monkeypatch):
     assert "simulated loop runs the declared law" in _failed(run_loop_checks())
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_changed_sampled_model_fails(monkeypatch):
     def euler(A, B, Ts):                                  # the mutation: Euler instead of the exact ZOH
         return np.eye(A.shape[-1]) + A * Ts, B * Ts

@@ -697,6 +697,8 @@ def test_alt_text_reads_a_shared_axis_and_calls_a_picture_an_image():
     plt.close("all")
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_the_law_comparison_verdict_is_the_force_trackings_when_a_law_is_over_a_limit(monkeypatch):
     """Regression (review 21): on the UR5 every law is over the shoulder's torque limit, and
     over_limit outranks off_target, so the table's verdict read "over a limit" for all five
@@ -777,6 +779,8 @@ def test_applicable_settings_leave_out_a_spheres_keys_on_a_height_map_and_an_uns
     assert not {"environment.radius", "environment.side"} & keys(flat)
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_the_force_verdict_names_each_failing_segment_by_its_own_verdict():
     """The eighteenth session's mutation run: ``segs[i - 1]`` as ``segs[i % 1]``
     (every failing segment given segment 1's verdict) survived. The known law

@@ -171,6 +171,8 @@ def test_report_ur5_html(tmp_path):
     assert b == pytest.approx(d.b, rel=1e-3)                                               # 4 significant digits
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_the_limits_verdict_is_named_after_the_limits_judged():
     """Regression (review 7): the PUMA with only ``robot.tau_max`` set had its
     check titled 'torque, rate and joint limits' although only the torque was

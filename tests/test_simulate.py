@@ -53,6 +53,8 @@ def test_fixed_step_agrees_with_cvodes(paper_result):
     np.testing.assert_allclose(paper_result.q, ref.q, atol=1e-6)
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_fixed_step_converges_with_substeps():
     # 0.6 s around a stiffness jump at 0.3 s (contact loss and re-contact),
     # against CVODES at 1e-12: the error must shrink as sub-steps increase.

@@ -344,6 +344,8 @@ def test_contact_damping_limit_agrees_across_the_three_models():
     assert a["whole_loop_limit"] == pytest.approx(loop, rel=2e-3)
 
 
+# heavy (docs/testing.md's 2 s rule): 2.0-2.7 s in the README command's run of the nineteenth session
+@pytest.mark.heavy
 def test_the_whole_loop_limit_is_a_bracket_checked_at_both_ends():
     """Issue 43: the whole-loop search started at the 1-D limit and, with a
     0.1 % bracket, often returned that value itself. Now ``analyze_scenario``
