@@ -189,8 +189,8 @@ def test_the_limits_verdict_is_named_after_the_limits_judged():
 
 @pytest.mark.parametrize("sets, words", [
     ([], "ur5, 6 actuated joints from world to tool0 (the tool's position and orientation)"),
-    (['robot.tip="wrist_1_link"'], "ur5, 4 actuated joints from world to wrist_1_link (the tool point's position, "
-                                   "the posture task on the free joints)"),
+    (['robot.tip="wrist_1_link"'], "ur5, 4 actuated joints from world to wrist_1_link (the tool's position, "
+                                   "with the null-space posture task)"),
 ])
 def test_the_scenario_section_names_the_arm_as_it_runs(sets, words):
     """Review 62: a UR5 cut at wrist_1_link (a 4-joint position task) read "ur5" throughout its report; only

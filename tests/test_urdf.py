@@ -302,7 +302,7 @@ def test_cli_robot_says_what_the_closed_loop_controls_and_an_arm_it_cannot(tmp_p
     assert ("  closed loop: none: 1 actuated joint: the closed loop needs at least 3 (the tool point's position); "
             "simulate and every loop command refuse this arm") in capsys.readouterr().out.splitlines()
     for arm, said in (("puma560", "a 3-axis task (position)"), ("ur5", "a 6-axis task (position and orientation)"),
-                      ("panda", "a 6-axis task (position and orientation), with the null-space posture task")):
+                      ("panda", "a 6-axis task (position and orientation, with the null-space posture task)")):
         assert main(["robot", arm, "--samples", "1"]) == 0
         assert f"  closed loop: {said}" in capsys.readouterr().out.splitlines(), arm
 
@@ -879,4 +879,4 @@ def test_describe_names_the_posture_task_on_a_redundant_position_only_arm():
     from tmtcontrol.model.verify import describe
 
     four = load_robot("ur5", joints=["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint"])
-    assert "  closed loop: a 3-axis task (position), with the null-space posture task" in describe(four).splitlines()
+    assert "  closed loop: a 3-axis task (position, with the null-space posture task)" in describe(four).splitlines()

@@ -97,6 +97,17 @@ class Task:
         return self.n > self.dim
 
     @property
+    def what(self) -> str:
+        """What the task axes control: ``"position"`` or ``"position and orientation"``."""
+        return "position and orientation" if self.rotational else "position"
+
+    @property
+    def words(self) -> str:
+        """The task in words, e.g. ``"position, with the null-space posture task"``
+        (the ``robot`` command's line, the report's arm; docs/robots.md)."""
+        return self.what + (", with the null-space posture task" if self.posture else "")
+
+    @property
     def square(self) -> bool:
         """Whether the task Jacobian is square (as many joints as task axes)."""
         return self.n == self.dim
@@ -242,9 +253,8 @@ class Robot:
         task = task_of(self.n)
         rank = self.task_rank(task.dim)
         if rank < task.dim:
-            what = "position and orientation" if task.rotational else "position"
             raise ValueError(f"{self.n} actuated joints whose axes move the tool along at most {rank} of the "
-                             f"{task.dim} axes of its task ({what}; the rank of the Jacobian at "
+                             f"{task.dim} axes of its task ({task.what}; the rank of the Jacobian at "
                              f"{TASK_RANK_SAMPLES} sampled poses): the closed loop needs all {task.dim}")
         return task
 

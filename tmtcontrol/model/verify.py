@@ -310,9 +310,7 @@ def describe(robot, check: RobotCheck | None = None) -> str:
         lines.append("  held (not actuated): " + ", ".join(f"{k} = {v:g}" for k, v in robot.held.items()))
     try:                        # what the closed loop controls on this arm (review 32: said for an unusable one)
         task = robot.task
-        lines.append(f"  closed loop: a {task.dim}-axis task" + (" (position)" if task.dim == 3 else
-                                                                 " (position and orientation)")
-                     + (", with the null-space posture task" if task.posture else ""))
+        lines.append(f"  closed loop: a {task.dim}-axis task ({task.words})")
     except ValueError as exc:
         lines.append(f"  closed loop: none: {exc}; simulate and every loop command refuse this arm")
     if check is not None:

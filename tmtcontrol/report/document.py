@@ -957,13 +957,6 @@ def _design(rep: Report, sc: Scenario, p: dict, sim, res):
     return Section("design", "Damping design", blocks)
 
 
-def arm_task_words(task) -> str:
-    """The task an arm runs, in words: position only (3 to 5 joints), position and orientation (6), plus the
-    posture task on the free joints (docs/robots.md)."""
-    words = "the tool point's position" if task.dim == 3 else "the tool's position and orientation"
-    return words + (", the posture task on the free joints" if task.posture else "")
-
-
 def _scenario_section(sc: Scenario) -> Section:
     from ..simulation.simulator import robot_of, robot_task
 
@@ -974,7 +967,7 @@ def _scenario_section(sc: Scenario) -> Section:
     return Section("scenario", "Scenario", [
         # the arm as it runs (review 62: a UR5 cut at wrist_1_link read "ur5" everywhere but one settings row)
         Paragraph(f"The arm: {robot.name}, {task.n} actuated joints from {robot.base} to {robot.tip} "
-                  f"({arm_task_words(task)}). The keys that apply to this scenario's options (SI units)."),
+                  f"(the tool's {task.words}). The keys that apply to this scenario's options (SI units)."),
         Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])
 
 
