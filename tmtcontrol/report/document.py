@@ -714,7 +714,7 @@ def _independent_plant(rep: Report, sc: Scenario):
     steady-state error and verdict, both force traces, the largest
     difference; the verdict "the plants agree" (issue 41's report section,
     ``report --plant mujoco``)."""
-    from ..simulation.crosscheck import agreement_tolerance, crosscheck
+    from ..simulation.crosscheck import crosscheck
     from ..simulation.figures import crosscheck_figure
     from ..stability.analysis import with_stiffness_limit
 
@@ -742,7 +742,7 @@ def _independent_plant(rep: Report, sc: Scenario):
                   f"({info['plant'][len('mujoco ('):-1]}; {info['integrator']}), judged by the same rules as the "
                   "built-in run. The plants agree when every segment has the same verdict on both and their "
                   "contact forces over its steady-state window (the last quarter) differ by at most "
-                  f"{fmt.qty(agreement_tolerance(sc), 'N')} "
+                  f"{fmt.qty(c.tolerance, 'N')} "
                   "(docs/mujoco.md). " + value + "."),
         Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
                                           "steady-state error, MuJoCo", "peak force, built-in / MuJoCo",
