@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import dataclass, field
-
+from functools import cached_property
 
 from ..control.laws import get_law, laws
+from .limits import LimitUse
 from .metrics import VERDICTS, SegmentMetrics, segment_metrics
 from .scenario import Scenario, scenario_to_dict
 from .simulator import SimulationError, SimulationResult, check_run_size
@@ -48,18 +49,23 @@ class LawRun:
         return max((s.tracking_verdict or s.verdict for s in self.segments), key=VERDICTS.index,
                    default="converged")
 
+    @cached_property
+    def limit_use(self) -> LimitUse | None:
+        """How near the arm's limits this law's run came (:meth:`.SimulationResult.limit_use`),
+        None when the run diverged or the scenario declares no limits."""
+        return self.result.limit_use() if self.result is not None else None
+
     def on_clip(self) -> str:
         """The joints whose torque sat on its clip (``robot.saturate``) in
         this law's run and for how long, in words ("" when none did, or the
         run diverged)."""
-        use = self.result.limit_use() if self.result is not None else None
-        return use.on_clip() if use is not None else ""
+        return self.limit_use.on_clip() if self.limit_use is not None else ""
 
     def as_dict(self) -> dict:
         out = {"law": self.scenario.controller.law.model_dump(), "verdict": self.verdict, "error": self.error,
                "segments": [s.as_dict() for s in self.segments]}
-        if self.result is not None and (use := self.result.limit_use()) is not None:
-            out["limits"] = use.as_dict()           # as simulate's summary.json (review 62: compare had none)
+        if self.limit_use is not None:
+            out["limits"] = self.limit_use.as_dict()       # as simulate's summary.json (review 62: compare had none)
         return out
 
 
