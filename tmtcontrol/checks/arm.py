@@ -369,8 +369,8 @@ def run_arm_checks(impl: ArmImplementation, seed: int = 2024) -> list[CheckResul
     more joints than its task, review 62: a 4-joint arm's posture task went
     unchecked); a check that raises is reported as failed."""
     out = []
-    checks = CHECKS_6D if impl.task_dim == 6 else (
-        (*CHECKS_3D, check_null_space) if impl.plant.n > impl.task_dim else CHECKS_3D)
+    task = impl.plant.task
+    checks = CHECKS_6D if task.dim == 6 else ((*CHECKS_3D, check_null_space) if task.posture else CHECKS_3D)
     if impl.surface is not None and impl.surface.turns:
         checks = (*checks, check_curved_normal_axis)
     for i, chk in enumerate(checks):
