@@ -176,13 +176,36 @@ def test_reproducibility_lists_each_item_once(paper_report):
     rows = table(section(html, "reproducibility"), "Reproducibility")[2]
     items = [row[0].lower() for row in rows]
     assert len(items) == len(set(items)) and "python" in items and "casadi" in items
-    # review 60: the renderers that lay out the report and the URDF parser are named with their installed
-    # versions (read here from the distributions' metadata); MuJoCo only where its plant ran (not here)
+    # review 60: the renderers that lay out the report are named with their installed versions (read here from
+    # the distributions' metadata); review 63: the URDF parser only where a URDF was read (not the PUMA's),
+    # MuJoCo only where its plant ran (not here)
     from importlib.metadata import version
     given = {row[0]: row[1] for row in rows}
-    for dist in ("jinja2", "weasyprint", "urdfdom-py"):
+    for dist in ("jinja2", "weasyprint"):
         assert given[dist] == version(dist), dist
-    assert "mujoco" not in given
+    assert "mujoco" not in given and "urdfdom-py" not in given
+
+
+@pytest.mark.parametrize("name, formats, listed, absent", [
+    ("ur5", ("html",), ("jinja2", "urdfdom-py"), ("weasyprint", "mujoco")),
+    ("paper", ("html", "pdf"), ("jinja2", "weasyprint"), ("urdfdom-py", "mujoco")),
+])
+def test_reproducibility_names_what_made_this_report(name, formats, listed, absent):
+    """Review 63 (6b): the reproducibility table listed the URDF parser for the PUMA (no URDF is read) and
+    WeasyPrint for an HTML-only report (no PDF is laid out). Each is named where it ran, with its installed
+    version."""
+    from importlib.metadata import version
+
+    from tmtcontrol import load_scenario
+    from tmtcontrol.report.document import Report, finish
+
+    rep = Report(load_scenario(name), "test")
+    finish(rep, formats)
+    (tab,) = [b for b in rep.sections[-1].blocks if isinstance(b, Table)]
+    rows = dict(tab.rows)
+    for dist in listed:
+        assert rows[dist] == version(dist), dist
+    assert not set(absent) & set(rows), rows
 
 
 @pytest.mark.heavy

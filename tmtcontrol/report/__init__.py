@@ -26,7 +26,7 @@ def write_report(rep: Report, folder, formats=FORMATS, progress: Callable | None
     :func:`writing_stages`. Returns the files written."""
     folder = pathlib.Path(folder)
     say = progress or (lambda *a: None)
-    finish(rep)
+    finish(rep, formats)
     t0 = time.perf_counter()
     html = render_html(rep)
     written = []

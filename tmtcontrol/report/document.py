@@ -971,17 +971,22 @@ def _scenario_section(sc: Scenario) -> Section:
         Table("Scenario settings", ["key", "value", "unit", "meaning"], rows)])
 
 
-def _repro(rep: Report) -> Section:
+def _repro(rep: Report, formats: tuple[str, ...]) -> Section:
+    from ..simulation.simulator import robot_of
+
     sc = rep.scenario
+    # python's among them; the renderers of the formats written and the URDF parser where a URDF was read
+    # (review 60: WeasyPrint's version sets the PDF's layout; review 63: none of them for what did not run),
+    # MuJoCo's where its plant ran
+    used = ("jinja2", *(("weasyprint",) if "pdf" in formats else ()),
+            *(("urdfdom-py",) if robot_of(sc).urdf is not None else ()),
+            *(("mujoco",) if "crosscheck" in rep.data else ()))
     made = rep.data.get("provenance") or provenance()
     rows = [["date", made["date"]], ["source", made["source"]], ["command", rep.command_line],
             ["scenario SHA-256 (its TOML)", hashlib.sha256(dump_scenario(sc).encode()).hexdigest()],
             ["sensor noise seed", str(sc.sensor.seed) if sc.sensor.noise_std > 0 else "no noise"],
             ["derivation check seed", "2024"],
-            # python's among them; the report's renderers and the URDF parser (review 60: WeasyPrint's version
-            # sets the PDF's layout), MuJoCo's where its plant ran
-            *[[k, "not installed" if v is None else str(v)] for k, v in versions(
-                ("jinja2", "weasyprint", "urdfdom-py", *(("mujoco",) if "crosscheck" in rep.data else ()))).items()],
+            *[[k, "not installed" if v is None else str(v)] for k, v in versions(used).items()],
             *[[f"stage: {k}", fmt.qty(v, "s")] for k, v in rep.timings.items()]]
     return Section("reproducibility", "Reproducibility", [
         Paragraph("Run the command with the same package versions to reproduce every number; the scenario's "
@@ -1288,6 +1293,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     return rep
 
 
-def finish(rep: Report) -> None:
-    """Add the reproducibility section (after the timings are known)."""
-    rep.sections = [s for s in rep.sections if s.key != "reproducibility"] + [_repro(rep)]
+def finish(rep: Report, formats: tuple[str, ...] = ("html", "pdf")) -> None:
+    """Add the reproducibility section (after the timings are known), naming
+    the renderers of ``formats``, the formats being written."""
+    rep.sections = [s for s in rep.sections if s.key != "reproducibility"] + [_repro(rep, tuple(formats))]
