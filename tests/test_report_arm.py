@@ -76,6 +76,9 @@ def test_the_independent_plant_section_compares_mujoco_with_the_builtin_plant(mo
     steady = rep.data["crosscheck"]["segments"][0]["steady_force_difference"]
     from tmtcontrol import fmt
 
+    # the segment's own steady-state difference in its row beside the verdict (the CLI's table had it, the
+    # report's did not)
+    assert table_.rows[0][-2] == fmt.qty(steady, "N")
     assert v.passed is True and v.value.startswith(
         f"largest steady-state force difference {fmt.qty(steady, 'N')} (segment 1; tolerance 1"), v.value
     assert rep.data["crosscheck"]["agree"] is True and rep.data["crosscheck"]["tolerance_N"] == 1e-3

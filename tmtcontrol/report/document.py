@@ -725,7 +725,8 @@ def _independent_plant(rep: Report, sc: Scenario):
              fmt.qty(r["steady_state_error_builtin"], "N"), fmt.qty(r["steady_state_error_mujoco"], "N"),
              f"{fmt.qty(r['peak_force_builtin'], 'N')} / {fmt.qty(r['peak_force_mujoco'], 'N')}",
              f"{fmt.qty(r['settling_time_builtin'], 's')} / {fmt.qty(r['settling_time_mujoco'], 's')}",
-             r["verdict_builtin"], r["verdict_mujoco"], "PASS" if r["agree"] else "FAIL"]
+             r["verdict_builtin"], r["verdict_mujoco"], fmt.qty(r["steady_force_difference"], "N"),
+             "PASS" if r["agree"] else "FAIL"]
             for i, r in enumerate(c.segments, 1)]
     # what the agreement is judged on first (review 63: the row quoted the run's largest difference, a first
     # contact's transient, the same size on a passing run as on a failing one)
@@ -747,7 +748,8 @@ def _independent_plant(rep: Report, sc: Scenario):
         Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
                                           "steady-state error, MuJoCo", "peak force, built-in / MuJoCo",
                                           "settling 2 %, built-in / MuJoCo", "verdict, built-in",
-                                          "verdict, MuJoCo", "agree"], rows, verdict_column=9),
+                                          "verdict, MuJoCo", "steady-state |Δf|", "agree"], rows,
+              verdict_column=10),
         figure("Contact force on the built-in plant and on MuJoCo's.", crosscheck_figure, c)])
 
 
