@@ -328,7 +328,7 @@ def _simulate(args) -> int:
 def _simulate_with(args, workers) -> int:
     from . import fmt
     from .files import OutputFolder
-    from .simulation.metrics import first_contact, format_table, segment_metrics
+    from .simulation.metrics import first_contact, format_table, orientation_transient, segment_metrics
     from .simulation.output import save_simulation
     from .simulation.simulator import simulator_for
     from .simulation.simulator import check_run_size
@@ -403,6 +403,9 @@ def _simulate_with(args, workers) -> int:
         # review 43: a converged run on the clip said so only in summary.json
         print(f"note: the torque sat on its clip (robot.saturate): {clipped}; the run's torques are within tau_max "
               "only because the loop clips them, as the drive must")
+    if tilted := orientation_transient(segs, sc.controller.orientation_tolerance):
+        # review 62: a tool five times its orientation tolerance off mid-segment, every segment converged
+        print(f"note: the tool's orientation error within a segment: {tilted}")
     print(f"wrote {out.out}/")
     return _verdict_exit(sc, segs, memo)
 

@@ -482,7 +482,7 @@ def _orientation_cause(seg, res, sc: Scenario) -> str:
 
 def _simulation(rep: Report, sc: Scenario, p: dict):
     from ..simulation import figures as simf
-    from ..simulation.metrics import FIRST_CONTACT_WINDOW, first_contact, segment_metrics
+    from ..simulation.metrics import FIRST_CONTACT_WINDOW, first_contact, orientation_transient, segment_metrics
     from ..simulation.simulator import simulator_for
     from ..simulation.simulator import SimulationError
 
@@ -564,7 +564,9 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
             f"impedance, the rotation-vector error log(R_c R^T)): the angle between the tool and its command is "
             f"at most {fmt.qty(settled, 'rad')} over the last quarter of every segment (the segment table), and "
             f"{fmt.qty(worst, 'rad')} over the last quarter of the run, with the transients of any stiffness "
-            "switch in it."))
+            f"switch in it; over the whole run at most {fmt.qty(max(s.peak_orientation_error for s in segs), 'rad')}"
+            + (f" (within a segment: {tilted})" if (tilted := orientation_transient(
+                segs, sc.controller.orientation_tolerance)) else "") + "."))
         blocks.append(figure("Tool orientation error: the angle between the tool orientation and its command "
                              "(log scale).", simf.orientation_figure, res))
     if getattr(res, "posture_drift", None) is not None:          # a redundant arm: the null space is free to move
