@@ -75,7 +75,7 @@ def _numbers(x, path=""):
 
 
 ADDED_METRICS = ("torque_margin", "rate_margin", "position_margin", "orientation_error", "normal_tilt",
-                 "chart_force_error", "chart_normal_error", "window", "clip_time")
+                 "chart_force_error", "chart_normal_error", "window", "clip_time", "peak_orientation_error")
 """Per-segment metrics the reference commit does not have."""
 
 

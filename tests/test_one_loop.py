@@ -55,7 +55,7 @@ def test_a_4_or_5_joint_arm_tracks_f_d_as_a_position_task(n):
     from tmtcontrol.simulation.metrics import segment_metrics
 
     (seg,) = segment_metrics(r)
-    assert seg.orientation_error is None and seg.normal_tilt is None
+    assert seg.orientation_error is None and seg.normal_tilt is None and seg.peak_orientation_error is None
     assert seg.as_dict()["orientation_error"] is None
 
 
