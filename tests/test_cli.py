@@ -142,8 +142,12 @@ def test_mujoco_only_settings_on_the_built_in_plant_are_named_as_ignored(tmp_pat
 def test_built_in_only_settings_on_the_mujoco_plant_are_named_as_ignored(tmp_path, capsys):
     """Review 61, the mirror of review 33: `simulate ur5 --plant mujoco --set simulation.integrator=cvodes` ran
     MuJoCo's RK4 and said nothing (summary.json recorded cvodes), where the flag --integrator is refused. A
-    note names every built-in-only key set; the run is the same bytes as without them."""
+    note names every built-in-only key set; the run is the same bytes as without them, and so are its
+    summary and the stiffness limit its verdicts quote (the twentieth session: the limit read them, a
+    second deciding limit of the UR5 at 7 substeps, 205 s, for a run that never used them)."""
     pytest.importorskip("mujoco")           # the test extra installs it: CI runs this
+    import json
+
     from tmtcontrol.cli import main
 
     args = ["simulate", "ur5", "--plant", "mujoco", "--no-plots", "--set", "trajectory.cycles=0.02"]
@@ -154,6 +158,9 @@ def test_built_in_only_settings_on_the_mujoco_plant_are_named_as_ignored(tmp_pat
     main([*args, "--out", str(tmp_path / "b")])
     assert "built-in plant only" not in capsys.readouterr().err
     assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+    a, b = (json.loads((tmp_path / x / "summary.json").read_text()) for x in "ab")
+    assert a["scenario"]["simulation"] == b["scenario"]["simulation"] and a["segments"] == b["segments"]
+    assert a["run"]["stiffness_limit"] == b["run"]["stiffness_limit"] > 0
 
 
 

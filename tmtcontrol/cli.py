@@ -348,6 +348,7 @@ def _simulate_with(args, workers) -> int:
         if unused := sc.simulation.builtin_only():
             _hold_notes([f"{', '.join(unused)}: for the built-in plant only; the MuJoCo plant integrates with "
                          f"MuJoCo's RK4 and ignores {'it' if len(unused) == 1 else 'them'}"])
+            sc = sc.replace(simulation=sc.simulation.on_mujoco())     # ignored in the summary and limit too
     if args.controller is not None:            # compiled (or refused) before anything is written
         from .export.sil import CompiledController
 

@@ -30,6 +30,10 @@ class SensorSettings(Section):
         return filter_pole(self.filter_cutoff, Ts)
 
 
+BUILTIN_ONLY = ("integrator", "substeps", "contact_refine", "tol")
+"""The ``[simulation]`` keys only the built-in plant reads."""
+
+
 class SimulationSettings(Section):
     """Integrator: ``fixed`` (compiled RK4, ``substeps`` per control period,
     ``contact_refine`` times more in a period where the contact force
@@ -60,7 +64,16 @@ class SimulationSettings(Section):
         own RK4 and ignores them (review 61: ``simulation.integrator =
         "cvodes"`` on ``--plant mujoco`` ran silently, where the flag
         ``--integrator`` is refused)."""
-        return self._set(("integrator", "substeps", "contact_refine", "tol"))
+        return self._set(BUILTIN_ONLY)
+
+    def on_mujoco(self) -> "SimulationSettings":
+        """These settings as the MuJoCo plant runs them: the :meth:`builtin_only`
+        keys at their defaults, so that a run on MuJoCo, its summary and the
+        stiffness limit its verdicts quote are those of the same run without
+        them (the limit models the built-in loop and read them: a UR5 run with
+        ``substeps = 7`` computed a second deciding limit, 205 s, for a run
+        that never used it)."""
+        return self.model_copy(update={k: type(self).model_fields[k].default for k in BUILTIN_ONLY})
 
     def _set(self, keys) -> list[str]:
         return [f"simulation.{k} = {getattr(self, k)!r}" for k in keys
