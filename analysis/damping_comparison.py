@@ -5,10 +5,10 @@ Usage: python analysis/damping_comparison.py [--out DIR] [--cycles N] [--write-d
 Four controllers, all with TMT, M = 1, K = 100 on the paper scenario
 (stiffness 5e3 -> 2e4 -> 2e3 -> 1e4 N/m, one value per 4 s cycle):
 
-* paper:     the paper's fixed B = 60 N s/m;
-* eq25:      eq. (25) for the worst case, b = 2 sqrt(m (k + k_e_max));
-* optimal:   the robust design of tmtcontrol.stability.design (5 % overshoot bound, Ts = 1 ms);
-* scheduled: b follows eq. (25) online from the TMT estimate (zeta = 1).
+* ``scenario b = 60``: the paper's fixed B = 60 N s/m;
+* ``eq. (25) worst case b = ...``: eq. (25) for the worst case, b = 2 sqrt(m (k + k_e_max));
+* ``optimal b = ...``: the robust design of tmtcontrol.stability.design (5 % overshoot bound, Ts = 1 ms);
+* ``scheduled (zeta = 1)``: b follows eq. (25) online from the TMT estimate.
 
 Writes comparison.csv / comparison.md (overshoot and 2 % settling time per
 segment) and a force plot, and prints the table. ``--write-docs`` also
@@ -16,7 +16,6 @@ rewrites the table in docs/design.md between ``<!-- damping_comparison -->``
 and ``<!-- end damping_comparison -->`` (tests/test_design.py checks that the
 page holds what this script prints).
 """
-import argparse
 import csv
 import pathlib
 import re
@@ -29,6 +28,8 @@ from tmtcontrol.stability.design import DesignSpec, damping_alternatives, design
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.plotstyle import styled
 from tmtcontrol.stability import scenario_parameters
+
+from _study import Parser, positive, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -78,10 +79,10 @@ def write_docs(text: str) -> None:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/damping-comparison",
                     help="output folder (default analysis-output/damping-comparison, ignored by git)")
-    ap.add_argument("--cycles", type=float, default=4.0)
+    ap.add_argument("--cycles", type=positive(), default=4.0, help="path cycles of 4 s (default 4)")
     ap.add_argument("--write-docs", action="store_true", help="also rewrite the table in docs/design.md")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")     # checked before the runs
@@ -122,4 +123,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run(main))

@@ -12,7 +12,6 @@ Writes ``first_contact.png`` (peak force / f_d against k_e), ``table.md``
 and ``summary.json``, and prints the table. Exit 1 if a guarded run peaks
 above 1.5 f_d or does not converge.
 """
-import argparse
 import json
 
 import numpy as np
@@ -23,13 +22,20 @@ from tmtcontrol.files import OutputFolder
 from tmtcontrol.plotstyle import plain_log_labels, styled
 from tmtcontrol.simulation.metrics import first_contact
 
+from _study import Parser, positive, run
+
+
+def _stiffness(k_e: float) -> str:
+    """``k_e`` (N/m) to 3 significant digits as the page writes it: 2e3, 1.41e4."""
+    return f"{k_e:.3g}".replace("e+0", "e").replace("e+", "e")
+
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/first-contact",
                     help="output folder (default analysis-output/first-contact, ignored by git)")
-    ap.add_argument("--gap", type=float, default=0.005, help="start this far above the surface, m")
-    ap.add_argument("--points", type=int, default=7, help="stiffnesses from 2e3 to 1e5 N/m (default 7)")
+    ap.add_argument("--gap", type=positive(), default=0.005, help="start this far above the surface, m")
+    ap.add_argument("--points", type=positive(int), default=7, help="stiffnesses from 2e3 to 1e5 N/m (default 7)")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")
     base = apply_overrides(paper_scenario(), ["trajectory.cycles=0.5", f"trajectory.approach_gap={args.gap}"])
@@ -47,7 +53,7 @@ def main(argv=None):
         rows.append(row)
     md = ["| k_e (N/m) | law alone: peak/f_d | bounces | guarded: peak/f_d | bounces | contact at (s) |",
           "|---|---|---|---|---|---|"]
-    md += [f"| {r['k_e']:.3g} | {r['law']['peak_ratio']:.2f} | {r['law']['bounces']} | "
+    md += [f"| {_stiffness(r['k_e'])} | {r['law']['peak_ratio']:.2f} | {r['law']['bounces']} | "
            f"{r['guarded']['peak_ratio']:.2f} | {r['guarded']['bounces']} | {r['guarded']['time']:.3f} |"
            for r in rows]
     with styled():                                      # the package's one figure style
@@ -72,4 +78,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run(main))

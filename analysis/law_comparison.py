@@ -12,7 +12,6 @@ f_d| on a log axis), ``table.md`` (steady-state error = max |f_e - f_d| over
 each segment's last quarter, and verdict, law x segment) and ``summary.json``,
 and prints the table. Exit 1 if a law's run diverged.
 """
-import argparse
 import json
 
 
@@ -21,13 +20,15 @@ from tmtcontrol.drawing import save_figures
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure
 
+from _study import Parser, finite, positive, run
+
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/law-comparison",
                     help="output folder (default analysis-output/law-comparison, ignored by git)")
-    ap.add_argument("--cycles", type=float, default=4.0, help="path cycles of 4 s (default 4, the paper's)")
-    ap.add_argument("--x-e-error", type=float, default=0.005, help="surface-location error of the second case, m")
+    ap.add_argument("--cycles", type=positive(), default=4.0, help="path cycles of 4 s (default 4, the paper's)")
+    ap.add_argument("--x-e-error", type=finite, default=0.005, help="surface-location error of the second case, m")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")          # checked before the runs
     base = apply_overrides(paper_scenario(), [f"trajectory.cycles={args.cycles}"])
@@ -58,4 +59,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run(main))

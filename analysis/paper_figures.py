@@ -7,19 +7,19 @@ a 45 deg plane, f_d = 10 N, stiffness stepping every 4 s cycle) and writes
 fig3_stiffness.png, fig4_force.png, fig5_position.png and path3d.png plus the
 per-segment table (segments.txt).
 """
-import argparse
-
 from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metrics
 from tmtcontrol.simulation.metrics import format_table
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.figures import save_simulation_figures
 
+from _study import Parser, positive, run
+
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/paper-figures",
                     help="output folder (default analysis-output/paper-figures, ignored by git)")
-    ap.add_argument("--cycles", type=float, default=4.0, help="cycles of 4 s (default 4)")
+    ap.add_argument("--cycles", type=positive(), default=4.0, help="cycles of 4 s (default 4)")
     args = ap.parse_args(argv)
     sc = apply_overrides(paper_scenario(), [f"trajectory.cycles={args.cycles}"])
     with OutputFolder(args.out, "--out") as out:          # checked before the run
@@ -33,4 +33,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run(main))

@@ -28,17 +28,20 @@ Usage::
 example-robot-data's ``share/example-robot-data``), or a folder holding the
 URDFs themselves (``--from tmtcontrol/model/data --out DIR`` regenerates the
 bundled files from themselves, unchanged: the tests check this). ``--out``
-writes elsewhere than the package's ``model/data/``.
+writes elsewhere than the package's ``model/data/``: an output folder as
+every command's (a new or empty folder, or one this tool wrote; a folder
+holding files it did not write is refused, exit 2, nothing written).
 """
 
 from __future__ import annotations
 
-import argparse
 import pathlib
 import sys
 import zipfile
 
 from lxml import etree
+
+from _study import Parser, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "tmtcontrol" / "model" / "data"
@@ -69,13 +72,13 @@ def read_source(source: pathlib.Path, member: str, fname: str) -> bytes:
         with zipfile.ZipFile(source) as zf:
             name = next((n for n in zf.namelist() if n.endswith("share/example-robot-data/" + member)), None)
             if name is None:
-                raise SystemExit(f"--from: {member} not in {source}")
+                raise ValueError(f"--from: {member} not in {source}")
             return zf.read(name)
     path = source / member
     if not path.is_file():
         path = source / fname                           # a folder of URDFs (e.g. the bundled ones: idempotent)
     if not path.is_file():
-        raise SystemExit(f"--from: {source / member} does not exist")
+        raise ValueError(f"--from: {source / member} does not exist")
     return path.read_bytes()
 
 
@@ -122,27 +125,36 @@ def _copy(el):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = Parser(description=__doc__.split("\n")[0])
     ap.add_argument("--from", dest="source", required=True, type=pathlib.Path,
                     help="example-robot-data wheel, or its share/example-robot-data folder")
     ap.add_argument("--check", action="store_true", help="compare with the bundled files; exit 1 if they differ")
     ap.add_argument("--out", type=pathlib.Path, default=OUT, help=f"output folder (default: {OUT.relative_to(ROOT)})")
     args = ap.parse_args(argv)
-    differ = []
-    for fname, info in ARMS.items():
-        text = strip(read_source(args.source, info["path"], fname), fname)
-        target = (OUT if args.check else args.out) / fname
-        if args.check:
-            same = target.is_file() and target.read_text(encoding="utf-8") == text
+    texts = {fname: strip(read_source(args.source, info["path"], fname), fname) for fname, info in ARMS.items()}
+    if args.check:
+        differ = []
+        for fname, text in texts.items():
+            same = (OUT / fname).is_file() and (OUT / fname).read_text(encoding="utf-8") == text
             print(f"{fname}: {'same' if same else 'DIFFERS'}")
             if not same:
                 differ.append(fname)
-        else:
-            args.out.mkdir(parents=True, exist_ok=True)
-            target.write_text(text, encoding="utf-8")
-            print(f"wrote {target}")
-    return 1 if differ else 0
+        return 1 if differ else 0
+    if args.out.resolve() == OUT.resolve():         # the package's own files, which this tool wrote
+        for fname, text in texts.items():
+            (OUT / fname).write_text(text, encoding="utf-8")
+            print(f"wrote {OUT / fname}")
+        return 0
+    from tmtcontrol.files import OutputFolder
+
+    # review 64: a user's file of the same name in --out was overwritten without a word
+    with OutputFolder(args.out, "--out") as out:
+        for fname, text in texts.items():
+            (out.path / fname).write_text(text, encoding="utf-8")
+        out.commit()
+    print(f"wrote {', '.join(texts)} in {out.out}/")
+    return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run(main))

@@ -12,7 +12,6 @@ run time replaced by "T", then "exit code: N"), ``sweep_map.png`` and
 checks that docs/sweeps.md quotes output.txt and (heavy) that a fresh run
 prints the same.
 """
-import argparse
 import pathlib
 import re
 import shutil
@@ -21,6 +20,9 @@ import sys
 import tempfile
 
 from tmtcontrol.files import OutputFolder
+
+from _study import Parser, numbers, positive
+from _study import run as run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "docs" / "sweeps" / "paper-gains.toml"
@@ -45,30 +47,21 @@ def run(points: int = 12, cycles: float = 1.0, workers: int = 2,
     r = subprocess.run([sys.executable, "-m", "tmtcontrol.cli", "sweep", "paper-gains.toml", "--out", "out",
                         "--workers", str(workers)], capture_output=True, text=True, cwd=tmp)
     if r.returncode not in (0, 1):
+        shutil.rmtree(tmp, ignore_errors=True)          # review 64: a failed sweep left its folder behind
         raise SystemExit(f"sweep failed (exit {r.returncode}): {r.stderr.strip().splitlines()[-1:]}")
     stdout = re.sub(r"\(\d+\.\d s\)", "(T s)", r.stdout).replace("wrote out/", "wrote paper-gains/")
     return stdout, r.returncode, tmp
 
 
-def _rates(text: str) -> list[float]:
-    try:
-        rates = [float(r) for r in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
-    if not rates or not all(r > 0 and r < float("inf") for r in rates):
-        raise argparse.ArgumentTypeError(f"expected positive finite rates in Hz, got {text!r}")
-    return rates
-
-
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/sweep-example",
                     help="output folder (default analysis-output/sweep-example, ignored by git; "
                          "docs/figures/sweep-example for the page)")
-    ap.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    ap.add_argument("--points", type=int, default=12, help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
-    ap.add_argument("--cycles", type=float, default=1.0, help="path cycles per case (default 1, the file's)")
-    ap.add_argument("--rates", type=_rates, default=None,
+    ap.add_argument("--workers", type=positive(int), default=2, help="worker processes (default 2)")
+    ap.add_argument("--points", type=positive(int), default=12, help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
+    ap.add_argument("--cycles", type=positive(), default=1.0, help="path cycles per case (default 1, the file's)")
+    ap.add_argument("--rates", type=numbers, default=None,
                     help="control rates, Hz, comma-separated (default the file's 2000,1000,500,250)")
     args = ap.parse_args(argv)
     out = OutputFolder(args.out, "--out")
@@ -87,4 +80,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_study(main))

@@ -22,7 +22,6 @@ constant stiffness (``Simulator``), noise-free and with 5 mN of sensor noise
 differ). Exit 1 if the noise-free run just below the limit misses the
 scenario's force tolerance.
 """
-import argparse
 import json
 import pathlib
 import re
@@ -32,6 +31,8 @@ import numpy as np
 from tmtcontrol import Simulator, apply_overrides, load_scenario, paper_scenario
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.stability.periodic import GROWTH_BOUND, PeriodicModel, periodic_search
+
+from _study import Parser, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "analysis" / "data" / "arm4_plane.toml"
@@ -98,7 +99,7 @@ def write_docs(text: str) -> None:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/transient-growth",
                     help="output folder (default analysis-output/transient-growth, ignored by git)")
     ap.add_argument("--cycles", type=float, default=5.0, help="path periods per run (default 5)")
@@ -126,4 +127,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run(main))
