@@ -96,7 +96,8 @@ def test_the_pages_table_is_what_the_script_prints(summary):
                 # fast mode grows near the edge; 2026-12-07, when the tests around it moved, CI's run found the
                 # first where the page quotes the second: rel=0.2 had held only while runs found one edge)
                 assert kg == pytest.approx(kw, rel=0.05) and 0.1 < rg / rw < 10, (g, w)
-                assert 0.1 < gg / gw < 10 and min(eg, ew) > tol_mN, (g, w)
+                assert 0.1 < gg / gw < 10 and min(eg, ew) > 100 * tol_mN, (g, w)      # orders of magnitude off
+                assert 0.1 < ng_ / nw_ < 10, (g, w)         # review 64: the noise column went unchecked here
             elif gw < 1e4:
                 assert [kg, rg, gg, eg, ng_] == pytest.approx([kw, rw, gw, ew, nw_], rel=2e-2), (g, w)
             else:
