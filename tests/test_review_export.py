@@ -470,3 +470,34 @@ def test_an_rls_range_with_its_ends_swapped_is_refused(tmp_path):
     assert ctl._init(ctypes.byref(p), ctypes.byref(ctl.State())) == 0
     p.law_min_stiffness = 2.0 * p.law_max_stiffness
     assert ctl._init(ctypes.byref(p), ctypes.byref(ctl.State())) == -2
+
+
+@pytest.mark.heavy      # compiles the paper's exported controller five times (~5 s)
+def test_fast_math_which_would_delete_the_nan_checks_is_refused_at_compile_time(tmp_path):
+    """Review 66: built with -Ofast (or -ffast-math, -ffinite-math-only) the compiler may assume every value
+    finite and deleted tmt_step's isfinite() checks: a NaN force returned 0 and left the state NaN for good.
+    The wrapper refuses to compile under those flags, naming them; the Makefile's flags compile."""
+    export_controller(paper_scenario(), tmp_path, True)
+    for cc in _compilers():
+        for flags in (["-Ofast"], ["-O2", "-ffast-math"], ["-O2", "-ffinite-math-only"]):
+            r = subprocess.run([cc, "-std=c99", *flags, "-c", "tmt_controller.c", "-o", "t.o"], cwd=tmp_path,
+                               capture_output=True, text=True)
+            assert r.returncode != 0 and "build it without -ffast-math" in r.stderr, (cc, flags, r.stderr)
+        _run([cc, *STRICT, "-O2", "-ffp-contract=off", "-c", "tmt_controller.c", "-o", "t.o"], tmp_path)
+
+
+@pytest.mark.heavy      # the Panda's controller compiled at -O0 (~10 s)
+def test_bench_counts_the_calls_the_controller_refused(built, tmp_path):
+    """Review 66: `replay --bench` without a measurement CSV timed the Panda's tmt_step on all-zero
+    measurements, which it refuses every time (a degenerate frame), and printed a median as if the law ran.
+    It now counts the refused calls, says so and exits 1; the paper's accepted calls still exit 0."""
+    from tmtcontrol import load_scenario
+
+    export_controller(load_scenario("panda"), tmp_path, True)
+    _run(["gcc", *STRICT, "-O0", "replay.c", "tmt_controller.c", "-lm", "-o", "replay"], tmp_path)
+    r = subprocess.run(["./replay", "--bench", "100"], cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 1 and "median" in r.stdout, (r.stdout, r.stderr)
+    assert r.stderr.startswith("replay: --bench: 100 of 100 calls returned an error"), r.stderr
+    folder, _ = built
+    r = subprocess.run(["./replay", "--bench", "100"], cwd=folder, capture_output=True, text=True)
+    assert (r.returncode, r.stderr) == (0, ""), r.stderr

@@ -11,7 +11,15 @@
 
 #include "tmt_controller.h"
 
-/* The generated code declares parameters it does not use (iw, w, mem) in its
+/* tmt_step refuses a NaN or infinite measurement, parameter or result with
+ * isfinite(); -ffast-math, -Ofast and -ffinite-math-only let the compiler
+ * assume every value finite and delete those checks, so one NaN from the
+ * sensor would make the state NaN for good with every call returning 0. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__)
+#error "tmt_controller.c checks for NaN and infinity: build it without -ffast-math, -Ofast or -ffinite-math-only"
+#endif
+
+/* The generated code declares parameters it does not use (iw, mem) in its
  * fixed calling convention; that is its only warning under -Wextra. */
 #if defined(__GNUC__)
 #pragma GCC diagnostic push
