@@ -262,6 +262,25 @@ def test_position_only_export_cannot_drive_the_torque_plant(tmp_path, capsys):
     assert "--inner-loop" in capsys.readouterr().err
 
 
+def test_a_position_only_export_says_it_holds_no_delay(tmp_path, capsys):
+    """Review 66: `export paper --set controller.delay_samples=2` without --inner-loop printed "delay 2 samples"
+    and its header defined TMT_DELAY_SAMPLES 2, for code with no delay queue (no torques to hold). The header
+    says 0, export.json keeps the scenario's 2 beside delay_in_code 0, and the line says why."""
+    import json
+
+    folder = tmp_path / "pos"
+    assert main(["export", "paper", "--set", "controller.delay_samples=2", "--out", str(folder)]) == 0
+    assert ("delay 2 samples (none in the code: no torques to hold without --inner-loop)"
+            in capsys.readouterr().out)
+    assert "#define TMT_DELAY_SAMPLES 0 " in (folder / "tmt_controller.h").read_text()
+    meta = json.loads((folder / "export.json").read_text())
+    assert (meta["delay"], meta["delay_in_code"]) == (2, 0)
+    inner = tmp_path / "inner"
+    assert main(["export", "paper", "--inner-loop", "--set", "controller.delay_samples=2", "--out", str(inner)]) == 0
+    assert "delay 2 samples, inner loop yes" in capsys.readouterr().out
+    assert "#define TMT_DELAY_SAMPLES 2 " in (inner / "tmt_controller.h").read_text()
+
+
 # -- heavy: the C compilers, the whole paper run, replay, the heap ----------------------------------
 
 def _compilers():

@@ -421,7 +421,9 @@ def _export(args) -> int:
         _print_notes()
         info = export_controller(sc, out.path, inner_loop=args.inner_loop, prefix=args.prefix)
         out.commit()
-    print(f"scenario {sc.name!r}: law {info['law']}, delay {info['delay']} samples, inner loop "
+    delay = f"delay {info['delay']} samples" + (" (none in the code: no torques to hold without --inner-loop)"
+                                                  if info["delay"] != info["delay_in_code"] else "")
+    print(f"scenario {sc.name!r}: law {info['law']}, {delay}, inner loop "
           f"{'yes' if info['inner_loop'] else 'no'}; {info['instructions']} generated instructions, "
           f"{info['sizes']['w']} work doubles")
     print(f"wrote {out.out}/ (make -C {out.out} builds the library, replay and example_loop)")

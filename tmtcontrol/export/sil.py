@@ -119,6 +119,7 @@ def _metadata_schema():
         surface_key: StrictStr | None = None              # a height map's heights are in the C code
         inner_loop: StrictBool
         delay: int = Field(ge=0, le=1000)
+        delay_in_code: int | None = Field(None, ge=0, le=1000)     # 0 without the inner loop; older exports: none
         hold: Literal["zero_order", "mid_period"] = "zero_order"    # an export older than the mid-period hold
         model_mass_scale: StrictFloat | StrictInt
         compensate_friction: StrictBool
