@@ -542,3 +542,31 @@ def test_a_comparison_runs_each_law_its_own_and_the_scenarios_law_with_its_param
         assert law.kind == name
         assert law == (sc.controller.law if name == base else get_law(name).parameters()), name
     assert sc.controller.law != get_law(base).parameters()          # the parameter moved: the test can tell
+
+
+def test_the_integrating_laws_wind_up_out_of_contact_as_the_docs_say():
+    """Review 66: out of contact (f_m = 0) the integral law's reference moves into the part at k_i f_d and the
+    adaptive damping's Φ grows by σ f_d/b every period (docs/laws.md, deploy.md: no anti-windup; stop or
+    re-initialise the controller on a lost contact); tmt holds its reference. Stepped from the laws'
+    declarations at the defaults, the paper's impedance, 1 kHz: 1,000 periods out of contact."""
+    y = dict(f_d=10.0, f_m=0.0, x_e_hat=0.0, k=100.0, m=1.0, b=60.0, Ts=1e-3, x=0.0)
+    runs = {}
+    for name, params, s in (("integral", {"k_i": 0.03}, {"I": 0.0}), ("adaptive_damping", {"sigma": 0.02},
+                                                                         {"Phi": 0.0})):
+        s = {"x_a": 0.0, "dx_a": 0.0, **s}
+        x_r, x_c = [], []
+        for _ in range(1000):
+            out = get_law(name).update(y, params, s)
+            s = out["s_next"]
+            x_r.append(float(out["x_r"]))
+            x_c.append(float(out["x_c"]))
+        runs[name] = np.array(x_r), np.array(x_c), s
+    x_r, _, _ = runs["integral"]
+    assert np.diff(x_r) == pytest.approx(0.03 * 10.0 * 1e-3, rel=1e-9)           # k_i f_d: 0.3 m/s
+    _, x_c, s = runs["adaptive_damping"]
+    assert s["Phi"] == pytest.approx(1000 * 0.02 * 10.0 / 60.0, rel=1e-12)       # σ f_d/b per period
+    assert np.all(np.diff(x_c, 2)[100:] > 0) or np.all(np.diff(x_c, 2)[100:] < 0)   # accelerating: quadratic
+    s = {"x_a": 0.0, "dx_a": 0.0}
+    held = [float(get_law("tmt").update(y, {"force_threshold": 0.5, "min_stiffness": 100.0}, s)["x_r"])
+            for _ in range(3)]
+    assert held == [0.1, 0.1, 0.1]                                                  # x_e_hat + f_d/k, held
