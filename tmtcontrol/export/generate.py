@@ -97,7 +97,19 @@ def check_prefix(prefix: str, flag: str = "--prefix") -> str:
     if re.match(SYSTEM_PREFIX, prefix):
         raise ExportError(f"{flag}: {prefix!r} starts names the C library or POSIX uses or reserves "
                           f"({prefix}_init, {prefix}_step ...); choose another prefix")
+    base, _, word = prefix.rpartition("_")
+    if base and word in CLASHING_WORDS:
+        raise ExportError(f"{flag}: {prefix!r} ends in _{word}: its names would clash with those of an export "
+                          f"prefixed {base!r} in the same program ({prefix}_{CLASHING_WORDS[word]} is also "
+                          f"{base}'s); choose another prefix")
     return prefix
+
+
+CLASHING_WORDS = {"default": "params", "generated": "init", "sizeof": "params"}
+"""A prefix's last word that would make two exports' names collide: an export
+prefixed ``P_default`` names ``P_default_params``, the ``P`` export's own
+default-parameters function (review 66: link or compile errors); likewise
+CasADi's ``P_generated_init`` and the size constants ``P_sizeof_params``."""
 
 
 def _renamed(text: str, prefix: str) -> str:
