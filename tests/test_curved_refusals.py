@@ -447,3 +447,31 @@ def test_the_drawn_surface_patch_covers_a_turned_rasters_reach():
     assert reach > 1.3 * sc.trajectory.radius
     mesh = Simulator(sc).run().traces.surface_mesh
     assert np.ptp(mesh[1]) == pytest.approx(2 * 1.4 * reach, rel=1e-12)      # base y is task axis 2 here
+
+
+def test_a_sideways_part_offset_that_moves_the_path_off_the_map_is_refused(tmp_path, capsys):
+    """Review 65: the grid's margin was checked on the commanded path, not on the true part under it: a flat
+    0.3 m map with controller.part_offset 0.1 m sideways rode 667 of 1,000 samples past the grid's edge,
+    on its unmeasured tangent extension, and read converged. The path's reach on the true part is checked
+    (naming the offset); 1 mm sideways stays accepted."""
+    toml = _heightmap_toml(tmp_path, np.zeros((31, 31)), 0.01)
+    line = _refused(tmp_path, capsys, toml, "trajectory.radius: the path leaves the height map: it reaches 0.2 m "
+                    "from its centre along task axis 1 (the true part under the commanded path: "
+                    "controller.part_offset moves it)", ["controller.part_offset=[0.0, 0.1, 0.0]"])
+    assert line.startswith("error: trajectory.radius:")
+    assert _valid(toml, ["controller.part_offset=[0.0, 0.001, 0.0]"]) and _valid(toml)
+
+
+def test_a_groove_the_offset_path_crosses_is_refused_at_its_tightest_point(tmp_path, capsys):
+    """Review 65: a V groove at v = 0.12 m (its spline's concave radius 0.0578 m) beside a 0.1 m circle
+    passed a 0.06 m tip when controller.part_offset moved the path across it; and sampled eight per grid
+    spacing, its tightest point read 0.0604 m. The check follows the true part under the commanded path and refines the least
+    sample between its neighbours; without the offset the path misses the groove and is accepted."""
+    heights = _grid(lambda U, V: 0.05 * np.abs(V - 0.12), n=41)
+    toml = _heightmap_toml(tmp_path, heights, 0.01)
+    offset = "controller.part_offset=[0.0283, 0.0, 0.0283]"          # 0.04 m along task axis 2, in the base frame
+    line = _refused(tmp_path, capsys, toml, "environment.heightmap: must curve concave less tightly than the "
+                    "tool's tip (robot.tool_radius = 0.06 m) along the path, got a concave radius of curvature of "
+                    "0.0577 m", ["robot.tool_radius=0.06", offset])
+    assert "controller.part_offset moves it" in line
+    assert _valid(toml, ["robot.tool_radius=0.06"]) and _valid(toml, ["robot.tool_radius=0.05", offset])

@@ -140,6 +140,14 @@ def _domain_problem(sc: Scenario) -> str | None:
     extent = path_extent(tr)
     turned = (" (a raster turned by trajectory.direction_deg reaches beyond its radius)"
               if max(extent) > tr.radius * (1 + 1e-9) else "")
+    if any(sc.controller.part_offset):
+        import numpy as np
+
+        # review 65: a sideways offset moves the path over the true part (a map's grid), which was checked
+        # unmoved: 0.1 m along a 0.3 m map rode 667 of 1,000 samples past its edge, judged converged
+        moved = _true_path(sc, _period(sc, 64 * tr.lanes + 257))
+        extent = tuple(float(np.max(np.abs(m))) for m in moved)
+        turned = " (the true part under the commanded path: controller.part_offset moves it)"
     if env.heightmap is not None:
         from .environment import read_height_grid
 
@@ -179,6 +187,27 @@ radius along the path changes with everything that moves the path over the
 map (its size, direction, lanes, and the spacing that scales the map)."""
 
 
+def _true_path(sc: Scenario, t):
+    """The path's tangential coordinates (2 x k) at path times ``t`` (k, s)
+    on the true part, under the path the controller commands
+    (:func:`..geometry.under_the_commanded_path`: moved by a sideways
+    ``controller.part_offset``; the path itself without one)."""
+    import numpy as np
+
+    from ..geometry import under_the_commanded_path
+    from ..trajectory import path_reference
+
+    pos = path_reference(np.asarray(t, dtype=float), sc.trajectory).pos
+    return under_the_commanded_path(sc, np.vstack([np.zeros(pos.shape[1]), pos]))[1:]
+
+
+def _period(sc: Scenario, n: int):
+    """``n`` path times evenly over one period (s)."""
+    import numpy as np
+
+    return np.linspace(0.0, sc.trajectory.period, n, endpoint=False)
+
+
 _CONCAVE: dict = {}
 """The tightest concave radius along a path, by (the surface's key, the path's shape)."""
 
@@ -211,14 +240,23 @@ def _tool_problem(sc: Scenario) -> str | None:
     from ..trajectory import path_reference
 
     surface = surface_of(sc)
-    key = (surface.key, tr.path, tr.radius, tr.lanes, tr.direction_deg)
+    key = (surface.key, tr.path, tr.radius, tr.lanes, tr.direction_deg, tuple(sc.controller.part_offset))
     if key not in _CONCAVE:
         coarse = path_reference(np.linspace(0.0, tr.period, 64 * tr.lanes + 257), tr).pos
         length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=1), axis=0)))
         n = int(min(max(math.ceil(8 * length / env.grid_spacing), 512), 50_000))
-        s = path_reference(np.linspace(0.0, tr.period, n, endpoint=False), tr).pos
+        t = _period(sc, n)
+        s = _true_path(sc, t)           # the true part's points under the commanded path (review 65)
         radius = surface.concave_radius(s)
         i = int(np.argmin(radius))
+        # the tightest point between the samples either side of the least sampled one (review 65: a groove's
+        # 0.0578 m read 0.0604 m at the nearest sample, past a 0.06 m tip)
+        near = np.linspace(t[i] - tr.period / n, t[i] + tr.period / n, 65)
+        s_near = _true_path(sc, near)
+        r_near = surface.concave_radius(s_near)
+        if float(np.min(r_near)) < float(radius[i]):
+            j = int(np.argmin(r_near))
+            radius, s, i = r_near, s_near, j
         if len(_CONCAVE) > 64:
             _CONCAVE.clear()
         _CONCAVE[key] = (float(radius[i]), float(s[0, i]), float(s[1, i]))
@@ -227,8 +265,10 @@ def _tool_problem(sc: Scenario) -> str | None:
         u, v = (round(x, 9) + 0.0 for x in (u, v))          # no -0 or 1e-17 for a point on an axis
         return (f"environment.heightmap: must curve concave less tightly than the tool's tip (robot.tool_radius = "
                 f"{rho:g} m) along the path, got a concave radius of curvature of {least:.3g} m at (u, v) = "
-                f"({u:.4g}, {v:.4g}) m: the tip would rest on the hollow's rims, not at the tool point; smooth "
-                "the map or use a smaller tool_radius")
+                f"({u:.4g}, {v:.4g}) m" + (" (the true part under the commanded path: controller.part_offset "
+                                           "moves it)" if any(sc.controller.part_offset) else "")
+                + ": the tip would rest on the hollow's rims, not at the tool point; smooth the map or use a "
+                "smaller tool_radius")
     return None
 
 
