@@ -103,7 +103,7 @@ def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
 
     sc = apply_overrides(load_scenario("ur5"), ["trajectory.cycles=0.5", "robot.tau_max=[150,20,150,28,28,28]"])
     rep = Report(sc, "test")
-    _simulation(rep, sc, scenario_parameters(sc))
+    sec, *_ = _simulation(rep, sc, scenario_parameters(sc))
     lim = next(v for v in rep.verdicts if v.name.startswith("Within the arm's torque"))
     assert lim.passed is False and "joint 2 (shoulder_lift_joint) torque" in lim.value
     # regression (review 7): the force tracked (its own verdict converged), so the tracking line passes and
@@ -113,6 +113,11 @@ def test_the_report_fails_the_limits_verdict_where_a_joint_exceeds_its_torque():
     tracking = next(v for v in rep.verdicts if v.name.startswith("Force tracking"))
     assert tracking.passed is True, tracking
     assert "every segment's force converged; over the arm's limits (judged below): segment 1" in tracking.check
+    # review 65: each segment that is not converged says why, as simulate prints it (the report said only
+    # "off_target" where the cause was a height map's chart error)
+    from tmtcontrol.report.document import Paragraph
+
+    assert f"Why: segment 1 (over limit): {seg.reason}." in [b.text for b in sec.blocks if isinstance(b, Paragraph)]
 
 
 @pytest.mark.heavy

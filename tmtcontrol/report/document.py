@@ -534,6 +534,11 @@ def _simulation(rep: Report, sc: Scenario, p: dict):
                            _cells([s.normal_tilt for s in segs], "rad")):
             r[-1:-1] = [c, t]
     blocks.append(Table("Per-segment metrics", head, rows, verdict_column=len(head) - 1))
+    if why := [f"segment {i} ({s.verdict.replace('_', ' ')}): {s.reason}" for i, s in enumerate(segs, 1)
+               if s.verdict != "converged"]:
+        # each verdict's reason as simulate prints it (review 65: a height map's chart error failed the
+        # tracking verdict and the report never said why)
+        blocks.append(Paragraph("Why: " + "; ".join(why) + "."))
     blocks += _limit_blocks(rep, res)
     k_touch = float(res.stiffness[0] if fc.time is None else np.interp(fc.time, res.time, res.stiffness))
     blocks.append(Table(f"First contact in the simulation (the full loop, at k_e = {fmt.num(k_touch, 4)} N/m; the "
