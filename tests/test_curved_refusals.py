@@ -475,3 +475,32 @@ def test_a_groove_the_offset_path_crosses_is_refused_at_its_tightest_point(tmp_p
                     "0.0577 m", ["robot.tool_radius=0.06", offset])
     assert "controller.part_offset moves it" in line
     assert _valid(toml, ["robot.tool_radius=0.06"]) and _valid(toml, ["robot.tool_radius=0.05", offset])
+
+
+def test_a_map_whose_heights_read_like_millimetres_is_noted(tmp_path, capsys):
+    """Review 65: a plate warped 0.1 mm with its heights written in millimetres (0 to 0.15 over a 0.3 m map)
+    ran as a 15 cm deep bowl with no word; a sphere's radius has such a note. A map rising more than its grid
+    spacing between neighbouring points (steeper than 45 degrees) is noted, naming the key and the
+    millimetre reading; the same map in metres is not."""
+    from tmtcontrol.simulation.scenario.environment import steep_map_note
+
+    bowl_mm = _grid(lambda U, V: 0.15 * (U ** 2 + V ** 2) / 0.15 ** 2 * 100, n=31)       # 0 to 15 "m" over 0.3 m
+    np.savetxt(tmp_path / "mm.csv", bowl_mm, delimiter=",")
+    np.savetxt(tmp_path / "m.csv", bowl_mm / 1000, delimiter=",")
+    note = steep_map_note(tmp_path / "mm.csv", 0.01)
+    assert note.startswith("environment.heightmap: heights spanning 30 m rise up to ") and "millimetres" in note
+    assert steep_map_note(tmp_path / "m.csv", 0.01) is None
+    toml = _heightmap_toml(tmp_path, bowl_mm / 1000, 0.01)
+    assert _validates(toml).environment.unit_notes() == []
+    np.savetxt(tmp_path / "part.csv", bowl_mm, delimiter=",")
+    assert [n[:36] for n in _validates(toml).environment.unit_notes()] == ["environment.heightmap: heights spann"]
+
+
+@pytest.mark.parametrize("delimiter", [" ", ";", "\t"])
+def test_a_map_written_with_another_delimiter_is_refused_naming_commas(tmp_path, capsys, delimiter):
+    """Review 65: numpy.savetxt's default (spaces) gave "row 2 of 'part.csv' is not numbers": the first row
+    was taken as a header. The line says the rows must be comma-separated and how to write them."""
+    toml = _heightmap_toml(tmp_path, np.zeros((31, 31)), 0.01)
+    np.savetxt(tmp_path / "part.csv", np.zeros((31, 31)), delimiter=delimiter)
+    _refused(tmp_path, capsys, toml, "is not comma-separated numbers (spaces, tabs or semicolons between them: "
+             "write commas, e.g. numpy.savetxt(FILE, heights, delimiter=','))")

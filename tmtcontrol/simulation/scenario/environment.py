@@ -196,7 +196,11 @@ def _read_height_grid(path: str, size: int, mtime_ns: int):
             except ValueError:
                 if i == 0 and not any(_is_number(c) for c in row):
                     continue          # header
-                raise ValueError(f"heightmap: row {i + 1} of {path!r} is not numbers") from None
+                # review 65: numpy.savetxt's default spaces read as "not numbers", with no word of the delimiter
+                spaced = any(";" in c or "\t" in c or " " in c.strip() for c in row)
+                raise ValueError(f"heightmap: row {i + 1} of {path!r} is not comma-separated numbers"
+                                 + (" (spaces, tabs or semicolons between them: write commas, e.g. "
+                                    "numpy.savetxt(FILE, heights, delimiter=','))" if spaced else "")) from None
         if not data or len({len(r) for r in data}) != 1:
             raise ValueError(f"heightmap: {path!r} must be rows of the same number of heights")
         arr = np.array(data)
@@ -222,6 +226,33 @@ def _is_number(cell: str) -> bool:
 LARGE_RADIUS = 10.0
 """A radius (m) above which :meth:`EnvironmentSettings.unit_notes` asks
 whether it was meant in millimetres (valid: a large part is nearly a plane)."""
+
+
+STEEP_MAP = 1.0
+"""The slope between neighbouring heights of a map (rise over run) above
+which :meth:`EnvironmentSettings.unit_notes` asks whether the heights are
+in millimetres (45 degrees: a part the tool follows at that tilt is
+possible, not usual)."""
+
+
+def steep_map_note(path, spacing: float) -> str | None:
+    """The note for a height map whose neighbouring heights rise more than
+    :data:`STEEP_MAP` times the grid spacing, naming its span and steepest
+    slope and the millimetre reading; None otherwise (or for a map that
+    cannot be read: its refusal is the validator's)."""
+    import numpy as np
+
+    try:
+        h = read_height_grid(path)
+    except ValueError:
+        return None
+    slope = max(float(np.max(np.abs(np.diff(h, axis=a)))) for a in (0, 1)) / spacing
+    if not slope > STEEP_MAP:
+        return None
+    span = float(np.ptp(h))
+    return (f"environment.heightmap: heights spanning {span:.4g} m rise up to {slope:.3g} times the grid spacing "
+            f"between neighbouring points (steeper than 45 degrees); if the heights are in millimetres, divide "
+            "them by 1000 (SI units: m)")
 
 
 def large_radius_note(radius) -> str | None:
@@ -316,9 +347,13 @@ class EnvironmentSettings(Section):
         command line to print: a sphere's or cylinder's radius above
         :data:`LARGE_RADIUS` (review 46: 300 for 300 mm ran as a 300 m part,
         nearly its tangent plane, and quoted the plane's limit, 4.5 % above
-        the 0.3 m part's)."""
-        note = large_radius_note(self.radius)
-        return [note] if note else []
+        the 0.3 m part's); a height map steeper than :data:`STEEP_MAP`
+        between neighbouring points (review 65: a plate warped 0.1 mm, its
+        heights written in millimetres, ran as a 15 cm deep bowl)."""
+        notes = [note] if (note := large_radius_note(self.radius)) else []
+        if self.heightmap is not None and (note := steep_map_note(self.heightmap, self.grid_spacing)):
+            notes.append(note)
+        return notes
 
     @model_validator(mode="after")
     def _unit_normal(self):
