@@ -504,3 +504,24 @@ def test_a_map_written_with_another_delimiter_is_refused_naming_commas(tmp_path,
     np.savetxt(tmp_path / "part.csv", np.zeros((31, 31)), delimiter=delimiter)
     _refused(tmp_path, capsys, toml, "is not comma-separated numbers (spaces, tabs or semicolons between them: "
              "write commas, e.g. numpy.savetxt(FILE, heights, delimiter=','))")
+
+
+def test_the_summary_names_the_part_by_its_content_not_only_its_file(tmp_path):
+    """Review 65: summary.json recorded a height map by its file's name only: a file rewritten between two
+    runs gave two identical scenario blocks for two parts. The summary names the surface by its key, which
+    holds the heights' digest (as the compiled loop's structure key does)."""
+    import json
+
+    from tmtcontrol.simulation.geometry import surface_of
+    from tmtcontrol.simulation.output import save_simulation
+    from tmtcontrol.simulation.simulator import Simulator
+
+    toml = _heightmap_toml(tmp_path, np.zeros((31, 31)), 0.01)
+    flat = surface_of(_validates(toml)).key
+    np.savetxt(tmp_path / "part.csv", _grid(lambda U, V: 0.1 * U, n=31), delimiter=",")
+    tilted = surface_of(_validates(toml)).key
+    assert flat != tilted and flat.startswith("heightmap-") and tilted.startswith("heightmap-")
+    res = Simulator(apply_overrides(paper_scenario(), ["trajectory.cycles=0.02"])).run()
+    (tmp_path / "run").mkdir()
+    save_simulation(res, tmp_path / "run", plots=False)
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["surface"] == "plane"

@@ -142,6 +142,7 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, work
     this process writes the tables; without it they are drawn here.
     ``csv_processes``: see :func:`write_timeseries`."""
     from ..drawing import FigureWorkers
+    from .geometry import surface_of
     from .metrics import first_contact, segment_metrics
     from .scenario import scenario_to_dict
 
@@ -159,6 +160,9 @@ def save_simulation(result, folder: str | pathlib.Path, plots: bool = True, work
         segs = segment_metrics(r)
         summary = {
             "scenario": scenario_to_dict(r.scenario),
+            # the part the run touched: a height map's digest beside its file's name (review 65: two runs of one
+            # file rewritten between them had identical summaries)
+            "surface": surface_of(r.scenario).key,
             "versions": versions(),
             "run": r.info,
             "path": {"condition_number_min": float(r.path.condition_number.min()),
