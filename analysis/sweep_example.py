@@ -59,7 +59,8 @@ def main(argv=None):
                     help="output folder (default analysis-output/sweep-example, ignored by git; "
                          "docs/figures/sweep-example for the page)")
     ap.add_argument("--workers", type=positive(int), default=2, help="worker processes (default 2)")
-    ap.add_argument("--points", type=positive(int), default=12, help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
+    ap.add_argument("--points", type=positive(int), default=12,
+                    help="stiffnesses from 1e3 to 3e5 N/m (default 12, the file's)")
     ap.add_argument("--cycles", type=positive(), default=1.0, help="path cycles per case (default 1, the file's)")
     ap.add_argument("--rates", type=numbers, default=None,
                     help="control rates, Hz, comma-separated (default the file's 2000,1000,500,250)")

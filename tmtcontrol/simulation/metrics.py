@@ -83,8 +83,8 @@ from .scenario import read_stiffness_table
 from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "orientation_transient",
-           "segment_verdict", "judge_segment", "judging_periods", "bias_allowance", "VERDICTS", "FirstContact", "first_contact",
-           "FIRST_CONTACT_WINDOW", "CONTACT_FLOOR"]
+           "segment_verdict", "judge_segment", "judging_periods", "bias_allowance", "VERDICTS", "FirstContact",
+           "first_contact", "FIRST_CONTACT_WINDOW", "CONTACT_FLOOR"]
 
 VERDICTS = ("converged", "off_target", "over_limit", "beyond_limit", "limit_cycle", "diverged")
 """Per-segment verdicts, best first (see the module docstring)."""
