@@ -525,3 +525,28 @@ def test_the_summary_names_the_part_by_its_content_not_only_its_file(tmp_path):
     (tmp_path / "run").mkdir()
     save_simulation(res, tmp_path / "run", plots=False)
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["surface"] == "plane"
+
+
+def test_the_tool_check_under_an_offset_follows_the_parts_placement_not_a_cached_one(tmp_path):
+    """Review 67: the tool tip's check on a map was cached by the map's heights and the path, but under a
+    sideways controller.part_offset the true path depends on where the part sits too: a tilt changed by --set
+    reused the first tilt's answer. The same map (V grooves at v = +-0.13 m) and offset (0.05 m along base
+    z): at tilt 45 the offset moves the path 0.035 m along task axis 2, across a groove; at tilt 0 it is
+    along the normal and the path misses both; in either order, twice."""
+    heights = _grid(lambda U, V: 0.05 * np.minimum(np.abs(V - 0.13), np.abs(V + 0.13)), n=41)
+    toml = _heightmap_toml(tmp_path, heights, 0.01)
+    tilted = ["robot.tool_radius=0.06", "controller.part_offset=[0.0, 0.0, 0.05]"]
+    flat = [*tilted, "environment.tilt_deg=0.0"]
+    for _ in range(2):
+        assert _valid(toml, flat)
+        assert not _valid(toml, tilted)
+    assert _valid(toml, ["robot.tool_radius=0.06"])
+
+
+def test_a_refused_map_that_reads_like_millimetres_says_so_in_its_line(tmp_path, capsys):
+    """Review 67: the millimetre note was held until the checks passed, so a map in millimetres refused by
+    the tool tip's check (its hollows 1000x too tight) said nothing of units. The refusal carries the note."""
+    waves = _grid(lambda U, V: 0.5 * np.sin(2 * np.pi * U / 0.05), n=41)                 # 0.5 mm written as 0.5
+    line = _refused(tmp_path, capsys, _heightmap_toml(tmp_path, waves, 0.01),
+                    "environment.heightmap: must curve concave less tightly than the tool's tip")
+    assert "if the heights are in millimetres, divide them by 1000" in line

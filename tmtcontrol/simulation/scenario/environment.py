@@ -198,9 +198,11 @@ def _read_height_grid(path: str, size: int, mtime_ns: int):
                     continue          # header
                 # review 65: numpy.savetxt's default spaces read as "not numbers", with no word of the delimiter
                 spaced = any(";" in c or "\t" in c or " " in c.strip() for c in row)
+                empty = any(not c.strip() for c in row)
                 raise ValueError(f"heightmap: row {i + 1} of {path!r} is not comma-separated numbers"
                                  + (" (spaces, tabs or semicolons between them: write commas, e.g. "
-                                    "numpy.savetxt(FILE, heights, delimiter=','))" if spaced else "")) from None
+                                    "numpy.savetxt(FILE, heights, delimiter=','))" if spaced else
+                                    " (an empty cell: a trailing comma?)" if empty else "")) from None
         if not data or len({len(r) for r in data}) != 1:
             raise ValueError(f"heightmap: {path!r} must be rows of the same number of heights")
         arr = np.array(data)
@@ -229,7 +231,7 @@ whether it was meant in millimetres (valid: a large part is nearly a plane)."""
 
 
 STEEP_MAP = 1.0
-"""The slope between neighbouring heights of a map (rise over run) above
+"""The slope between neighbouring heights of a map (rise over run) from
 which :meth:`EnvironmentSettings.unit_notes` asks whether the heights are
 in millimetres (45 degrees: a part the tool follows at that tilt is
 possible, not usual)."""
@@ -247,11 +249,11 @@ def steep_map_note(path, spacing: float) -> str | None:
     except ValueError:
         return None
     slope = max(float(np.max(np.abs(np.diff(h, axis=a)))) for a in (0, 1)) / spacing
-    if not slope > STEEP_MAP:
+    if not slope >= STEEP_MAP:
         return None
     span = float(np.ptp(h))
     return (f"environment.heightmap: heights spanning {span:.4g} m rise up to {slope:.3g} times the grid spacing "
-            f"between neighbouring points (steeper than 45 degrees); if the heights are in millimetres, divide "
+            f"between neighbouring points (45 degrees or steeper); if the heights are in millimetres, divide "
             "them by 1000 (SI units: m)")
 
 

@@ -145,9 +145,10 @@ def _domain_problem(sc: Scenario) -> str | None:
 
         # review 65: a sideways offset moves the path over the true part (a map's grid), which was checked
         # unmoved: 0.1 m along a 0.3 m map rode 667 of 1,000 samples past its edge, judged converged
-        moved = _true_path(sc, _period(sc, 64 * tr.lanes + 257))
-        extent = tuple(float(np.max(np.abs(m))) for m in moved)
-        turned = " (the true part under the commanded path: controller.part_offset moves it)"
+        moved = tuple(float(np.max(np.abs(m))) for m in _true_path(sc, _period(sc, 64 * tr.lanes + 257)))
+        if max(moved) > max(extent) + 1e-9:         # the offset, not the raster's turn, reaches further
+            turned += " (the true part under the commanded path: controller.part_offset moves it)"
+        extent = moved
     if env.heightmap is not None:
         from .environment import read_height_grid
 
@@ -159,7 +160,7 @@ def _domain_problem(sc: Scenario) -> str | None:
                         f"centre along task axis {axis + 1}{turned}, the grid ({shape[0]} x {shape[1]} at "
                         f"{env.grid_spacing:g} m) reaches {half:g} m, "
                         + (f"a path {half - 2 * env.grid_spacing:g} m" if half > 2 * env.grid_spacing
-                           else "no path at all") + " (two spacings kept as margin)")
+                           else "no path at all") + " (two spacings kept as margin)" + _millimetres(sc))
         return None
     limit = 1.2 if env.shape == "sphere" else 2.5
     for axis, reach in enumerate(extent):
@@ -185,6 +186,16 @@ turned 45 deg reaches furthest); a sphere's or cylinder's checks are then
 monotone in its radius and the tool's; a height map's tightest concave
 radius along the path changes with everything that moves the path over the
 map (its size, direction, lanes, and the spacing that scales the map)."""
+
+
+def _millimetres(sc: Scenario) -> str:
+    """``"; "`` and the height map's millimetre note where it has one
+    (:func:`.environment.steep_map_note`), for a refusal to carry: a refused
+    command prints its one line, not the notes held before it (review 67)."""
+    from .environment import steep_map_note
+
+    note = steep_map_note(sc.environment.heightmap, sc.environment.grid_spacing)
+    return f"; {note}" if note else ""
 
 
 def _true_path(sc: Scenario, t):
@@ -236,11 +247,14 @@ def _tool_problem(sc: Scenario) -> str | None:
                 "point only where the hollow's radius of curvature exceeds the tip's")
     if env.heightmap is None:
         return None
-    from ..geometry import surface_of
+    from ..geometry import surface_frame, surface_of
     from ..trajectory import path_reference
 
     surface = surface_of(sc)
-    key = (surface.key, tr.path, tr.radius, tr.lanes, tr.direction_deg, tuple(sc.controller.part_offset))
+    # the true path under an offset depends on where the part sits (its frame and centre: review 67, a tilt
+    # changed by --set reused the first tilt's answer), not only on the map's heights
+    key = (surface.key, tr.path, tr.radius, tr.lanes, tr.direction_deg, tuple(sc.controller.part_offset),
+           tuple(surface_frame(env).ravel().tolist()), tuple(tr.center))
     if key not in _CONCAVE:
         coarse = path_reference(np.linspace(0.0, tr.period, 64 * tr.lanes + 257), tr).pos
         length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=1), axis=0)))
@@ -268,7 +282,7 @@ def _tool_problem(sc: Scenario) -> str | None:
                 f"({u:.4g}, {v:.4g}) m" + (" (the true part under the commanded path: controller.part_offset "
                                            "moves it)" if any(sc.controller.part_offset) else "")
                 + ": the tip would rest on the hollow's rims, not at the tool point; smooth the map or use a "
-                "smaller tool_radius")
+                "smaller tool_radius" + _millimetres(sc))
     return None
 
 
