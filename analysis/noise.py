@@ -78,6 +78,15 @@ ROWS = {
 }
 
 
+def _finite(x):
+    """``x`` with every non-finite float replaced by None (JSON's null), through dicts and lists."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_finite(v) for v in x]
+    return None if isinstance(x, float) and not math.isfinite(x) else x
+
+
 def main(argv=None):
     ap = Parser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="analysis-output/noise", help="output folder (default analysis-output/noise)")
@@ -109,14 +118,16 @@ def main(argv=None):
     for label, cells in results.items():
         row = [f"{c['rms']:.3g} N ({(c['rms'] / ref[s]['rms'] - 1) * 100:+.0f} %)"
                + ("" if c["verdict"] == "converged" else f", {c['verdict']}") for s, c in cells.items()]
-        md.append(f"| {label} | " + " | ".join(row) + f" | {settling[label]:.3g} |")
+        # a run of one segment has no switch to settle after (the cell says so, not "nan")
+        settle = f"{settling[label]:.3g}" if np.isfinite(settling[label]) else "– (no switch in the run)"
+        md.append(f"| {label} | " + " | ".join(row) + f" | {settle} |")
     with out:
         (out.path / "table.md").write_text("\n".join(md) + "\n")
-        (out.path / "summary.json").write_text(json.dumps(
+        # JSON has no NaN (review 67: json.dumps's default= is never called for a float): null
+        (out.path / "summary.json").write_text(json.dumps(_finite(
             {"sigmas_N": sigmas, "cycles": args.cycles,
              "rows": {k: {**{str(s): v for s, v in c.items()}, "settling_s_without_noise": settling[k]}
-                      for k, c in results.items()}},
-            indent=1, default=lambda v: None if isinstance(v, float) and not np.isfinite(v) else v) + "\n")
+                      for k, c in results.items()}}), indent=1, allow_nan=False) + "\n")
         out.commit()
     print("\n".join(md))
     print(f"wrote {out.out}/")

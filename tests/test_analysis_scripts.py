@@ -105,3 +105,23 @@ def test_a_fresh_run_of_each_study_writes_the_published_table(name, folder, tmp_
                        capture_output=True, text=True, cwd=tmp_path, timeout=900)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "out" / "table.md").read_text() == (ROOT / "docs" / "figures" / folder / "table.md").read_text()
+
+
+@pytest.mark.heavy      # eight laws and treatments, a second each, twice
+def test_the_noise_study_writes_json_without_nan_and_says_why_a_cell_is_empty(tmp_path):
+    """Review 67: a run of one segment has no switch to settle after: the study wrote NaN into summary.json
+    (not JSON; json.dumps's default= is never called for a float) and "nan" into its table. Null and a
+    cell that says why."""
+    import json
+
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, str(ROOT / "analysis" / "noise.py"), "--out", str(out), "--cycles", "0.25",
+                        "--sigmas", "0.1"], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr
+
+    def refuse(constant):
+        raise AssertionError(f"{constant} in summary.json")
+
+    rows = json.loads((out / "summary.json").read_text(), parse_constant=refuse)["rows"]
+    assert rows["tmt"]["settling_s_without_noise"] is None
+    assert "| – (no switch in the run) |" in (out / "table.md").read_text() and "nan" not in r.stdout

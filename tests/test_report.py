@@ -189,6 +189,7 @@ def test_reproducibility_lists_each_item_once(paper_report):
 @pytest.mark.parametrize("name, formats, listed, absent", [
     ("ur5", ("html",), ("jinja2", "urdfdom-py"), ("weasyprint", "mujoco")),
     ("paper", ("html", "pdf"), ("jinja2", "weasyprint"), ("urdfdom-py", "mujoco")),
+    ("paper", "pdf", ("jinja2", "weasyprint"), ("urdfdom-py", "mujoco")),      # review 67: read as p, d, f
 ])
 def test_reproducibility_names_what_made_this_report(name, formats, listed, absent):
     """Review 63 (6b): the reproducibility table listed the URDF parser for the PUMA (no URDF is read) and

@@ -1302,7 +1302,9 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     return rep
 
 
-def finish(rep: Report, formats: tuple[str, ...] = ("html", "pdf")) -> None:
+def finish(rep: Report, formats: tuple[str, ...] | str = ("html", "pdf")) -> None:
     """Add the reproducibility section (after the timings are known), naming
-    the renderers of ``formats``, the formats being written."""
-    rep.sections = [s for s in rep.sections if s.key != "reproducibility"] + [_repro(rep, tuple(formats))]
+    the renderers of ``formats``, the formats being written (one format may
+    be given as a string: review 67, "pdf" read as the letters p, d, f)."""
+    formats = (formats,) if isinstance(formats, str) else tuple(formats)
+    rep.sections = [s for s in rep.sections if s.key != "reproducibility"] + [_repro(rep, formats)]

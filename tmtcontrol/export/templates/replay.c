@@ -203,6 +203,7 @@ static int bench(long calls, const char *path)
     free(rows);
     free(times);
     if (refused > 0) {      /* a refused call returns early: its time is not the law's */
+        fflush(stdout);     /* the line it refers to first, also into a file or a pipe */
         fprintf(stderr, "replay: --bench: %ld of %ld calls returned an error (a measurement the controller refuses%s): "
                 "the times above are not the law's\n", refused, calls,
                 nrows > 0 ? "" : "; without MEAS.csv every measurement is zero: give a logged one");
