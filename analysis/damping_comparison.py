@@ -28,8 +28,7 @@ from tmtcontrol.stability.design import DesignSpec, damping_alternatives, design
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.plotstyle import styled
 from tmtcontrol.stability import scenario_parameters
-
-from _study import Parser, positive, run
+from tmtcontrol.studies import Parser, positive, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

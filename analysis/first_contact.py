@@ -21,8 +21,7 @@ from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metri
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.plotstyle import plain_log_labels, styled
 from tmtcontrol.simulation.metrics import first_contact
-
-from _study import Parser, positive, run
+from tmtcontrol.studies import Parser, positive, run
 
 
 def _stiffness(k_e: float) -> str:

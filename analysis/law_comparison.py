@@ -19,8 +19,7 @@ from tmtcontrol import apply_overrides, compare_laws, paper_scenario
 from tmtcontrol.drawing import save_figures
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.figures import comparison_error_figure, comparison_force_figure
-
-from _study import Parser, finite, positive, run
+from tmtcontrol.studies import Parser, finite, positive, run
 
 
 def main(argv=None):

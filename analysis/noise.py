@@ -40,8 +40,7 @@ from tmtcontrol.control.laws import Law, LawParameters, laws, register_law
 from tmtcontrol.control.laws.tmt import compliance_estimate
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.metrics import VERDICTS
-
-from _study import Parser, numbers, positive, run
+from tmtcontrol.studies import Parser, numbers, positive, run
 
 
 class EstimateFiltered(LawParameters):

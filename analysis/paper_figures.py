@@ -11,8 +11,7 @@ from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metri
 from tmtcontrol.simulation.metrics import format_table
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.simulation.figures import save_simulation_figures
-
-from _study import Parser, positive, run
+from tmtcontrol.studies import Parser, positive, run
 
 
 def main(argv=None):

@@ -41,7 +41,7 @@ import zipfile
 
 from lxml import etree
 
-from _study import Parser, run
+from tmtcontrol.studies import Parser, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "tmtcontrol" / "model" / "data"

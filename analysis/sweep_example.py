@@ -20,9 +20,8 @@ import sys
 import tempfile
 
 from tmtcontrol.files import OutputFolder
-
-from _study import Parser, numbers, positive
-from _study import run as run_study
+from tmtcontrol.studies import Parser, numbers, positive
+from tmtcontrol.studies import run as run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "docs" / "sweeps" / "paper-gains.toml"

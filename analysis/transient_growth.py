@@ -31,8 +31,7 @@ import numpy as np
 from tmtcontrol import Simulator, apply_overrides, load_scenario, paper_scenario
 from tmtcontrol.files import OutputFolder
 from tmtcontrol.stability.periodic import GROWTH_BOUND, PeriodicModel, periodic_search
-
-from _study import Parser, run
+from tmtcontrol.studies import Parser, run
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "analysis" / "data" / "arm4_plane.toml"

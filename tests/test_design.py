@@ -367,11 +367,7 @@ def test_the_damping_comparison_on_the_design_page_is_what_its_script_prints():
     root = pathlib.Path(__file__).parents[1]
     spec = importlib.util.spec_from_file_location("damping_comparison", root / "analysis" / "damping_comparison.py")
     script = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(root / "analysis"))          # the studies share analysis/_study.py
-    try:
-        spec.loader.exec_module(script)
-    finally:
-        sys.path.remove(str(root / "analysis"))
+    spec.loader.exec_module(script)
     runs = script.runs_for(4.0)
     page = (root / "docs" / "design.md").read_text()
     block = page.split("<!-- damping_comparison -->\n", 1)[1].split("<!-- end damping_comparison -->")[0]

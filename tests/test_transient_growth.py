@@ -5,7 +5,6 @@ analysis/transient_growth.py."""
 import importlib.util
 import pathlib
 import re
-import sys
 
 import pytest
 
@@ -16,11 +15,7 @@ THEORY = ROOT / "docs" / "theory.md"
 def _script():
     spec = importlib.util.spec_from_file_location("transient_growth", ROOT / "analysis" / "transient_growth.py")
     module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(ROOT / "analysis"))          # the studies share analysis/_study.py
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(ROOT / "analysis"))
+    spec.loader.exec_module(module)
     return module
 
 

@@ -11,7 +11,6 @@ more. Closed forms: 1e-12 relative (a handful of operations).
 import math
 import os
 import re
-import sys
 
 import numpy as np
 import pytest
@@ -529,11 +528,7 @@ def test_regeneration_script_keeps_kinematics_and_inertials_only(tmp_path):
     root = pathlib.Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location("regen", root / "analysis" / "regenerate_robots.py")
     regen = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(root / "analysis"))          # the studies share analysis/_study.py
-    try:
-        spec.loader.exec_module(regen)
-    finally:
-        sys.path.remove(str(root / "analysis"))
+    spec.loader.exec_module(regen)
     upstream = b"""<?xml version="1.0"?><!-- xacro --><robot name="panda">
       <link name="a"><visual><geometry><mesh filename="package://x.dae"/></geometry></visual>
         <inertial><origin xyz="0 0 0.1"/><mass value="1.25e0"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0"

@@ -1,16 +1,18 @@
-"""What the studies in analysis/ share: their command line's number checks and exit codes.
+"""What a study script built on tmtcontrol shares: its flags' number checks and exit codes.
 
-As tmtcontrol's own commands: bad input is one line naming the flag and the
-problem, exit code 2, nothing written (a refused ``--out`` included); a
-computed verdict that fails exits 1 with its line; the study's own exit code
-otherwise. Not a study itself (the leading underscore): each script imports
-it from its own folder.
+The scripts in analysis/ (and a user's own) parse their flags with
+:class:`Parser` and the types below and run ``raise SystemExit(run(main))``,
+so that, as tmtcontrol's own commands: bad input is one line naming the flag
+and the problem, exit code 2, nothing written (a refused ``--out`` included);
+a computed verdict that fails exits 1 with its line; the study's own exit
+code otherwise (review 64: seven of the eight studies answered a bad number
+with a traceback).
 """
 import argparse
 import math
 import sys
 
-from tmtcontrol.files import VerdictFailed
+from .files import VerdictFailed
 
 __all__ = ["Parser", "positive", "finite", "numbers", "run"]
 
