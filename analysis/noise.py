@@ -38,7 +38,7 @@ from tmtcontrol import Simulator, apply_overrides, paper_scenario, segment_metri
 from tmtcontrol.control.impedance import filtered_command
 from tmtcontrol.control.laws import Law, LawParameters, laws, register_law
 from tmtcontrol.control.laws.tmt import compliance_estimate
-from tmtcontrol.files import OutputFolder
+from tmtcontrol.files import OutputFolder, jsonable
 from tmtcontrol.simulation.metrics import VERDICTS
 from tmtcontrol.studies import Parser, numbers, positive, run
 
@@ -75,15 +75,6 @@ ROWS = {
     "integral": ("integral", []),
     "adaptive_damping": ("adaptive_damping", []),
 }
-
-
-def _finite(x):
-    """``x`` with every non-finite float replaced by None (JSON's null), through dicts and lists."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_finite(v) for v in x]
-    return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
 def main(argv=None):
@@ -123,7 +114,7 @@ def main(argv=None):
     with out:
         (out.path / "table.md").write_text("\n".join(md) + "\n")
         # JSON has no NaN (review 67: json.dumps's default= is never called for a float): null
-        (out.path / "summary.json").write_text(json.dumps(_finite(
+        (out.path / "summary.json").write_text(json.dumps(jsonable(
             {"sigmas_N": sigmas, "cycles": args.cycles,
              "rows": {k: {**{str(s): v for s, v in c.items()}, "settling_s_without_noise": settling[k]}
                       for k, c in results.items()}}), indent=1, allow_nan=False) + "\n")

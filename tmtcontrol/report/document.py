@@ -1302,7 +1302,7 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
     return rep
 
 
-def finish(rep: Report, formats: tuple[str, ...] | str = ("html", "pdf")) -> None:
+def finish(rep: Report, formats: tuple[str, ...] | str) -> None:
     """Add the reproducibility section (after the timings are known), naming
     the renderers of ``formats``, the formats being written (one format may
     be given as a string: review 67, "pdf" read as the letters p, d, f)."""
