@@ -604,7 +604,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
                                                f"run itself: {verdict}: {reason}")
         use = None if limits is None else limit_use(limits, t, result.q[:, i0:i1], result.dq[:, i0:i1],
                                                      result.tau[:, i0:i1], result.Ts)
-        e_o = 0.0 if e_rot is None else float(np.max(np.linalg.norm(e_rot[:, i0:i1][:, ss], axis=0)))
+        angle = None if e_rot is None else np.linalg.norm(e_rot[:, i0:i1], axis=0)    # tool vs command, rad
+        e_o = 0.0 if angle is None else float(np.max(angle[ss]))
         chart = (0.0, 0.0) if surface is None else _chart_error(surface, result, i0 + ss.start, i1)
         verdict, reason = _chart_rule(verdict, reason, ss_err, chart, tol, None if e_rot is None else e_o,
                                       sc.controller.orientation_tolerance)
@@ -636,7 +637,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             # perfectly normal to the part, where a 4-joint UR5's is 9-26 degrees off it, as it may be)
             orientation_error=None if e_rot is None else e_o, tracking_verdict=tracking,
             chart_force_error=chart[0], chart_normal_error=chart[1], normal_tilt=None if e_rot is None else tilt,
-            peak_orientation_error=None if e_rot is None else float(np.max(np.linalg.norm(e_rot[:, i0:i1], axis=0))),
+            peak_orientation_error=None if angle is None else float(np.max(angle)),
         ))
     return out
 
