@@ -692,10 +692,11 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     state_names = ", ".join(f"{n}[{s.stop - s.start}]" if s.stop - s.start != 1 else n
                             for n, s in state.slices.items() if s.stop > s.start)
     law_states = ", ".join(law.states) or "none"
+    # the torques held: none without the inner loop (review 66: the header said 2 for code without a queue)
+    held = scenario.controller.delay_samples if inner_loop else 0
     values = {
         "VERSION": __version__, "CASADI": ca.__version__, "SCENARIO": scenario.name, "LAW": law.name,
-        # the torques held: none without the inner loop (review 66: the header said 2 for code without a queue)
-        "DELAY": scenario.controller.delay_samples if inner_loop else 0, "INNER": "yes" if inner_loop else "no",
+        "DELAY": held, "INNER": "yes" if inner_loop else "no",
         "HOLD": "mid-period (extrapolated)" if iface.hold else "zero-order", "HOLD_FLAG": int(iface.hold),
         "INNER_FLAG": int(inner_loop), "NS": state.size, "NP": iface.param.size,
         "NY": iface.measurement.size, "NC": n_cmd, "ND": n_diag, "SZ_ARG": work["arg"], "SZ_RES": work["res"],
@@ -729,8 +730,8 @@ def export_controller(scenario: Scenario, folder: pathlib.Path, inner_loop: bool
     meta = {"written_by": "tmtcontrol export", "version": __version__, "casadi": ca.__version__,
             "scenario": scenario.name, "prefix": prefix, "law": law.name, "surface": iface.surface.kind,
             "surface_key": iface.surface.key, "inner_loop": inner_loop,
-            "delay": scenario.controller.delay_samples, "delay_in_code": scenario.controller.delay_samples if inner_loop
-            else 0, "hold": "mid_period" if iface.hold else "zero_order",
+            "delay": scenario.controller.delay_samples, "delay_in_code": held,
+            "hold": "mid_period" if iface.hold else "zero_order",
             "model_mass_scale": scenario.robot.model_mass_scale,
             "compensate_friction": scenario.robot.compensate_friction,
             "sizes": {"state": state.size, "param": iface.param.size, **work},
