@@ -378,3 +378,13 @@ def test_the_damping_comparison_on_the_design_page_is_what_its_script_prints():
     assert paper[2].settling_time == pytest.approx(sched[2].settling_time, rel=0.05)
     optimal = next(name for name in runs if name.startswith("optimal"))
     assert f"The optimal b here ({optimal.split('= ')[1]} N s/m)" in " ".join(page.split())
+    # the prose's other numbers are the table's (the twenty-first session: "dips to 8.49 N" and "settles in
+    # 0.5 s" sat outside the compared block, free to drift from it)
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in block.strip().splitlines()[2:]]
+    start = {r[0].split(" b = ")[0]: i for i, r in enumerate(rows) if r[0]}
+    dip = rows[start["optimal"] + 1]                  # its segment 2 (2e4 N/m)
+    worst = rows[start["eq. (25) worst case"] + 2]    # its segment 3 (2e3 N/m)
+    assert dip[1] == "2 (2e4)" and worst[1] == "3 (2e3)"
+    prose = " ".join(page.split("<!-- end damping_comparison -->")[1].split())
+    assert f"the optimal fixed b dips to {dip[-1]} N after the switch to 2e4 N/m" in prose
+    assert f"worst-case b settles in {float(worst[3]):.1g} s at 2e3 N/m" in prose

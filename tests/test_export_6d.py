@@ -427,13 +427,18 @@ def test_exported_c_runs_against_mujoco_as_the_built_in_controller_does(exported
     """Issue 41: the exported C against MuJoCo's dynamics of the same URDF
     (`simulate --controller DIR --plant mujoco`): the same plant, the
     controller compiled as C instead of run in CasADi's VM, so the same run
-    to rounding (1e-9, the SIL tolerance)."""
+    to rounding (1e-9, the SIL tolerance). Both, called from Python with a
+    built-in-only key set (substeps = 7, which MuJoCo's RK4 ignores), return
+    the scenario MuJoCo ran, the key at its default (the twenty-first session:
+    only the command line reset it, so a Python caller's limit read it)."""
     from tmtcontrol.export.sil import CompiledController, simulate_with_controller
     from tmtcontrol.simulation.mujoco_plant import simulate_on_mujoco
 
     sc = apply_overrides(load_scenario("ur5"), SHORT)
-    c = simulate_with_controller(sc, CompiledController(exported_ur5, scenario=sc, isolated=True), plant="mujoco")
-    ref = simulate_on_mujoco(sc)
+    sc7 = apply_overrides(sc, ["simulation.substeps=7"])
+    c = simulate_with_controller(sc7, CompiledController(exported_ur5, scenario=sc, isolated=True), plant="mujoco")
+    ref = simulate_on_mujoco(sc7)
+    assert c.scenario.simulation == ref.scenario.simulation == sc.simulation != sc7.simulation
     assert c.info["plant"] == ref.info["plant"] == "mujoco (spring contact)" and c.info["code"] == "exported C (SIL)"
     _assert_same_signals(c, ref, ("contact_force", "q", "dq", "tau", "command_task", "position"))
 

@@ -82,6 +82,9 @@ def test_the_independent_plant_section_compares_mujoco_with_the_builtin_plant(mo
     assert v.passed is True and v.value.startswith(
         f"largest steady-state force difference {fmt.qty(steady, 'N')} (segment 1; tolerance 1"), v.value
     assert rep.data["crosscheck"]["agree"] is True and rep.data["crosscheck"]["tolerance_N"] == 1e-3
+    # the paragraph quotes the same value as a sentence of its own (it read "(docs/mujoco.md). largest ...")
+    (para,) = [b for b in sec.blocks if getattr(b, "text", "").startswith("The scenario's controller against")]
+    assert para.text.endswith(f"(docs/mujoco.md). L{v.value[1:]}."), para.text
     # a MuJoCo run whose force is off by twice the tolerance (a planted plant error): the verdict fails
     import dataclasses
 

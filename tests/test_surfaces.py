@@ -505,7 +505,10 @@ def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     (np.zeros((41, 41)), ["environment.radius=0.3"], "environment.radius: not used by shape = 'heightmap'"),
     (np.zeros((41, 41)), ["environment.grid_spacing=0.0"], "environment.grid_spacing: must be > 0"),
     # review 43: 5 (mm written as m) and 1e300 ran as the flat plane's results
-    (np.zeros((41, 41)), ["environment.grid_spacing=5.0"], "environment.grid_spacing: must be <= 1, got 5.0"),
+    # ... and the refusal says what it reads like (the twenty-first session, review 65's low: only the key's
+    # description did)
+    (np.zeros((41, 41)), ["environment.grid_spacing=5.0"], "environment.grid_spacing: must be <= 1, got 5.0: a "
+     "cell wider than an arm's reach; if the spacing is in millimetres, divide it by 1000 (SI units: m)"),
     (np.zeros((41, 41)), ["environment.grid_spacing=1e300"], "environment.grid_spacing: must be <= 1"),
     (np.zeros((11, 11)), [], "reaches 0.05 m, a path 0.03 m (two spacings kept as margin)"),
     (np.zeros((4, 4)), [], "reaches 0.015 m, no path at all (two spacings kept as margin)"),      # review 44

@@ -308,14 +308,17 @@ def simulate_with_controller(scenario, controller: CompiledController, max_steps
     :func:`~tmtcontrol.simulation.closedloop.build_plant` (the simulator's
     integrator); ``"mujoco"``, MuJoCo's dynamics of the same URDF
     (:class:`~tmtcontrol.simulation.mujoco_plant.MujocoPlant`: the exported C
-    against a plant nobody here wrote). The simulator's inputs and result
-    packing. Returns a :class:`~tmtcontrol.SimulationResult` with
+    against a plant nobody here wrote; the built-in plant's own settings set
+    back to their defaults, as :func:`~tmtcontrol.simulation.mujoco_plant.simulate_on_mujoco`
+    runs them). The simulator's inputs and result packing. Returns a :class:`~tmtcontrol.SimulationResult` with
     ``info["code"] == "exported C (SIL)"``."""
     import time
 
     from ..simulation.cosim import run_split
     from ..simulation.simulator import Simulator, check_run_size
 
+    if plant == "mujoco":     # the built-in plant's own settings, as simulate_on_mujoco runs them
+        scenario = scenario.replace(simulation=scenario.simulation.on_mujoco())
     check_run_size(scenario, max_steps)
     controller.check_matches(scenario)
     t0 = time.perf_counter()

@@ -751,7 +751,7 @@ def _independent_plant(rep: Report, sc: Scenario):
                   "built-in run. The plants agree when every segment has the same verdict on both and their "
                   "contact forces over its steady-state window (the last quarter) differ by at most "
                   f"{fmt.qty(c.tolerance, 'N')} "
-                  "(docs/mujoco.md). " + value + "."),
+                  "(docs/mujoco.md). " + value[0].upper() + value[1:] + "."),
         Table("Segments on both plants", ["segment", "t (s)", "k_e (N/m)", "steady-state error, built-in",
                                           "steady-state error, MuJoCo", "peak force, built-in / MuJoCo",
                                           "settling 2 %, built-in / MuJoCo", "verdict, built-in",

@@ -291,10 +291,15 @@ def simulate_on_mujoco(scenario, max_steps: int | None = None):
     :class:`~.simulator.SimulationResult` with ``info["plant"] == "mujoco
     (spring contact)"``, judged by the same rules as the built-in run (the
     exported C against MuJoCo: :func:`tmtcontrol.export.sil.simulate_with_controller`
-    with ``plant="mujoco"``)."""
+    with ``plant="mujoco"``). The built-in plant's own settings
+    (:meth:`~.scenario.SimulationSettings.builtin_only`) are set back to their
+    defaults (:meth:`~.scenario.SimulationSettings.on_mujoco`): the result's
+    scenario, and the stiffness limit its verdicts quote, are those of the
+    run MuJoCo made."""
     from ..model.against_mujoco import MUJOCO_WARNINGS
     from .simulator import SimulationError, Simulator, check_run_size
 
+    scenario = scenario.replace(simulation=scenario.simulation.on_mujoco())
     check_run_size(scenario, max_steps)
     t0 = time.perf_counter()
     sim = Simulator(scenario, compile=False)

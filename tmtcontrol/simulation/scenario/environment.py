@@ -296,7 +296,8 @@ class EnvironmentSettings(Section):
     grid_spacing: float | None = Field(None, description=(
         "heightmap: the grid's spacing [m], at most 1 m (a wider cell than an arm's reach is a unit mistake: "
         "millimetres written as metres)"), allow_inf_nan=False, strict=True, gt=0, le=1.0,
-        json_schema_extra={"unit": "m"})
+        json_schema_extra={"unit": "m", "over_bound": "a cell wider than an arm's reach; if the spacing is in "
+                                                      "millimetres, divide it by 1000 (SI units: m)"})
     tilt_deg: float = num(45.0, "deg", "tilt of the plane (or a curved part's tangent plane at "
                           "trajectory.center) about the base y axis (the shorthand for the inward normal "
                           "(sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)

@@ -432,6 +432,12 @@ def _message(err: dict, data: dict, key: str | None = None) -> str:
             op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}[typ]
             bound = next(iter(v for k, v in ctx.items() if k in ("gt", "ge", "lt", "le")))
             expected = f"must be {op} {bound:g}"
+            # a bound that reads like a unit mistake when crossed says so (the field's "over_bound")
+            parent = model_at(loc[:-1], data) if loc else None
+            info = parent.model_fields.get(loc[-1]) if parent is not None else None
+            extra = info.json_schema_extra if info is not None and isinstance(info.json_schema_extra, dict) else {}
+            if typ.startswith("less") and "over_bound" in extra:
+                return f"{key}: {expected}, got {got!r}: {extra['over_bound']}"
         elif typ == "literal_error":
             expected = f"expected {ctx.get('expected')}"
         elif typ == "string_too_short":
