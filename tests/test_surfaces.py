@@ -1299,3 +1299,29 @@ def test_a_plane_from_a_normal_that_is_no_direction_is_refused(normal):
     with pytest.raises(ValueError, match=r"^normal: expected 3 finite numbers, not all zero"):
         Plane.from_normal(normal, [0.0, 0.0, 0.0])
     assert np.allclose(Plane.from_normal([0, 0, 2], [0, 0, 0]).R[:, 0], [0, 0, 1])     # any length: normalised
+
+
+def test_the_task_axes_are_the_base_directions_the_scenario_page_names():
+    """docs/scenario.md says which base directions task axes 1 and 2 are (review 65's low: a height map's rows
+    are along task axis 1, and no page said where that is): base y projected onto the plane, base x where
+    |n_y| >= 0.9, axis 2 = n x axis 1; on the paper's plane base y and (0.707, 0, 0.707); a cylinder's given
+    axis is task axis 2. Checked on the surfaces the scenarios build (exact to rounding, 1e-12)."""
+    from tmtcontrol.simulation.geometry import surface_of
+
+    page = " ".join((pathlib.Path(__file__).parents[1] / "docs" / "scenario.md").read_text().split())
+    assert ("task axis 1, base y projected onto the plane (base x where |n_y| ≥ 0.9), and task axis 2 = n × "
+            "axis 1: on the paper's 45° plane axis 1 is base y and axis 2 is (0.707, 0, 0.707), up the slope") in page
+    R = surface_of(paper_scenario()).frame()
+    assert np.allclose(R[:, 1], [0, 1, 0], atol=1e-12) and np.allclose(R[:, 2], [0.5 ** 0.5, 0, 0.5 ** 0.5], atol=1e-12)
+    assert R[2, 2] > 0                                            # up the slope
+    for n_y, ref in ((0.89, [0, 1, 0]), (0.91, [1, 0, 0])):      # either side of the documented 0.9
+        n = np.array([0.0, n_y, -(1 - n_y ** 2) ** 0.5])
+        sc = apply_overrides(paper_scenario(), [f"environment.normal={n.tolist()}"])
+        R = surface_of(sc).frame()
+        e_1 = np.asarray(ref, float) - (np.asarray(ref, float) @ n) * n
+        assert np.allclose(R[:, 0], n, atol=1e-12) and np.allclose(R[:, 1], e_1 / np.linalg.norm(e_1), atol=1e-12)
+        assert np.allclose(R[:, 2], np.cross(n, R[:, 1]), atol=1e-12)
+    axis = [0.0, 1.0, 0.0]                      # in the paper's plane: its task axis 1, not axis 2's default
+    pipe = apply_overrides(paper_scenario(), ['environment.shape="cylinder"', "environment.radius=0.3",
+                                              f"environment.axis={axis}"])
+    assert np.allclose(surface_of(pipe).frame(np.asarray(pipe.trajectory.center))[:, 2], axis, atol=1e-12)
