@@ -87,3 +87,20 @@ def test_stability_legends_read_stiffness_without_exponent():
                                        step_figure(1.0, 60.0, 100.0, [2e3, 2e4]))
               for t in (fig.axes[0].get_legend() or fig.legends[0]).get_texts()]   # in the axes or under them
     assert labels == ["k_e = 200 N/m", "k_e = 200,000 N/m", "k_e = 2,000 N/m", "k_e = 20,000 N/m"]
+
+
+def test_the_path_figures_legend_covers_neither_its_title_nor_its_axes(paper_result):
+    """Review 65's low: the 3-D path figure's legend, in the axes' top corner, was drawn over its title.
+    It sits under the axes now: its box overlaps neither the title's nor the axes'."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from tmtcontrol.simulation.figures import path_figure
+
+    fig = path_figure(paper_result)
+    FigureCanvasAgg(fig).draw()
+    r = fig.canvas.get_renderer()
+    (ax,) = fig.axes
+    (leg,) = fig.legends + ([ax.get_legend()] if ax.get_legend() else [])
+    box = leg.get_window_extent(r)
+    assert not box.overlaps(ax.title.get_window_extent(r)) and not box.overlaps(ax.get_window_extent(r))
+    assert box.y0 >= 0 and box.y1 <= fig.bbox.height                # inside the figure

@@ -186,8 +186,9 @@ def path_figure(res: SimulationResult | SimulationTraces) -> Figure:
     ax.plot(*res.position[:, ::stride], lw=1.5, label=f"X, {res.tool}")
     ax.plot(*desired_path(res)[:, ::stride], "k--", lw=0.8, label="desired path X_d (on the surface)")
     ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title=f"Path on the {res.surface_name}")
-    ax.legend()
-    return fixed_layout(fig, left=0.05, right=0.05, bottom=0.05, top=0.3)
+    # under the axes: in the 3-D axes' corner it covered the title (review 65)
+    legend_below(fig, ax, ncol=1)
+    return fixed_layout(fig, left=0.05, right=0.05, bottom=legend_margin(2, 1, bottom=0.05), top=0.3)
 
 
 def orientation_figure(res: SimulationResult | SimulationTraces) -> Figure:
