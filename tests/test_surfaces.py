@@ -512,6 +512,13 @@ def test_exported_c_on_a_height_map_equals_the_built_in_loop(tmp_path):
     (np.zeros((41, 41)), ["environment.grid_spacing=1e300"], "environment.grid_spacing: must be <= 1"),
     (np.zeros((11, 11)), [], "reaches 0.05 m, a path 0.03 m (two spacings kept as margin)"),
     (np.zeros((4, 4)), [], "reaches 0.015 m, no path at all (two spacings kept as margin)"),      # review 44
+    # a spacing per axis (du, dv): each axis's reach on its own spacing
+    (np.zeros((41, 81)), ["environment.grid_spacing=[0.004, 0.01]"], "along task axis 1, the grid (41 x 81 at "
+     "0.004 x 0.01 m) reaches 0.08 m, a path 0.072 m"),
+    (np.zeros((41, 41)), ["environment.grid_spacing=[0.01, 2.0]"], "environment.grid_spacing: must be <= 1, got "
+     "[0.01, 2.0]: a cell wider"),
+    (np.zeros((41, 41)), ["environment.grid_spacing=[0.01]"], "environment.grid_spacing: expected a number or a "
+     "list of 2 numbers [du, dv] (m), got [0.01]"),
 ])
 def test_bad_height_map_is_one_line_exit_2(tmp_path, grid, extra, needle):
     np.savetxt(tmp_path / "part.csv", grid, delimiter=",")
@@ -1325,3 +1332,35 @@ def test_the_task_axes_are_the_base_directions_the_scenario_page_names():
     pipe = apply_overrides(paper_scenario(), ['environment.shape="cylinder"', "environment.radius=0.3",
                                               f"environment.axis={axis}"])
     assert np.allclose(surface_of(pipe).frame(np.asarray(pipe.trajectory.center))[:, 2], axis, atol=1e-12)
+
+
+def test_a_height_map_with_a_spacing_per_axis_is_the_part_it_describes(tmp_path):
+    """``environment.grid_spacing = [du, dv]`` (review 65's low: a profilometer's scan and step pitches
+    differ, and one number forced a resampling): rows along task axis 1 at du, columns along axis 2 at dv.
+    The scenario's surface puts the analytic part's points at depth 0 within the cubic spline's error
+    (a 1 cm wave of 0.4 m wavelength on 1 cm x 5 mm cells: 1.6e-8 m measured, bound 1e-7 m; the spacings
+    swapped, 4.9 mm off);
+    the steep-map note reads each axis's slope on its own spacing."""
+    from tmtcontrol.simulation.geometry import surface_of
+    from tmtcontrol.simulation.scenario.environment import steep_map_note
+
+    du, dv = 0.01, 0.005
+    u = (np.arange(41) - 20) * du
+    v = (np.arange(81) - 40) * dv
+    wave = lambda U, V: 0.01 * np.sin(2 * np.pi * U / 0.4) * np.cos(2 * np.pi * (V - 0.05) / 0.4)   # noqa: E731
+    sc = _heightmap_scenario(tmp_path, wave(*np.meshgrid(u, v, indexing="ij")), spacing=[du, dv])
+    assert sc.environment.grid_spacing == (du, dv)
+    s = np.random.default_rng(65).uniform(-0.15, 0.15, (2, 200))
+    X = np.vstack([np.zeros(200), s])
+    depth_below = R0[:, 0] @ (surface_of(sc).to_base(X) - C0[:, None])      # -h(u, v) along the inward normal
+    assert np.abs(depth_below + wave(s[0], s[1])).max() < 1e-7
+    # the same heights with the spacings swapped are another part (inside both grids): the test above can fail
+    from tmtcontrol.surface import HeightMap
+
+    swapped = HeightMap(R0, C0, surface_of(sc).heights, (dv, du))
+    inner = X * np.array([[1.0], [0.5], [0.5]])
+    assert np.abs(R0[:, 0] @ (swapped.to_base(inner) - C0[:, None]) + wave(*inner[1:])).max() > 1e-3
+    # 6 mm per 5 mm column step (slope 1.2) is steep; per 1 cm row step (0.6) it is not
+    np.savetxt(tmp_path / "ramp.csv", np.tile(np.arange(41.0) * 0.006, (41, 1)), delimiter=",")
+    assert "rise up to 1.2 times the grid spacing" in steep_map_note(tmp_path / "ramp.csv", (0.01, 0.005))
+    assert steep_map_note(tmp_path / "ramp.csv", (0.005, 0.01)) is None

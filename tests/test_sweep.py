@@ -719,3 +719,27 @@ def test_resume_takes_the_default_max_steps_spelled_out(small, tmp_path):
     PartialFolder((tmp_path / "o").resolve(), small, resume=True, options={"limits": True, "max_steps": MAX_STEPS})
     with pytest.raises(ValueError, match=r"^--resume: --max-steps was 1000000, now 5000 "):
         PartialFolder((tmp_path / "o").resolve(), small, resume=True, options={"limits": True, "max_steps": 5000})
+
+
+def test_a_number_on_a_pair_valued_base_key_stays_a_number_where_the_key_takes_one(tmp_path):
+    """A sweep makes a number given for a list-valued key a one-element list (a generated stiffness
+    ``environment.stiffness.values``). ``environment.grid_spacing`` takes a number or a pair [du, dv]: over a
+    base with a pair, the grid value 0.01 ran as [0.01] and was refused ("expected a number or a list of 2
+    numbers"); it is the number. The schema's bounds of the key are those of each number (a random axis's
+    range is checked against them)."""
+    from tmtcontrol.simulation.scenario import setting_bounds, takes_a_number
+    from tmtcontrol.sweep.spec import case_scenario, load_scenario, scenario_to_dict
+
+    grid = np.zeros((41, 41))
+    np.savetxt(tmp_path / "part.csv", grid, delimiter=",")
+    from tmtcontrol.simulation.scenario import apply_overrides
+
+    base = scenario_to_dict(apply_overrides(load_scenario("paper"), [
+        'environment.shape="heightmap"', f'environment.heightmap="{tmp_path / "part.csv"}"',
+        "environment.grid_spacing=[0.01, 0.009]"]))
+    assert case_scenario(base, {"environment.grid_spacing": 0.01}).environment.grid_spacing == 0.01
+    assert case_scenario(base, {"environment.grid_spacing": [0.01, 0.008]}).environment.grid_spacing == (0.01, 0.008)
+    assert case_scenario(base, {"environment.stiffness.values": 3e4}).environment.stiffness.values == (3e4,)
+    assert takes_a_number("environment.grid_spacing") and takes_a_number("controller.f_d")
+    assert not takes_a_number("environment.stiffness.values") and not takes_a_number("robot.tau_max")
+    assert setting_bounds("environment.grid_spacing") == {"gt": 0, "le": 1.0}

@@ -60,7 +60,7 @@ import numpy as np
 
 from ..simulation.scenario import (BUILTIN_ARMS, NOT_INTERVALS, SAMPLED_KEYS, Scenario, ScenarioError, applicable_settings,
                                    load_scenario, read_toml, replace_plane, resolve_files, scenario_from_dict,
-                                   scenario_to_dict, set_key)
+                                   scenario_to_dict, set_key, takes_a_number)
 
 __all__ = ["SweepError", "Sweep", "Case", "Cases", "load_sweep", "sweep_from_dict", "EXAMPLE", "DEFAULT_MAX_CASES",
            "check_sweep_size", "check_sweep_robots"]
@@ -520,7 +520,8 @@ def case_scenario(base: dict, values: dict) -> Scenario:
     replace_plane(d, values)              # an axis over the plane's normal or tilt replaces the base's other form
     # the outer key first: a law's kind ("controller.law" = "rls", which resets the table) before its parameters
     for key, value in sorted(values.items(), key=lambda kv: kv[0].count(".")):
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list):
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and isinstance(_current(d, key), list) \
+                and not takes_a_number(key):
             value = [value]
         set_key(d, key, copy.deepcopy(value))   # a table value is the sweep's own: never edited in place
     return scenario_from_dict(d)

@@ -35,7 +35,7 @@ from .reference import SettingRow, applicable_settings, scenario_json_schema, sc
 from .requirements import RequirementsSettings
 from .robot import RobotSettings
 from .schema import (NOT_INTERVALS, SAMPLED_KEYS, TAGGED_TABLES, Scenario, check_filter_cutoff, check_period, check_setting,
-                     sampling_problem, scenario_from_dict, scenario_to_dict, setting_bounds)
+                     sampling_problem, scenario_from_dict, scenario_to_dict, setting_bounds, takes_a_number)
 from .sensor import SensorSettings, SimulationSettings, filter_pole
 from .textfiles import MAX_INPUT_BYTES, MAX_KEY_PARTS, InputFileError, parse_toml, read_text_file, read_toml
 from .tomlio import (apply_overrides, dump_scenario, load_scenario, replace_plane, resolve_files, set_key,
@@ -51,5 +51,5 @@ __all__ = [
     "scenario_reference", "read_stiffness_table", "SettingRow", "TAGGED_TABLES", "SAMPLED_KEYS", "NOT_INTERVALS",
     "applicable_settings", "read_text_file", "read_toml", "parse_toml", "InputFileError", "MAX_INPUT_BYTES",
     "MAX_KEY_PARTS", "MAX_STIFFNESS", "MIN_PERIODS", "sampling_problem", "check_setting", "check_period",
-    "check_filter_cutoff", "setting_bounds", "filter_pole", "BUILTIN_ARMS", "arm_scenario",
+    "check_filter_cutoff", "setting_bounds", "takes_a_number", "filter_pole", "BUILTIN_ARMS", "arm_scenario",
 ]

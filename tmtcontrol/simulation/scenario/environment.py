@@ -230,6 +230,11 @@ LARGE_RADIUS = 10.0
 whether it was meant in millimetres (valid: a large part is nearly a plane)."""
 
 
+MAX_GRID_SPACING = 1.0
+"""The largest height map grid spacing (m): a wider cell than an arm's reach
+is millimetres written as metres (review 43)."""
+
+
 STEEP_MAP = 1.0
 """The slope between neighbouring heights of a map (rise over run) from
 which :meth:`EnvironmentSettings.unit_notes` asks whether the heights are
@@ -237,10 +242,11 @@ in millimetres (45 degrees: a part the tool follows at that tilt is
 possible, not usual)."""
 
 
-def steep_map_note(path, spacing: float) -> str | None:
+def steep_map_note(path, spacing) -> str | None:
     """The note for a height map whose neighbouring heights rise more than
-    :data:`STEEP_MAP` times the grid spacing, naming its span and steepest
-    slope and the millimetre reading; None otherwise (or for a map that
+    :data:`STEEP_MAP` times the grid spacing (``environment.grid_spacing``,
+    one number or ``(du, dv)``), naming its span and steepest slope and the
+    millimetre reading; None otherwise (or for a map that
     cannot be read: its refusal is the validator's)."""
     import numpy as np
 
@@ -248,7 +254,7 @@ def steep_map_note(path, spacing: float) -> str | None:
         h = read_height_grid(path)
     except ValueError:
         return None
-    slope = max(float(np.max(np.abs(np.diff(h, axis=a)))) for a in (0, 1)) / spacing
+    slope = max(float(np.max(np.abs(np.diff(h, axis=a)))) / d for a, d in enumerate(spacing_pair(spacing)))
     if not slope >= STEEP_MAP:
         return None
     span = float(np.ptp(h))
@@ -268,6 +274,48 @@ def large_radius_note(radius) -> str | None:
     return (f"environment.radius = {radius:g} m: a part this large is within {sag * 1e6:.3g} µm of its tangent "
             f"plane 10 cm from the path's centre; if the radius is in millimetres, write {radius / 1000:g} "
             "(SI units: m)")
+
+
+Spacing = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRID_SPACING)]
+
+
+def spacing_pair(spacing) -> tuple[float, float]:
+    """``(du, dv)`` (m) of ``environment.grid_spacing``: one number for both
+    axes, or the pair itself."""
+    if isinstance(spacing, (int, float)):
+        return float(spacing), float(spacing)
+    du, dv = spacing
+    return float(du), float(dv)
+
+
+def spacing_words(spacing) -> str:
+    """``environment.grid_spacing`` as a message writes it: ``0.01 m`` or
+    ``0.01 x 0.02 m``."""
+    du, dv = spacing_pair(spacing)
+    return f"{du:g} m" if du == dv else f"{du:g} x {dv:g} m"
+
+
+def _spacing_problem(value) -> str | None:
+    """What is wrong with a raw ``grid_spacing`` (one line, without the key),
+    or None: checked before the schema's union, whose own errors name its
+    branches, and with the millimetre reading where it is too large."""
+    def number(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    if value is None:
+        return None
+    values = list(value) if isinstance(value, (list, tuple)) else [value]
+    if not (number(value) or (isinstance(value, (list, tuple)) and len(values) == 2 and all(map(number, values)))):
+        return f"expected a number or a list of 2 numbers [du, dv] (m), got {value!r}"
+    for x in values:
+        if not math.isfinite(x):
+            return f"must be finite, got {value!r}"
+        if not x > 0:
+            return f"must be > 0, got {value!r}"
+        if not x <= MAX_GRID_SPACING:
+            return (f"must be <= {MAX_GRID_SPACING:g}, got {value!r}: a cell wider than an arm's reach; if the "
+                    "spacing is in millimetres, divide it by 1000 (SI units: m)")
+    return None
 
 
 class EnvironmentSettings(Section):
@@ -293,11 +341,10 @@ class EnvironmentSettings(Section):
     heightmap: str | None = Field(None, min_length=1, description=(
         "heightmap: a CSV (rows of numbers) or .npy file of heights [m] along the outward normal, rows along "
         "task axis 1, columns along task axis 2, the grid centred on trajectory.center"))
-    grid_spacing: float | None = Field(None, description=(
-        "heightmap: the grid's spacing [m], at most 1 m (a wider cell than an arm's reach is a unit mistake: "
-        "millimetres written as metres)"), allow_inf_nan=False, strict=True, gt=0, le=1.0,
-        json_schema_extra={"unit": "m", "over_bound": "a cell wider than an arm's reach; if the spacing is in "
-                                                      "millimetres, divide it by 1000 (SI units: m)"})
+    grid_spacing: Spacing | tuple[Spacing, Spacing] | None = Field(None, description=(
+        "heightmap: the grid's spacing [m], one number or [du, dv] (along task axes 1 and 2: rows and columns), "
+        "at most 1 m (a wider cell than an arm's reach is a unit mistake: millimetres written as metres)"),
+        json_schema_extra={"unit": "m"})
     tilt_deg: float = num(45.0, "deg", "tilt of the plane (or a curved part's tangent plane at "
                           "trajectory.center) about the base y axis (the shorthand for the inward normal "
                           "(sin t, 0, -cos t); not used when normal is set)", ge=-89.0, le=89.0)
@@ -319,6 +366,13 @@ class EnvironmentSettings(Section):
         if isinstance(d, dict) and d.get("normal") is not None:
             d.pop("tilt_deg", None)
         return d
+
+    @model_validator(mode="before")
+    @classmethod
+    def _grid_spacing(cls, data):
+        if isinstance(data, dict) and (problem := _spacing_problem(data.get("grid_spacing"))):
+            raise ValueError(f"grid_spacing: {problem}")
+        return data
 
     @model_validator(mode="after")
     def _shape_keys(self):

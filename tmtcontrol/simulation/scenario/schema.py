@@ -28,7 +28,8 @@ from .requirements import RequirementsSettings
 from .trajectory import TrajectorySettings
 
 __all__ = ["Scenario", "TAGGED_TABLES", "TAG_DEFAULTS", "SAMPLED_KEYS", "NOT_INTERVALS", "sampling_problem", "scenario_from_dict",
-           "scenario_to_dict", "model_at", "check_setting", "setting_bounds", "check_period", "check_filter_cutoff"]
+           "scenario_to_dict", "model_at", "check_setting", "setting_bounds", "check_period", "check_filter_cutoff",
+           "takes_a_number"]
 
 
 class Scenario(Section):
@@ -150,16 +151,16 @@ def _domain_problem(sc: Scenario) -> str | None:
             turned += " (the true part under the commanded path: controller.part_offset moves it)"
         extent = moved
     if env.heightmap is not None:
-        from .environment import read_height_grid
+        from .environment import read_height_grid, spacing_pair, spacing_words
 
         shape = read_height_grid(env.heightmap).shape
-        for axis, (reach, points) in enumerate(zip(extent, shape)):
-            half = (points - 1) / 2 * env.grid_spacing
-            if reach > half - 2 * env.grid_spacing:
+        for axis, (reach, points, d) in enumerate(zip(extent, shape, spacing_pair(env.grid_spacing))):
+            half = (points - 1) / 2 * d
+            if reach > half - 2 * d:
                 return (f"trajectory.radius: the path leaves the height map: it reaches {reach:.6g} m from its "
                         f"centre along task axis {axis + 1}{turned}, the grid ({shape[0]} x {shape[1]} at "
-                        f"{env.grid_spacing:g} m) reaches {half:g} m, "
-                        + (f"a path {half - 2 * env.grid_spacing:g} m" if half > 2 * env.grid_spacing
+                        f"{spacing_words(env.grid_spacing)}) reaches {half:g} m, "
+                        + (f"a path {half - 2 * d:g} m" if half > 2 * d
                            else "no path at all") + " (two spacings kept as margin)" + _millimetres(sc))
         return None
     limit = 1.2 if env.shape == "sphere" else 2.5
@@ -249,6 +250,7 @@ def _tool_problem(sc: Scenario) -> str | None:
         return None
     from ..geometry import surface_frame, surface_of
     from ..trajectory import path_reference
+    from .environment import spacing_pair
 
     surface = surface_of(sc)
     # the true path under an offset depends on where the part sits (its frame and centre: review 67, a tilt
@@ -258,7 +260,7 @@ def _tool_problem(sc: Scenario) -> str | None:
     if key not in _CONCAVE:
         coarse = path_reference(np.linspace(0.0, tr.period, 64 * tr.lanes + 257), tr).pos
         length = float(np.sum(np.linalg.norm(np.diff(coarse, axis=1), axis=0)))
-        n = int(min(max(math.ceil(8 * length / env.grid_spacing), 512), 50_000))
+        n = int(min(max(math.ceil(8 * length / min(spacing_pair(env.grid_spacing))), 512), 50_000))
         t = _period(sc, n)
         s = _true_path(sc, t)           # the true part's points under the commanded path (review 65)
         radius = surface.concave_radius(s)
@@ -432,12 +434,6 @@ def _message(err: dict, data: dict, key: str | None = None) -> str:
             op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}[typ]
             bound = next(iter(v for k, v in ctx.items() if k in ("gt", "ge", "lt", "le")))
             expected = f"must be {op} {bound:g}"
-            # a bound that reads like a unit mistake when crossed says so (the field's "over_bound")
-            parent = model_at(loc[:-1], data) if loc else None
-            info = parent.model_fields.get(loc[-1]) if parent is not None else None
-            extra = info.json_schema_extra if info is not None and isinstance(info.json_schema_extra, dict) else {}
-            if typ.startswith("less") and "over_bound" in extra:
-                return f"{key}: {expected}, got {got!r}: {extra['over_bound']}"
         elif typ == "literal_error":
             expected = f"expected {ctx.get('expected')}"
         elif typ == "string_too_short":
@@ -462,11 +458,8 @@ def scenario_from_dict(data: Any, source: str = "") -> Scenario:
         raise ScenarioError(_message(exc.errors()[0], data) + (f" (in {source})" if source else "")) from None
 
 
-def _field_type(key: str):
-    """The type (with its constraints) of the number at dotted ``key`` of the
-    schema: a tagged union's default kind; a list's element."""
-    from typing import get_args, get_origin
-
+def _field_info(key: str):
+    """The schema's field at dotted ``key`` (a tagged union's default kind)."""
     model: Any = Scenario
     parts = key.split(".")
     for i, part in enumerate(parts):
@@ -475,10 +468,43 @@ def _field_type(key: str):
             break
         loc = tuple(parts[max(0, i - 1):i + 1])
         model = (TAGGED_TABLES[loc]()[TAG_DEFAULTS[loc]] if loc in TAGGED_TABLES else info.annotation)
+    return info
+
+
+def _number_member(annotation):
+    """The bounded number type of a union such as ``Spacing | tuple[...] |
+    None`` (``environment.grid_spacing``: one number or a pair), else None."""
+    import types
+    from typing import Union, get_args, get_origin
+
+    if get_origin(annotation) not in (Union, types.UnionType):
+        return None
+    return next((a for a in get_args(annotation) if get_origin(a) is Annotated and get_args(a)[0] in (int, float)),
+                None)
+
+
+def _field_type(key: str):
+    """The type (with its constraints) of the number at dotted ``key`` of the
+    schema: a tagged union's default kind; a list's element; a union's
+    number (one number or a pair: the number's bounds hold for each)."""
+    from typing import get_args, get_origin
+
+    info = _field_info(key)
     typ = Annotated[(info.annotation, *info.metadata)] if info.metadata else info.annotation
     if get_origin(info.annotation) is tuple:
         typ = get_args(info.annotation)[0]
+    elif info.annotation is not None and (number := _number_member(info.annotation)) is not None:
+        typ = number
     return typ
+
+
+def takes_a_number(key: str) -> bool:
+    """Whether the field at dotted ``key`` takes a single number (a list-only
+    key such as ``environment.stiffness.values`` does not: a sweep makes a
+    number given for it a one-element list; ``environment.grid_spacing``
+    takes a number or a pair)."""
+    info = _field_info(key)
+    return info.annotation in (int, float) or _number_member(info.annotation) is not None
 
 
 @functools.lru_cache(maxsize=None)
