@@ -743,3 +743,27 @@ def test_a_number_on_a_pair_valued_base_key_stays_a_number_where_the_key_takes_o
     assert takes_a_number("environment.grid_spacing") and takes_a_number("controller.f_d")
     assert not takes_a_number("environment.stiffness.values") and not takes_a_number("robot.tau_max")
     assert setting_bounds("environment.grid_spacing") == {"gt": 0, "le": 1.0}
+
+
+def test_a_case_whose_path_the_arm_cannot_follow_is_a_refused_row_and_the_sweep_goes_on(tmp_path):
+    """Review 68: a case the schema accepts but whose path the arm cannot reach (the paper's circle of radius
+    0.9 m) stopped the whole sweep with the path's message, naming no case; the finished cases were lost
+    and --resume met the same case again. It is a row of verdict "refused" with the reason in ``error``
+    and no error measured (NaN, not the inf of a diverged run); the other cases run; the summary counts
+    it; the command exits 1 ("not converged")."""
+    from tmtcontrol.sweep.run import REFUSED
+
+    sweep = sweep_from_dict({"scenario": "paper", "grid": {"trajectory.radius": [0.1, 0.9],
+                                                           "trajectory.cycles": [0.25]}})
+    df = run_sweep(sweep, limits=False)
+    ok, far = (df[df["trajectory.radius"] == r].iloc[0] for r in (0.1, 0.9))
+    assert ok["verdict"] == "converged" and ok["error"] == ""
+    assert far["verdict"] == REFUSED and np.isnan(far["max_steady_error"])
+    assert far["error"].startswith("trajectory: at path time t = 0.000 s the pose is unreachable")
+    summary = sweep_summary(sweep, df)
+    assert summary["verdicts"][REFUSED] == 1 and summary["verdicts"]["converged"] == 1
+    (tmp_path / "s.toml").write_text('scenario = "paper"\n[grid]\n"trajectory.radius" = [0.1, 0.9]\n'
+                                     '"trajectory.cycles" = [0.25]\n')
+    r = _cli(str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"), "--no-plots", "--limits", "off", cwd=tmp_path)
+    assert r.returncode == 1 and "0 diverged, 1 refused" in r.stdout and "not converged: 1 of 2" in r.stderr, r
+    assert len(pq.read_table(tmp_path / "o" / "results.parquet")) == 2

@@ -10,7 +10,7 @@ import sys
 import time
 
 from ..files import OutputFolder, write_json
-from .run import PartialFolder, Progress, case_row, check_dask, limits_by_default, run_cases
+from .run import REFUSED, PartialFolder, Progress, case_row, check_dask, limits_by_default, run_cases
 from .spec import EXAMPLE, Case, Sweep, SweepError, check_sweep_robots, load_sweep, sweep_from_dict
 
 __all__ = ["Sweep", "Case", "SweepError", "load_sweep", "sweep_from_dict", "run_sweep", "save_sweep",
@@ -89,7 +89,7 @@ def sweep_summary(sweep: Sweep, df, predicted: dict | None = None) -> dict:
 
     from ..simulation.metrics import VERDICTS
 
-    counts = {v: int((df["verdict"] == v).sum()) for v in VERDICTS}
+    counts = {v: int((df["verdict"] == v).sum()) for v in (*VERDICTS, REFUSED)}
     order = df.assign(_e=df["max_steady_error"].astype(float).fillna(np.inf)).sort_values("_e", ascending=False)
     worst = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v)
               for k, v in row.items() if k in ("case", "verdict", "max_steady_error", *sweep.axes)}

@@ -12,7 +12,7 @@ __all__ = ["sweep_map_figure", "law_distribution_figure", "VERDICT_STYLE"]
 
 VERDICT_STYLE = {"converged": ("o", "#0072B2"), "off_target": ("s", "#CC79A7"), "over_limit": ("D", "#000000"),
                  "beyond_limit": ("v", "#56B4E9"), "limit_cycle": ("^", "#E69F00"),
-                 "diverged": ("X", "#D55E00")}
+                 "diverged": ("X", "#D55E00"), "refused": ("x", "#999999")}
 """Marker and colour per verdict (Okabe-Ito palette; the marker alone tells them apart in grey)."""
 
 
@@ -65,7 +65,8 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
     panels = [(None, df)] if facet is None else list(df.groupby(facet, sort=True))
     fig = Figure(figsize=(7 if facet is None else 4.2 * len(panels) + 1.2, 4.6))
     err_all = np.clip(df["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
-    norm = mpl.colors.LogNorm(vmin=max(np.nanmin(err_all), 1e-6), vmax=max(np.nanmax(err_all), 1e-5))
+    err_all = err_all[np.isfinite(err_all)] if np.isfinite(err_all).any() else np.array([1e-6])   # NaN: refused
+    norm = mpl.colors.LogNorm(vmin=max(np.min(err_all), 1e-6), vmax=max(np.max(err_all), 1e-5))
     x_key = axes[0]
     y_key = axes[1] if len(axes) > 1 else "max_steady_error"
     sc = None
@@ -77,7 +78,10 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
         err = np.clip(d["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
         for verdict, (marker, colour) in VERDICT_STYLE.items():
             m = (d["verdict"] == verdict).to_numpy()
-            if m.any():
+            if m.any() and verdict == "refused":        # never run: no error to colour by
+                ax.scatter(x[m], y[m], color=colour, marker=marker, s=46, linewidths=1.4,
+                           label=f"{verdict} ({int(m.sum())})")
+            elif m.any():
                 sc = ax.scatter(x[m], y[m], c=err[m], cmap="viridis", norm=norm, marker=marker, s=46,
                                 edgecolors=colour, linewidths=1.4, label=f"{verdict} ({int(m.sum())})")
         if predicted:

@@ -34,7 +34,8 @@ from ..files import OutputError, check_interrupt
 from ..processes import blas_threads_limited, one_blas_thread, signals_held, worker_init
 from .spec import Case, Sweep, case_scenario, changes_analysis
 
-__all__ = ["run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder", "Progress", "check_dask",
+__all__ = ["REFUSED", "run_cases", "case_row", "case_limits", "limits_by_default", "SEGMENT_FIELDS", "PartialFolder",
+           "Progress", "check_dask",
            "SchedulerUnavailable", "kept_note"]
 
 CONNECT_TIMEOUT = 3.0
@@ -57,15 +58,23 @@ def _flat(value):
     return value
 
 
+REFUSED = "refused"
+"""A sweep case's verdict when its run refuses it: a scenario the schema
+accepts whose path the arm cannot follow (unreachable, outside the joint
+limits, near a singularity; the row's ``error`` says which)."""
+
+
 def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool = True) -> dict:
     """Simulate one case and return its row: the swept values (by dotted key),
     the case verdict (the worst segment's; ``diverged`` if the simulation blew
-    up), ``max_steady_error`` (N, worst segment), the first contact and the
+    up, :data:`REFUSED` if the run refused the case's path),
+    ``max_steady_error`` (N, worst segment), the first contact and the
     per-segment metrics. With ``limits``, also the case's own predicted
     stiffness limits (:func:`case_limits`)."""
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
     from ..simulation.simulator import simulator_for
     from ..stability.limit import with_stiffness_limit
+    from ..simulation.scenario import ScenarioError
     from ..simulation.simulator import SimulationError, structure as _structure
 
     sc = case_scenario(base, case.values)
@@ -82,8 +91,14 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     t0 = time.perf_counter()
     try:
         res = _SIMS[key].run(sc, max_steps=max_steps)
-    except SimulationError as exc:
-        row.update({"verdict": "diverged", "max_steady_error": math.inf, "first_contact_time": None,
+    except (SimulationError, ScenarioError) as exc:
+        # a case the run refuses (its path unreachable, outside the joint limits or near a singularity: checked
+        # when it runs, not by the schema) is a row saying so, and the sweep goes on (review 68: it stopped
+        # the sweep with a line naming no case, and --resume met the same case again)
+        refused = isinstance(exc, ScenarioError)           # never run: no error to measure (NaN), not inf
+        row.update({"verdict": REFUSED if refused else "diverged",
+                    "max_steady_error": math.nan if refused else math.inf,
+                    "first_contact_time": None,
                     "first_contact_peak": None, "first_contact_ratio": None, "first_contact_bounces": None,
                     "torque_margin": math.nan, "rate_margin": math.nan, "position_margin": math.nan,
                     "clip_time": math.nan, "error": str(exc), "run_time_s": time.perf_counter() - t0})
