@@ -408,3 +408,25 @@ def test_the_damping_comparison_on_the_design_page_is_what_its_script_prints():
     prose = " ".join(page.split("<!-- end damping_comparison -->")[1].split())
     assert f"the optimal fixed b dips to {dip[-1]} N after the switch to 2e4 N/m" in prose
     assert f"worst-case b settles in {float(worst[3]):.1g} s at 2e3 N/m" in prose
+
+
+def test_the_scenarios_overshoot_bound_is_the_one_its_help_and_pages_name():
+    """Review 68: `design --scenario` takes the scenario's requirements.first_contact_overshoot as its
+    bound (0 % printed "(bound 0 %)"), while its help, docs/design.md and docs/cli.md said 5 % unless
+    --max-overshoot. The bound is the stated one, else 5 %, and the three texts say so."""
+    import pathlib
+
+    from tmtcontrol.cli import build_parser
+    from tmtcontrol.stability.design import DESIGN_OVERSHOOT, overshoot_bound
+
+    sc = paper_scenario()
+    assert overshoot_bound(sc) == DESIGN_OVERSHOOT == 5.0
+    assert overshoot_bound(apply_overrides(sc, ["requirements.first_contact_overshoot=0"])) == 0.0
+    sub = next(a for a in build_parser()._actions if a.dest == "command").choices["design"]
+    help_text = " ".join(sub.format_help().split())
+    assert "overshoot bound the scenario's requirements.first_contact_overshoot, else 5 %" in help_text
+    root = pathlib.Path(__file__).parents[1]
+    for page in ("design.md", "cli.md"):
+        text = " ".join((root / "docs" / page).read_text().split())
+        assert "the overshoot bound is the scenario's `requirements.first_contact_overshoot`" in text, page
+        assert "overshoot bound is 5 %" not in text, page

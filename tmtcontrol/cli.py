@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
         "design", help="optimal normal-axis impedance over a stiffness range (IPOPT)", formatter_class=_RAW,
         description="Give either --scenario (m, k, the k_e range, Ts, f_d, delay, force filter and the path's\n"
                     "largest effective normal mass from the scenario; flags given override them; overshoot bound\n"
-                    "5 % unless --max-overshoot), or all of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot.\n"
+                    "the scenario's requirements.first_contact_overshoot, else 5 %, unless --max-overshoot), or all\n"
+                    "of --m, --k, --ke-min, --ke-max, --ts, --max-overshoot.\n"
                     "Exit 1 if the specification is infeasible or the design fails its own verification.",
         epilog="examples:\n"
                "  tmtcontrol design --m 1 --k 100 --ke-min 2000 --ke-max 20000 --ts 0.001 --max-overshoot 5\n"
@@ -156,7 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ke-max", type=float, help="upper end of the stiffness range, N/m (required without --scenario)")
     p.add_argument("--ts", type=float, help="control period, s (required without --scenario)")
     p.add_argument("--max-overshoot", type=float,
-                   help="first-contact force overshoot bound, percent (required without --scenario; default 5 with it)")
+                   help="first-contact force overshoot bound, percent (required without --scenario; with it "
+                        "default the scenario's requirements.first_contact_overshoot, else 5)")
     p.add_argument("--optimize-k", action="store_true", help="optimise k as well as b")
     p.add_argument("--fd", type=float, default=None, help="desired force, N (default 10, or the scenario's)")
     p.add_argument("--mp", type=float, default=None, help="robot's effective normal mass, kg "
