@@ -767,3 +767,19 @@ def test_a_case_whose_path_the_arm_cannot_follow_is_a_refused_row_and_the_sweep_
     r = _cli(str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"), "--no-plots", "--limits", "off", cwd=tmp_path)
     assert r.returncode == 1 and "0 diverged, 1 refused" in r.stdout and "not converged: 1 of 2" in r.stderr, r
     assert len(pq.read_table(tmp_path / "o" / "results.parquet")) == 2
+
+
+@pytest.mark.heavy          # two cases' limit analyses, ~2.5 s
+def test_a_loop_without_contact_is_off_target_at_every_stiffness():
+    """Review 68: with the part believed 15 cm nearer than it is (controller.x_e_error = -0.15 m, the command
+    f_d/K = 0.1 m beyond it) the loop never touches; its limit analysis says there is no limit, yet the
+    verdicts fell back to the 1-D small-signal figure (163,402 N/m, in no column of the row): 150,000 N/m
+    read off_target and 400,000 N/m beyond_limit for the same no-contact run. Both are off_target, with no
+    limit attached and the analysis' reason in limits_error."""
+    sweep = sweep_from_dict({"scenario": "paper", "grid": {
+        "environment.stiffness.values": [[150000.0], [400000.0]], "controller.x_e_error": [-0.15],
+        "trajectory.cycles": [0.05]}})
+    df = run_sweep(sweep, limits=True)
+    assert list(df["verdict"]) == ["off_target", "off_target"]
+    assert all("the loop holds no contact at any stiffness" in e for e in df["limits_error"])
+    assert df["predicted_limit"].isna().all() and (df["first_contact_time"].isna()).all()

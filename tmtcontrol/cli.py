@@ -538,11 +538,14 @@ def _verdict_exit(sc, segs, memo: dict | None = None) -> int:
     from .fmt import num
     from .stability.analysis import deciding_limit
     from .stability.continuous import AnalysisError
+    from .stability.limit import NoContact
     from .stability.onedim import unstable_free_axis
 
     free = unstable_free_axis(sc)          # said in each reason; the whole loop's search would only agree
     try:
         lim = None if free is not None else deciding_limit(sc, memo=memo)
+    except NoContact as exc:               # not a failure: there is no limit (its message says so)
+        lim = str(exc).splitlines()[0]
     except AnalysisError as exc:
         lim = f"the loop's limit could not be computed ({str(exc).splitlines()[0]})"
     else:

@@ -34,7 +34,7 @@ import numpy as np
 
 from .continuous import AnalysisError
 
-__all__ = ["ScenarioLimit", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL",
+__all__ = ["ScenarioLimit", "NoContact", "deciding_limit", "periodic_note", "with_stiffness_limit", "WHOLE_LOOP_RTOL",
            "UNREAD_KEYS", "CLIP_KEYS", "APPROACH_KEYS", "analysed_settings"]
 
 WHOLE_LOOP_RTOL = 1e-6
@@ -85,6 +85,13 @@ def analysed_settings(scenario) -> dict:
         else:
             d.pop(section)
     return d
+
+
+class NoContact(AnalysisError):
+    """The loop holds no contact at any stiffness (its equilibrium is off the
+    part): there is no stiffness limit, and no segment is judged against one
+    (review 68: a sweep's no-contact cases read ``beyond_limit`` above the 1-D
+    figure the failed analysis fell back to, ``off_target`` below it)."""
 
 
 @dataclass(frozen=True)
@@ -385,7 +392,7 @@ def _no_contact(scenario, model, k_min: float) -> None:
         return
     ctl, imp = scenario.controller, scenario.impedance
     key = "controller.x_e_error" if ctl.x_e_error < 0 or not any(ctl.part_offset) else "controller.part_offset"
-    raise AnalysisError(
+    raise NoContact(
         f"{key}: the loop holds no contact at any stiffness (at {k_min:,.0f} N/m its equilibrium is off the part, "
         f"force {f_eq:.3g} N): the position command, f_d/K = {ctl.f_d / imp.k[0]:.3g} m beyond the surface the "
         f"controller believes ({ctl.x_e_error:+.3g} m from the true one), stops short of the part; there is no "
@@ -499,7 +506,8 @@ def with_stiffness_limit(result, limit: ScenarioLimit | AnalysisError | None = N
             return result
         if isinstance(limit, ScenarioLimit):
             return _attached(result, float(limit.limit), limit.limit_from)
-    if small is None:       # the deciding limit failed: the 1-D figure stands, and says why
+    if small is None or isinstance(limit, NoContact):
+        # the deciding limit failed: the 1-D figure stands, and says why; a loop without contact has no limit
         return result
     return _attached(result, small, "1-D small-signal; the loop's own limit failed: "
                      + (str(limit).splitlines() or [type(limit).__name__])[0])
