@@ -183,6 +183,11 @@ TESTS: dict[str, tuple[str, ...]] = {
                           "tests/test_edges_wave4.py", "tests/test_files_safety.py"),
     "tmtcontrol/report/document.py": ("tests/test_report_renderer.py", "tests/test_report.py",
                                       "tests/test_report_arm.py"),
+    # the twenty-first session: the run's output folder and the model checks, never measured
+    "tmtcontrol/simulation/output.py": ("tests/test_outputs.py", "tests/test_drawing.py", "tests/test_files_safety.py",
+                                        "tests/test_curved_refusals.py"),
+    "tmtcontrol/checks/model.py": ("tests/test_model_checks.py", "tests/test_arm_checks.py", "tests/test_derivations.py",
+                                   "tests/test_mutation_kills.py"),
 }
 
 
