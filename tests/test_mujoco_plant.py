@@ -366,7 +366,10 @@ def test_contact_damping_on_the_spring_matches_the_builtin_plant():
 
 def test_mujoco_contact_refuses_a_concave_part_and_friction_on_the_spring(tmp_path, capsys):
     for sets, needle in ((['simulation.mujoco_contact="contact"'], "simulation.mujoco_contact: MuJoCo has no "
-                                                                    "primitive for this bowl (worked from inside"),
+                                                                    "solid primitive for this bowl (its own contact "
+                                                                    "takes a plane or the outside of a sphere or "
+                                                                    "cylinder); use simulation.mujoco_contact = "
+                                                                    "\"spring\""),
                          (["simulation.mujoco_friction=0.3"], "simulation.mujoco_friction: only MuJoCo's own")):
         out = tmp_path / "o"
         args = ["simulate", "panda-bowl", "--plant", "mujoco", "--out", str(out), "--no-plots"]

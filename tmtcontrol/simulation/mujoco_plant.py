@@ -88,8 +88,9 @@ def contact_inverse_inertia(model, geoms) -> float:
 
 
 def _no_primitive(surface) -> str:
-    return (f"MuJoCo has no primitive for this {surface.noun} (worked from inside, or measured); use "
-            "simulation.mujoco_contact = \"spring\"")
+    # review 65's low: "(worked from inside, or measured)" read oddly after "bowl" and "measured part" alike
+    return (f"MuJoCo has no solid primitive for this {surface.noun} (its own contact takes a plane or the outside "
+            "of a sphere or cylinder); use simulation.mujoco_contact = \"spring\"")
 
 
 def _contact_geom(geom, friction: float) -> None:
