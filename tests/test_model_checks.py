@@ -109,3 +109,52 @@ def test_the_unbroken_arms_pass_the_independent_rows():
         rows = independent_checks(load_scenario(arm))
         assert [r.passed for r in rows] == [True, True, True], [(r.name, r.residual) for r in rows]
     assert len(independent_checks(paper_scenario())) == 2          # a position task has no orientation error
+
+
+def test_the_loop_orientation_row_follows_a_curved_parts_turning_frame(monkeypatch):
+    """Mutation run 13: on a plane the commanded orientation R_d is the same at every point, so the row's
+    branch for a part whose frame turns (its command is the tool orientation on the frame where the commanded
+    tangential coordinates meet the part) could be inverted unseen. On a dome under the UR5 the row passes
+    with the turning frame (1e-9) and, taken from the fixed R_d instead, the same states are off by far
+    more."""
+    from tmtcontrol.checks import model as checks_model
+
+    from tmtcontrol.simulation.scenario import apply_overrides
+
+    # a dome: the path starts 0.1 m along task axis 1, 0.33 rad round its 0.3 m radius (on the pipe's start, on
+    # its axis's line through the centre, the turning and the fixed frame agree)
+    sc = apply_overrides(load_scenario("ur5"), ['environment.shape="sphere"', "environment.radius=0.3"])
+    row = checks_model.orientation_error_check(sc, 2024)
+    assert row.passed and row.residual <= 1e-9, (row.name, row.residual)
+
+    class Fixed:                         # the pipe, its frame's turning hidden from the check
+        def __init__(self, s):
+            self._s = s
+
+        def __getattr__(self, name):
+            return getattr(self._s, name)
+
+        turns = False
+
+    import tmtcontrol.simulation.geometry as geometry
+
+    real = geometry.surface_of
+    monkeypatch.setattr(geometry, "surface_of", lambda scenario: Fixed(real(scenario)))
+    wrong = checks_model.orientation_error_check(sc, 2024)
+    assert not wrong.passed and wrong.residual > 1e-3, wrong.residual
+
+
+def test_the_normal_mass_row_without_pinocchio_says_so_and_passes(monkeypatch):
+    """Mutation run 13: the row's fallback when Pinocchio cannot model the arm (ImportError or
+    NotImplementedError from model.verify.pinocchio_model) was untested: it says "not compared" and
+    names why, rather than raising."""
+    import tmtcontrol.model.verify as verify
+    from tmtcontrol.checks.model import normal_mass_check
+
+    for exc in (ImportError("no module named pinocchio"), NotImplementedError("a joint Pinocchio lacks")):
+        def refuse(robot, exc=exc):
+            raise exc
+
+        monkeypatch.setattr(verify, "pinocchio_model", refuse)
+        row = normal_mass_check(load_scenario("ur5"))
+        assert row.passed and row.method == "not compared" and row.note == f"Pinocchio not available: {exc}"

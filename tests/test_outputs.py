@@ -203,9 +203,24 @@ def test_timeseries_in_two_processes_is_the_same_file(paper_result, tmp_path, mo
     before = set(_children())
     write_timeseries(paper_result, tmp_path / "one.csv")
     one = (tmp_path / "one.csv").read_bytes()
+    forks, fork = [], os.fork
+    monkeypatch.setattr(os, "fork", lambda: forks.append(1) or fork())
     write_timeseries(paper_result, tmp_path / "two.csv", processes=2)
     assert (tmp_path / "two.csv").read_bytes() == one
     assert _children(before) == []
+    assert forks == [1]                     # the second half really was formatted elsewhere (mutation run 13)
+    # one row has no second half to hand over: formatted here, the same file (a split of it wrote an empty line)
+    import types
+
+    fields = ("time", "contact_force", "measured_force", "desired_force", "stiffness", "stiffness_estimate")
+    arrays = ("position", "reference_position", "command_position", "q", "dq", "tau")
+    row1 = types.SimpleNamespace(**{f: getattr(paper_result, f)[:1] for f in fields},
+                                 **{a: getattr(paper_result, a)[:, :1] for a in arrays}, orientation_error=None)
+    write_timeseries(row1, tmp_path / "row1.csv")
+    write_timeseries(row1, tmp_path / "row2.csv", processes=2)
+    assert (tmp_path / "row2.csv").read_bytes() == (tmp_path / "row1.csv").read_bytes() and forks == [1]
+    assert (tmp_path / "row1.csv").read_bytes().count(b"\n") == 2             # the header and the row
+    monkeypatch.setattr(os, "fork", fork)
 
     def dies(fd, data):                       # what the forked process calls to hand its half back
         os._exit(3)
