@@ -8,7 +8,8 @@ Springer 2008) over the :class:`~tmtcontrol.model.urdf.Chain` parsed by
   and its geometric Jacobian (linear rows first, base axes);
 * the recursive Newton-Euler algorithm (RNEA, Featherstone's table 5.1):
   ``tau = M(q) ddq + C(q, dq) dq + g(q)`` with gravity 9.81 m/s^2 along -z of
-  the base frame entering as an upward acceleration of the base;
+  the URDF's root link (the base frame's -z when the base is the root;
+  ``Chain.up``) entering as an upward acceleration of the base;
 * the composite rigid body algorithm (CRBA, table 6.2) for ``M(q)``.
 
 Why not a library: Pinocchio's wheel has no CasADi bindings, and
@@ -29,7 +30,8 @@ from .urdf import Chain
 __all__ = ["GRAVITY", "build_expressions"]
 
 GRAVITY = 9.81
-"""Magnitude of gravity, m/s^2, along -z of the base frame."""
+"""Magnitude of gravity, m/s^2, along -z of the URDF's root link (``Chain.up``
+in the base frame: -z of the base when the base is the root)."""
 
 
 def _const(A) -> ca.SX:
@@ -130,7 +132,8 @@ def _rnea(chain, Rs, ps, dq, ddq, gravity):
     """Recursive Newton-Euler in body coordinates (Featherstone table 5.1)."""
     n = len(chain.joints)
     w, v = ca.SX.zeros(3), ca.SX.zeros(3)
-    aw, av = ca.SX.zeros(3), _const([0.0, 0.0, gravity])        # base acceleration = -gravity
+    # base acceleration = -gravity: up along the URDF root's +z (Chain.up, base coordinates)
+    aw, av = ca.SX.zeros(3), _const(gravity * np.asarray(chain.up, dtype=float))
     forces = []
     for i, j in enumerate(chain.joints):
         E = Rs[i].T                                               # parent coordinates -> body i

@@ -152,6 +152,12 @@ class Chain:
         left out of ``joints``.
     link_masses : dict
         Mass of every link below the base, kg (0 for massless frames).
+    up : tuple of float
+        The URDF root's +z (up: gravity acts along -z of the root link) in
+        base coordinates: (0, 0, 1) when the base is the root; the joints'
+        rotations above a lower base turn it, a movable one taken at 0
+        (review 69: a wall-mounted arm read from its mount link had gravity
+        along the mount's own -z).
     """
 
     name: str
@@ -164,6 +170,7 @@ class Chain:
     tip_p: np.ndarray
     held: dict = field(default_factory=dict)
     link_masses: dict = field(default_factory=dict)
+    up: tuple = (0.0, 0.0, 1.0)
 
 
 def read_urdf(path) -> str:
@@ -254,6 +261,7 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
     frames = [l for l in below if l != base]
     if not frames:
         raise ChainError("base", f"{where}: no joint below the base link {base!r}")
+    up = _up(base, by_child)
     if tip is None:
         leaves = [l for l in below if not children[l]]
         if len(leaves) != 1:
@@ -338,7 +346,22 @@ def parse_chain(text: str, tip: str | None = None, base: str | None = None,
         bodies.append(body)
     tb, tR, tp = place[tip]
     return Chain(name=robot.name, base=base, tip=tip, joints=chain_joints, bodies=tuple(bodies), tip_body=tb,
-                 tip_R=tR, tip_p=tp, held=held, link_masses=masses)
+                 tip_R=tR, tip_p=tp, held=held, link_masses=masses, up=up)
+
+
+def _up(base: str, by_child: dict) -> tuple:
+    """The root link's +z in the coordinates of ``base`` (gravity acts along
+    the root's -z): the rotations of the joints' origins from the root down
+    to the base, a movable joint above the base taken at 0, the URDF's zero
+    pose (the base is fixed to the world; those joints are not modelled, as
+    Pinocchio's reference holds them)."""
+    R = np.eye(3)                                    # base -> root, built from the base up
+    link = base
+    while link in by_child:
+        j = by_child[link]
+        R = _origin(j.origin)[0] @ R
+        link = j.parent
+    return tuple(float(x) for x in R.T @ np.array([0.0, 0.0, 1.0]))
 
 
 # -- helpers ------------------------------------------------------------------------

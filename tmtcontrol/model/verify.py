@@ -198,9 +198,14 @@ def pinocchio_model(robot):
     ImportError
         Pinocchio is not installed.
     NotImplementedError
-        The robot's base is not the URDF's root link (Pinocchio's world would
-        differ from the base frame), or Pinocchio's URDF parser (urdfdom)
-        refuses a file tmtcontrol reads (a tab between two numbers).
+        Pinocchio's URDF parser (urdfdom) refuses a file tmtcontrol reads (a
+        tab between two numbers).
+
+    A base below the URDF's root (fixed to it, ``Chain.up``) is Pinocchio's
+    frame of that link: the joints above it held, ``fk`` and ``J`` turned
+    into its coordinates, gravity Pinocchio's own along the root's -z (review
+    69: the reference was skipped there, and the gravity it would have
+    caught was the base link's -z).
     """
     import pinocchio as pin
 
@@ -212,8 +217,6 @@ def pinocchio_model(robot):
         except (ValueError, RuntimeError) as exc:    # urdfdom is stricter (a tab between numbers; review 19)
             raise NotImplementedError(f"Pinocchio's URDF parser refuses the file: {' '.join(str(exc).split())}") \
                 from None
-        if model.frames[1].name != robot.base:          # frame 0 is the universe, 1 the root link
-            raise NotImplementedError(f"base {robot.base!r} is not the URDF's root link")
         qref = pin.neutral(model)
         lock = []
         for jid in range(1, model.njoints):
@@ -237,6 +240,14 @@ def pinocchio_model(robot):
             model.armature = np.asarray(robot.armature, float)
         tip = model.getFrameId(robot.tip)
     data = model.createData()
+    # the base's placement in Pinocchio's world (the root; identity when the base is the root): constant, every
+    # joint above the base being held
+    base_in_world = np.eye(4)
+    if robot.chain is not None:
+        pin.framesForwardKinematics(model, data, pin.neutral(model))
+        base_in_world = data.oMf[model.getFrameId(robot.base)].homogeneous.copy()
+    to_base = np.linalg.inv(base_in_world)
+    R_wb = base_in_world[:3, :3]
     nqs = [model.joints[i].nq for i in range(1, model.njoints)]
 
     def to_pin(q):
@@ -252,8 +263,9 @@ def pinocchio_model(robot):
         bias = pin.rnea(model, data, qp, dq, np.zeros(len(dq))).copy()
         g = pin.computeGeneralizedGravity(model, data, qp).copy()
         pin.framesForwardKinematics(model, data, qp)
-        fk = data.oMf[tip].homogeneous.copy()
+        fk = to_base @ data.oMf[tip].homogeneous
         J = pin.computeFrameJacobian(model, data, qp, tip, pin.LOCAL_WORLD_ALIGNED).copy()
+        J[:3], J[3:] = R_wb.T @ J[:3], R_wb.T @ J[3:]
         aba = pin.aba(model, data, qp, dq, tau).copy()
         return {"M": M, "bias": bias, "g": g, "J": J, "fk": fk, "aba": aba}
 
