@@ -903,3 +903,42 @@ def test_describe_names_the_posture_task_on_a_redundant_position_only_arm():
 
     four = load_robot("ur5", joints=["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint"])
     assert "  closed loop: a 3-axis task (position, with the null-space posture task)" in describe(four).splitlines()
+
+
+def test_lengths_in_millimetres_or_limits_in_degrees_are_noted(tmp_path, capsys):
+    """Review 69: a URDF written in millimetres (a 300-unit link) ran as a 900 m arm, its model checks failing
+    on the conditioning of M, which a user reads as a broken model; limits of 170 ran as 170 rad. Both are
+    valid input, so they run, with a note naming the reading: a reach above 10 m, a revolute limit beyond
+    two turns. The bundled arms and the PUMA have none; a prismatic joint's limit is metres, not noted."""
+    from tmtcontrol.model.robot import LARGE_REACH, LARGE_TURN
+
+    long = load_robot(write(tmp_path, PENDULUM.format(m=2.0, l=300.0, I=0.01, L=500.0, kind="revolute",
+                                                       axis="0 1 0"), "long.urdf"))
+    assert long.reach() > LARGE_REACH
+    (note,) = long.unit_notes()
+    assert note == ("robot pendulum: reach 500 m: an arm this long reads like lengths in millimetres; if so, "
+                    "divide the URDF's lengths by 1000 (SI units: m)")
+    degrees = PENDULUM.format(m=2.0, l=0.3, I=0.01, L=0.5, kind="revolute", axis="0 1 0").replace(
+        'lower="-3" upper="3"', 'lower="-170" upper="170"')
+    (note,) = load_robot(write(tmp_path, degrees, "deg.urdf")).unit_notes()
+    assert note == ("robot pendulum: joint 'hinge' limits [-170, 170] rad reach more than two turns: if they are "
+                    "in degrees, write them in radians (SI units: rad)")
+    assert 170 > LARGE_TURN > 2 * math.pi                       # a UR5's +-2 pi is not noted
+    slider = PENDULUM.format(m=2.0, l=0.3, I=0.01, L=0.5, kind="prismatic", axis="0 0 1").replace(
+        'lower="-3" upper="3"', 'lower="-20" upper="20"')
+    assert load_robot(write(tmp_path, slider, "slider.urdf")).unit_notes() == []
+    for arm in ("ur5", "panda", "puma560"):
+        assert load_robot(arm).unit_notes() == []
+    assert main(["robot", str(tmp_path / "deg.urdf")]) == 0
+    assert "note: robot pendulum: joint 'hinge' limits [-170, 170] rad" in capsys.readouterr().err
+    # a scenario naming the file holds the same note for its command (simulate, analyze, ...)
+    from tmtcontrol import apply_overrides, load_scenario
+    from tmtcontrol import cli
+
+    cli._NOTES.clear()
+    cli._noted(apply_overrides(load_scenario("ur5"), [f"robot.model='{tmp_path / 'long.urdf'}'", "robot.tip='tool'",
+                                                      "robot.q0=[0.0]", "robot.tau_max=[10.0]"]))
+    assert cli._NOTES == [long.unit_notes()[0]]
+    cli._NOTES.clear()
+    cli._noted(load_scenario("ur5"))
+    assert cli._NOTES == []

@@ -291,8 +291,15 @@ def _load_named(args):
 
 
 def _noted(sc):
-    """``sc``, its values that read like a unit mistake held by :func:`_hold_notes`."""
+    """``sc``, its values that read like a unit mistake held by :func:`_hold_notes`
+    (an arm's too: a URDF file's lengths or limits, review 69)."""
     _hold_notes(sc.environment.unit_notes() + sc.controller.unit_notes())
+    from .model.robot import BUNDLED
+
+    if sc.robot.model not in BUNDLED and sc.robot.model != "puma560":     # a file: the bundled arms are SI
+        from .simulation.simulator import robot_of
+
+        _hold_notes(robot_of(sc).unit_notes())
     return sc
 
 
@@ -859,6 +866,8 @@ def _robot(args) -> int:
         robot = load_robot(args.source, tip=args.tip, base=args.base, joints=joints)
     except ChainError as exc:      # the file is fine; the flag is at fault
         raise UsageError(f"--{exc.key}: {exc}") from None
+    _hold_notes(robot.unit_notes())        # before the checks that a unit mistake would fail (review 69)
+    _print_notes()
     check = check_robot(robot, samples=args.samples, seed=args.seed)
     if "mujoco" in args.against:
         import dataclasses

@@ -56,12 +56,20 @@ BUNDLED = {
 """Arms shipped with the package: file in ``model/data/`` and default tip."""
 
 MIN_JOINTS = 3
+"""Fewest actuated joints a closed loop takes: the tool point's three coordinates."""
+
+LARGE_REACH = 10.0
+"""A reach (m) from which :meth:`Robot.unit_notes` asks whether the URDF's
+lengths are millimetres (the largest industrial arms reach about 4 m)."""
+
+LARGE_TURN = 4 * math.pi
+"""A revolute joint limit (rad, two turns) from which :meth:`Robot.unit_notes`
+asks whether the limits are degrees (170 degrees read as 170 rad)."""
 
 TASK_RANK_SAMPLES = 8
 """Random poses at which :meth:`Robot.task_rank` evaluates the Jacobian (the
 largest rank counts: one pose away from a singularity shows the joints span
 the task)."""
-"""Fewest actuated joints a closed loop takes: the tool point's three coordinates."""
 
 
 @dataclass(frozen=True)
@@ -366,6 +374,25 @@ class Robot:
         if not compiled:
             return fn
         return _compiled(fn, self.key or hashlib.sha256(fn.serialize().encode()).hexdigest()[:20])
+
+    def unit_notes(self) -> list[str]:
+        """Values that read like a unit mistake, one line each for the command
+        line to print (review 69: a URDF in millimetres ran as a 900 m arm,
+        its model checks failing on the conditioning of M and blamed on the
+        model; limits of 170 read as 170 rad): a reach above
+        :data:`LARGE_REACH`, a revolute joint's limit beyond
+        :data:`LARGE_TURN`."""
+        notes = []
+        reach = self.reach()
+        if reach > LARGE_REACH:
+            notes.append(f"robot {self.name}: reach {reach:.4g} m: an arm this long reads like lengths in "
+                         "millimetres; if so, divide the URDF's lengths by 1000 (SI units: m)")
+        kinds = [j.type for j in self.chain.joints] if self.chain is not None else ["revolute"] * self.n
+        for name, kind, lo, hi in zip(self.joint_names, kinds, self.q_min, self.q_max):
+            if kind == "revolute" and any(math.isfinite(x) and abs(x) > LARGE_TURN for x in (lo, hi)):
+                notes.append(f"robot {self.name}: joint {name!r} limits [{lo:g}, {hi:g}] rad reach more than two "
+                             "turns: if they are in degrees, write them in radians (SI units: rad)")
+        return notes
 
     def reach(self) -> float:
         """Upper bound of the tip's distance from the first joint's axis origin, m:
