@@ -219,7 +219,7 @@ def test_cli_writes_parquet_summary_and_map_and_exits_1_on_a_limit_cycle(small, 
     assert len(table) == 4 and set(table["verdict"]) == {"converged", "limit_cycle"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["verdicts"] == {"converged": 2, "off_target": 0, "over_limit": 0, "beyond_limit": 0,
-                                   "limit_cycle": 2, "diverged": 0}
+                                   "limit_cycle": 2, "diverged": 0, "refused": 0}
     assert summary["worst"][0]["verdict"] == "limit_cycle"
     # the boundary's values carry their axes' units (the schema's: stiffness in N/m, noise in N, cycles none)
     assert summary["units"] == {"environment.stiffness.values": "N/m", "trajectory.cycles": "",
