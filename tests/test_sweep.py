@@ -768,6 +768,12 @@ def test_a_case_whose_path_the_arm_cannot_follow_is_a_refused_row_and_the_sweep_
     assert far["error"].startswith("trajectory: at path time t = 0.000 s the pose is unreachable")
     summary = sweep_summary(sweep, df)
     assert summary["verdicts"][REFUSED] == 1 and summary["verdicts"]["converged"] == 1
+    # only the path's refusals (posture.PathError) are rows; another refusal stops the sweep (review 70: a run
+    # longer than max_steps made every row "refused" from Python)
+    from tmtcontrol.simulation.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError, match=r"trajectory.cycles: .* exceed the limit of 100"):
+        run_sweep(sweep, max_steps=100, limits=False)
     (tmp_path / "s.toml").write_text('scenario = "paper"\n[grid]\n"trajectory.radius" = [0.1, 0.9]\n'
                                      '"trajectory.cycles" = [0.25]\n')
     r = _cli(str(tmp_path / "s.toml"), "--out", str(tmp_path / "o"), "--no-plots", "--limits", "off", cwd=tmp_path)
@@ -789,3 +795,21 @@ def test_a_loop_without_contact_is_off_target_at_every_stiffness():
     assert list(df["verdict"]) == ["off_target", "off_target"]
     assert all("the loop holds no contact at any stiffness" in e for e in df["limits_error"])
     assert df["predicted_limit"].isna().all() and (df["first_contact_time"].isna()).all()
+
+
+def test_a_one_axis_map_draws_refused_cases_along_its_bottom():
+    """Review 70: on a one-axis map the y value is the case's error, NaN for a refused case (never run), so
+    its marker was not drawn (the legend said "refused (1)" and the 0.9 m tick was off the axis); with every
+    case refused the map was an empty frame. They sit under every measured error at their x."""
+    from tmtcontrol.sweep.figures import sweep_map_figure
+
+    df = pd.DataFrame({"trajectory.radius": [0.05, 0.1, 0.9], "verdict": ["converged", "converged", "refused"],
+                       "max_steady_error": [8e-5, 2e-4, np.nan]})
+    fig = sweep_map_figure(df, ["trajectory.radius"])
+    (refused,) = [c for c in fig.axes[0].collections if c.get_label().startswith("refused")]
+    (x, y), = refused.get_offsets()
+    assert x == 0.9 and 0 < y < 8e-5
+    assert fig.axes[0].get_xlim()[1] >= 0.9
+    every = sweep_map_figure(df.assign(verdict="refused", max_steady_error=np.nan), ["trajectory.radius"])
+    assert len(every.axes[0].collections[0].get_offsets()) == 3 and np.isfinite(
+        every.axes[0].collections[0].get_offsets()).all()

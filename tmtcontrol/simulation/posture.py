@@ -37,8 +37,15 @@ import numpy as np
 
 from .scenario import ScenarioError
 
-__all__ = ["MIN_SINGULAR_VALUE", "PATH_SAMPLES", "pose_solver", "solve_pose", "PosePath", "check_pose_path",
-           "task_jacobian"]
+__all__ = ["MIN_SINGULAR_VALUE", "PATH_SAMPLES", "PathError", "pose_solver", "solve_pose", "PosePath",
+           "check_pose_path", "task_jacobian"]
+
+
+class PathError(ScenarioError):
+    """The arm cannot follow the scenario's path: a pose unreachable, outside
+    the joint limits or near a singularity (:func:`check_pose_path`). A
+    scenario the schema accepts, refused when it runs (a sweep keeps such a
+    case as a row, ``sweep.run.REFUSED``)."""
 
 MIN_SINGULAR_VALUE = 0.02
 """Smallest singular value of J accepted along the path. On the UR5 (a6 =
@@ -204,17 +211,17 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
             if ok_free:
                 out = np.flatnonzero((q_free < robot.q_min) | (q_free > robot.q_max))
                 names = ", ".join(robot.joint_names[i] for i in out) or "a joint"
-                raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the pose is outside the joint "
+                raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the pose is outside the joint "
                                     f"limits ({names}) at {np.round(points[:, k], 4).tolist()} m")
             seed = "robot.q0" if k == 0 else "the previous path point"
             orient = " with the commanded orientation" if robot.task.rotational else ""
-            raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the pose is unreachable "
+            raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the pose is unreachable "
                                 f"(tool point {np.round(points[:, k], 4).tolist()} m{orient}; no pose found "
                                 f"from {seed})")
         sv = np.linalg.svd(task_jacobian(robot, q), compute_uv=False)
         s = sv[-1]
         if not s >= MIN_SINGULAR_VALUE:
-            raise ScenarioError(f"trajectory: at path time t = {t[k]:.3f} s the path passes near a singularity "
+            raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the path passes near a singularity "
                                 f"(smallest singular value of J {s:.3g} < {MIN_SINGULAR_VALUE:g})")
         qs.append(q)
         sig.append(sv)

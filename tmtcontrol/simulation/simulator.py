@@ -287,8 +287,8 @@ def path_of(robot, sc: Scenario) -> PosePath:
         except ScenarioError as exc:
             if not any(offset):
                 raise
-            raise ScenarioError(f"{exc}; the path under the controller's part, moved by controller.part_offset = "
-                                f"{list(offset)} m") from None
+            raise type(exc)(f"{exc}; the path under the controller's part, moved by controller.part_offset = "
+                            f"{list(offset)} m") from None
         for a in (path.t, path.q, path.sigma_min, path.condition_number):
             a.setflags(write=False)
         _PATHS[key] = path

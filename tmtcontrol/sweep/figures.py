@@ -69,12 +69,18 @@ def sweep_map_figure(df, axes: list[str], predicted: dict | None = None, facet: 
     norm = mpl.colors.LogNorm(vmin=max(np.min(err_all), 1e-6), vmax=max(np.max(err_all), 1e-5))
     x_key = axes[0]
     y_key = axes[1] if len(axes) > 1 else "max_steady_error"
+    measured = df["max_steady_error"].to_numpy(dtype=float)
+    measured = measured[np.isfinite(measured) & (measured > 0)]
+    floor = float(measured.min()) / 3 if measured.size else 1e-6        # under every measured error
     sc = None
     ax0 = None
     for j, (fv, d) in enumerate(panels):
         ax = fig.add_subplot(1, len(panels), j + 1, sharex=ax0, sharey=ax0)
         ax0 = ax0 or ax
         x, y = d[x_key].to_numpy(), d[y_key].to_numpy()
+        if y_key == "max_steady_error":     # a refused case has no error: drawn along the bottom (review 70)
+            y = y.astype(float).copy()
+            y[(d["verdict"] == "refused").to_numpy()] = floor
         err = np.clip(d["max_steady_error"].to_numpy(dtype=float), 1e-6, 1e3)
         for verdict, (marker, colour) in VERDICT_STYLE.items():
             m = (d["verdict"] == verdict).to_numpy()

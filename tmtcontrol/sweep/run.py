@@ -74,7 +74,7 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     from ..simulation.metrics import VERDICTS, first_contact, segment_metrics
     from ..simulation.simulator import simulator_for
     from ..stability.limit import with_stiffness_limit
-    from ..simulation.scenario import ScenarioError
+    from ..simulation.posture import PathError
     from ..simulation.simulator import SimulationError, structure as _structure
 
     sc = case_scenario(base, case.values)
@@ -91,11 +91,12 @@ def case_row(base: dict, case: Case, max_steps: int | None = None, limits: bool 
     t0 = time.perf_counter()
     try:
         res = _SIMS[key].run(sc, max_steps=max_steps)
-    except (SimulationError, ScenarioError) as exc:
+    except (SimulationError, PathError) as exc:
         # a case the run refuses (its path unreachable, outside the joint limits or near a singularity: checked
         # when it runs, not by the schema) is a row saying so, and the sweep goes on (review 68: it stopped
-        # the sweep with a line naming no case, and --resume met the same case again)
-        refused = isinstance(exc, ScenarioError)           # never run: no error to measure (NaN), not inf
+        # the sweep with a line naming no case, and --resume met the same case again); any other refusal (a
+        # run longer than max_steps) stops the sweep, as before (review 70)
+        refused = isinstance(exc, PathError)               # never run: no error to measure (NaN), not inf
         row.update({"verdict": REFUSED if refused else "diverged",
                     "max_steady_error": math.nan if refused else math.inf,
                     "first_contact_time": None,
