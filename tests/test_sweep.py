@@ -813,3 +813,4 @@ def test_a_one_axis_map_draws_refused_cases_along_its_bottom():
     every = sweep_map_figure(df.assign(verdict="refused", max_steady_error=np.nan), ["trajectory.radius"])
     assert len(every.axes[0].collections[0].get_offsets()) == 3 and np.isfinite(
         every.axes[0].collections[0].get_offsets()).all()
+

@@ -207,3 +207,18 @@ def test_a_harmless_x_e_error_does_not_flip_the_verdict_just_below_the_limit():
         for x_e_error in (0.0, 0.001):
             d = analyze(k_e=k_e, x_e_error=x_e_error, **kw)
             assert d["sampled_stable"] is stable and (d["spectral_radius"] < 1.0) is stable, (k_e, x_e_error)
+
+
+def test_a_rounding_touch_at_the_start_is_no_contact():
+    """Review 70: the UR5 with its part believed 15 cm nearer (x_e_error = -0.15 m) never touches, but its
+    start leaves 9.8e-14 N of rounding, so the segment read "the contact is lost in the last quarter"
+    (limit_cycle) and the crosscheck's plants disagreed (MuJoCo: off_target). A force at or below
+    CONTACT_FLOOR f_d (10 nN at 10 N, first_contact's own floor) is no touch: off_target."""
+    from tmtcontrol import Simulator, apply_overrides, load_scenario, segment_metrics
+    from tmtcontrol.simulation.metrics import CONTACT_FLOOR
+
+    sc = apply_overrides(load_scenario("ur5"), ["controller.x_e_error=-0.15", "trajectory.cycles=0.1"])
+    r = Simulator(sc).run()
+    assert 0 < r.contact_force.max() <= CONTACT_FLOOR * sc.controller.f_d        # the rounding, measured 9.8e-14 N
+    (m,) = segment_metrics(r)
+    assert (m.verdict, m.reason) == ("off_target", "no contact in the segment (the tool never reached the surface)")

@@ -401,7 +401,9 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
                 else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
-    if not np.any(force > 0.0):     # never in contact: nothing oscillates, the tool is off the surface (review 23)
+    # never in contact: nothing oscillates, the tool is off the surface (review 23); a force below CONTACT_FLOOR f_d
+    # is rounding, not a touch (review 70: the UR5 off its part read 1e-13 N at its start, "the contact is lost")
+    if not np.any(force > CONTACT_FLOOR * f_d):
         return "off_target", "no contact in the segment (the tool never reached the surface)"
     if np.any(last <= 0.0):
         return "limit_cycle", "the contact is lost in the last quarter"
@@ -585,7 +587,8 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         else:
             verdict, reason, tol = ("diverged", f"without the sensor noise the run diverges: {twin_error}",
                                     sc.controller.force_tolerance)
-        verdict, reason = _first_contact_rules(verdict, reason, result.contact_force, i0, i1, result.Ts)
+        verdict, reason = _first_contact_rules(verdict, reason, result.contact_force, i0, i1, result.Ts,
+                                               CONTACT_FLOOR * f_d)
         k_max = float(np.max(result.stiffness[i0:i1]))
         if (((verdict == "limit_cycle" and "does not decay over" in reason)
              or (verdict == "diverged" and reason.startswith("oscillation grows"))) and periods
@@ -757,7 +760,8 @@ def _setting_hints(verdict: str, reason: str, sc, k_min: float, judged_from: flo
     return reason + "".join(f"; {h}" for h in hints)
 
 
-def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float):
+def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float,
+                         floor: float = 0.0):
     """A segment's verdict with the run's first contact in view: a segment the
     run's first contact falls in at or after the start of its last quarter
     (a guarded approach arriving late) has too little left to judge, its
@@ -765,8 +769,10 @@ def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, 
     read "the contact is lost", a limit cycle): off_target, provided the
     contact holds over the last quarter of what is left after it (a contact
     bouncing to the end is lost, review 29). A segment without
-    contact after the run had some has lost it: limit_cycle."""
-    touched = np.flatnonzero(force > 0.0)
+    contact after the run had some has lost it: limit_cycle. ``floor`` (N):
+    a force at or below it is rounding, not a touch (:data:`CONTACT_FLOOR`
+    times f_d)."""
+    touched = np.flatnonzero(force > floor)            # a touch: above the rounding floor (N)
     first = int(touched[0]) if touched.size else None
     if first is not None and first < i0 and reason.startswith("no contact in the segment"):
         return "limit_cycle", "the contact is lost for the whole segment"
