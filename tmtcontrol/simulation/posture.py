@@ -191,7 +191,7 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
     """Solve the pose at every path point (``points`` 3 x k, base frame, m;
     ``t`` their path times, s; ``R_d`` the commanded orientation, one 3 x 3
     or one per point, k x 3 x 3) from ``q_seed`` then from the previous pose;
-    raise :class:`ScenarioError` (one line: path time and reason) at the
+    raise :class:`PathError` (one line: path time and reason) at the
     first point that is unreachable, outside the joint limits or near a
     singularity."""
     closed = not robot.task.rotational and robot.position_ik is not None
@@ -212,17 +212,17 @@ def check_pose_path(robot, points, R_d, t, q_seed) -> PosePath:
                 out = np.flatnonzero((q_free < robot.q_min) | (q_free > robot.q_max))
                 names = ", ".join(robot.joint_names[i] for i in out) or "a joint"
                 raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the pose is outside the joint "
-                                    f"limits ({names}) at {np.round(points[:, k], 4).tolist()} m")
+                                f"limits ({names}) at {np.round(points[:, k], 4).tolist()} m")
             seed = "robot.q0" if k == 0 else "the previous path point"
             orient = " with the commanded orientation" if robot.task.rotational else ""
             raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the pose is unreachable "
-                                f"(tool point {np.round(points[:, k], 4).tolist()} m{orient}; no pose found "
-                                f"from {seed})")
+                            f"(tool point {np.round(points[:, k], 4).tolist()} m{orient}; no pose found "
+                            f"from {seed})")
         sv = np.linalg.svd(task_jacobian(robot, q), compute_uv=False)
         s = sv[-1]
         if not s >= MIN_SINGULAR_VALUE:
             raise PathError(f"trajectory: at path time t = {t[k]:.3f} s the path passes near a singularity "
-                                f"(smallest singular value of J {s:.3g} < {MIN_SINGULAR_VALUE:g})")
+                            f"(smallest singular value of J {s:.3g} < {MIN_SINGULAR_VALUE:g})")
         qs.append(q)
         sig.append(sv)
         q_prev = q
