@@ -432,14 +432,15 @@ class _SampledRadius(ca.Callback):
         return 1
 
     def eval(self, arg):
-        return [_radius(self.spec, float(arg[0]), float(arg[1]))]
+        return [_radius(self.spec, float(arg[0]), float(arg[1]), aim=LIMIT_AIM)]
 
 
-def _radius(s: DesignSpec, b: float, k: float) -> float:
+def _radius(s: DesignSpec, b: float, k: float, aim: float = 0.0) -> float:
     """Spectral radius of the sampled loop at margin * k_e_max (times 1 +
-    :data:`LIMIT_AIM`): the closed form without delay, the law's 1-D loop
-    with it."""
-    ke = s.stiffness_margin * s.k_e_max * (1.0 + LIMIT_AIM)
+    ``aim``: :data:`LIMIT_AIM` where a design is made; 0 where the windows
+    a conflict quotes are found, the requirement itself): the closed form
+    without delay, the law's 1-D loop with it."""
+    ke = s.stiffness_margin * s.k_e_max * (1.0 + aim)
     if s.delay == 0:
         return spectral_radius(s.m, b, k, ke, s.Ts, s.m_p, alpha=s.alpha)
     from ..control.laws import get_law
@@ -730,7 +731,8 @@ def _raised_for_overshoot(spec: DesignSpec, b: float, k: float, dense, over) -> 
         failing = [ke for ke, o in zip(dense, over) if o > spec.max_overshoot + OVERSHOOT_SLACK]
 
         def ok(bb):
-            return _radius(spec, bb, k) < 1 and worst(bb, failing) <= spec.max_overshoot + OVERSHOOT_SLACK
+            return (_radius(spec, bb, k, aim=LIMIT_AIM) < 1
+                    and worst(bb, failing) <= spec.max_overshoot + OVERSHOOT_SLACK)
 
         step, hi = 1e-4 * b, b * (1 + 1e-4)
         while not ok(hi):
