@@ -293,13 +293,14 @@ def _load_named(args):
 def _noted(sc):
     """``sc``, its values that read like a unit mistake held by :func:`_hold_notes`
     (an arm's too: a URDF file's lengths or limits, review 69)."""
-    _hold_notes(sc.environment.unit_notes() + sc.controller.unit_notes())
-    from .model.robot import BUNDLED
+    from .model.robot import unit_notes_of
 
-    if sc.robot.model not in BUNDLED and sc.robot.model != "puma560":     # a file: the bundled arms are SI
+    def arm():                  # loaded for a user's URDF only (the simulator's import is not a warm run's cost)
         from .simulation.simulator import robot_of
 
-        _hold_notes(robot_of(sc).unit_notes())
+        return robot_of(sc)
+
+    _hold_notes(sc.environment.unit_notes() + sc.controller.unit_notes() + unit_notes_of(sc.robot.model, arm))
     return sc
 
 

@@ -47,7 +47,7 @@ import numpy as np
 from .urdf import Chain, ChainError, TipError, URDFError, parse_chain, read_urdf
 
 __all__ = ["BUNDLED", "MIN_JOINTS", "Robot", "RobotFunctions", "Task", "URDFError", "load_robot", "task_of",
-           "source_stamp"]
+           "source_stamp", "unit_notes_of"]
 
 BUNDLED = {
     "ur5": ("ur5.urdf", "tool0"),
@@ -404,6 +404,15 @@ class Robot:
             return float(l2.a + math.hypot(l3.a, WRIST_OFFSET) + abs(l3.d))
         pts = [j.p for j in self.chain.joints[1:]] + [self.chain.tip_p]
         return float(sum(np.linalg.norm(p) for p in pts))
+
+
+def unit_notes_of(source, load) -> list[str]:
+    """:meth:`Robot.unit_notes` of the arm ``source`` names (as
+    :func:`load_robot` takes it), loaded by ``load()`` for a user's URDF
+    only: the PUMA and the bundled arms are SI (their tests check them), and
+    a command need not build their dynamics for a note."""
+    name = os.fspath(source)
+    return [] if name.lower() in ("puma560", *BUNDLED) else load().unit_notes()
 
 
 def source_stamp(source) -> tuple[int, int, int] | None:
