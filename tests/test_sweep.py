@@ -748,6 +748,13 @@ def test_a_number_on_a_pair_valued_base_key_stays_a_number_where_the_key_takes_o
     assert case_scenario(base, {"environment.stiffness.values": 3e4}).environment.stiffness.values == (3e4,)
     assert takes_a_number("environment.grid_spacing") and takes_a_number("controller.f_d")
     assert not takes_a_number("environment.stiffness.values") and not takes_a_number("robot.tau_max")
+    # a list key of a tagged table's other kind (piecewise_linear's times): a list, as before (a KeyError here
+    # was a traceback for a sweep of numbers over it)
+    assert not takes_a_number("environment.stiffness.times")
+    linear = scenario_to_dict(apply_overrides(load_scenario("paper"), [
+        "environment.stiffness={kind='piecewise_linear', times=[0.0, 2.0], values=[5000.0, 20000.0]}"]))
+    one = case_scenario(linear, {"environment.stiffness.times": 0.0, "environment.stiffness.values": 7000.0})
+    assert (one.environment.stiffness.times, one.environment.stiffness.values) == ((0.0,), (7000.0,))
     assert setting_bounds("environment.grid_spacing") == {"gt": 0, "le": 1.0}
 
 

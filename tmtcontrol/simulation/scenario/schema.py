@@ -502,8 +502,12 @@ def takes_a_number(key: str) -> bool:
     """Whether the field at dotted ``key`` takes a single number (a list-only
     key such as ``environment.stiffness.values`` does not: a sweep makes a
     number given for it a one-element list; ``environment.grid_spacing``
-    takes a number or a pair)."""
-    info = _field_info(key)
+    takes a number or a pair). False for a key of a tagged table's other
+    kind (``environment.stiffness.times``, piecewise_linear's), as for a list."""
+    try:
+        info = _field_info(key)
+    except (KeyError, AttributeError):
+        return False
     return info.annotation in (int, float) or _number_member(info.annotation) is not None
 
 
