@@ -232,9 +232,10 @@ def test_a_segment_without_contact_after_the_run_had_some_has_lost_it():
 
     force = np.r_[np.full(100, 10.0), np.zeros(100)]
     assert _first_contact_rules("off_target", "no contact in the segment (the tool never reached the surface)",
-                                force, 100, 200, 1e-3) == ("limit_cycle", "the contact is lost for the whole segment")
+                                force, 100, 200, 1e-3, 10.0) == ("limit_cycle",
+                                                                 "the contact is lost for the whole segment")
     assert _first_contact_rules("off_target", "no contact in the segment (the tool never reached the surface)",
-                                np.zeros(200), 100, 200, 1e-3)[0] == "off_target"
+                                np.zeros(200), 100, 200, 1e-3, 10.0)[0] == "off_target"
 
 
 def test_a_late_first_contact_bouncing_to_the_end_is_still_a_limit_cycle():

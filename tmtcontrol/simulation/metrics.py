@@ -84,13 +84,28 @@ from .simulator import SimulationResult
 
 __all__ = ["SegmentMetrics", "segments", "segment_metrics", "settling_time", "format_table", "orientation_transient",
            "segment_verdict", "judge_segment", "judging_periods", "bias_allowance", "VERDICTS", "FirstContact",
-           "first_contact", "FIRST_CONTACT_WINDOW", "CONTACT_FLOOR"]
+           "first_contact", "FIRST_CONTACT_WINDOW", "CONTACT_FLOOR", "touching"]
 
 VERDICTS = ("converged", "off_target", "over_limit", "beyond_limit", "limit_cycle", "diverged")
 """Per-segment verdicts, best first (see the module docstring)."""
 
 STEADY_FRACTION = 0.25
 """The last quarter of a segment is its steady state."""
+
+CONTACT_FLOOR = 1e-9
+"""A contact force at or below ``f_d`` times this (10 nN at the paper's 10 N)
+is rounding, not a touch, for every contact test here (:func:`touching`): a
+height map's spline leaves 1e-13 N at a path start that lies on the part
+(review 47: "first contact at 0.000 s" where the same analytic sphere read
+0.001 s), the UR5 off its part 9.8e-14 N at its start (review 70: "the
+contact is lost"); the paper's first step presses 25 mN."""
+
+
+def touching(force, f_d: float) -> np.ndarray:
+    """Where the contact force ``force`` (N) is a touch: above
+    :data:`CONTACT_FLOOR` times ``f_d``, the one definition of contact the
+    verdicts, the first contact and the contact-lost figures share."""
+    return np.asarray(force) > CONTACT_FLOOR * f_d
 
 RIPPLE_BAND = 0.01
 """Peak-to-peak force oscillation, as a fraction of f_d, below which a
@@ -401,11 +416,10 @@ def judge_segment(force: np.ndarray, f_d: float, band: float, tolerance: float,
         return (("converged", f"|f_e - f_d| <= {_N(worst)} (a segment of {n} samples)") if worst <= tolerance
                 else ("off_target", f"|f_e - f_d| up to {_N(worst)} (tolerance {_N(tolerance)}, a segment of "
                                     f"{n} samples: too short to judge growth)"))
-    # never in contact: nothing oscillates, the tool is off the surface (review 23); a force below CONTACT_FLOOR f_d
-    # is rounding, not a touch (review 70: the UR5 off its part read 1e-13 N at its start, "the contact is lost")
-    if not np.any(force > CONTACT_FLOOR * f_d):
+    # never in contact: nothing oscillates, the tool is off the surface (review 23)
+    if not np.any(touching(force, f_d)):
         return "off_target", "no contact in the segment (the tool never reached the surface)"
-    if np.any(last <= 0.0):
+    if not np.all(touching(last, f_d)):
         return "limit_cycle", "the contact is lost in the last quarter"
     P = next((p for p in periods if n >= 2 * p), None)
     W = P * max(1, (n // 4) // P) if P else max(2, last.size // 2)
@@ -580,15 +594,14 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         after = f[1:] if f.size > 1 else f
         overshoot = (max(0.0, f_d - float(after.min())) if f[0] > f_d else max(0.0, float(after.max()) - f_d))
         ss_err = float(np.abs(err[ss]).max())
-        touching = np.flatnonzero(f > 0.0)
-        lost = np.count_nonzero(f[touching[0]:] <= 0.0) if touching.size else f.size
+        touched = np.flatnonzero(touching(f, f_d))
+        lost = np.count_nonzero(~touching(f[touched[0]:], f_d)) if touched.size else f.size
         if twin_error is None:
             verdict, reason, tol = _judge(result, twin, i0, i1, periods)
         else:
             verdict, reason, tol = ("diverged", f"without the sensor noise the run diverges: {twin_error}",
                                     sc.controller.force_tolerance)
-        verdict, reason = _first_contact_rules(verdict, reason, result.contact_force, i0, i1, result.Ts,
-                                               CONTACT_FLOOR * f_d)
+        verdict, reason = _first_contact_rules(verdict, reason, result.contact_force, i0, i1, result.Ts, f_d)
         k_max = float(np.max(result.stiffness[i0:i1]))
         if (((verdict == "limit_cycle" and "does not decay over" in reason)
              or (verdict == "diverged" and reason.startswith("oscillation grows"))) and periods
@@ -630,7 +643,7 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
             settling_time_10mN=settling_time(err, 0.01, t),
             max_steady_error=ss_err,
             tangential_rms=float(tang),
-            contact_lost_steady=bool(np.any(f[ss] <= 0.0)),
+            contact_lost_steady=bool(not np.all(touching(f[ss], f_d))),
             contact_lost_time=float(lost * result.Ts),
             verdict=verdict, tolerance=tol, reason=reason,
             torque_margin=float(np.min(use.torque_margin)) if use else math.inf,
@@ -761,7 +774,7 @@ def _setting_hints(verdict: str, reason: str, sc, k_min: float, judged_from: flo
 
 
 def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, i1: int, Ts: float,
-                         floor: float = 0.0):
+                         f_d: float):
     """A segment's verdict with the run's first contact in view: a segment the
     run's first contact falls in at or after the start of its last quarter
     (a guarded approach arriving late) has too little left to judge, its
@@ -769,17 +782,16 @@ def _first_contact_rules(verdict: str, reason: str, force: np.ndarray, i0: int, 
     read "the contact is lost", a limit cycle): off_target, provided the
     contact holds over the last quarter of what is left after it (a contact
     bouncing to the end is lost, review 29). A segment without
-    contact after the run had some has lost it: limit_cycle. ``floor`` (N):
-    a force at or below it is rounding, not a touch (:data:`CONTACT_FLOOR`
-    times f_d)."""
-    touched = np.flatnonzero(force > floor)            # a touch: above the rounding floor (N)
+    contact after the run had some has lost it: limit_cycle. Contact is
+    :func:`touching` (``f_d`` in N)."""
+    touched = np.flatnonzero(touching(force, f_d))
     first = int(touched[0]) if touched.size else None
     if first is not None and first < i0 and reason.startswith("no contact in the segment"):
         return "limit_cycle", "the contact is lost for the whole segment"
     late = i0 + int((i1 - i0) * (1 - STEADY_FRACTION))
     # the impact's bounces only: the contact held over the last quarter of what is left after it (review 29: a
     # stiffness 12x over the limit bouncing to the end, 875 of 949 samples off the surface, was excused)
-    settled_on = first is not None and np.all(force[first + 3 * (i1 - first) // 4:i1] > 0.0)
+    settled_on = first is not None and np.all(touching(force[first + 3 * (i1 - first) // 4:i1], f_d))
     if (first is not None and late <= first < i1 and settled_on and verdict in ("limit_cycle", "diverged")
             and reason.startswith("the contact is lost")):
         return "off_target", (f"first contact made only {(i1 - first) * Ts:.3g} s before the segment's end (its "
@@ -845,28 +857,20 @@ class FirstContact:
         return asdict(self)
 
 
-CONTACT_FLOOR = 1e-9
-"""A contact force below ``f_d`` times this (10 nN at the paper's 10 N) is
-rounding, not a touch, for :func:`first_contact`: a height map's spline
-leaves 1e-13 N at a path start that lies on the part (review 47: "first
-contact at 0.000 s" where the same analytic sphere read 0.001 s); the
-paper's first step presses 25 mN."""
-
-
 def first_contact(result: SimulationResult, window: float = FIRST_CONTACT_WINDOW) -> FirstContact:
     """:class:`FirstContact` of ``result``. A run that starts on the surface
     at zero force touches at its first force above :data:`CONTACT_FLOOR`
     times f_d; the window's losses of contact are its falls below it."""
     f = result.contact_force
-    touching = f > CONTACT_FLOOR * result.scenario.controller.f_d
-    if not touching.any():
+    touch = touching(f, result.scenario.controller.f_d)
+    if not touch.any():
         return FirstContact(None, 0.0, 0.0, 0)
-    i0 = int(np.argmax(touching))
+    i0 = int(np.argmax(touch))
     # the window ends at the end of the segment the contact is made in (a later switch's transient is not the
     # contact's; review 25: the first segment's end, before a late contact, left one sample: 0.04 N for 10.2 N)
     seg_end = next((e for s, e in segments(result) if s <= i0 < e), f.size)
     end = min(seg_end, i0 + int(round(window / result.Ts)) + 1)
-    w = touching[i0:max(end, i0 + 1)]
+    w = touch[i0:max(end, i0 + 1)]
     peak = float(f[i0:max(end, i0 + 1)].max())
     last = max(end, i0 + 1) - 1
     # the samples cover the window up to the step that starts at the last one (a 10 ms run: 10 ms, not 1 s)
