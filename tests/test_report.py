@@ -1006,3 +1006,22 @@ def test_a_proposed_design_that_fails_on_the_scenarios_loop_says_so(monkeypatch)
     sec = _design(Report(sc, ""), sc, scenario_parameters(sc), None, None)
     text = " ".join(b.text for b in sec.blocks if isinstance(b, Paragraph))
     assert "fails its verification on this scenario's loop: " in text and "Do not use it as is." in text, text
+
+
+@pytest.mark.heavy      # a report's start (its second process forked) and the frozen loop's limit search: ~5 s
+def test_a_loop_that_never_touches_the_part_stops_the_report_before_its_stages(tmp_path):
+    """The controller believing the surface 0.15 m beyond where it is, with
+    the command f_d/K = 0.1 m past that belief, never touches the part at
+    any stiffness: there is no limit for the law comparison, the design or
+    the sweep to use. The report stopped with the analysis' error in its
+    fifth stage, after four stages had run (24 s for the paper's loop); it
+    now stops at the simulation that found no touch, before reporting any
+    stage: one line naming the key, exit 2, nothing written."""
+    out = tmp_path / "o"
+    r = make_report(out, "paper", "--set", "controller.x_e_error=-0.15", "--set", "trajectory.cycles=1")
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: controller.x_e_error: ") \
+        and "holds no contact at any stiffness" in lines[0], r.stderr
+    assert "[1/" not in r.stdout + r.stderr            # no stage was reported finished (progress: stderr)
+    assert not out.exists() and list(tmp_path.iterdir()) == []
