@@ -144,31 +144,36 @@ def test_sweep_case_limits_on_the_ur5_come_from_the_6d_loop():     # sweep limit
 
 # -- heavy: the UR5 scenario against bisection in the 6-D simulator -------------------------------------------------
 
-@pytest.mark.heavy      # compiles the arm's augmented monodromy step (~220,000 operations on the UR5, ~360,000
-@pytest.mark.parametrize("arm, guess", [("ur5", 1.4e5), ("panda", 1.4e5),   # on the Panda: 0.5-3 min) once;
-                                         ("ur5-pipe", 6e5)])      # the pipe: the normal turning (issue 40), the
-def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm, guess):   # mid-period hold's limit
-    """The built-in scenario (1 kHz, 4 s circle): the periodic limit against the simulated
-    6-D loop's own limit (first_contact.simulated_limit: runs at constant k_e started near
-    the orbit, converged if the difference between successive periods shrinks; bisection
-    to 0.1 %). 1 %: the tolerance of the PUMA's check; the simulated verdict is judged
-    from a decay ratio measured over five periods, whose resolution near the boundary
-    (per-period radius within ~1e-3 of 1) is a few tenths of a percent in k_e. The frozen
-    loop's smallest and largest limits over the path bracket the periodic one, and its
-    fixed points hold f_d exactly (the TMT's steady state, eqs. 23-24; on the Panda with
-    the null-space posture task balanced)."""
+# the arm's deciding limit (its periodic search: 10-40 s) is kept in the run's result cache, shared with the arm's
+# analyze and report tests; the pipe: the normal turning (issue 40), the mid-period hold's limit
+@pytest.mark.heavy
+@pytest.mark.parametrize("arm", ["ur5", "panda", "ur5-pipe"])
+def test_periodic_limit_matches_simulated_bisection_within_1_percent(arm):
+    """The built-in scenario (1 kHz, 4 s circle): the periodic limit that
+    ``analyze --scenario`` prints (``deciding_limit(sc).periodic``) against the
+    simulated 6-D loop's own limit (first_contact.simulated_limit: runs at
+    constant k_e started near the orbit, converged if the difference between
+    successive periods shrinks; bisection to 0.1 %). 1 %: the tolerance of
+    the PUMA's check; the simulated verdict is judged from a decay ratio
+    measured over five periods, whose resolution near the boundary
+    (per-period radius within ~1e-3 of 1) is a few tenths of a percent in
+    k_e. The frozen loop's smallest and largest limits over the path bracket
+    the periodic one, and its fixed points hold f_d exactly (the TMT's steady
+    state, eqs. 23-24; on the Panda with the null-space posture task
+    balanced)."""
     from tmtcontrol.stability.first_contact import LoopRunner, simulated_limit
-    from tmtcontrol.stability.periodic import PeriodicModel, periodic_limit
-    from tmtcontrol.stability.wholeloop import whole_loop_limit
+    from tmtcontrol.stability.limit import deciding_limit
+    from tmtcontrol.stability.wholeloop import WholeLoopModel
 
     sc = arm_scenario(arm)
-    mdl = PeriodicModel(sc)
-    frozen_min, points = whole_loop_limit(sc, points=8, rtol=1e-3, model=mdl.frozen, guess=guess)
-    frozen_max = max(l for _, l in points)
-    for t, _ in points[::3]:
-        w = mdl.frozen.at(frozen_min / 1.1, t)
+    lim = deciding_limit(sc)
+    assert lim.periodic_note is None                   # a periodic analysis ran (not the frozen minimum standing in)
+    predicted, frozen_min = lim.periodic, lim.whole_loop
+    frozen_max = max(l for _, l in lim.whole_loop_points)
+    frozen = WholeLoopModel(sc)
+    for t, _ in lim.whole_loop_points[::3]:
+        w = frozen.at(frozen_min / 1.1, t)
         assert w.residual < 1e-8 and w.f_eq == pytest.approx(sc.controller.f_d, abs=1e-7)
-    predicted = periodic_limit(sc, model=mdl, bracket=(frozen_min / 1.02, frozen_max * 1.02))
     assert frozen_min <= predicted * 1.001 and predicted <= frozen_max * 1.001
     simulated = simulated_limit(sc, predicted / 1.05, predicted * 1.05, rtol=1e-3, runner=LoopRunner(sc))
     assert predicted == pytest.approx(simulated, rel=0.01)
