@@ -226,3 +226,18 @@ def test_the_reports_free_axes_table_has_each_axis_its_gains_and_radius(sets, fa
     else:
         assert a["free_axes_note"] in text.text and failed in a["free_axes_note"] and "below 1" not in text.text
     assert _free_axes_blocks({}, sc) == []
+
+
+@pytest.mark.parametrize("rho, shown", [(1.0 + 3e-6, "1 + 3e-06"), (1.0, "1 + 0"), (1.25, "1.25"),
+                                        (1.00002, "1.00002")])
+def test_a_radius_within_1e_5_of_one_is_shown_as_its_distance_from_one(monkeypatch, rho, shown):
+    """The reason quotes the unstable free axis' spectral radius to 6 digits,
+    except within 1e-5 of 1, where 6 digits would print "1" for an unstable
+    axis: there it is written as 1 + its excess (2 digits). The fourteenth
+    mutation run (seed 14): replacing 1.0 by 2.0, or rho - 1 by rho + 1, in
+    that test went unnoticed."""
+    from tmtcontrol.stability import onedim
+
+    monkeypatch.setattr(onedim, "free_axes", lambda sc: [("tangential axis 1", 40.0, 900.0, rho)])
+    note = unstable_free_axis(load_scenario("paper"))
+    assert f"the tangential axis 1 alone has spectral radius {shown} at Ts = 0.001 s" in note, note
