@@ -146,3 +146,32 @@ def test_crosscheck_table_prints_both_plants_in_one_unit_and_digits():
     cells = line.split()
     for cell in ("4.00", "12.0", "40.0", "12.4", "0.500", "1.25", "8.00"):
         assert cell in cells
+
+
+@pytest.mark.parametrize("builtin, mujoco", [("converged", "limit_cycle"), ("limit_cycle", "converged"),
+                                             ("converged", "converged")])
+def test_the_plants_agree_only_where_their_verdicts_are_the_same(monkeypatch, builtin, mujoco):
+    """A segment agrees only if both plants' verdicts are equal (and their
+    steady forces within the tolerance): two runs with the same forces but
+    verdicts converged / limit_cycle disagree either way round. The
+    fourteenth mutation run (seed 14): ``a.verdict <= b.verdict`` for ``==``
+    went unnoticed ("converged" sorts before "limit_cycle"). MuJoCo's run is
+    the built-in one again (a distinct object, the same forces bit for bit),
+    each plant's verdict set by a stub of the segment metrics."""
+    import dataclasses
+
+    import tmtcontrol.simulation.metrics as metrics
+    import tmtcontrol.simulation.mujoco_plant as mp
+    from tmtcontrol.simulation.crosscheck import crosscheck
+    from tmtcontrol.simulation.simulator import Simulator
+
+    sc = apply_overrides(load_scenario("paper"), ["trajectory.cycles=0.25", "environment.stiffness.values=[5000.0]"])
+    other = dataclasses.replace(Simulator(sc).run())
+    monkeypatch.setattr(mp, "simulate_on_mujoco", lambda sc, max_steps=None: other)
+    judged = metrics.segment_metrics
+    monkeypatch.setattr(metrics, "segment_metrics", lambda res: [
+        dataclasses.replace(m, verdict=mujoco if res is other else builtin) for m in judged(res)])
+    c = crosscheck(sc)
+    assert c.segments and all(r["steady_force_difference"] == 0.0 for r in c.segments)
+    assert all((r["verdict_builtin"], r["verdict_mujoco"]) == (builtin, mujoco) for r in c.segments)
+    assert all(r["agree"] is (builtin == mujoco) for r in c.segments) and c.agree is (builtin == mujoco)
