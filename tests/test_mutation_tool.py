@@ -67,7 +67,8 @@ def test_wilson_interval_matches_scipy(tool, k, n):
                                      "mutation_tool_results_seed6.json", "mutation_tool_results_seed7.json",
                                      "mutation_tool_results_seed8.json", "mutation_tool_results_seed9.json",
                                      "mutation_tool_results_seed10.json", "mutation_tool_results_seed11.json",
-                                     "mutation_tool_results_seed12.json", "mutation_tool_results_seed13.json"])
+                                     "mutation_tool_results_seed12.json", "mutation_tool_results_seed13.json",
+                                     "mutation_tool_results_seed14.json"])
 def test_docs_table_is_the_committed_run(tool, results):
     doc = json.loads((ROOT / "benchmarks" / results).read_text())
     assert tool.markdown_table(doc) in (ROOT / "docs" / "testing.md").read_text()
