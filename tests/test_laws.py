@@ -130,11 +130,33 @@ def test_x_e_error_polynomial_is_checked_on_the_running_code():
 def test_generic_sampled_loop_matches_the_closed_form_tmt_model():
     # two independent implementations of the same sampled loop: the hand-written
     # 1-D model (stability.sampled) and the law's own CasADi update (stability.lawloop);
-    # both bisect to ~1e-4 relative, so they must agree to 5e-4
+    # both bisect to 1e-6 relative, so they must agree to 5e-6 (laws.md's claim; review 71: the
+    # law loop bisected to 1e-4 and the two were 9.2e-5 apart)
     for m_p, alpha in ((3.3, 0.0), (8.0, 0.5)):
         closed = max_stable_stiffness(1.0, 60.0, 100.0, 1e-3, m_p, alpha=alpha)
         generic = law_stiffness_limit(get_law("tmt"), **PAPER, Ts=1e-3, m_p=m_p, alpha=alpha)
-        assert generic == pytest.approx(closed, rel=5e-4)
+        assert generic == pytest.approx(closed, rel=5e-6)
+
+
+def test_a_nanometre_of_surface_error_does_not_move_the_printed_limit():
+    """With ``x_e_error`` the 1-D limit is the law's own loop (stability.lawloop), without it the
+    closed form: at 1 nm the two loops are the same to far below 1e-6, so the limits agree to
+    5e-6 (laws.md; review 71: 163,401.80 against 163,416.76 N/m, the law loop's bisection at
+    1e-4 relative)."""
+    from tmtcontrol.stability.onedim import scenario_stiffness_limit
+
+    closed = scenario_stiffness_limit(paper_scenario())
+    near = scenario_stiffness_limit(apply_overrides(paper_scenario(), ["controller.x_e_error=1e-9"]))
+    assert near == pytest.approx(closed, rel=5e-6)
+
+
+def test_analyze_refuses_a_law_without_a_linear_verdict_naming_the_scenarios_key(capsys):
+    """Review 71: ``analyze --scenario`` with rls named the function's argument ("law: ...")."""
+    from tmtcontrol.cli import main
+
+    assert main(["analyze", "--scenario", "paper", "--set", 'controller.law.kind="rls"']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: controller.law.kind: 'rls' has no linear stability verdict")
 
 
 def test_integral_sampled_limit_is_below_the_euler_bound():
@@ -570,3 +592,34 @@ def test_the_integrating_laws_wind_up_out_of_contact_as_the_docs_say():
     held = [float(get_law("tmt").update(y, {"force_threshold": 0.5, "min_stiffness": 100.0}, s)["x_r"])
             for _ in range(3)]
     assert held == [0.1, 0.1, 0.1]                                                  # x_e_hat + f_d/k, held
+
+
+def test_theory_pages_rate_figures_are_the_1d_limits_they_name():
+    """theory.md quotes the paper gains' 1-D limit at 1 kHz and 200 Hz to two digits; review 71: the
+    200 Hz figure (3.3e4) was the smaller mass' while the 1 kHz one was the worst mass'."""
+    import re
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "theory.md").read_text()
+    m = re.search(r"Paper gains at 1 kHz: stable up to ≈ ([0-9.e]+) N/m; at 200 Hz ≈ ([0-9.e]+) N/m", text)
+    assert m, "the sentence moved"
+    from tmtcontrol.stability.onedim import scenario_parameters
+
+    m_p = scenario_parameters(paper_scenario())["m_p_max"]             # the paper path's largest, kg
+    for quoted, Ts in ((m.group(1), 1e-3), (m.group(2), 5e-3)):
+        limit = max_stable_stiffness(1.0, 60.0, 100.0, Ts, m_p)
+        assert f"{limit:.1e}".replace("e+0", "e") == quoted, (Ts, limit)
+
+
+def test_compares_table_writes_never_only_for_a_settling_that_never_comes():
+    """Review 71: every column wrote a missing value (NaN) as "never"; only the settling time's
+    blank means that (the force never stays within 0.01 N of f_d), the others write "–"."""
+    import dataclasses
+
+    from tmtcontrol.simulation.compare import Comparison, LawRun, format_comparison
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.cycles=0.25", "environment.stiffness.values=[5000.0]"])
+    res = Simulator(sc).run()
+    seg = dataclasses.replace(segment_metrics(res)[0], peak_force=float("nan"), settling_time_10mN=float("nan"))
+    lines = format_comparison(Comparison(sc, {"tmt": LawRun("tmt", sc, res, [seg])})).splitlines()
+    assert lines[0].split()[:8] == ["law", "seg", "k_e", "(N/m)", "ss", "err", "(µN)", "peak"], lines
+    assert lines[-1].split()[4:6] == ["–", "never"], lines          # peak, then the settling time

@@ -417,7 +417,7 @@ def test_periodic_orbit_refuses_a_period_that_is_not_whole_samples():
 @pytest.mark.heavy          # 2.6-11 s on the 2026-12-07 machine (the README's command stays under 3 min)
 def test_first_contact_limit_at_minus_10_mm_within_2_percent_of_full_runs(paper_sim):
     """Issue 28 item 1: at delta = -10 mm the start locks into a contact limit cycle
-    from about 1.2e5 N/m, 20 % below the small-signal limit (143,812 N/m, the 1-D
+    from about 1.2e5 N/m, 20 % below the small-signal limit (143,816 N/m, the 1-D
     law loop). The short-run bisection (3 s runs) must lie within 2 % of what the
     scenario's own 16 s runs show: one settles at 0.98x, the other keeps cycling at
     1.02x."""
@@ -571,7 +571,7 @@ def test_scheduled_damping_limits_match_the_simulator():
 
 @pytest.mark.heavy
 def test_simulate_quotes_the_first_contact_limit_in_the_bistable_region(paper_sim, tmp_path, capsys):
-    """delta = -10 mm, k_e = 1.3e5 N/m: below the small-signal limit (1-D: 143,812
+    """delta = -10 mm, k_e = 1.3e5 N/m: below the small-signal limit (1-D: 143,816
     N/m) but above the first-contact one (~1.2e5, bracketed by the simulations of
     test_first_contact_limit_at_minus_10_mm_within_2_percent_of_full_runs): the run
     locks into a limit cycle and exits 1; the line quotes the loop's limit (first
@@ -1137,7 +1137,7 @@ def test_a_ramp_below_the_1d_figure_is_judged_by_the_deciding_limit_when_the_sur
         monkeypatch, tmp_path, capsys, x_e_error, code):
     """Review of issue 43: with a surface-location error the start is bistable
     and the deciding (first-contact) limit lies below the 1-D figure (the
-    paper at -10 mm: 119,656 against 143,812 N/m). A run that ramps to
+    paper at -10 mm: 119,656 against 143,816 N/m). A run that ramps to
     1.3e5 N/m, between the two, was called converged (exit 0) because the
     deciding limit was computed only above the 1-D figure, while analyze
     called 1.3e5 unstable. With the stub's figures (deciding 123,457, 1-D

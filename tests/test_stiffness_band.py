@@ -294,3 +294,20 @@ def test_a_sampling_resonance_window_ends_the_band():
     assert out["sampled_stable"] is False and out["max_stable_stiffness"] == pytest.approx(edge, rel=3e-6)
     # the paper's loop (m_p 3.7 kg) is unchanged: its first resonance, 3.7e7 N/m, is far above its limit
     assert max_stable_stiffness(M, B, K, TS, MP) < 0.01 * MP * (math.pi / TS) ** 2
+
+
+def test_the_band_stops_below_at_a_resonances_unstable_sliver():
+    """Review 71: at k_e = 3.652e7 N/m (m = 5, b = 10, k = 10, Ts = 1 ms, m_p = 3.7 kg), just above the
+    first sampling resonance m_p (pi/Ts)^2 = 3.6518e7 N/m, the loop is unstable on a sliver below it
+    (3.6488e7-3.6518e7 N/m, found by the reviewer's own model); the band's lower edge was searched
+    on the coarse grid only and went down through the sliver to 10 N/m. Checked here on a dense scan
+    of the sampled loop's radius: unstable just below the edge, stable from just above it to k_e."""
+    from tmtcontrol.stability.sampled import spectral_radius, stiffness_band
+
+    band = stiffness_band(5.0, 10.0, 10.0, 1e-3, 3.7, within=3.652e7)     # what analyze --ke 3.652e7 reports
+    lower = band.lower
+    rho = lambda ke: spectral_radius(5.0, 10.0, 10.0, ke, 1e-3, 3.7)
+    assert 3.648e7 < lower < 3.652e7 < band.upper
+    assert rho(lower * (1 - 1e-5)) >= 1.0                       # the sliver is just below the edge
+    assert all(rho(ke) < 1.0 for ke in np.geomspace(lower * (1 + 1e-5), 3.652e7, 40))
+    assert rho(3.6500e7) >= 1.0                                   # inside the sliver, as the review found

@@ -156,7 +156,7 @@ def format_comparison(cmp: Comparison) -> str:
 
     rows = [(name, i, s) for name, run in cmp.runs.items() for i, s in enumerate(run.segments, 1)]
 
-    def col(name, values, unit, sig=3, nan="never"):
+    def col(name, values, unit, sig=3, nan="–"):        # review 71: "never" was the blank of every column
         unit, cells = fmt.column(list(values) + [None] * n_bad, unit, sig)
         cells = [nan if c == "–" else c for c in cells[:len(rows)]] + [""] * n_bad
         return (f"{name} ({unit})" if unit else name, cells)
@@ -169,7 +169,7 @@ def format_comparison(cmp: Comparison) -> str:
         col("k_e", (s.stiffness for *_, s in rows), "N/m", 4),
         col("ss err", (s.steady_state_error for *_, s in rows), "N"),
         col("peak", (s.peak_force for *_, s in rows), "N"),
-        col("settle 10 mN", (s.settling_time_10mN for *_, s in rows), "s"),
+        col("settle 10 mN", (s.settling_time_10mN for *_, s in rows), "s", nan="never"),
         col("tang RMS", (s.tangential_rms for *_, s in rows), "m"),
         col("tol", (s.tolerance for *_, s in rows), "N"),
         ("verdict", [s.verdict for *_, s in rows] + [f"diverged: {err}" for _, err in bad])], left=(0, -1))

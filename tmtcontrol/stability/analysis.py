@@ -135,7 +135,7 @@ def analyze(m, b, k, f_d=10.0, k_e=None, k_e_min=None, k_e_max=None, Ts=None, m_
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **kw).spectral_radius
             else:
                 radius = lambda ke, mp: law_loop(lw, params, k_e=ke, m_p=mp, **{**kw, **bk(ke)}).spectral_radius
-                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, rtol=1e-4, within=lo, resonance=(mp, Ts))
+                bands = [stable_band(lambda ke: radius(ke, mp) < 1.0, within=lo, resonance=(mp, Ts))
                          for mp in masses]
             rho = max(radius(ke, mp) for ke in grid[::3] for mp in masses)
             model = "the law's 1-D loop (stability.lawloop)"
@@ -219,8 +219,13 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     the frozen-point minimum staying as the conservative bound. Every arm runs
     the same loop (its task declared by the robot), the 1-D model with the
     arm's effective normal mass along the path."""
+    from ..control.laws import get_law
     from ..simulation.environment import has_approach
 
+    kind = scenario.controller.law.kind
+    if not get_law(kind).linear_analysis:        # named by the scenario's key (review 71: "law: 'rls' ...")
+        raise AnalysisError(f"controller.law.kind: {kind!r} has no linear stability verdict (a continuum of "
+                            "equilibria); simulate, compare and sweep run it and judge its runs")
     p = scenario_parameters(scenario)
     bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,

@@ -223,7 +223,7 @@ def stiffness_sequence(law: Law, params: LawParameters | None, k_es, duration: f
 
 
 def law_stiffness_band(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
-                       k_hi: float = 1e9, rtol: float = 1e-4, within: float | None = None,
+                       k_hi: float = 1e9, rtol: float = 1e-6, within: float | None = None,
                        **kw) -> StiffnessBand:
     """The band of k_e (N/m) in which :func:`law_loop` is locally stable:
     ``stability.sampled.stable_band`` (a log grid from ``k_lo``, then
@@ -237,7 +237,7 @@ def law_stiffness_band(law: Law, params: LawParameters | None = None, *, k_lo: f
 
 
 def law_stiffness_limit(law: Law, params: LawParameters | None = None, *, k_lo: float = 10.0,
-                        k_hi: float = 1e9, rtol: float = 1e-4, within: float | None = None, **kw) -> float:
+                        k_hi: float = 1e9, rtol: float = 1e-6, within: float | None = None, **kw) -> float:
     """Largest k_e (N/m) for which :func:`law_loop` is locally stable: the
     ``limit`` of :func:`law_stiffness_band`, the upper edge of the stable
     band that contains ``within`` (default: of the lowest stable band from

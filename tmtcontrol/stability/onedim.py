@@ -112,7 +112,7 @@ def scenario_stiffness_limit(scenario, params: dict | None = None) -> float | No
     from .lawloop import law_loop
 
     return min(largest_stable(lambda ke: law_loop(law, scenario.controller.law, k_e=ke, m_p=mp,
-                                          **{**kw, **bk(ke)}).spectral_radius < 1.0, rtol=1e-4,
+                                          **{**kw, **bk(ke)}).spectral_radius < 1.0,
                               within=p["k_e_min"], resonance=(mp, p["Ts"]))
                for mp in (p["m_p_min"], p["m_p_max"]))
 

@@ -309,9 +309,9 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
     searched and the band above it. Grid points are evaluated lazily
     (downward from ``within`` and upward to the band's end), unless ``scan``,
     a vectorised ``stable`` (array in, boolean array out), gives the whole
-    grid at once. ``resonance = (m_p, Ts)`` (kg, s): below the band's upper
-    edge the sampling resonances are probed too (:func:`resonances`), and
-    the first unstable one ends the band. The package's one grid-and-bisection stiffness search:
+    grid at once. ``resonance = (m_p, Ts)`` (kg, s): between the seed and
+    each edge the sampling resonances are probed too (:func:`resonances`),
+    and the nearest unstable one ends the band. The package's one grid-and-bisection stiffness search:
     :func:`largest_stable`, :func:`max_stable_stiffness`,
     ``stability.lawloop.law_stiffness_limit`` and ``stability.analysis``
     call it."""
@@ -356,9 +356,31 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
         edge = _bisect_edge(stable, grid[i - 1] if i > 0 and ok(i - 1) else seed, grid[i], rtol)
         return edge if edge >= seed else _bisect_edge(stable, seed, grid[i], rtol)
 
+    def window_below(floor, seed):
+        # the last unstable resonance probe in (floor, seed) and the smallest stable point above it (review 71:
+        # a seed just above a resonance's unstable sliver took the band down through the sliver)
+        if resonance is None:
+            return None
+        probes = resonances(*resonance, floor, seed)
+        if not probes.size:
+            return None
+        flags = np.asarray(scan(probes), dtype=bool) if scan is not None else None
+        above = seed
+        for j in range(probes.size - 1, -1, -1):
+            kr = probes[j]
+            if not (flags[j] if flags is not None else stable(kr)):
+                return kr, min([above, *(g for g in grid[int(np.searchsorted(grid, kr, side="right")):]
+                                         if g < above)])
+            above = kr
+        return None
+
     def lower_edge(i0, seed):
-        # the first unstable grid point downward from index i0 (the last below the stable seed)
+        # the first unstable grid point downward from index i0 (the last below the stable seed), unless an
+        # unstable resonance lies between it and the seed
         i = next((i for i in range(i0, -1, -1) if not ok(i)), None)
+        hit = window_below(grid[i] if i is not None else start, seed)
+        if hit is not None:
+            return _bisect_edge(stable, hit[1], hit[0], rtol)
         if i is None:
             return start
         return _bisect_edge(stable, grid[i + 1] if i < i0 else seed, grid[i], rtol)
