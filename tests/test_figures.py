@@ -104,3 +104,27 @@ def test_the_path_figures_legend_covers_neither_its_title_nor_its_axes(paper_res
     box = leg.get_window_extent(r)
     assert not box.overlaps(ax.title.get_window_extent(r)) and not box.overlaps(ax.get_window_extent(r))
     assert box.y0 >= 0 and box.y1 <= fig.bbox.height                # inside the figure
+
+
+def test_a_run_that_never_touches_draws_its_force_figures_without_a_warning():
+    """Review 72: the force figure took its y range from the largest contact force alone, so a run
+    that never reaches the part set ylim(0, 0) and matplotlib's warning ("identical low and high
+    ylims") reached simulate's and report's output; the range now holds f_d too (a guarded approach
+    too short to reach the part)."""
+    import warnings
+
+    from tmtcontrol import apply_overrides, paper_scenario, Simulator
+    from tmtcontrol.simulation.compare import compare_laws
+    from tmtcontrol.simulation.figures import force_figure, save_comparison_figures
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.approach_gap=0.1", "trajectory.cycles=0.25"])
+    res = Simulator(sc).run()
+    assert not np.any(res.contact_force > 0)                     # the premise: no touch
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        low, high = force_figure(res).axes[0].get_ylim()
+        assert (low, high) == (-0.05, 1.08)                          # 1 N where no force is drawn
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as d:
+            save_comparison_figures(compare_laws(sc, ["tmt"]), d)

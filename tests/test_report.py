@@ -1025,3 +1025,15 @@ def test_a_loop_that_never_touches_the_part_stops_the_report_before_its_stages(t
         and "holds no contact at any stiffness" in lines[0], r.stderr
     assert "[1/" not in r.stdout + r.stderr            # no stage was reported finished (progress: stderr)
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_law_without_a_linear_verdict_is_refused_before_any_stage(tmp_path):
+    """Review 72: ``report --set controller.law.kind="rls"`` ran four stages (simulation, design,
+    the sweep, the continuous analysis) before the sampled-data stage refused the law: refused at
+    once, one line naming the key, exit 2, nothing written."""
+    out = tmp_path / "o"
+    r = make_report(out, "paper", "--set", 'controller.law.kind="rls"', "--format", "html")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("error: controller.law.kind: 'rls' has no linear stability verdict"), lines
+    assert not out.exists() and list(tmp_path.iterdir()) == []

@@ -89,8 +89,10 @@ def force_figure(res: SimulationResult | SimulationTraces) -> Figure:
     ax.plot(*envelope(res.time, res.contact_force), label="f_e")
     ax.plot(*envelope(res.time, res.desired_force), "k--", lw=1, label="f_d")
     ax.set(xlabel="time (s)", ylabel="normal force (N)", title="Force tracking (Fig. 4)")
-    top = float(np.max(res.contact_force))
-    ax.set_ylim(-0.05 * top, 1.08 * top)            # every peak visible; switch_figure zooms in
+    # every peak visible, and f_d; 1 N where both stay at 0 (review 72: a run that never touches set
+    # ylim(0, 0), a warning on the command's output); switch_figure zooms in
+    top = max(float(np.max(res.contact_force)), float(np.max(res.desired_force))) or 1.0
+    ax.set_ylim(-0.05 * top, 1.08 * top)
     ax.legend()
     ax.grid(True, alpha=0.3)
     return fixed_layout(fig)
@@ -298,7 +300,7 @@ def comparison_force_figure(cmp) -> Figure:
         time = runs[0].result.time
         peak = max(float(np.max(r.result.contact_force)) for r in runs)
         ax.plot(time[[0, -1]], [f_d, f_d], "k--", lw=0.8, label="f_d")
-        top = min(peak, 6 * f_d)
+        top = max(min(peak, 6 * f_d), f_d)           # f_d visible where no law touches (review 72)
         ax.set_ylim(-0.05 * top, 1.1 * top)
     ax.set(xlabel="time (s)", ylabel="normal force f_e (N)", title="Force tracking, all laws")
     ax.grid(True, alpha=0.3)
