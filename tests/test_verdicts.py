@@ -222,3 +222,21 @@ def test_a_rounding_touch_at_the_start_is_no_contact():
     assert 0 < r.contact_force.max() <= CONTACT_FLOOR * sc.controller.f_d        # the rounding, measured 9.8e-14 N
     (m,) = segment_metrics(r)
     assert (m.verdict, m.reason) == ("off_target", "no contact in the segment (the tool never reached the surface)")
+
+
+def test_a_segment_that_never_touches_reports_the_whole_f_d_as_its_error_and_never_settles():
+    """Review 72: a guarded approach too short to reach the part (0.1 m gap, a quarter cycle) has no
+    touch in its segment; its desired force is still the approach's 0 N, so |f_e - f_d| read 0 N
+    and the settling 0 s beside the verdict "no contact in the segment" (compare's row, simulate's
+    summary.json, the report's FAIL line "worst steady-state |f_e - f_d| 0 N"). Against the task's
+    f_d = 10 N and a force of 0 N the error is 10 N and the force never settles."""
+    import math
+
+    sc = apply_overrides(paper_scenario(), ["trajectory.approach_gap=0.1", "trajectory.cycles=0.25"])
+    res = Simulator(sc).run()
+    assert not np.any(res.contact_force > 0)                     # the premise: no touch at all
+    (m,) = segment_metrics(res)
+    assert m.verdict == "off_target" and "no contact in the segment" in m.reason
+    assert m.steady_state_error == m.max_steady_error == sc.controller.f_d
+    assert m.steady_rms_error == sc.controller.f_d
+    assert math.isnan(m.settling_time) and math.isnan(m.settling_time_10mN)

@@ -164,6 +164,8 @@ class SegmentMetrics:
       otherwise how far it rises above f_d (0 if it never crosses);
     * ``settling_time`` / ``settling_time_10mN``: from the segment start
       until |f_e - f_d| stays within 2 % of f_d / within 0.01 N (NaN: never);
+      f_d is the desired force, 0 during a guarded approach until the first
+      contact, but the scenario's f_d in a segment that never touches;
     * ``steady_state_error``: the largest |f_e - f_d| over the last quarter,
       ``steady_rms_error`` its RMS; ``max_steady_error`` = the former (kept
       for older summaries); ``tangential_rms``: RMS distance between X and
@@ -593,8 +595,12 @@ def segment_metrics(result: SimulationResult) -> list[SegmentMetrics]:
         jump = float(f[0] - (result.contact_force[i0 - 1] if i0 > 0 else 0.0))
         after = f[1:] if f.size > 1 else f
         overshoot = (max(0.0, f_d - float(after.min())) if f[0] > f_d else max(0.0, float(after.max()) - f_d))
-        ss_err = float(np.abs(err[ss]).max())
         touched = np.flatnonzero(touching(f, f_d))
+        if not touched.size:
+            # no touch in the segment: the desired force is still the approach's 0, but the task's is f_d (review
+            # 72: compare, simulate and the report read |f_e - f_d| = 0 N, settled at 0 s, beside "no contact")
+            err = f - f_d
+        ss_err = float(np.abs(err[ss]).max())
         lost = np.count_nonzero(~touching(f[touched[0]:], f_d)) if touched.size else f.size
         if twin_error is None:
             verdict, reason, tol = _judge(result, twin, i0, i1, periods)
