@@ -330,18 +330,22 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
         return known[i]
 
     def window(seed, bound):
-        # the first unstable resonance probe in (seed, bound) and the largest stable point below it
+        # the unstable resonance probe in (seed, bound) nearest the seed (bound above or below it) and the stable
+        # point nearest to that probe on the seed's side (review 71: below the seed too, where a seed just above a
+        # resonance's unstable sliver took the band down through the sliver)
         if resonance is None:
             return None
-        probes = resonances(*resonance, seed, bound)
+        probes = resonances(*resonance, min(seed, bound), max(seed, bound))
         if not probes.size:
             return None
         flags = np.asarray(scan(probes), dtype=bool) if scan is not None else None
-        below = seed
-        for j, kr in enumerate(probes):
+        near = seed
+        for j in (range(probes.size) if bound > seed else range(probes.size - 1, -1, -1)):
+            kr = probes[j]
             if not (flags[j] if flags is not None else stable(kr)):
-                return kr, max([below, *(g for g in grid[:int(np.searchsorted(grid, kr))] if g > below)])
-            below = kr
+                lo, hi = min(near, kr), max(near, kr)
+                return kr, min([near, *(g for g in grid if lo < g < hi)], key=lambda g: abs(g - kr))
+            near = kr
         return None
 
     def upper_edge(i0, seed):
@@ -356,29 +360,11 @@ def stable_band(stable, k_lo: float = 10.0, k_hi: float = 1e9, rtol: float = 1e-
         edge = _bisect_edge(stable, grid[i - 1] if i > 0 and ok(i - 1) else seed, grid[i], rtol)
         return edge if edge >= seed else _bisect_edge(stable, seed, grid[i], rtol)
 
-    def window_below(floor, seed):
-        # the last unstable resonance probe in (floor, seed) and the smallest stable point above it (review 71:
-        # a seed just above a resonance's unstable sliver took the band down through the sliver)
-        if resonance is None:
-            return None
-        probes = resonances(*resonance, floor, seed)
-        if not probes.size:
-            return None
-        flags = np.asarray(scan(probes), dtype=bool) if scan is not None else None
-        above = seed
-        for j in range(probes.size - 1, -1, -1):
-            kr = probes[j]
-            if not (flags[j] if flags is not None else stable(kr)):
-                return kr, min([above, *(g for g in grid[int(np.searchsorted(grid, kr, side="right")):]
-                                         if g < above)])
-            above = kr
-        return None
-
     def lower_edge(i0, seed):
         # the first unstable grid point downward from index i0 (the last below the stable seed), unless an
         # unstable resonance lies between it and the seed
         i = next((i for i in range(i0, -1, -1) if not ok(i)), None)
-        hit = window_below(grid[i] if i is not None else start, seed)
+        hit = window(seed, grid[i] if i is not None else start)
         if hit is not None:
             return _bisect_edge(stable, hit[1], hit[0], rtol)
         if i is None:
