@@ -1296,14 +1296,9 @@ def build_report(scenario: Scenario, command_line: str = "", progress: Callable 
 
     if plant not in ("builtin", "mujoco"):             # refused before anything is computed
         raise ValueError(f"plant: expected 'builtin' or 'mujoco', got {plant!r}")
-    from ..control.laws import get_law
-    from ..stability.continuous import AnalysisError
+    from ..stability.analysis import check_linear_verdict
 
-    kind = scenario.controller.law.kind
-    if not get_law(kind).linear_analysis:      # review 72: refused by the sampled-data stage, after four others
-        raise AnalysisError(f"controller.law.kind: {kind!r} has no linear stability verdict (a continuum of "
-                            "equilibria), which the report's stability sections need; simulate, compare and sweep "
-                            "run it")
+    check_linear_verdict(scenario)              # review 72: the sampled-data stage refused it after four others
     rep = Report(scenario, command_line or shlex.join(sys.argv))
     rep.data["provenance"] = provenance()
     # every stage counts the independent plant's among n (the eighteenth session: with MuJoCo the first

@@ -15,7 +15,8 @@ from .sampled import sampled_closed_loop, spectral_radius, stable_band, stiffnes
 
 __all__ = ["normal_masses", "scenario_stiffness_limit", "with_stiffness_limit", "deciding_limit", "ScenarioLimit",
            "periodic_note", "scenario_parameters", "paper_effective_mass", "analyze", "analysis_kwargs",
-           "analyze_scenario", "format_analysis", "closed_form_applies", "WHOLE_LOOP_RTOL"]
+           "analyze_scenario", "format_analysis", "closed_form_applies", "WHOLE_LOOP_RTOL",
+           "check_linear_verdict"]
 
 
 
@@ -204,6 +205,20 @@ def analysis_kwargs(p: dict) -> dict:
     return kw
 
 
+def check_linear_verdict(scenario) -> None:
+    """Raise :class:`AnalysisError`, naming ``controller.law.kind``, if the
+    scenario's law has no linear stability verdict (``rls``: a continuum of
+    equilibria), which ``analyze --scenario`` and the report need (review
+    71: the refusal named the function's argument ``law``; review 72: the
+    report met it after four stages)."""
+    from ..control.laws import get_law
+
+    kind = scenario.controller.law.kind
+    if not get_law(kind).linear_analysis:
+        raise AnalysisError(f"controller.law.kind: {kind!r} has no linear stability verdict (a continuum of "
+                            "equilibria); simulate, compare and sweep run it and judge its runs")
+
+
 def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     """:func:`analyze` for a scenario (its law parameters included), plus
     the whole-loop linearisation (``stability.wholeloop``): the limit at
@@ -219,13 +234,9 @@ def analyze_scenario(scenario, points: int = 8, limits: bool = False) -> dict:
     the frozen-point minimum staying as the conservative bound. Every arm runs
     the same loop (its task declared by the robot), the 1-D model with the
     arm's effective normal mass along the path."""
-    from ..control.laws import get_law
     from ..simulation.environment import has_approach
 
-    kind = scenario.controller.law.kind
-    if not get_law(kind).linear_analysis:        # named by the scenario's key (review 71: "law: 'rls' ...")
-        raise AnalysisError(f"controller.law.kind: {kind!r} has no linear stability verdict (a continuum of "
-                            "equilibria); simulate, compare and sweep run it and judge its runs")
+    check_linear_verdict(scenario)
     p = scenario_parameters(scenario)
     bk = scheduled_damping(scenario, p["m"])
     out = analyze(**analysis_kwargs(p), law_params=scenario.controller.law,
